@@ -1,0 +1,24 @@
+# isokinetic: steady hydraulic damper characteristics from piecewise constant velocity tests.
+# This file only sets up and includes; the stages live in workflow/rules/<stage>.smk.
+
+from snakemake.utils import min_version
+
+min_version("9.0")
+
+
+configfile: "config/config.yaml"
+
+
+include: "workflow/rules/common.smk"
+include: "workflow/rules/virtual_rig.smk"
+include: "workflow/rules/ingest.smk"
+include: "workflow/rules/validate.smk"
+include: "workflow/rules/windows.smk"
+include: "workflow/rules/repeatability.smk"
+include: "workflow/rules/characteristic.smk"
+include: "workflow/rules/figures.smk"
+
+
+rule all:
+    input:
+        all_outputs(),

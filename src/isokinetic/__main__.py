@@ -1,0 +1,61 @@
+"""Command line: ``python -m isokinetic <command> ...``.
+
+Commands are registered in :func:`build_parser`; each sets ``func(args) -> int``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import yaml
+
+
+def _export_virtual(args: argparse.Namespace) -> int:
+    """Export a config virtual campaign as a raw campaign folder (raw-campaign-format.md)."""
+    from .virtual_rig import VirtualCampaign, export_raw_campaign
+
+    config = yaml.safe_load(Path(args.config).read_text(encoding="utf-8")) or {}
+    campaigns = config.get("virtual_campaigns") or {}
+    if args.campaign not in campaigns:
+        raise KeyError(f"{args.config}: virtual_campaigns has no campaign {args.campaign!r}; "
+                       f"known: {sorted(campaigns)}")
+    vc = VirtualCampaign.from_config(args.campaign, campaigns[args.campaign])
+    cases = None if args.cases is None else [c.strip() for c in args.cases.split(",") if c.strip()]
+    out = export_raw_campaign(vc, args.out, cases=cases, sample_rate_Hz=args.sample_rate_Hz, name=args.name)
+    print(f"wrote {out}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="isokinetic", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True, metavar="command")
+
+    p = sub.add_parser("export-virtual", help="write a simulated campaign in the raw campaign format",
+                       description=_export_virtual.__doc__)
+    p.add_argument("--config", required=True, help="config YAML with a virtual_campaigns block")
+    p.add_argument("--campaign", required=True, help="name of the virtual campaign in the config")
+    p.add_argument("--out", required=True,
+                   help="campaign folder to create, e.g. data/raw/<name> (must not exist or be empty)")
+    p.add_argument("--cases", help="comma-separated case ids, e.g. T04,T12,T22,H01 (default: all)")
+    p.add_argument("--sample-rate-Hz", type=float, dest="sample_rate_Hz",
+                   help="simulate every selected case at this sample rate")
+    p.add_argument("--name", help="campaign id written to campaign.yaml; must equal the --out folder name "
+                                  "(default: that folder name)")
+    p.set_defaults(func=_export_virtual)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except (KeyError, ValueError, FileExistsError, FileNotFoundError) as exc:
+        msg = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
+        print(f"isokinetic {args.command}: error: {msg}", file=sys.stderr)
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,137 @@
+"""Column contracts of every table the pipeline writes, as pandera schemas.
+
+Each stage validates what it writes (``validate_table``); a schema failure there is a bug in
+the pipeline, not bad input. Bad *input* is caught by :mod:`isokinetic.validate` and
+quarantined case by case.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+import pandera.pandas as pa
+from pandera import Check
+
+from .plan import WAVEFORMS
+
+STATUS = ("ok", "quarantined")
+DIRECTIONS = ("+", "-")
+
+_finite = Check(lambda s: pd.Series(pd.to_numeric(s, errors="coerce")).abs() < float("inf"), name="finite")
+
+
+def _increasing(s: pd.Series) -> pd.Series:
+    """Element-wise: each value above its predecessor (the first sample passes)."""
+    return s.diff().fillna(1.0) > 0
+
+
+#: Canonical time series of one case: one Parquet file per case, rows as in the raw file.
+TIMESERIES = pa.DataFrameSchema(
+    {
+        "row": pa.Column("int64", Check.ge(0)),
+        "time_s": pa.Column("float64", [_finite, Check(_increasing, name="time_increasing")]),
+        "displacement_m": pa.Column("float64", _finite),
+        "force_N": pa.Column("float64", _finite),
+        "command_m": pa.Column("float64", _finite, required=False),
+    },
+    strict=False,
+    name="timeseries",
+)
+
+#: One row per planned case of a campaign, with its source and status.
+CASES = pa.DataFrameSchema(
+    {
+        "campaign": pa.Column(str),
+        "case": pa.Column(str, unique=True),
+        "waveform": pa.Column(str, Check.isin(WAVEFORMS)),
+        "sample_rate_Hz": pa.Column("float64", Check.gt(0)),
+        "amplitude_m": pa.Column("float64", nullable=True),
+        "period_s": pa.Column("float64", nullable=True),
+        "frequency_Hz": pa.Column("float64", nullable=True),
+        "phase_rad": pa.Column("float64", nullable=True),
+        "duration_s": pa.Column("float64", nullable=True),
+        "raw_file": pa.Column(str),
+        "raw_sha256": pa.Column(str),
+        "timeseries_file": pa.Column(str),
+        "n_samples": pa.Column("int64", Check.ge(0)),
+        "status": pa.Column(str, Check.isin(STATUS)),
+    },
+    strict=False,
+    name="cases",
+)
+
+#: Cases set aside, each with the reason naming campaign, case, column and first bad row.
+QUARANTINE = pa.DataFrameSchema(
+    {
+        "campaign": pa.Column(str),
+        "case": pa.Column(str),
+        "stage": pa.Column(str),
+        "column": pa.Column(str),
+        "row": pa.Column("Int64", nullable=True),
+        "reason": pa.Column(str),
+    },
+    strict=True,
+    name="quarantine",
+)
+
+_WINDOW_COLUMNS = {
+    "campaign": pa.Column(str),
+    "case": pa.Column(str),
+    "segment": pa.Column("int64", Check.isin([1, 2, 3, 4])),
+    "direction": pa.Column(str, Check.isin(DIRECTIONS)),
+    "period": pa.Column("int64", Check.isin([1, 2])),
+    "planned_velocity_m_s": pa.Column("float64"),
+    "velocity_m_s": pa.Column("float64", _finite),
+    "force_N": pa.Column("float64", _finite),
+    "force_std_N": pa.Column("float64", Check.ge(0)),
+    "n_samples": pa.Column("int64", Check.ge(2)),
+    "window_start_s": pa.Column("float64"),
+    "window_end_s": pa.Column("float64"),
+    "row_start": pa.Column("int64", Check.ge(0)),
+    "row_stop": pa.Column("int64", Check.ge(0)),
+    "raw_file": pa.Column(str),
+    "raw_sha256": pa.Column(str),
+}
+
+#: One row per constant-velocity window (item 7): four per triangle case.
+WINDOWS = pa.DataFrameSchema(
+    _WINDOW_COLUMNS,
+    checks=[Check(lambda df: df["row_stop"] > df["row_start"], name="row_range")],
+    strict=False,
+    name="windows",
+)
+
+#: Period 1 against period 2 for each case and direction (item 8).
+REPEATABILITY = pa.DataFrameSchema(
+    {
+        "campaign": pa.Column(str),
+        "case": pa.Column(str),
+        "direction": pa.Column(str, Check.isin(DIRECTIONS)),
+        "velocity_m_s": pa.Column("float64"),
+        "force_period1_N": pa.Column("float64"),
+        "force_period2_N": pa.Column("float64"),
+        "rel_diff": pa.Column("float64"),
+        "tolerance": pa.Column("float64", Check.gt(0)),
+        "flagged": pa.Column(bool),
+    },
+    strict=False,
+    name="repeatability",
+)
+
+#: The steady characteristic (item 9): the windows with their repeatability flag.
+CHARACTERISTIC = pa.DataFrameSchema(
+    {**_WINDOW_COLUMNS, "repeatability_flagged": pa.Column(bool)},
+    strict=False,
+    name="characteristic",
+)
+
+
+def validate_table(df: pd.DataFrame, schema: pa.DataFrameSchema) -> pd.DataFrame:
+    """Validate a table the pipeline is about to write (all failures reported at once)."""
+    return schema.validate(df, lazy=True)
+
+
+def empty(schema: pa.DataFrameSchema) -> pd.DataFrame:
+    """An empty frame with the schema's required columns and dtypes."""
+    cols = {name: pd.Series(dtype=("object" if col.dtype is None or str(col.dtype) == "str" else str(col.dtype)))
+            for name, col in schema.columns.items() if col.required}
+    return pd.DataFrame(cols)

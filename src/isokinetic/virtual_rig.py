@@ -1,0 +1,1064 @@
+"""Virtual test rig: simulated triangle and sine campaigns of a compressible two-chamber damper.
+
+Equation numbers refer to the reference paper (shared/reference/000_003c8e4a5d3ba538.txt).
+
+Physics (noise free)
+    Single state Δp = p1 - p2 (Eq. 1/2): β_eff 𝒱(y) dΔp/dt + Q_N(Δp) = A_p dy/dt, with the chamber
+    volumes V1 = V0,1 - A_p y, V2 = V0,2 + A_p y following the *piston* position y (Eq. 2), β_eff
+    from Eq. (3) with entrained air, and Q_N the orifice of Eq. (7) (laminar c1, turbulent c2 with the
+    asymmetric C_D(1 ± a) chosen by the sign of Δp) in parallel with a laminar leakage Q_L = g Δp.
+    The force is Eq. (8) with a massless piston: F = A_p Δp + F_f(dy/dt) (Coulomb + Stribeck).
+    y = 0 is the position where the chamber volumes are V0,1 and V0,2 (the centre of the stroke).
+
+Backlash
+    ``Effects.backlash_m`` = b is a play operator between the actuator x (which follows the command
+    exactly; the LVDT measures x) and the piston y: y stays in [x - b/2, x + b/2] and only moves
+    when the actuator pushes it at one edge of the gap. While the gap is crossed the piston stands
+    still (W = 0) and Δp relaxes through the flow paths; the load cell is assumed to keep reading
+    A_p Δp (friction is sign(0) = 0 there), i.e. the piston is held by its seals, not floating.
+    At the start of a record the piston sits at the far side of the gap (as after a reversal), so
+    the first motion also crosses the whole gap. Records start from rest with Δp(0) = 0.
+
+Triangle excitation: quadrature, not a time stepper
+    Within a segment of constant piston velocity W (W = 0 while crossing the gap) Eq. (13)
+    separates: dΔp/dτ = A_p W - Q_N(Δp) with τ(t) = ∫ dt / (β_eff 𝒱(y(t))) in closed form
+    (Eq. 14, written with log1p; Δt / (β_eff 𝒱) when W = 0). The autonomous problem is integrated
+    once per segment in the *orifice flow* q (Δp = c1 q + c2 q|q| is polynomial in q, whereas q(Δp)
+    has a square-root branch point at Δp = -c1²/4c2 right next to 0) with the log variable
+    u = ln|q* - q| (q* the steady root), which turns the logarithmic singularity of τ at q* into a
+    smooth, asymptotically linear integrand. Gauss-Legendre panels give τ at nodes in u (nodes
+    graded towards q = 0, where c2 switches and the flow regime changes within |q| ~ c1/2c2), and
+    Δp(τ) is evaluated for all samples at once by quintic Hermite interpolation with the exact
+    derivatives dΔp/dτ = A_p W - Q_N and d²Δp/dτ². Beyond the last node (|q - q*| < 1e-17 of the
+    scale) Δp = Δp* exactly. Segments are chained with Δp continuous; the tables of all segments
+    of all cases are built in one vectorised pass (:func:`triangle_responses`). Max error ~4e-11 of
+    the force scale against a DOP853 rtol 1e-13 solution (benchmark/virtual_rig_throughput.py).
+
+Sine excitation
+    Stiff integration with ``scipy.integrate.solve_ivp`` (LSODA, analytic Jacobian, rtol 1e-12:
+    ~2e-10 relative to a Radau rtol 1e-13 solution, an order of magnitude faster than Radau at
+    equal accuracy), split at every velocity discontinuity (turning points, gap contacts), t_eval
+    at the samples.
+
+Measurement
+    Seeded Gaussian noise, independent per case (``SeedSequence([seed, crc32(case)])``): LVDT noise
+    on the actuator position, additive plus |F|-proportional noise on the force (Fig. 12). Every
+    channel is then quantised to a stated resolution (ADC step), so the exported CSV prints exact
+    decimals and reading it back reproduces the simulated series to float rounding.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+import os
+import re
+import shutil
+import tempfile
+import zlib
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from decimal import Decimal
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+from scipy.integrate import solve_ivp
+
+from . import tables
+from .campaign import CAMPAIGN_KEYS, timeseries_relpath, write_ingested
+from .damper import (NOMINAL, Damper, Effects, effective_compressibility, friction_force,
+                     laminar_coefficient, turbulent_coefficient)
+from .plan import CasePlan, paper_plan, sine_displacement, triangle_displacement
+
+#: Campaign names allowed by the raw-campaign spec.
+CAMPAIGN_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*\Z")
+
+#: CSV columns of an exported case: (column name, unit, SI per unit).
+RAW_COLUMNS = {
+    "time": ("time_s", "s", 1.0),
+    "displacement": ("disp_mm", "mm", 1.0e-3),
+    "force": ("force_kN", "kN", 1.0e3),
+    "command": ("cmd_mm", "mm", 1.0e-3),
+}
+
+
+# --------------------------------------------------------------------------------------------
+# Configuration
+# --------------------------------------------------------------------------------------------
+
+def _number(value, key: str, *, positive: bool = False, nonnegative: bool = False) -> float:
+    """A finite float from config, else ValueError naming ``key``."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise ValueError(f"{key}: must be a finite number, got {value!r}")
+    if positive and value <= 0:
+        raise ValueError(f"{key}: must be > 0, got {value!r}")
+    if nonnegative and value < 0:
+        raise ValueError(f"{key}: must be >= 0, got {value!r}")
+    return float(value)
+
+
+def _mapping(value, key: str) -> Mapping:
+    if not isinstance(value, Mapping):
+        raise ValueError(f"{key}: must be a mapping, got {type(value).__name__}")
+    return value
+
+
+def _check_keys(values: Mapping, allowed: Iterable[str], required: Iterable[str], where: str) -> None:
+    allowed = set(allowed)
+    for key in values:
+        if key not in allowed:
+            raise KeyError(f"{where}: unknown key {key!r}; allowed: {sorted(allowed)}")
+    for key in required:
+        if key not in values:
+            raise KeyError(f"{where}: missing key {key!r}")
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """Sensor model of the rig (1σ noise levels and ADC resolutions, SI).
+
+    Resolutions quantise the *measured* channels (and the command) to integer multiples of the
+    step; 0 disables quantisation. A resolution must be a short decimal in the export unit
+    (e.g. 0.1 N = 1e-4 kN) so that the CSV prints it exactly.
+    """
+
+    force_noise_N: float = 0.0
+    force_noise_rel: float = 0.0
+    displacement_noise_m: float = 0.0
+    force_resolution_N: float = 0.1
+    displacement_resolution_m: float = 1.0e-7
+    command_resolution_m: float = 1.0e-9
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            _number(getattr(self, f.name), f"measurement.{f.name}", nonnegative=True)
+
+    @classmethod
+    def ideal(cls) -> "Measurement":
+        """Noise free and unquantised (for physics checks)."""
+        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+
+    @classmethod
+    def from_config(cls, values: Mapping | None, where: str = "measurement") -> "Measurement":
+        """Build from the config block; unknown keys raise KeyError naming the key."""
+        values = _mapping(values or {}, where)
+        names = [f.name for f in dataclasses.fields(cls)]
+        _check_keys(values, names, (), where)
+        return cls(**{k: _number(v, f"{where}.{k}", nonnegative=True) for k, v in values.items()})
+
+
+@dataclass(frozen=True)
+class VirtualCampaign:
+    """One simulated campaign: nominal damper, hidden truth effects, sensors and test plan."""
+
+    name: str
+    description: str
+    seed: int
+    temperature_C: float
+    damper: Damper
+    effects: Effects
+    measurement: Measurement
+    cases: tuple[CasePlan, ...]
+
+    def case(self, case_id: str) -> CasePlan:
+        for c in self.cases:
+            if c.case == case_id:
+                return c
+        raise KeyError(f"campaign {self.name}: unknown case {case_id!r}; known: {[c.case for c in self.cases]}")
+
+    @classmethod
+    def from_config(cls, name: str, mapping: Mapping) -> "VirtualCampaign":
+        """Parse one entry of ``virtual_campaigns`` (config/config.yaml); mm -> m here.
+
+        Errors (KeyError / ValueError) name the offending key as ``virtual_campaigns.<name>.<key>``.
+        """
+        where = f"virtual_campaigns.{name}"
+        if not isinstance(name, str) or not CAMPAIGN_NAME.match(name):
+            raise ValueError(f"{where}: campaign name must match [a-z0-9][a-z0-9_-]*")
+        mapping = _mapping(mapping, where)
+        _check_keys(mapping, ("description", "seed", "temperature_C", "damper", "effects", "measurement", "plan"),
+                    ("seed", "temperature_C", "damper", "plan"), where)
+        seed = mapping["seed"]
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ValueError(f"{where}.seed: must be a non-negative integer, got {seed!r}")
+        description = mapping.get("description", "") or ""
+        if not isinstance(description, str):
+            raise ValueError(f"{where}.description: must be a string")
+        try:
+            damper = Damper.from_mapping(_mapping(mapping["damper"], f"{where}.damper"))
+        except (KeyError, ValueError) as exc:
+            raise type(exc)(f"{where}.{exc.args[0]}") from exc
+        extra = set(_mapping(mapping["damper"], f"{where}.damper")) - {f.name for f in dataclasses.fields(Damper)}
+        if extra:
+            raise KeyError(f"{where}.damper: unknown key {sorted(extra)[0]!r}")
+        groups = _mapping(mapping.get("effects") or {}, f"{where}.effects")
+        for group, values in groups.items():
+            for key, value in _mapping(values or {}, f"{where}.effects.{group}").items():
+                _number(value, f"{where}.effects.{group}.{key}")
+        try:
+            effects = Effects.from_config(groups)
+        except KeyError as exc:
+            raise KeyError(f"{where}.{exc.args[0]}") from exc
+        measurement = Measurement.from_config(mapping.get("measurement"), f"{where}.measurement")
+        cases = _plan_from_config(_mapping(mapping["plan"], f"{where}.plan"), f"{where}.plan")
+        return cls(name=name, description=description.strip(), seed=seed,
+                   temperature_C=_number(mapping["temperature_C"], f"{where}.temperature_C"),
+                   damper=damper, effects=effects, measurement=measurement, cases=tuple(cases))
+
+
+def _number_list(values, key: str) -> list[float]:
+    if not isinstance(values, (list, tuple)) or not values:
+        raise ValueError(f"{key}: must be a non-empty list")
+    return [_number(v, f"{key}[{i}]", positive=True) for i, v in enumerate(values)]
+
+
+def _plan_from_config(plan: Mapping, where: str) -> list[CasePlan]:
+    """Cases of a ``plan`` block via :func:`plan.paper_plan` (mm -> m)."""
+    _check_keys(plan, ("triangle", "sine"), (), where)
+    if not plan:
+        raise KeyError(f"{where}: needs a 'triangle' and/or a 'sine' block")
+    velocities, periods, tri_rate, phase, acq = [], [], 1.0, -math.pi / 2, 2.0
+    if "triangle" in plan:
+        w = f"{where}.triangle"
+        tri = _mapping(plan["triangle"], w)
+        _check_keys(tri, ("velocities_mm_s", "periods_s", "phase_rad", "acquisition_periods", "sample_rate_Hz"),
+                    ("velocities_mm_s", "periods_s", "sample_rate_Hz"), w)
+        velocities = [v * 1e-3 for v in _number_list(tri["velocities_mm_s"], f"{w}.velocities_mm_s")]
+        periods = _number_list(tri["periods_s"], f"{w}.periods_s")
+        if len(periods) != len(velocities):
+            raise ValueError(f"{w}.periods_s: {len(periods)} periods for {len(velocities)} velocities")
+        tri_rate = _number(tri["sample_rate_Hz"], f"{w}.sample_rate_Hz", positive=True)
+        phase = _number(tri.get("phase_rad", phase), f"{w}.phase_rad")
+        acq = _number(tri.get("acquisition_periods", acq), f"{w}.acquisition_periods", positive=True)
+    amplitudes, freq, sine_rate, sine_periods = [], 1.0, 1.0, 1.0
+    if "sine" in plan:
+        w = f"{where}.sine"
+        sine = _mapping(plan["sine"], w)
+        _check_keys(sine, ("frequency_Hz", "amplitudes_mm", "periods", "sample_rate_Hz"),
+                    ("frequency_Hz", "amplitudes_mm", "periods", "sample_rate_Hz"), w)
+        amplitudes = [a * 1e-3 for a in _number_list(sine["amplitudes_mm"], f"{w}.amplitudes_mm")]
+        freq = _number(sine["frequency_Hz"], f"{w}.frequency_Hz", positive=True)
+        sine_rate = _number(sine["sample_rate_Hz"], f"{w}.sample_rate_Hz", positive=True)
+        sine_periods = _number(sine["periods"], f"{w}.periods", positive=True)
+    return paper_plan(velocities, periods, amplitudes, freq, tri_rate, sine_rate, sine_periods,
+                      phase_rad=phase, acquisition_periods=acq)
+
+
+# --------------------------------------------------------------------------------------------
+# Hydraulics (noise free)
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Hydraulics:
+    """Coefficients of the single-state model, Eq. (1)-(3), (7) plus leakage, SI.
+
+    ``turbulent_coefficient_pos``/``_neg`` are c2 for Δp > 0 / Δp < 0 (asymmetric C_D). c1 = 0
+    (pure turbulent) or c2 = 0 (pure laminar) are allowed, not both.
+    """
+
+    piston_area_m2: float
+    chamber_volume_1_m3: float
+    chamber_volume_2_m3: float
+    compressibility_1_Pa: float
+    laminar_coefficient: float
+    turbulent_coefficient_pos: float
+    turbulent_coefficient_neg: float
+    leakage_conductance_m3_s_Pa: float = 0.0
+
+    def __post_init__(self):
+        if self.laminar_coefficient < 0 or self.turbulent_coefficient_pos < 0 or self.turbulent_coefficient_neg < 0:
+            raise ValueError("hydraulics: c1 and c2 must be >= 0")
+        if self.laminar_coefficient == 0 and min(self.turbulent_coefficient_pos, self.turbulent_coefficient_neg) == 0:
+            raise ValueError("hydraulics: c1 = 0 needs c2 > 0 in both directions")
+        if self.leakage_conductance_m3_s_Pa < 0:
+            raise ValueError("hydraulics: leakage conductance must be >= 0")
+
+    @classmethod
+    def from_damper(cls, damper: Damper, effects: Effects = NOMINAL) -> "Hydraulics":
+        """Truth coefficients: Table 1 data with the effects (Eq. 3, 7, leakage, asymmetry)."""
+        return cls(piston_area_m2=damper.piston_area_m2,
+                   chamber_volume_1_m3=damper.chamber_volume_1_m3,
+                   chamber_volume_2_m3=damper.chamber_volume_2_m3,
+                   compressibility_1_Pa=float(effective_compressibility(damper, effects)),
+                   laminar_coefficient=float(laminar_coefficient(damper, effects)),
+                   turbulent_coefficient_pos=float(turbulent_coefficient(damper, effects, +1.0)),
+                   turbulent_coefficient_neg=float(turbulent_coefficient(damper, effects, -1.0)),
+                   leakage_conductance_m3_s_Pa=effects.leakage_conductance_m3_s_Pa)
+
+    def c2(self, sign):
+        """c2 of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
+        if isinstance(sign, (float, int)):
+            return self.turbulent_coefficient_pos if sign >= 0 else self.turbulent_coefficient_neg
+        return np.where(np.asarray(sign) >= 0, self.turbulent_coefficient_pos, self.turbulent_coefficient_neg)
+
+
+def orifice_pressure_of_flow(q_m3_s, hyd: Hydraulics):
+    """Δp = c1 q + c2± q|q| for orifice flow q, Eq. (7) [Pa]."""
+    q = np.asarray(q_m3_s, dtype=float)
+    return hyd.laminar_coefficient * q + hyd.c2(q) * q * np.abs(q)
+
+
+def orifice_flow_of_pressure(dp_Pa, hyd: Hydraulics):
+    """Orifice flow q(Δp), Eq. (7) with the direction's c2, cancellation free [m³/s]."""
+    dp = np.asarray(dp_Pa, dtype=float)
+    a = np.abs(dp)
+    c1, c2 = hyd.laminar_coefficient, hyd.c2(dp)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = np.where(a > 0, 2.0 * a / (c1 + np.sqrt(c1 * c1 + 4.0 * c2 * a)), 0.0)
+    return np.sign(dp) * q
+
+
+def total_flow(dp_Pa, hyd: Hydraulics):
+    """Q_N(Δp) = orifice (Eq. 7) + leakage g Δp [m³/s]."""
+    dp = np.asarray(dp_Pa, dtype=float)
+    return orifice_flow_of_pressure(dp, hyd) + hyd.leakage_conductance_m3_s_Pa * dp
+
+
+def steady_orifice_flow(piston_flow_m3_s: float, hyd: Hydraulics) -> float:
+    """Orifice flow q* of the incompressible steady state, q + g Δp(q) = A_p W (Eq. 2, 24) [m³/s]."""
+    qp = float(piston_flow_m3_s)
+    if qp == 0.0:
+        return 0.0
+    g, c1, c2 = hyd.leakage_conductance_m3_s_Pa, hyd.laminar_coefficient, float(hyd.c2(qp))
+    b = 1.0 + g * c1
+    return math.copysign(2.0 * abs(qp) / (b + math.sqrt(b * b + 4.0 * g * c2 * abs(qp))), qp)
+
+
+def steady_pressure(piston_flow_m3_s: float, hyd: Hydraulics) -> float:
+    """Incompressible steady Δp for piston flow A_p W: Eq. (24) with leakage and asymmetry [Pa]."""
+    return float(orifice_pressure_of_flow(steady_orifice_flow(piston_flow_m3_s, hyd), hyd))
+
+
+def compressibility_time(dt_s, y_start_m: float, velocity_m_s: float, hyd: Hydraulics):
+    """τ = ∫ dt / (β_eff 𝒱(y)) over a constant-velocity segment, Eq. (14) [Pa/(m³/s)].
+
+    ln(V2/V2,s) - ln(V1/V1,s) divided by β A_p W, written with log1p (exact as W -> 0);
+    Δt / (β 𝒱(y_s)) when W = 0.
+    """
+    dt = np.asarray(dt_s, dtype=float)
+    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
+    v1 = hyd.chamber_volume_1_m3 - a * y_start_m
+    v2 = hyd.chamber_volume_2_m3 + a * y_start_m
+    if velocity_m_s == 0.0:
+        return dt * (1.0 / v1 + 1.0 / v2) / beta
+    qp = a * velocity_m_s
+    return (np.log1p(qp * dt / v2) - np.log1p(-qp * dt / v1)) / (beta * qp)
+
+
+#: Default panel width in u (see :func:`relaxations`): max error ~4e-11 of the pressure scale.
+DEFAULT_STEP = 0.03
+
+#: Gauss-Legendre rule used on every panel in u.
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
+
+
+def _panel_coefficients(h, y0, y1, d0, d1, dd0, dd1) -> np.ndarray:
+    """Quintic Hermite polynomial on each panel in s ∈ [0, 1] (ascending powers, shape (n, 6)).
+
+    Values y, first derivatives d and second derivatives dd (in τ) at both ends, panel width h;
+    cubic Hermite where a second derivative is not finite.
+    """
+    m0, m1 = h * d0, h * d1
+    with np.errstate(invalid="ignore"):
+        a0, a1 = h * h * dd0, h * h * dd1
+    quintic = np.isfinite(a0) & np.isfinite(a1)
+    a0, a1 = np.where(quintic, a0, 0.0), np.where(quintic, a1, 0.0)
+    dy = y1 - y0
+    coef = np.empty((h.size, 6))
+    coef[:, 0], coef[:, 1], coef[:, 2] = y0, m0, 0.5 * a0
+    coef[:, 3] = 10 * dy - 6 * m0 - 4 * m1 - 1.5 * a0 + 0.5 * a1
+    coef[:, 4] = -15 * dy + 8 * m0 + 7 * m1 + 1.5 * a0 - a1
+    coef[:, 5] = 6 * dy - 3 * m0 - 3 * m1 - 0.5 * a0 + 0.5 * a1
+    cubic = ~quintic
+    if cubic.any():
+        coef[cubic, 2] = 3 * dy[cubic] - 2 * m0[cubic] - m1[cubic]
+        coef[cubic, 3] = -2 * dy[cubic] + m0[cubic] + m1[cubic]
+        coef[cubic, 4:] = 0.0
+    return coef
+
+
+@dataclass(frozen=True)
+class Relaxation:
+    """Δp(τ) of one constant-velocity segment: dΔp/dτ = A_p W - Q_N(Δp), Eq. (13).
+
+    Tabulated at nodes τ_i (from nodes in u = ln|q* - q|, q the orifice flow); between nodes
+    δ = Δp - Δp* is the quintic Hermite interpolant of the exact values, first and second
+    derivatives in τ (cubic on a panel touching a node where the second derivative is infinite:
+    q = 0 with c1 = 0), stored as polynomial coefficients in s = (τ - τ_i)/(τ_{i+1} - τ_i).
+    Build with :func:`relaxation`.
+    """
+
+    tau: np.ndarray           # node τ, ascending, tau[0] = 0 [Pa s/m³]
+    coef: np.ndarray          # (nodes - 1, 6): δ on each panel, ascending powers of s [Pa]
+    steady_Pa: float          # Δp*
+
+    @classmethod
+    def from_nodes(cls, tau, delta, slope, curvature, steady_Pa: float) -> "Relaxation":
+        """Panel polynomials from node values δ, dδ/dτ and d²δ/dτ² (inf: unknown)."""
+        tau = np.asarray(tau, dtype=float)
+        coef = _panel_coefficients(np.diff(tau), delta[:-1], delta[1:], slope[:-1], slope[1:],
+                                   curvature[:-1], curvature[1:])
+        return cls(tau, coef, float(steady_Pa))
+
+    @classmethod
+    def constant(cls, dp_Pa: float) -> "Relaxation":
+        """Δp stays at its start value (the start is already the steady state)."""
+        return cls(np.zeros(1), np.zeros((0, 6)), float(dp_Pa))
+
+    def pressure(self, tau) -> np.ndarray:
+        """Δp at compressibility times ``tau`` (>= 0, **ascending**); Δp* beyond the table [Pa]."""
+        tau = np.asarray(tau, dtype=float)
+        out = np.full(tau.shape, self.steady_Pa)
+        x = self.tau
+        if x.size < 2:
+            return out
+        n_live = int(np.searchsorted(tau, x[-1], side="left"))
+        t = tau[:n_live]
+        i = np.searchsorted(x, t, side="right") - 1
+        np.clip(i, 0, x.size - 2, out=i)
+        s = (t - x[i]) / (x[i + 1] - x[i])
+        c = self.coef[i]
+        out[:n_live] += ((((c[:, 5] * s + c[:, 4]) * s + c[:, 3]) * s + c[:, 2]) * s + c[:, 1]) * s + c[:, 0]
+        return out
+
+
+def _nodes(u0: float, u_end: float, u_ref: float, step: float, special: list[float], graded_min: float):
+    """Descending nodes in u on [u_end, u0] (see :func:`relaxations`)."""
+    parts = []
+    if u0 > u_ref:                                   # beyond the scale (crossing piece): uniform step
+        parts.append(np.linspace(u_ref, u0, math.ceil((u0 - u_ref) / step) + 1))
+    top = min(u0, u_ref)
+    # interpolation error ∝ h^6 |δ(u)| (quintic) with |δ| ∝ e^u: widths h = step·e^{(u_ref - u)/4}
+    # (conservative), i.e. uniform in ζ = e^{(u - u_ref)/4}, up to a widest panel of 0.5 (reached
+    # where |δ| < 2e-7 of the scale)
+    zeta_top, zeta_cap = math.exp((top - u_ref) / 4.0), step / 0.5
+    u_cap = max(u_end, u_ref + 4.0 * math.log(zeta_cap))
+    if top > u_cap:
+        zeta_lo = math.exp((u_cap - u_ref) / 4.0)
+        zeta = np.linspace(zeta_lo, zeta_top, math.ceil((zeta_top - zeta_lo) / (step / 4.0)) + 1)
+        parts.append(u_ref + 4.0 * np.log(zeta))
+    lo_top = min(top, u_cap)
+    parts.append(np.linspace(u_end, lo_top, max(2, math.ceil((lo_top - u_end) / 0.5) + 1)))
+    if graded_min < 10.0 * step:
+        off = 10.0 * step * 0.8 ** np.arange(0, math.ceil(math.log(graded_min / (10.0 * step)) / math.log(0.8)) + 1)
+        for c in special:
+            parts.append(np.concatenate([c - off, c + off, [c]]))
+    u = np.concatenate(parts)
+    u = np.unique(u[(u >= u_end) & (u <= u0)])
+    return np.concatenate([[u0], u[u < u0]][::-1]) if u[-1] != u0 else u[::-1]
+
+
+def relaxation(dp0_Pa: float, piston_flow_m3_s: float, hyd: Hydraulics, step: float = DEFAULT_STEP) -> Relaxation:
+    """Tabulate the segment solution from Δp(0) = ``dp0_Pa`` under piston flow A_p W, Eq. (13)-(14).
+
+    See :func:`relaxations` (this is the single-problem form).
+    """
+    return relaxations([dp0_Pa], [piston_flow_m3_s], hyd, step)[0]
+
+
+def relaxations(dp0_Pa: Sequence[float], piston_flows_m3_s: Sequence[float], hyd: Hydraulics,
+                step: float = DEFAULT_STEP) -> list[Relaxation]:
+    """Tabulate many segment solutions at once (one vectorised pass), Eq. (13)-(14).
+
+    Problem k starts at Δp(0) = ``dp0_Pa[k]`` under piston flow ``piston_flows_m3_s[k]`` = A_p W.
+    τ(u) = ∫ (dΔp/dq) e^u / |A_p W - Q_N| du with u = ln|q* - q|, 3-point Gauss-Legendre per panel.
+    Panel widths: ``step`` while |q - q*| exceeds the flow scale, then growing as e^{-u/4} (the
+    Hermite error ~ width^6 × |Δp - Δp*| stays at the level of the pressure scale's), at most 0.5;
+    graded (ratio 0.8) towards q = 0 (start from rest, or the sign change where c2 switches) down to
+    1e-2 of the laminar-turbulent transition width c1/(2 c2 |q*|) (1e-12 for c1 = 0). A table ends
+    where |q - q*| = 1e-17 of the scale; beyond it Δp = Δp*. The integrand is evaluated in factored,
+    cancellation-free form on the side of q*: A_pW - Q_N = (q* - q)(1 + g c1 + g c2 (|q*| + |q|)).
+    """
+    c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
+    c2p, c2n = hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg
+    c2_max = max(c2p, c2n)
+    out: list[Relaxation | None] = []
+    params, node_sets = [], []
+    for dp0, qp in zip(dp0_Pa, piston_flows_m3_s, strict=True):
+        qp, dp0 = float(qp), float(dp0)
+        q_star = steady_orifice_flow(qp, hyd)
+        p_star = float(orifice_pressure_of_flow(q_star, hyd))
+        q0 = float(orifice_flow_of_pressure(dp0, hyd))
+        dist = abs(q_star - q0)
+        if dist == 0.0 or not math.isfinite(dist):
+            out.append(Relaxation.constant(dp0))
+            continue
+        s = math.copysign(1.0, q_star - q0)
+        scale = max(abs(q_star), dist) if q_star * q0 >= 0 else abs(q_star)
+        u0 = math.log(dist)
+        special = []
+        if q0 == 0.0:
+            special.append(u0)
+        elif q_star != 0.0 and q0 * q_star < 0.0:
+            special.append(math.log(abs(q_star)))
+        width = c1 / (2.0 * c2_max * abs(q_star)) if (c2_max > 0 and q_star != 0) else math.inf
+        node_sets.append(_nodes(u0, math.log(max(abs(q_star), dist) * 1e-17), math.log(scale), step, special,
+                                max(1e-12, 1e-2 * width)))
+        params.append((q_star, s, qp, p_star, dp0))
+        out.append(None)
+    if not node_sets:
+        return out
+
+    # all nodes of all problems, each problem descending in u; panels join consecutive nodes
+    sizes = np.array([u.size for u in node_sets])
+    first = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    u = np.concatenate(node_sets)
+    prob = np.repeat(np.arange(sizes.size), sizes)
+    is_last = np.zeros(u.size, dtype=bool)
+    is_last[first + sizes - 1] = True
+    hi = np.flatnonzero(~is_last)                   # panel [u[hi + 1], u[hi]]
+    half = 0.5 * (u[hi] - u[hi + 1])
+    pts = (0.5 * (u[hi] + u[hi + 1]))[:, None] + half[:, None] * _GL_X[None, :]
+    n = u.size
+    uu = np.concatenate([u, pts.ravel()])
+    pp = np.concatenate([prob, np.repeat(prob[hi], _GL_X.size)])
+    q_star, s, qp, p_star, dp0 = np.array(params)[pp].T
+
+    e = np.exp(uu)
+    q = q_star - s * e
+    aq = np.abs(q)
+    aqs = np.abs(q_star)
+    c2 = np.where(q >= 0, c2p, c2n)
+    dpdq = c1 + 2.0 * c2 * aq                       # dΔp/dq, Eq. (7)
+    same = (q * q_star > 0.0) | ((q_star == 0.0) & (q != 0.0))
+    # same side as q*: A_pW - Q_N = (q* - q)(1 + g c1 + g c2 (|q*| + |q|)), exactly
+    k_same = 1.0 + g * c1 + g * c2 * (aqs + aq)
+    dtau = dpdq / k_same                            # dτ/du magnitude (τ grows as u falls)
+    f = s * e * k_same                              # dΔp/dτ = A_p W - Q_N
+    delta = -s * e * (c1 + c2 * (aq + aqs))         # Δp - Δp*
+    if not same.all():
+        o = ~same
+        f[o] = qp[o] - q[o] - g * (c1 * q[o] + c2[o] * q[o] * aq[o])
+        dtau[o] = dpdq[o] * e[o] / np.abs(f[o])
+        delta[o] = c1 * q[o] + c2[o] * q[o] * aq[o] - p_star[o]
+    # τ at the nodes: cumulative panel integrals, restarted at each problem's first node
+    z = np.zeros(n)
+    z[hi + 1] = half * (dtau[n:].reshape(pts.shape) @ _GL_W)
+    tau = np.cumsum(z)
+    tau -= np.repeat(tau[first], sizes)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # d²Δp/dτ² = f'(q) dq/dτ = -(1 + g dΔp/dq) f / (dΔp/dq); infinite where dΔp/dq = 0
+        curv = np.where(dpdq[:n] > 0, -(1.0 + g * dpdq[:n]) * f[:n] / dpdq[:n], np.inf)
+    delta = delta[:n]
+    delta[first] = dp0[first] - p_star[first]       # exact start: Δp continuous across segments
+    coef = _panel_coefficients(tau[hi + 1] - tau[hi], delta[hi], delta[hi + 1], f[hi], f[hi + 1],
+                               curv[hi], curv[hi + 1])
+    taus = np.split(tau, first[1:])
+    coefs = np.split(coef, (first - np.arange(sizes.size))[1:])
+    it = iter(zip(taus, coefs, params))
+    return [r if r is not None else (lambda t, c, p: Relaxation(t, c, float(p[3])))(*next(it)) for r in out]
+
+
+# --------------------------------------------------------------------------------------------
+# Excitation and the play operator
+# --------------------------------------------------------------------------------------------
+
+def sample_times(case: CasePlan) -> np.ndarray:
+    """t = k / fs for k = 0..round(duration fs), the endpoint included [s]."""
+    n = int(round(case.duration_s * case.sample_rate_Hz))
+    return np.arange(n + 1, dtype=float) / case.sample_rate_Hz
+
+
+def record_end(case: CasePlan) -> float:
+    """End of the simulated interval: the duration, or the last sample if rounding puts it later."""
+    return max(case.duration_s, round(case.duration_s * case.sample_rate_Hz) / case.sample_rate_Hz)
+
+
+def command_displacement(case: CasePlan, t_s) -> np.ndarray:
+    """Ideal actuator command of the case: Eq. (26) triangle or Y sin(2πft) [m]."""
+    if case.waveform == "triangle":
+        return triangle_displacement(t_s, case.amplitude_m, case.period_s, case.phase_rad)
+    if case.waveform == "sine":
+        return sine_displacement(t_s, case.amplitude_m, case.frequency_Hz)
+    raise ValueError(f"case {case.case}: the virtual rig cannot simulate waveform {case.waveform!r}")
+
+
+def _snap(t: float, case: CasePlan) -> float:
+    """A breakpoint within 1e-9 of the record length of a sample time is put on it."""
+    k = round(t * case.sample_rate_Hz)
+    ts = k / case.sample_rate_Hz
+    return ts if abs(ts - t) <= 1e-9 * record_end(case) else t
+
+
+def _turning_times(case: CasePlan) -> list[float]:
+    """Actuator turning points in (0, record end): argument π/2 + kπ (triangle or sine)."""
+    if case.waveform == "triangle":
+        omega, phase = 2.0 * math.pi / case.period_s, case.phase_rad
+    else:
+        omega, phase = 2.0 * math.pi * case.frequency_Hz, 0.0
+    k = math.floor((phase - math.pi / 2) / math.pi)
+    end = record_end(case)
+    out = []
+    while True:
+        t = (math.pi / 2 + k * math.pi - phase) / omega
+        if t >= end * (1 - 1e-12):
+            break
+        if t > end * 1e-12:
+            out.append(_snap(t, case))
+        k += 1
+    return out
+
+
+@dataclass(frozen=True)
+class Segment:
+    """A time interval of the piston: at rest (contact=False) or pushed by the actuator."""
+
+    t_start_s: float
+    t_end_s: float
+    contact: bool
+    piston_start_m: float
+    offset_m: float      # in contact: y = x + offset (∓ b/2)
+    direction: float     # actuator direction of motion on the interval (+1 / -1)
+
+
+def piston_segments(case: CasePlan, backlash_m: float = 0.0) -> list[Segment]:
+    """Play operator of total gap b between actuator x (the command) and piston y.
+
+    y ∈ [x - b/2, x + b/2]; pushed upwards y = x - b/2, downwards y = x + b/2. The piston starts
+    at the far side of the gap, y(0) = x(0) + sign(v0) b/2. Returns rest and contact intervals.
+    """
+    b = float(backlash_m)
+    if b < 0:
+        raise ValueError("backlash_m must be >= 0")
+    edges = [0.0, *_turning_times(case), record_end(case)]
+    omega = 2.0 * math.pi * (case.frequency_Hz if case.waveform == "sine" else 1.0 / case.period_s)
+    phase = 0.0 if case.waveform == "sine" else case.phase_rad
+    x = lambda t: float(command_displacement(case, t))  # noqa: E731
+    segs: list[Segment] = []
+    y = None
+    for ta, tb in zip(edges[:-1], edges[1:]):
+        d = 1.0 if math.cos(omega * 0.5 * (ta + tb) + phase) > 0 else -1.0
+        xa = x(ta)
+        if y is None:
+            y = xa + d * b / 2.0
+        x_contact = y + d * b / 2.0                   # actuator position that touches the piston
+        if b == 0.0 or d * (x_contact - xa) <= 0.0:
+            tc = ta
+        elif d * (x(tb) - x_contact) <= 0.0:
+            tc = tb
+        else:
+            tc = _contact_time(case, ta, tb, x_contact, d, omega, phase)
+        if tc > ta:
+            segs.append(Segment(ta, tc, False, y, 0.0, d))
+        if tc < tb:
+            segs.append(Segment(tc, tb, True, x(tc) - d * b / 2.0, -d * b / 2.0, d))
+            y = x(tb) - d * b / 2.0
+    return segs
+
+
+def _contact_time(case: CasePlan, ta: float, tb: float, x_c: float, d: float, omega: float, phase: float) -> float:
+    """Time in (ta, tb) at which the monotone actuator reaches x_c."""
+    if case.waveform == "triangle":
+        w = 4.0 * case.amplitude_m / case.period_s
+        return min(max(ta + d * (x_c - float(command_displacement(case, ta))) / w, ta), tb)
+    # x = Y sin(ω t): increasing piece ωt ∈ [-π/2, π/2] + 2πm, decreasing ∈ [π/2, 3π/2] + 2πm
+    r = math.asin(max(-1.0, min(1.0, x_c / case.amplitude_m)))
+    mid = omega * 0.5 * (ta + tb)
+    if d > 0:
+        m = round(mid / (2 * math.pi))
+        t = (2 * math.pi * m + r) / omega
+    else:
+        m = round((mid - math.pi) / (2 * math.pi))
+        t = (2 * math.pi * m + math.pi - r) / omega
+    return min(max(t, ta), tb)
+
+
+def _check_stroke(case: CasePlan, hyd: Hydraulics) -> None:
+    """The piston (|y| <= Y) must not empty a chamber (Eq. 12: T_max < T_lim)."""
+    limit = min(hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3) / hyd.piston_area_m2
+    if not case.amplitude_m < limit:
+        raise ValueError(f"case {case.case}: amplitude {case.amplitude_m:g} m reaches the end of the "
+                         f"cylinder (V0/A_p = {limit:g} m)")
+
+
+def _segment_index(t: np.ndarray, segs: Sequence[Segment]) -> list[slice]:
+    """Sample indices of each segment: [t_start, t_end), the last one closed."""
+    starts = np.array([s.t_start_s for s in segs])
+    i0 = np.searchsorted(t, starts, side="left")
+    i1 = np.append(i0[1:], t.size)
+    return [slice(int(a), int(b)) for a, b in zip(i0, i1)]
+
+
+# --------------------------------------------------------------------------------------------
+# Noise-free responses
+# --------------------------------------------------------------------------------------------
+
+def triangle_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, step: float = DEFAULT_STEP):
+    """Δp and piston velocity of a triangle case by segment quadrature, Eq. (13)-(14).
+
+    Returns (t_s, dp_Pa, piston_velocity_m_s); Δp(0) = 0. See :func:`triangle_responses`.
+    """
+    return triangle_responses([case], hyd, backlash_m, step)[0]
+
+
+def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: float = 0.0,
+                       step: float = DEFAULT_STEP) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`triangle_response` of many cases, their segment tables built in one batch.
+
+    Each segment is assumed to start from the previous one's steady Δp* (true once a segment has
+    settled, when the chained Δp equals Δp* exactly); the tables for those starts are built in one
+    vectorised :func:`relaxations` call and reused when the chain confirms them, otherwise (a
+    segment cut short, e.g. a gap crossing) the table is built from the actual start.
+    """
+    a = hyd.piston_area_m2
+    plans = []
+    for case in cases:
+        if case.waveform != "triangle":
+            raise ValueError(f"case {case.case}: not a triangle")
+        _check_stroke(case, hyd)
+        w = 4.0 * case.amplitude_m / case.period_s
+        segs = piston_segments(case, backlash_m)
+        flows = [a * seg.direction * w if seg.contact else 0.0 for seg in segs]
+        plans.append((case, segs, flows))
+    guesses = {}
+    for _, segs, flows in plans:
+        prev = 0.0
+        for qp in flows:
+            guesses.setdefault((prev, qp), None)
+            prev = steady_pressure(qp, hyd)
+    keys = list(guesses)
+    tables_ = dict(zip(keys, relaxations([k[0] for k in keys], [k[1] for k in keys], hyd, step)))
+    out = []
+    for case, segs, flows in plans:
+        t = sample_times(case)
+        dp = np.empty(t.size)
+        vel = np.zeros(t.size)
+        p = 0.0
+        for seg, idx, qp in zip(segs, _segment_index(t, segs), flows):
+            key = (p, qp)
+            if key not in tables_:
+                tables_[key] = relaxation(p, qp, hyd, step)
+            v = qp / a
+            dt = np.append(t[idx], seg.t_end_s) - seg.t_start_s
+            values = tables_[key].pressure(compressibility_time(dt, seg.piston_start_m, v, hyd))
+            dp[idx] = values[:-1]
+            vel[idx] = v
+            p = float(values[-1])
+        out.append((t, dp, vel))
+    return out
+
+
+def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol: float = 1e-12,
+                  method: str = "LSODA"):
+    """Δp and piston velocity of a sine case by stiff integration of Eq. (1) (solve_ivp).
+
+    Split at turning points and gap contacts; atol = rtol × the steady Δp at peak velocity.
+    Returns (t_s, dp_Pa, piston_velocity_m_s); Δp(0) = 0.
+    """
+    if case.waveform != "sine":
+        raise ValueError(f"case {case.case}: not a sine")
+    _check_stroke(case, hyd)
+    t = sample_times(case)
+    omega = 2.0 * math.pi * case.frequency_Hz
+    amp = case.amplitude_m
+    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
+    v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
+    c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
+    c2p, c2n = hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg
+    atol = rtol * max(abs(steady_pressure(a * amp * omega, hyd)), abs(steady_pressure(-a * amp * omega, hyd)), 1.0)
+
+    def q_n(p):
+        ap = abs(p)
+        if ap == 0.0:
+            return 0.0
+        c2 = c2p if p > 0 else c2n
+        return math.copysign(2.0 * ap / (c1 + math.sqrt(c1 * c1 + 4.0 * c2 * ap)), p) + g * p
+
+    def dq_n(p):
+        c2 = c2p if p >= 0 else c2n
+        ap = abs(p)
+        root = math.sqrt(c1 * c1 + 4.0 * c2 * ap)
+        return (1.0 / root if root > 0 else 1e300) + g
+
+    segs = piston_segments(case, backlash_m)
+    dp = np.empty(t.size)
+    vel = np.zeros(t.size)
+    p = 0.0
+    for seg, idx in zip(segs, _segment_index(t, segs)):
+        if seg.contact:
+            off = seg.offset_m
+
+            def kin(tt, off=off):
+                y = amp * math.sin(omega * tt) + off
+                return a * amp * omega * math.cos(omega * tt), (v01 - a * y) * (v02 + a * y) / (v01 + v02)
+        else:
+            y0 = seg.piston_start_m
+            vol0 = (v01 - a * y0) * (v02 + a * y0) / (v01 + v02)
+
+            def kin(tt, vol0=vol0):
+                return 0.0, vol0
+
+        def rhs(tt, z, kin=kin):
+            qp, vol = kin(tt)
+            return [(qp - q_n(z[0])) / (beta * vol)]
+
+        def jac(tt, z, kin=kin):
+            return [[-dq_n(z[0]) / (beta * kin(tt)[1])]]
+
+        t_eval = t[idx]
+        t0, t1 = seg.t_start_s, seg.t_end_s
+        sol = solve_ivp(rhs, (t0, t1), [p], method=method, jac=jac, rtol=rtol, atol=atol,
+                        t_eval=np.append(t_eval, t1) if t_eval.size == 0 or t_eval[-1] < t1 else t_eval)
+        if not sol.success:
+            raise RuntimeError(f"case {case.case}: sine integration failed: {sol.message}")
+        dp[idx] = sol.y[0, :t_eval.size]
+        p = float(sol.y[0, -1])
+        if seg.contact:
+            vel[idx] = amp * omega * np.cos(omega * t_eval)
+    return t, dp, vel
+
+
+def true_response(case: CasePlan, damper: Damper, effects: Effects = NOMINAL,
+                  hydraulics: Hydraulics | None = None) -> pd.DataFrame:
+    """Noise-free record: time_s, command_m, piston_velocity_m_s, dp_Pa, force_N (Eq. 8).
+
+    ``hydraulics`` overrides the coefficients derived from damper and effects (e.g. c2 = 0);
+    friction and backlash always come from ``effects``.
+    """
+    return true_responses([case], damper, effects, hydraulics)[0]
+
+
+def true_responses(cases: Sequence[CasePlan], damper: Damper, effects: Effects = NOMINAL,
+                   hydraulics: Hydraulics | None = None) -> list[pd.DataFrame]:
+    """:func:`true_response` of many cases (triangle tables built in one batch)."""
+    hyd = Hydraulics.from_damper(damper, effects) if hydraulics is None else hydraulics
+    for c in cases:
+        if c.waveform not in ("triangle", "sine"):
+            raise ValueError(f"case {c.case}: the virtual rig cannot simulate waveform {c.waveform!r}")
+    tri = iter(triangle_responses([c for c in cases if c.waveform == "triangle"], hyd, effects.backlash_m))
+    out = []
+    for case in cases:
+        t, dp, vel = next(tri) if case.waveform == "triangle" else sine_response(case, hyd, effects.backlash_m)
+        force = hyd.piston_area_m2 * dp + friction_force(vel, effects)
+        out.append(pd.DataFrame({"time_s": t, "command_m": command_displacement(case, t),
+                                 "piston_velocity_m_s": vel, "dp_Pa": dp, "force_N": force}))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Measurement and cases
+# --------------------------------------------------------------------------------------------
+
+def quantise(x, resolution: float) -> np.ndarray:
+    """Nearest integer multiple of ``resolution`` (0: unchanged); never -0.0."""
+    x = np.asarray(x, dtype=float)
+    if resolution == 0.0:
+        return x + 0.0
+    return np.rint(x / resolution) * resolution + 0.0
+
+
+def case_rng(seed: int, case_id: str) -> np.random.Generator:
+    """Independent, reproducible noise stream of one case: SeedSequence([seed, crc32(case)])."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(case_id.encode("utf-8"))]))
+
+
+def simulate_case(case: CasePlan, damper: Damper, effects: Effects, measurement: Measurement,
+                  seed: int) -> pd.DataFrame:
+    """Measured record of one case (tables.TIMESERIES): row, time_s, displacement_m, force_N, command_m.
+
+    displacement = LVDT on the actuator (command + noise), force = Eq. (8) + additive and
+    |F|-proportional noise; both then quantised (``measurement`` resolutions).
+    """
+    return measure(case, true_response(case, damper, effects), measurement, seed)
+
+
+def measure(case: CasePlan, truth: pd.DataFrame, measurement: Measurement, seed: int) -> pd.DataFrame:
+    """Sensor model applied to a noise-free record (:func:`true_response`) of ``case``.
+
+    Draws, in this order from ``case_rng(seed, case.case)``: LVDT noise, additive force noise,
+    relative force noise (standard normals of the record length).
+    """
+    n = len(truth)
+    rng = case_rng(seed, case.case)
+    z_disp = rng.standard_normal(n)
+    z_add = rng.standard_normal(n)
+    z_rel = rng.standard_normal(n)
+    f = truth["force_N"].to_numpy()
+    cmd = truth["command_m"].to_numpy()
+    force = f + measurement.force_noise_N * z_add + measurement.force_noise_rel * np.abs(f) * z_rel
+    disp = cmd + measurement.displacement_noise_m * z_disp
+    return pd.DataFrame({
+        "row": np.arange(n, dtype=np.int64),
+        "time_s": truth["time_s"].to_numpy(),
+        "displacement_m": quantise(disp, measurement.displacement_resolution_m),
+        "force_N": quantise(force, measurement.force_resolution_N),
+        "command_m": quantise(cmd, measurement.command_resolution_m),
+    })
+
+
+def simulate_cases(cases: Sequence[CasePlan], damper: Damper, effects: Effects, measurement: Measurement,
+                   seed: int) -> dict[str, pd.DataFrame]:
+    """:func:`simulate_case` of many cases, physics batched; {case id: record}, in the given order."""
+    truths = true_responses(cases, damper, effects)
+    return {c.case: measure(c, truth, measurement, seed) for c, truth in zip(cases, truths)}
+
+
+def simulate_campaign(vc: VirtualCampaign) -> dict[str, pd.DataFrame]:
+    """Every case of the campaign, in plan order: {case id: simulate_case(...)}."""
+    return simulate_cases(vc.cases, vc.damper, vc.effects, vc.measurement, vc.seed)
+
+
+# --------------------------------------------------------------------------------------------
+# CSV / campaign export
+# --------------------------------------------------------------------------------------------
+
+def _decimals(resolution_si: float, unit_si: float) -> tuple[float, int]:
+    """Resolution in the CSV unit and the decimals that print its multiples exactly."""
+    r = Decimal(repr(resolution_si)) / Decimal(repr(unit_si))
+    r = r.normalize()
+    digits = r.as_tuple()
+    if len(digits.digits) > 6:
+        raise ValueError(f"resolution {resolution_si!r} is not a short decimal in the export unit")
+    return float(r), max(0, -digits.exponent)
+
+
+def _format_channel(values_si: np.ndarray, resolution_si: float, unit_si: float) -> list[str]:
+    """Exact decimal strings of quantised values (shortest round-trip repr if unquantised)."""
+    if resolution_si == 0.0:
+        return [repr(v) for v in (values_si / unit_si + 0.0).tolist()]
+    r, d = _decimals(resolution_si, unit_si)
+    counts = np.rint(values_si / resolution_si) + 0.0
+    if np.abs(counts).max(initial=0.0) * 10 ** d >= 2.0**52:
+        raise ValueError("value too large for exact decimal printing")
+    return [f"{v:.{d}f}" for v in (counts * r + 0.0).tolist()]
+
+
+def case_csv(series: pd.DataFrame, measurement: Measurement) -> str:
+    """The raw-format CSV text of a simulated case (header time_s,disp_mm,force_kN,cmd_mm)."""
+    cols = [
+        [repr(v) for v in series["time_s"].tolist()],
+        _format_channel(series["displacement_m"].to_numpy(), measurement.displacement_resolution_m, 1e-3),
+        _format_channel(series["force_N"].to_numpy(), measurement.force_resolution_N, 1e3),
+        _format_channel(series["command_m"].to_numpy(), measurement.command_resolution_m, 1e-3),
+    ]
+    header = ",".join(RAW_COLUMNS[k][0] for k in ("time", "displacement", "force", "command"))
+    return header + "\n" + "\n".join(map(",".join, zip(*cols))) + "\n"
+
+
+def case_sha256(series: pd.DataFrame, measurement: Measurement) -> str:
+    """raw_sha256 of a simulated case: sha256 of its exported CSV bytes (:func:`case_csv`)."""
+    return hashlib.sha256(case_csv(series, measurement).encode("utf-8")).hexdigest()
+
+
+def _cases_table(campaign: str, cases: Sequence[CasePlan], series: Mapping[str, pd.DataFrame],
+                 measurement: Measurement) -> pd.DataFrame:
+    rows = []
+    for c in cases:
+        rows.append({"campaign": campaign, "case": c.case, "waveform": c.waveform,
+                     "sample_rate_Hz": float(c.sample_rate_Hz), "amplitude_m": float(c.amplitude_m),
+                     "period_s": float(c.period_s), "frequency_Hz": float(c.frequency_Hz),
+                     "phase_rad": float(c.phase_rad), "duration_s": float(c.duration_s),
+                     "raw_file": f"virtual_rig:{campaign}/{c.case}",
+                     "raw_sha256": case_sha256(series[c.case], measurement),
+                     "timeseries_file": timeseries_relpath(c.case),
+                     "n_samples": int(len(series[c.case])), "status": "ok"})
+    df = pd.DataFrame(rows)
+    return df.astype({"n_samples": "int64"})
+
+
+def write_campaign(vc: VirtualCampaign, campaign_root: str | os.PathLike) -> Path:
+    """Simulate and write ``campaign_root/ingest/`` (campaign.write_ingested); returns the ingest dir.
+
+    campaign.json carries the *nominal* damper only; raw_sha256 is the sha256 of the case CSV
+    that :func:`export_raw_campaign` would write (same series, same bytes).
+    """
+    series = simulate_campaign(vc)
+    meta = {"format_version": 1, "campaign": vc.name, "source": "simulation", "description": vc.description,
+            "temperature_C": vc.temperature_C, "damper": vc.damper.to_dict(), "manifest_file": "",
+            "manifest_sha256": "", "metadata": _generated_by(vc, [c.case for c in vc.cases], None)}
+    assert set(meta) == set(CAMPAIGN_KEYS)
+    ingest = Path(campaign_root) / "ingest"
+    write_ingested(ingest, meta, _cases_table(vc.name, vc.cases, series, vc.measurement),
+                   tables.empty(tables.QUARANTINE), series)
+    return ingest
+
+
+def _generated_by(vc: VirtualCampaign, cases: list[str], sample_rate_Hz: float | None) -> dict:
+    return {"generated_by": {"generator": "isokinetic.virtual_rig", "config_campaign": vc.name,
+                             "seed": vc.seed, "cases": list(cases), "sample_rate_Hz": sample_rate_Hz}}
+
+
+def _short(x: float) -> float:
+    """Derived plan value without float noise (15 significant digits; 0.654 not 0.6540000000000001)."""
+    return float(f"{x:.15g}")
+
+
+def campaign_manifest(vc: VirtualCampaign, cases: Sequence[CasePlan], name: str,
+                      sample_rate_Hz: float | None) -> dict:
+    """campaign.yaml content (raw-campaign format v1) of an export."""
+    rates = [c.sample_rate_Hz for c in cases]
+    default_rate = max(rates, key=lambda r: (rates.count(r), -rates.index(r)))
+    entries = []
+    for c in cases:
+        e = {"id": c.case, "waveform": c.waveform}
+        if c.waveform == "triangle":
+            e.update(period_s=float(c.period_s), amplitude_mm=_short(c.amplitude_m * 1e3),
+                     phase_rad=float(c.phase_rad))
+        else:
+            e.update(frequency_Hz=float(c.frequency_Hz), amplitude_mm=_short(c.amplitude_m * 1e3))
+        if c.sample_rate_Hz != default_rate:
+            e["sample_rate_Hz"] = float(c.sample_rate_Hz)
+        e["duration_s"] = _short(c.duration_s)
+        e["file"] = f"{c.case}.csv"
+        entries.append(e)
+    return {"format_version": 1, "campaign": name, "description": vc.description, "source": "simulation",
+            "temperature_C": float(vc.temperature_C), "sample_rate_Hz": float(default_rate),
+            "columns": {k: {"name": v[0], "unit": v[1]} for k, v in RAW_COLUMNS.items()},
+            "damper": vc.damper.to_dict(),
+            **_generated_by(vc, [c.case for c in cases], sample_rate_Hz),
+            "cases": entries}
+
+
+def export_raw_campaign(vc: VirtualCampaign, out_dir: str | os.PathLike, cases: Sequence[str] | None = None,
+                        sample_rate_Hz: float | None = None, name: str | None = None) -> Path:
+    """Write a raw campaign folder (spec raw-campaign-format.md) of simulated cases; returns it.
+
+    ``out_dir`` is the campaign folder itself (it must not exist or be empty); the spec wants the
+    campaign id equal to the folder name, so ``name`` defaults to the folder name and must equal it
+    when given. ``cases`` selects case ids (plan order kept); ``sample_rate_Hz`` simulates every
+    selected case at that rate. Byte reproducible: same config, seed and arguments, same bytes.
+    campaign.yaml carries the nominal damper and a ``generated_by`` block (config campaign, seed,
+    cases, sample rate override); the truth effects are not written.
+    """
+    out = Path(out_dir)
+    name = out.name if name is None else name
+    if not CAMPAIGN_NAME.match(name):
+        raise ValueError(f"campaign name {name!r} must match [a-z0-9][a-z0-9_-]* (the spec's campaign id)")
+    if out.name != name:
+        raise ValueError(f"the campaign folder must be named like the campaign ({name!r}), got {out.name!r}")
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise FileExistsError(f"refusing to write into existing non-empty {out}")
+    if cases is None:
+        selected = list(vc.cases)
+    else:
+        wanted = list(cases)
+        if len(set(wanted)) != len(wanted) or not wanted:
+            raise ValueError(f"cases: must be a non-empty list without duplicates, got {wanted}")
+        for cid in wanted:
+            vc.case(cid)
+        selected = [c for c in vc.cases if c.case in set(wanted)]
+    if sample_rate_Hz is not None:
+        rate = _number(sample_rate_Hz, "sample_rate_Hz", positive=True)
+        selected = [dataclasses.replace(c, sample_rate_Hz=rate) for c in selected]
+        sample_rate_Hz = rate
+    manifest = campaign_manifest(vc, selected, name, sample_rate_Hz)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{name}."))
+    try:
+        for case_id, series in simulate_cases(selected, vc.damper, vc.effects, vc.measurement, vc.seed).items():
+            with open(tmp / f"{case_id}.csv", "w", encoding="utf-8", newline="\n") as fh:
+                fh.write(case_csv(series, vc.measurement))
+        with open(tmp / "campaign.yaml", "w", encoding="utf-8", newline="\n") as fh:
+            yaml.safe_dump(manifest, fh, sort_keys=False, default_flow_style=False, allow_unicode=True, width=100)
+        os.chmod(tmp, 0o755)
+        if out.exists():
+            out.rmdir()
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+

@@ -1,0 +1,107 @@
+"""Window extraction (Sec. 4.4): one steady point per constant-velocity half-period.
+
+For each triangle case the four complete half-periods of its two-period record are found
+from the plan (Eq. 26), and the samples in [start_fraction, end_fraction]·T/2 of each are
+reduced to the mean force, its standard deviation, and the velocity of a least-squares
+line through the displacement.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import tables
+from .campaign import case_plan
+from .plan import CasePlan, half_periods
+
+#: Minimum samples a window must hold for a mean, a standard deviation and a line fit.
+MIN_WINDOW_SAMPLES = 3
+
+
+@dataclass(frozen=True)
+class WindowSpec:
+    """Window as fractions of the half-period T/2 (paper: [0.45, 0.95])."""
+
+    start_fraction: float = 0.45
+    end_fraction: float = 0.95
+
+    def __post_init__(self):
+        if not 0.0 <= self.start_fraction < self.end_fraction <= 1.0:
+            raise ValueError(f"window fractions must satisfy 0 <= start < end <= 1, got "
+                             f"[{self.start_fraction}, {self.end_fraction}]")
+
+
+def line_slope(t, y) -> float:
+    """Least-squares slope of y against t (the window's piston velocity)."""
+    tc = t - t.mean()
+    return float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
+
+
+def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec()) -> list[dict]:
+    """The four windows of one triangle case as rows (segment, direction, period, statistics).
+
+    Raises ValueError when the record does not hold four complete half-periods or a window
+    holds fewer than MIN_WINDOW_SAMPLES samples.
+    """
+    t = series["time_s"].to_numpy()
+    segments = half_periods(plan.period_s, plan.phase_rad, float(t[-1]))[:4]
+    if len(segments) < 4:
+        raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds {len(segments)} complete "
+                         f"half-periods of T = {plan.period_s:.6g} s, 4 needed")
+    half = plan.period_s / 2.0
+    y = series["displacement_m"].to_numpy()
+    f = series["force_N"].to_numpy()
+    rows = series["row"].to_numpy()
+    out = []
+    for k, (t0, _t1, sign) in enumerate(segments, start=1):
+        i0 = int(np.searchsorted(t, t0 + spec.start_fraction * half, side="left"))
+        i1 = int(np.searchsorted(t, t0 + spec.end_fraction * half, side="right"))
+        if i1 - i0 < MIN_WINDOW_SAMPLES:
+            raise ValueError(f"case {plan.case}: window of segment {k} holds {i1 - i0} samples, "
+                             f"{MIN_WINDOW_SAMPLES} needed")
+        tw, fw = t[i0:i1], f[i0:i1]
+        out.append({
+            "case": plan.case,
+            "segment": k,
+            "direction": "+" if sign > 0 else "-",
+            "period": (k + 1) // 2,
+            "planned_velocity_m_s": sign * plan.velocity_m_s,
+            "velocity_m_s": line_slope(tw, y[i0:i1]),
+            "force_N": float(fw.mean()),
+            "force_std_N": float(fw.std(ddof=1)),
+            "n_samples": i1 - i0,
+            "window_start_s": float(tw[0]),
+            "window_end_s": float(tw[-1]),
+            "row_start": int(rows[i0]),
+            "row_stop": int(rows[i1 - 1]) + 1,
+        })
+    return out
+
+
+def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
+    """Windows of every status-ok triangle case of a cases table (tables.WINDOWS).
+
+    ``load_series(case_row)`` returns the case's canonical time series.
+    """
+    rows = []
+    ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
+    for _, case in ok.iterrows():
+        for row in case_windows(case_plan(case), load_series(case), spec):
+            row.update(campaign=case["campaign"], raw_file=case["raw_file"], raw_sha256=case["raw_sha256"])
+            rows.append(row)
+    columns = list(tables.WINDOWS.columns)
+    df = pd.DataFrame(rows, columns=columns) if rows else tables.empty(tables.WINDOWS)
+    df = df.astype({"segment": "int64", "period": "int64", "n_samples": "int64",
+                    "row_start": "int64", "row_stop": "int64"})
+    return tables.validate_table(df[columns], tables.WINDOWS)
+
+
+def windows_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
+    """Windows of a validated campaign folder ``results/<campaign>/`` (reads cases.parquet)."""
+    root = Path(campaign_root)
+    cases = pd.read_parquet(root / "cases.parquet")
+    return extract_windows(cases, lambda case: pd.read_parquet(root / case["timeseries_file"]), spec)

@@ -1,0 +1,475 @@
+"""Virtual rig: physics against the paper's closed forms and independent integrations, effects,
+determinism, exports. References are computed here from isokinetic.damper formulas, scipy
+root finders and solve_ivp, never from the virtual rig itself."""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import math
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+from isokinetic import damper as dm
+from isokinetic import tables
+from isokinetic.__main__ import main
+from isokinetic.campaign import read_ingested
+from isokinetic.plan import CasePlan
+from isokinetic.virtual_rig import (Hydraulics, Measurement, VirtualCampaign, export_raw_campaign, simulate_case,
+                                    true_response, write_campaign)
+
+CONFIG = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
+TABLE1 = dm.Damper(piston_area_m2=4.0e-3, chamber_volume_1_m3=3.0e-4, chamber_volume_2_m3=3.0e-4,
+                   orifice_area_m2=6.0e-8, orifice_length_m=5.0e-4, discharge_coefficient=0.6,
+                   density_kg_m3=815.0, viscosity_Pa_s=0.03, oil_compressibility_1_Pa=3.8e-9)
+TRUTH = dm.Effects(coulomb_force_N=90.0, leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)
+UNIT_SI = {"s": 1.0, "mm": 1e-3, "kN": 1e3}      # raw-campaign-format units used by the export
+
+
+@pytest.fixture(scope="module")
+def config_mapping():
+    return yaml.safe_load(CONFIG.read_text())["virtual_campaigns"]["paper-lag-damper"]
+
+
+@pytest.fixture(scope="module")
+def paper(config_mapping):
+    return VirtualCampaign.from_config("paper-lag-damper", config_mapping)
+
+
+def triangle(w_m_s=1.0e-3, period_s=20.0, rate_Hz=100.0, periods=2.0, case="T99"):
+    return CasePlan(case=case, waveform="triangle", sample_rate_Hz=rate_Hz, amplitude_m=w_m_s * period_s / 4,
+                    period_s=period_s, phase_rad=-math.pi / 2, duration_s=periods * period_s)
+
+
+def sine(amp_m=0.45e-3, f_Hz=1.75, rate_Hz=1000.0, periods=2.0, case="H99"):
+    return CasePlan(case=case, waveform="sine", sample_rate_Hz=rate_Hz, amplitude_m=amp_m, frequency_Hz=f_Hz,
+                    phase_rad=0.0, duration_s=periods / f_Hz)
+
+
+def start_damper(d: dm.Damper, y_m: float) -> dm.Damper:
+    """The damper whose nominal volumes are those at piston position y (Eq. 2)."""
+    return dataclasses.replace(d, chamber_volume_1_m3=d.chamber_volume_1_m3 - d.piston_area_m2 * y_m,
+                               chamber_volume_2_m3=d.chamber_volume_2_m3 + d.piston_area_m2 * y_m)
+
+
+def first_half(df: pd.DataFrame, case: CasePlan) -> pd.DataFrame:
+    return df[(df.time_s > 0) & (df.time_s <= case.period_s / 2)]
+
+
+def steady_dp(w_m_s: float, d: dm.Damper, e: dm.Effects) -> float:
+    """Incompressible Δp (Eq. 24 + leakage + asymmetry) by bracketing root finding on Eq. (7)."""
+    qp = d.piston_area_m2 * w_m_s
+    c1 = dm.laminar_coefficient(d, e)
+
+    def residual(p):
+        return dm.orifice_flow(p, c1, dm.turbulent_coefficient(d, e, p)) + e.leakage_conductance_m3_s_Pa * p - qp
+
+    hi = 1e9 * np.sign(w_m_s)
+    return brentq(residual, 0.0, hi, xtol=1e-9, rtol=1e-15, maxiter=500)
+
+
+def windows(df: pd.DataFrame, case: CasePlan, sign: float) -> pd.DataFrame:
+    """Samples in [0.45, 0.95] of every half-period with velocity sign ``sign`` (Sec. 4.4)."""
+    half = case.period_s / 2
+    k = np.floor(df.time_s / half)
+    frac = df.time_s / half - k
+    seg_sign = np.where(k % 2 == 0, 1.0, -1.0)
+    return df[(frac >= 0.45) & (frac <= 0.95) & (seg_sign == sign)]
+
+
+def independent_dp(case: CasePlan, d: dm.Damper, e: dm.Effects, rtol=1e-12):
+    """Δp of Eq. (1) by solve_ivp Radau on each monotone piece (no backlash)."""
+    c1 = dm.laminar_coefficient(d, e)
+    beta = dm.effective_compressibility(d, e)
+    g = e.leakage_conductance_m3_s_Pa
+    t = np.arange(int(round(case.duration_s * case.sample_rate_Hz)) + 1) / case.sample_rate_Hz
+    end = max(case.duration_s, t[-1])
+    if case.waveform == "triangle":
+        def y(tt):
+            return case.amplitude_m * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * tt / case.period_s + case.phase_rad))
+        w = 4 * case.amplitude_m / case.period_s
+        edges = np.arange(0.0, case.duration_s + 1e-9, case.period_s / 2)
+        vel = [w if k % 2 == 0 else -w for k in range(len(edges) - 1)]
+    else:
+        def y(tt):
+            return case.amplitude_m * np.sin(2 * np.pi * case.frequency_Hz * tt)
+        edges = np.array([0.0, end])
+        vel = [None]
+    out = np.empty(t.size)
+    p = 0.0
+    for k, (ta, tb) in enumerate(zip(edges[:-1], edges[1:])):
+        def rhs(tt, z, k=k):
+            v = vel[k] if vel[k] is not None else case.amplitude_m * 2 * np.pi * case.frequency_Hz * np.cos(
+                2 * np.pi * case.frequency_Hz * tt)
+            c2 = dm.turbulent_coefficient(d, e, z[0])
+            q = (np.sign(z[0]) * np.sqrt(abs(z[0]) / c2) if c1 == 0 else dm.orifice_flow(z[0], c1, c2)) + g * z[0]
+            return [(d.piston_area_m2 * v - q) / (beta * dm.composite_volume(y(tt), d))]
+        sel = (t >= ta) & ((t < tb) if k < len(edges) - 2 else (t <= tb))
+        te = t[sel] if t[sel][-1] == tb else np.append(t[sel], tb)
+        sol = solve_ivp(rhs, (ta, tb), [p], method="Radau", rtol=rtol, atol=1e-6, t_eval=te)
+        out[sel] = sol.y[0, :sel.sum()]
+        p = sol.y[0, -1]
+    return t, out
+
+
+# ---------------------------------------------------------------------------------- physics
+
+def test_laminar_first_half_period_matches_eq18():
+    effects = dm.Effects(air_volume_fraction=0.005)     # slow transient: many samples resolve it
+    case = triangle(w_m_s=1.0e-3, period_s=20.0)
+    hyd = dataclasses.replace(Hydraulics.from_damper(TABLE1, effects), turbulent_coefficient_pos=0.0,
+                              turbulent_coefficient_neg=0.0)
+    df = first_half(true_response(case, TABLE1, effects, hydraulics=hyd), case)
+    ref = dm.laminar_step_pressure(df.time_s.to_numpy(), 1.0e-3, start_damper(TABLE1, -case.amplitude_m), effects)
+    assert ref[-1] > 0.99 * 1.0e-3 * TABLE1.piston_area_m2 * dm.laminar_coefficient(TABLE1)
+    np.testing.assert_allclose(df.dp_Pa.to_numpy(), ref, rtol=1e-4, atol=0)
+
+
+def test_turbulent_first_half_period_matches_eq20():
+    effects = dm.Effects(viscosity_Pa_s=0.0, air_volume_fraction=0.002)   # c1 = 0
+    case = triangle(w_m_s=0.5e-3, period_s=20.0)
+    assert Hydraulics.from_damper(TABLE1, effects).laminar_coefficient == 0.0
+    df = first_half(true_response(case, TABLE1, effects), case)
+    ref = dm.turbulent_step_pressure(df.time_s.to_numpy(), 0.5e-3, start_damper(TABLE1, -case.amplitude_m), effects)
+    assert ref[0] < 0.5 * ref[-1]
+    np.testing.assert_allclose(df.dp_Pa.to_numpy(), ref, rtol=1e-4, atol=0)
+
+
+@pytest.mark.parametrize("effects", [
+    TRUTH,
+    dm.Effects(viscosity_Pa_s=0.0, asymmetry=0.1),                       # pure turbulent
+    dm.Effects(discharge_coefficient=1e9, leakage_conductance_m3_s_Pa=5e-12),  # ~pure laminar
+], ids=["mixed-leakage-asymmetry", "turbulent", "laminar"])
+def test_triangle_record_matches_independent_solve_ivp(effects):
+    effects = dataclasses.replace(effects, air_volume_fraction=0.001)
+    case = triangle(w_m_s=1.2e-3, period_s=4.0, rate_Hz=200.0)
+    t, ref = independent_dp(case, TABLE1, effects)
+    dp = true_response(case, TABLE1, effects).dp_Pa.to_numpy()
+    assert np.abs(dp - ref).max() < 1e-7 * np.abs(ref).max()
+
+
+def test_sine_matches_independent_solve_ivp():
+    case = sine(amp_m=0.45e-3, periods=2.0)
+    t, ref = independent_dp(case, TABLE1, TRUTH)
+    df = true_response(case, TABLE1, TRUTH)
+    assert np.abs(df.dp_Pa.to_numpy() - ref).max() < 1e-7 * np.abs(ref).max()
+    v = case.amplitude_m * 2 * np.pi * case.frequency_Hz * np.cos(2 * np.pi * case.frequency_Hz * t)
+    expected_force = TABLE1.piston_area_m2 * ref + 90.0 * np.sign(v)
+    np.testing.assert_allclose(df.force_N.to_numpy(), expected_force, rtol=0, atol=1e-7 * np.abs(expected_force).max())
+
+
+@pytest.mark.parametrize("w_m_s", [1.0e-5, 2.0e-4, 1.5e-3])
+def test_steady_force_equals_incompressible_solution(w_m_s):
+    case = triangle(w_m_s=w_m_s, period_s=20.0)
+    df = true_response(case, TABLE1, TRUTH)
+    for sign in (1.0, -1.0):
+        expected = TABLE1.piston_area_m2 * steady_dp(sign * w_m_s, TABLE1, TRUTH) + sign * 90.0
+        np.testing.assert_allclose(windows(df, case, sign).force_N, expected, rtol=1e-9)
+
+
+def test_reversal_keeps_pressure_continuous():
+    case = triangle(w_m_s=1.5e-3, period_s=20.0, rate_Hz=1000.0)
+    df = true_response(case, TABLE1, dataclasses.replace(TRUTH, air_volume_fraction=0.01))
+    jumps = np.abs(np.diff(df.dp_Pa.to_numpy()))
+    # the largest step is the compressibility slope |A_p W| / (β 𝒱) times dt, never a jump
+    beta = dm.effective_compressibility(TABLE1, dataclasses.replace(TRUTH, air_volume_fraction=0.01))
+    max_slope = 2 * TABLE1.piston_area_m2 * 1.5e-3 / (beta * dm.composite_volume(case.amplitude_m, TABLE1))
+    assert jumps.max() < max_slope * 1e-3
+
+
+def test_triangle_with_backlash_matches_independent_play_model():
+    """Gap b: after each reversal (and at the start) the piston rests for b/W, then follows x ∓ b/2."""
+    gap, w, period = 0.15e-3, 1.0e-3, 4.0
+    effects = dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06, air_volume_fraction=0.002,
+                         backlash_m=gap)
+    case = triangle(w_m_s=w, period_s=period, rate_Hz=500.0)
+    c1, beta = dm.laminar_coefficient(TABLE1, effects), dm.effective_compressibility(TABLE1, effects)
+    amp, t_gap = case.amplitude_m, gap / w
+    t = np.arange(int(round(case.duration_s * case.sample_rate_Hz)) + 1) / case.sample_rate_Hz
+    expected, p = np.empty(t.size), 0.0
+    for k in range(4):
+        d = 1.0 if k % 2 == 0 else -1.0
+        t0 = k * period / 2
+        x0 = -d * amp                               # actuator at the turning point
+        rest_y = x0 + d * gap / 2                   # piston left at the far side of the gap
+        for ta, tb, moving in ((t0, t0 + t_gap, False), (t0 + t_gap, t0 + period / 2, True)):
+            def rhs(tt, z, ta=ta, moving=moving, d=d, x0=x0, rest_y=rest_y):
+                y = x0 + d * w * (tt - t0) - d * gap / 2 if moving else rest_y
+                v = d * w if moving else 0.0
+                q = dm.orifice_flow(z[0], c1, dm.turbulent_coefficient(TABLE1, effects, z[0]))
+                q = q + effects.leakage_conductance_m3_s_Pa * z[0]
+                return [(TABLE1.piston_area_m2 * v - q) / (beta * dm.composite_volume(y, TABLE1))]
+            last = k == 3 and moving
+            sel = (t >= ta) & ((t <= tb) if last else (t < tb))
+            te = t[sel] if (sel.any() and t[sel][-1] == tb) else np.append(t[sel], tb)
+            sol = solve_ivp(rhs, (ta, tb), [p], method="Radau", rtol=1e-12, atol=1e-6, t_eval=te)
+            expected[sel] = sol.y[0, :sel.sum()]
+            p = sol.y[0, -1]
+    dp = true_response(case, TABLE1, effects).dp_Pa.to_numpy()
+    assert np.abs(dp - expected).max() < 1e-7 * np.abs(expected).max()
+
+
+def test_sine_backlash_holds_force_at_zero_until_the_gap_is_crossed():
+    gap = 0.1e-3
+    case = sine(amp_m=0.45e-3, periods=1.0)
+    df = true_response(case, TABLE1, dm.Effects(backlash_m=gap, coulomb_force_N=90.0))
+    t_contact = math.asin(gap / case.amplitude_m) / (2 * math.pi * case.frequency_Hz)
+    before = df[df.time_s < t_contact - 1e-9]
+    after = df[df.time_s > t_contact + 1e-3]
+    assert len(before) > 10 and (before.force_N == 0).all() and (before.piston_velocity_m_s == 0).all()
+    assert after.force_N.iloc[0] > 90.0 and after.piston_velocity_m_s.iloc[0] > 0
+
+
+def test_stroke_that_empties_a_chamber_is_refused():
+    limit = TABLE1.chamber_volume_1_m3 / TABLE1.piston_area_m2
+    with pytest.raises(ValueError, match="end of the cylinder"):
+        true_response(triangle(w_m_s=1e-3, period_s=4 * limit / 1e-3), TABLE1)
+
+
+# ---------------------------------------------------------------------------------- effects
+
+def steady_levels(effects: dm.Effects, w_m_s: float) -> tuple[float, float]:
+    case = triangle(w_m_s=w_m_s, period_s=20.0, rate_Hz=20.0)
+    df = true_response(case, TABLE1, effects)
+    return windows(df, case, 1.0).force_N.mean(), windows(df, case, -1.0).force_N.mean()
+
+
+def test_friction_offsets_force_by_coulomb_force():
+    base = steady_levels(dm.NOMINAL, 3e-4)
+    fric = steady_levels(dm.Effects(coulomb_force_N=90.0), 3e-4)
+    assert fric[0] - base[0] == pytest.approx(90.0, rel=1e-9)
+    assert fric[1] - base[1] == pytest.approx(-90.0, rel=1e-9)
+
+
+def test_leakage_lowers_force_both_directions():
+    base = steady_levels(dm.NOMINAL, 1e-3)
+    leak = steady_levels(dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12), 1e-3)
+    assert 0 < leak[0] < 0.5 * base[0] and 0 > leak[1] > 0.5 * base[1]
+
+
+LEAKY = dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12)    # fast settling baseline
+
+
+def test_asymmetry_makes_negative_branch_stronger():
+    fp, fm = steady_levels(dataclasses.replace(LEAKY, asymmetry=0.06), 1.5e-3)
+    sym_p, sym_m = steady_levels(LEAKY, 1.5e-3)
+    assert sym_p == pytest.approx(-sym_m, rel=1e-9)
+    assert abs(fm) > abs(fp) and fp < sym_p < abs(fm)
+
+
+def test_higher_discharge_coefficient_lowers_turbulent_force():
+    cd08 = dataclasses.replace(LEAKY, discharge_coefficient=0.8)
+    f06 = steady_levels(LEAKY, 1.5e-3)[0]
+    f08 = steady_levels(cd08, 1.5e-3)[0]
+    assert f08 < 0.9 * f06
+    assert f08 / f06 == pytest.approx(steady_dp(1.5e-3, TABLE1, cd08) / steady_dp(1.5e-3, TABLE1, LEAKY), rel=1e-9)
+
+
+def test_higher_viscosity_raises_laminar_force():
+    f = steady_levels(dm.NOMINAL, 1e-6)[0]
+    f2 = steady_levels(dm.Effects(viscosity_Pa_s=0.06), 1e-6)[0]
+    assert f2 / f == pytest.approx(2.0, rel=0.02)       # laminar regime: F ∝ μ (Eq. 31, c1 term)
+
+
+def rise_time(df: pd.DataFrame, case: CasePlan, fraction: float) -> float:
+    half = df[df.time_s <= case.period_s / 2]
+    target = fraction * half.force_N.iloc[-1]
+    return float(half.time_s[half.force_N >= target].iloc[0])
+
+
+def test_air_slows_the_transient():
+    case = triangle(w_m_s=1e-3, period_s=20.0, rate_Hz=1000.0)
+    t_oil = rise_time(true_response(case, TABLE1, LEAKY), case, 0.95)
+    t_air = rise_time(true_response(case, TABLE1, dataclasses.replace(LEAKY, air_volume_fraction=0.01)), case, 0.95)
+    assert t_air > 10 * t_oil
+
+
+def test_backlash_delays_the_transient_by_gap_over_speed():
+    case = triangle(w_m_s=1e-3, period_s=20.0, rate_Hz=1000.0)
+    gap = 0.2e-3
+    plain = true_response(case, TABLE1, dm.NOMINAL)
+    play = true_response(case, TABLE1, dm.Effects(backlash_m=gap))
+    delay = rise_time(play, case, 0.5) - rise_time(plain, case, 0.5)
+    assert delay == pytest.approx(gap / 1e-3, abs=2e-3)
+    assert (play.force_N[play.time_s < gap / 1e-3 - 1e-9] == 0).all()
+    # after the reversal the pressure relaxes (piston at rest) before the new push
+    after = play[(play.time_s > 10.0) & (play.time_s < 10.0 + gap / 1e-3)]
+    assert (np.diff(after.dp_Pa) < 0).all() and after.dp_Pa.iloc[-1] > 0
+
+
+# ---------------------------------------------------------------------------------- measurement
+
+def test_same_seed_gives_identical_records(paper):
+    c = paper.case("T22")
+    a = simulate_case(c, paper.damper, paper.effects, paper.measurement, paper.seed)
+    b = simulate_case(c, paper.damper, paper.effects, paper.measurement, paper.seed)
+    pd.testing.assert_frame_equal(a, b, check_exact=True)
+    other = simulate_case(c, paper.damper, paper.effects, paper.measurement, paper.seed + 1)
+    assert not np.array_equal(a.force_N, other.force_N)
+
+
+def test_record_covers_two_periods_with_schema(paper):
+    c = paper.case("T22")
+    df = simulate_case(c, paper.damper, paper.effects, paper.measurement, paper.seed)
+    tables.validate_table(df, tables.TIMESERIES)
+    assert list(df.columns) == ["row", "time_s", "displacement_m", "force_N", "command_m"]
+    assert len(df) == int(c.duration_s * c.sample_rate_Hz) + 1
+    assert df.time_s.iloc[-1] == c.duration_s and df.row.dtype == np.int64
+
+
+def test_noise_has_the_stated_levels(paper):
+    c = paper.case("T22")
+    m = paper.measurement
+    df = simulate_case(c, paper.damper, paper.effects, m, paper.seed)
+    truth = true_response(c, paper.damper, paper.effects)
+    expected = np.sqrt(m.force_noise_N**2 + (m.force_noise_rel * truth.force_N) ** 2)
+    assert ((df.force_N - truth.force_N) / expected).std() == pytest.approx(1.0, abs=0.03)
+    assert (df.displacement_m - truth.command_m).std() == pytest.approx(m.displacement_noise_m, rel=0.03)
+
+
+def test_channels_are_quantised_to_the_stated_resolution(paper):
+    m = paper.measurement
+    df = simulate_case(paper.case("T22"), paper.damper, paper.effects, m, paper.seed)
+    for col, res in (("force_N", m.force_resolution_N), ("displacement_m", m.displacement_resolution_m),
+                     ("command_m", m.command_resolution_m)):
+        counts = df[col] / res
+        assert np.abs(counts - np.rint(counts)).max() < 1e-6, col
+
+
+def test_cases_get_independent_noise(paper):
+    m = Measurement(force_noise_N=5.0, force_resolution_N=0.0)
+    a = simulate_case(triangle(case="T01"), TABLE1, dm.NOMINAL, m, 1)
+    b = simulate_case(triangle(case="T02"), TABLE1, dm.NOMINAL, m, 1)
+    ra = a.force_N - true_response(triangle(), TABLE1).force_N
+    rb = b.force_N - true_response(triangle(), TABLE1).force_N
+    assert abs(np.corrcoef(ra, rb)[0, 1]) < 0.1
+
+
+# ---------------------------------------------------------------------------------- paper behaviour
+
+def test_default_campaign_behaves_like_the_paper(paper):
+    hyd_rows = {}
+    for cid in ("T01", "T23"):
+        c = paper.case(cid)
+        df = true_response(c, paper.damper, paper.effects)
+        hyd_rows[cid] = (windows(df, c, 1.0).force_N.mean(), windows(df, c, -1.0).force_N.mean())
+    coulomb = paper.effects.coulomb_force_N
+    # v -> 0: non-zero force ≈ friction, both directions
+    assert hyd_rows["T01"][0] == pytest.approx(coulomb, rel=0.15)
+    assert hyd_rows["T01"][1] == pytest.approx(-coulomb, rel=0.15)
+    # 1.5 mm/s: asymmetric, |F-| > |F+|
+    fp, fm = hyd_rows["T23"]
+    assert abs(fm) > abs(fp) > 1000.0
+    # nominal Eq. (31) over-predicts the top force several-fold
+    nominal = dm.nominal_force(paper.case("T23").velocity_m_s, paper.damper)
+    assert nominal > 3 * abs(fm)
+
+
+# ---------------------------------------------------------------------------------- config
+
+def test_from_config_converts_mm_to_m(paper, config_mapping):
+    t01 = paper.case("T01")
+    w = config_mapping["plan"]["triangle"]["velocities_mm_s"][0] * 1e-3
+    assert t01.velocity_m_s == pytest.approx(w, rel=1e-12)
+    assert paper.case("H04").amplitude_m == pytest.approx(0.64e-3, rel=1e-12)
+    assert len(paper.cases) == 27 and paper.effects.asymmetry == 0.06
+
+
+@pytest.mark.parametrize("mutate, key", [
+    (lambda m: m.pop("seed"), "seed"),
+    (lambda m: m["damper"].pop("orifice_area_m2"), "orifice_area_m2"),
+    (lambda m: m["plan"]["triangle"].pop("periods_s"), "periods_s"),
+    (lambda m: m["measurement"].update(bogus=1.0), "bogus"),
+    (lambda m: m["effects"].update(magic={"x": 1.0}), "magic"),
+    (lambda m: m.update(colour="red"), "colour"),
+])
+def test_from_config_errors_name_the_key(config_mapping, mutate, key):
+    mapping = yaml.safe_load(yaml.safe_dump(config_mapping))
+    mutate(mapping)
+    with pytest.raises((KeyError, ValueError), match=key):
+        VirtualCampaign.from_config("paper-lag-damper", mapping)
+
+
+# ---------------------------------------------------------------------------------- outputs
+
+def small(paper) -> VirtualCampaign:
+    keep = {"T22", "H01"}
+    return dataclasses.replace(paper, cases=tuple(c for c in paper.cases if c.case in keep))
+
+
+def test_export_is_byte_reproducible(paper, tmp_path):
+    a = export_raw_campaign(paper, tmp_path / "a" / "lag", cases=["T22", "H01"], name="lag")
+    b = export_raw_campaign(paper, tmp_path / "b" / "lag", cases=["T22", "H01"], name="lag")
+    files = sorted(p.name for p in a.iterdir())
+    assert files == ["H01.csv", "T22.csv", "campaign.yaml"]
+    for f in files:
+        assert (a / f).read_bytes() == (b / f).read_bytes()
+
+
+def test_export_manifest_has_nominal_damper_and_provenance(paper, tmp_path):
+    out = export_raw_campaign(paper, tmp_path / "lag", cases=["H01", "T22"], sample_rate_Hz=50.0, name="lag")
+    manifest = yaml.safe_load((out / "campaign.yaml").read_text())
+    assert manifest["format_version"] == 1 and manifest["source"] == "simulation" and manifest["campaign"] == "lag"
+    assert manifest["damper"] == paper.damper.to_dict()
+    assert manifest["columns"]["force"] == {"name": "force_kN", "unit": "kN"}
+    assert manifest["generated_by"] == {"generator": "isokinetic.virtual_rig", "config_campaign": "paper-lag-damper",
+                                        "seed": paper.seed, "cases": ["T22", "H01"], "sample_rate_Hz": 50.0}
+    text = (out / "campaign.yaml").read_text()
+    assert "effects" not in manifest and "coulomb" not in text and "conductance" not in text
+
+
+def test_export_round_trips_the_simulated_series(paper, tmp_path):
+    out = export_raw_campaign(paper, tmp_path / "lag", cases=["T22", "H01"], sample_rate_Hz=50.0, name="lag")
+    manifest = yaml.safe_load((out / "campaign.yaml").read_text())
+    for entry in manifest["cases"]:
+        c = dataclasses.replace(paper.case(entry["id"]), sample_rate_Hz=50.0)
+        sim = simulate_case(c, paper.damper, paper.effects, paper.measurement, paper.seed)
+        raw = pd.read_csv(out / entry["file"])
+        for channel, col in (("time", "time_s"), ("displacement", "displacement_m"), ("force", "force_N"),
+                             ("command", "command_m")):
+            spec = manifest["columns"][channel]
+            back = raw[spec["name"]].to_numpy() * UNIT_SI[spec["unit"]]
+            np.testing.assert_allclose(back, sim[col], rtol=1e-12, atol=0)
+        assert entry["amplitude_mm"] * 1e-3 == pytest.approx(c.amplitude_m, rel=1e-12)
+
+
+def test_export_refuses_non_empty_folder(paper, tmp_path):
+    target = tmp_path / "lag"
+    target.mkdir()
+    (target / "keep.txt").write_text("x")
+    with pytest.raises(FileExistsError):
+        export_raw_campaign(paper, target, cases=["T22"], name="lag")
+    assert sorted(p.name for p in target.iterdir()) == ["keep.txt"]
+
+
+def test_write_campaign_ingest_has_nominal_damper_and_csv_hashes(paper, tmp_path):
+    vc = small(paper)
+    write_campaign(vc, tmp_path / "res")
+    ing = read_ingested(tmp_path / "res")
+    assert ing.meta["damper"] == paper.damper.to_dict() and ing.meta["source"] == "simulation"
+    assert "coulomb" not in (tmp_path / "res" / "ingest" / "campaign.json").read_text()
+    assert list(ing.cases.case) == ["T22", "H01"] and (ing.cases.status == "ok").all()
+    assert ing.cases.raw_file.iloc[0] == "virtual_rig:paper-lag-damper/T22"
+    raw = export_raw_campaign(vc, tmp_path / "raw" / "paper-lag-damper")
+    for case, sha in zip(ing.cases.case, ing.cases.raw_sha256):
+        assert sha == hashlib.sha256((raw / f"{case}.csv").read_bytes()).hexdigest()
+    ts = ing.timeseries("T22")
+    pd.testing.assert_frame_equal(ts, simulate_case(vc.case("T22"), vc.damper, vc.effects, vc.measurement, vc.seed))
+
+
+def test_cli_exports_selected_cases_and_refuses_existing(tmp_path, capsys):
+    out = tmp_path / "tiny"
+    args = ["export-virtual", "--config", str(CONFIG), "--campaign", "paper-lag-damper", "--out", str(out),
+            "--cases", "T22,H01", "--sample-rate-Hz", "50", "--name", "tiny"]
+    assert main(args) == 0
+    manifest = yaml.safe_load((out / "campaign.yaml").read_text())
+    assert manifest["campaign"] == "tiny" and [c["id"] for c in manifest["cases"]] == ["T22", "H01"]
+    assert manifest["sample_rate_Hz"] == 50.0
+    assert main(args) == 1
+    assert "non-empty" in capsys.readouterr().err

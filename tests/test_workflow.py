@@ -1,0 +1,127 @@
+"""End-to-end: the Snakemake workflow on a tiny config in a scratch copy of the project."""
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+BIN = Path(sys.executable).parent
+SNAKEMAKE = str(BIN / "snakemake")
+
+TINY = {
+    "raw_dir": "data/raw",
+    "windows": {"start_fraction": 0.45, "end_fraction": 0.95},
+    "repeatability": {"tolerance": 0.05},
+    "validation": {"sample_rate_tolerance": 0.05},
+    "virtual_campaigns": {
+        "tiny": {
+            "description": "three short triangle cases",
+            "seed": 7,
+            "temperature_C": 40.0,
+            "damper": {"piston_area_m2": 4.0e-3, "chamber_volume_1_m3": 3.0e-4, "chamber_volume_2_m3": 3.0e-4,
+                       "orifice_area_m2": 6.0e-8, "orifice_length_m": 5.0e-4, "discharge_coefficient": 0.6,
+                       "density_kg_m3": 815.0, "viscosity_Pa_s": 0.03, "oil_compressibility_1_Pa": 3.8e-9},
+            "effects": {"friction": {"coulomb_force_N": 90.0}, "leakage": {"conductance_m3_s_Pa": 2.2e-12}},
+            "measurement": {"force_noise_N": 5.0, "force_noise_rel": 0.01, "displacement_noise_m": 1.0e-6},
+            "plan": {"triangle": {"velocities_mm_s": [0.05, 0.5, 1.5], "periods_s": [8, 8, 8],
+                                  "sample_rate_Hz": 20.0}},
+        }
+    },
+}
+
+
+def snakemake(workdir, *args, check=True):
+    proc = subprocess.run([SNAKEMAKE, "--cores", "2", *args], cwd=workdir, capture_output=True, text=True)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"snakemake {' '.join(args)} failed:\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
+    return proc
+
+
+def export(workdir, name):
+    subprocess.run([sys.executable, "-m", "isokinetic", "export-virtual", "--config", "config/config.yaml",
+                    "--campaign", "tiny", "--name", name, "--out", f"data/raw/{name}"], cwd=workdir, check=True)
+
+
+@pytest.fixture(scope="module")
+def project(tmp_path_factory):
+    """A scratch project: the workflow, the tiny config and one exported raw campaign, built once."""
+    work = tmp_path_factory.mktemp("project")
+    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
+    shutil.copytree(ROOT / "workflow", work / "workflow", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(ROOT / "profiles", work / "profiles")
+    (work / "config").mkdir()
+    (work / "config" / "config.yaml").write_text(yaml.safe_dump(TINY), encoding="utf-8")
+    export(work, "tiny-export")
+    snakemake(work)
+    return work
+
+
+def copy_project(project, tmp_path):
+    work = tmp_path / "copy"
+    shutil.copytree(project, work, symlinks=True)
+    return work
+
+
+def test_pipeline_writes_characteristic_and_figures_for_every_campaign(project):
+    for campaign in ("tiny", "tiny-export"):
+        root = project / "results" / campaign
+        char = pd.read_parquet(root / "characteristic.parquet")
+        assert len(char) == 12  # 3 cases x 4 windows
+        assert sorted((root / "figures").glob("*.png")) and all(
+            p.stat().st_size > 0 for p in (root / "figures").glob("*.png"))
+
+
+def test_exported_raw_campaign_gives_the_simulated_characteristic(project):
+    sim = pd.read_parquet(project / "results" / "tiny" / "characteristic.parquet")
+    raw = pd.read_parquet(project / "results" / "tiny-export" / "characteristic.parquet")
+    keys = ["case", "segment", "direction", "period", "n_samples", "row_start", "row_stop"]
+    pd.testing.assert_frame_equal(sim[keys], raw[keys])
+    for col in ["velocity_m_s", "force_N", "force_std_N", "window_start_s", "window_end_s"]:
+        assert raw[col].to_numpy() == pytest.approx(sim[col].to_numpy(), rel=1e-9, abs=1e-12), col
+
+
+def test_rerun_with_nothing_changed_does_nothing(project):
+    assert "Nothing to be done" in snakemake(project, "-n").stdout
+
+
+def test_new_raw_campaign_runs_only_its_own_jobs(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    src, dst = work / "data/raw/tiny-export", work / "data/raw/tiny-copy"
+    shutil.copytree(src, dst)
+    manifest = (dst / "campaign.yaml").read_text(encoding="utf-8").replace("campaign: tiny-export", "campaign: tiny-copy")
+    (dst / "campaign.yaml").write_text(manifest, encoding="utf-8")
+    planned = snakemake(work, "-n").stdout
+    jobs = [block for block in planned.split("\nrule ")[1:] if not block.startswith("all:")]
+    outputs = [line for block in jobs for line in block.splitlines() if line.strip().startswith("output:")]
+    assert len(jobs) == 6, planned  # ingest, validate, windows, repeatability, characteristic, figures
+    assert all("results/tiny-copy/" in line for line in outputs), outputs
+
+
+def test_broken_manifest_fails_its_campaign_alone(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    shutil.rmtree(work / "results")
+    broken = work / "data/raw/broken"
+    shutil.copytree(work / "data/raw/tiny-export", broken)
+    text = (broken / "campaign.yaml").read_text(encoding="utf-8").replace("campaign: tiny-export", "campaign: broken")
+    (broken / "campaign.yaml").write_text(text.replace("format_version: 1", "format_version: 99"), encoding="utf-8")
+    proc = snakemake(work, check=False)
+    assert proc.returncode != 0
+    log = (work / "logs/broken/ingest.log").read_text(encoding="utf-8")
+    assert "campaign.yaml" in log and "format_version" in log
+    for campaign in ("tiny", "tiny-export"):
+        assert (work / "results" / campaign / "characteristic.parquet").exists()
+    assert not (work / "results/broken/characteristic.parquet").exists()
+
+
+def test_bad_config_key_is_named(project, tmp_path):
+    bad = dict(TINY, windows={"start_fraction": 0.45, "end_fraction": 1.5})
+    path = tmp_path / "bad.yaml"
+    path.write_text(yaml.safe_dump(bad), encoding="utf-8")
+    proc = snakemake(project, "-n", "--configfile", str(path), check=False)
+    assert proc.returncode != 0
+    assert "['windows']['end_fraction']" in proc.stdout + proc.stderr

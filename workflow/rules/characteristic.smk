@@ -1,0 +1,11 @@
+rule characteristic:
+    """The steady force-velocity characteristic of the campaign."""
+    input:
+        windows="results/{campaign}/windows.parquet",
+        repeatability="results/{campaign}/repeatability.parquet",
+    output:
+        "results/{campaign}/characteristic.parquet",
+    log:
+        "logs/{campaign}/characteristic.log",
+    script:
+        "../scripts/characteristic.py"

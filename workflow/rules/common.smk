@@ -1,0 +1,64 @@
+# Helpers shared by the rules: config validation and campaign discovery.
+
+import logging
+import re
+from pathlib import Path
+
+from snakemake.exceptions import WorkflowError
+from snakemake.utils import validate
+
+validate(config, schema="../schemas/config.schema.yaml")
+if config["windows"]["start_fraction"] >= config["windows"]["end_fraction"]:
+    raise WorkflowError("config key 'windows': start_fraction must be below end_fraction, got "
+                        f"{config['windows']['start_fraction']} >= {config['windows']['end_fraction']}")
+
+CAMPAIGN_ID = re.compile(r"[a-z0-9][a-z0-9_-]*")
+RAW_DIR = Path(config["raw_dir"])
+
+
+def discover_raw_campaigns(raw_dir):
+    """Folders <raw_dir>/<campaign>/ holding a campaign.yaml; names must be campaign ids."""
+    found = []
+    for manifest in sorted(raw_dir.glob("*/campaign.yaml")):
+        name = manifest.parent.name
+        if CAMPAIGN_ID.fullmatch(name):
+            found.append(name)
+        else:
+            logging.getLogger("isokinetic").warning(
+                "%s: folder name %r is not a campaign id ([a-z0-9][a-z0-9_-]*); campaign skipped",
+                manifest.parent, name)
+    return found
+
+
+RAW_CAMPAIGNS = discover_raw_campaigns(RAW_DIR)
+VIRTUAL_CAMPAIGNS = sorted(config.get("virtual_campaigns") or {})
+_clash = sorted(set(RAW_CAMPAIGNS) & set(VIRTUAL_CAMPAIGNS))
+if _clash:
+    raise WorkflowError(f"campaign names used both by a raw campaign in {RAW_DIR}/ and by "
+                        f"config 'virtual_campaigns': {', '.join(_clash)}; rename one of them")
+CAMPAIGNS = RAW_CAMPAIGNS + VIRTUAL_CAMPAIGNS
+
+
+def one_of(names):
+    """Wildcard constraint matching exactly one of the names (or nothing)."""
+    return "|".join(re.escape(n) for n in names) or "(?!)"
+
+
+def raw_files(wildcards):
+    """Every file of a raw campaign folder: a change to any of them reruns its ingest."""
+    folder = RAW_DIR / wildcards.campaign
+    return sorted(str(p) for p in folder.iterdir() if p.is_file())
+
+
+FIGURES = ["fig07_time_and_loops", "fig08_window_selection", "fig09_characteristic",
+           "fig10_low_velocity", "fig11_loglog", "fig12_noise"]
+
+
+def campaign_outputs(campaign):
+    root = f"results/{campaign}"
+    return [f"{root}/characteristic.parquet", f"{root}/repeatability.parquet",
+            f"{root}/quarantine.parquet"] + [f"{root}/figures/{name}.png" for name in FIGURES]
+
+
+def all_outputs():
+    return [path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]

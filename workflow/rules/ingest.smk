@@ -1,0 +1,14 @@
+rule ingest:
+    """Read a raw campaign folder (manifest + CSVs), convert to SI, write canonical Parquet."""
+    input:
+        raw_files,
+    output:
+        directory("results/{campaign}/ingest"),
+    log:
+        "logs/{campaign}/ingest.log",
+    wildcard_constraints:
+        campaign=one_of(RAW_CAMPAIGNS),
+    params:
+        campaign_dir=lambda wildcards: str(RAW_DIR / wildcards.campaign),
+    script:
+        "../scripts/ingest.py"

@@ -1,0 +1,13 @@
+rule validate:
+    """Schema and plan checks per case; failing cases are quarantined with their reason."""
+    input:
+        "results/{campaign}/ingest",
+    output:
+        cases="results/{campaign}/cases.parquet",
+        quarantine="results/{campaign}/quarantine.parquet",
+    log:
+        "logs/{campaign}/validate.log",
+    params:
+        sample_rate_tolerance=config["validation"]["sample_rate_tolerance"],
+    script:
+        "../scripts/validate.py"

@@ -1,0 +1,12 @@
+rule virtual_rig:
+    """Simulate a config-defined campaign into the ingested-campaign layout."""
+    output:
+        directory("results/{campaign}/ingest"),
+    log:
+        "logs/{campaign}/virtual_rig.log",
+    wildcard_constraints:
+        campaign=one_of(VIRTUAL_CAMPAIGNS),
+    params:
+        spec=lambda wildcards: config["virtual_campaigns"][wildcards.campaign],
+    script:
+        "../scripts/virtual_rig.py"
