@@ -34,22 +34,10 @@ def ivp_triangle(case, hyd: Hydraulics, method: str, rtol: float):
     t = sample_times(case)
     a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
     v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
-    c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
-    c2p, c2n = hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg
     w = case.velocity_m_s
     atol = rtol * abs(steady_pressure(-a * w, hyd))
 
-    def q_n(p):
-        ap = abs(p)
-        if ap == 0.0:
-            return 0.0
-        c2 = c2p if p > 0 else c2n
-        return math.copysign(2.0 * ap / (c1 + math.sqrt(c1 * c1 + 4.0 * c2 * ap)), p) + g * p
-
-    def dq_n(p):
-        c2 = c2p if p >= 0 else c2n
-        return 1.0 / math.sqrt(c1 * c1 + 4.0 * c2 * abs(p)) + g
-
+    q_n, dq_n = hyd.flow, hyd.flow_derivative
     out = np.empty(t.size)
     p = 0.0
     segs = piston_segments(case)

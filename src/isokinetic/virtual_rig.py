@@ -294,6 +294,19 @@ class Hydraulics:
             return self.turbulent_coefficient_pos if sign >= 0 else self.turbulent_coefficient_neg
         return np.where(np.asarray(sign) >= 0, self.turbulent_coefficient_pos, self.turbulent_coefficient_neg)
 
+    def flow(self, dp_Pa: float) -> float:
+        """Scalar Q_N(Δp): orifice Eq. (7) plus leakage, for ODE right-hand sides [m³/s]."""
+        a = abs(dp_Pa)
+        if a == 0.0:
+            return 0.0
+        c1, c2 = self.laminar_coefficient, self.c2(float(dp_Pa))
+        return math.copysign(2.0 * a / (c1 + math.sqrt(c1 * c1 + 4.0 * c2 * a)), dp_Pa) + self.leakage_conductance_m3_s_Pa * dp_Pa
+
+    def flow_derivative(self, dp_Pa: float) -> float:
+        """Scalar dQ_N/dΔp = 1/sqrt(c1² + 4 c2|Δp|) + g, for ODE Jacobians [m³/(s Pa)]."""
+        root = math.sqrt(self.laminar_coefficient**2 + 4.0 * self.c2(float(dp_Pa)) * abs(dp_Pa))
+        return (1.0 / root if root > 0 else 1e300) + self.leakage_conductance_m3_s_Pa
+
 
 def orifice_pressure_of_flow(q_m3_s, hyd: Hydraulics):
     """Δp = c1 q + c2± q|q| for orifice flow q, Eq. (7) [Pa]."""
@@ -756,23 +769,9 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
     amp = case.amplitude_m
     a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
     v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
-    c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
-    c2p, c2n = hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg
     atol = rtol * max(abs(steady_pressure(a * amp * omega, hyd)), abs(steady_pressure(-a * amp * omega, hyd)), 1.0)
 
-    def q_n(p):
-        ap = abs(p)
-        if ap == 0.0:
-            return 0.0
-        c2 = c2p if p > 0 else c2n
-        return math.copysign(2.0 * ap / (c1 + math.sqrt(c1 * c1 + 4.0 * c2 * ap)), p) + g * p
-
-    def dq_n(p):
-        c2 = c2p if p >= 0 else c2n
-        ap = abs(p)
-        root = math.sqrt(c1 * c1 + 4.0 * c2 * ap)
-        return (1.0 / root if root > 0 else 1e300) + g
-
+    q_n, dq_n = hyd.flow, hyd.flow_derivative
     segs = piston_segments(case, backlash_m)
     dp = np.empty(t.size)
     vel = np.zeros(t.size)
