@@ -6,7 +6,15 @@ rule figures:
         windows="results/{campaign}/windows.parquet",
         characteristic="results/{campaign}/characteristic.parquet",
     output:
-        [f"results/{{campaign}}/figures/{name}.png" for name in FIGURES],
+        [
+            report(
+                f"results/{{campaign}}/figures/{name}.png",
+                caption=f"../report/{name}.rst",
+                category="{campaign}",
+                labels={"campaign": "{campaign}", "figure": name},
+            )
+            for name in FIGURES
+        ],
     log:
         "logs/{campaign}/figures.log",
     script:
