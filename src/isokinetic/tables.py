@@ -135,3 +135,55 @@ def empty(schema: pa.DataFrameSchema) -> pd.DataFrame:
     cols = {name: pd.Series(dtype=("object" if col.dtype is None or str(col.dtype) == "str" else str(col.dtype)))
             for name, col in schema.columns.items() if col.required}
     return pd.DataFrame(cols)
+
+
+#: Test design per planned case (issue: G-numbers Eq. 19-22, stroke to converge Eq. 28-29).
+PLAN_CHECK = pa.DataFrameSchema(
+    {
+        "campaign": pa.Column(str),
+        "case": pa.Column(str),
+        "waveform": pa.Column(str, Check.isin(WAVEFORMS)),
+        "velocity_m_s": pa.Column("float64", nullable=True),
+        "period_s": pa.Column("float64", nullable=True),
+        "amplitude_m": pa.Column("float64", nullable=True),
+        "G1": pa.Column("float64", nullable=True),
+        "G2": pa.Column("float64", nullable=True),
+        "G3": pa.Column("float64", nullable=True),
+        "stroke_to_converge_m": pa.Column("float64", nullable=True),
+        "window_start_stroke_m": pa.Column("float64", nullable=True),
+        "flagged": pa.Column(bool),
+        "reasons": pa.Column(str),
+    },
+    strict=False,
+    name="plan_check",
+)
+
+#: Fitted model parameters (Wallaschek symmetric, Surace asymmetric) with 95 % intervals.
+MODELS = pa.DataFrameSchema(
+    {
+        "campaign": pa.Column(str),
+        "model": pa.Column(str, Check.isin(["wallaschek", "surace"])),
+        "direction": pa.Column(str, Check.isin(["both", "+", "-"])),
+        "parameter": pa.Column(str),
+        "estimate": pa.Column("float64"),
+        "ci_low": pa.Column("float64"),
+        "ci_high": pa.Column("float64"),
+    },
+    strict=False,
+    name="models",
+)
+
+#: Harmonic and free-waveform summary points (peak-to-peak, peak-velocity, velocity-binned).
+HARMONIC = pa.DataFrameSchema(
+    {
+        "campaign": pa.Column(str),
+        "case": pa.Column(str),
+        "waveform": pa.Column(str, Check.isin(["sine", "free"])),
+        "kind": pa.Column(str, Check.isin(["peak_to_peak", "peak_velocity", "binned"])),
+        "direction": pa.Column(str, Check.isin(DIRECTIONS)),
+        "velocity_m_s": pa.Column("float64"),
+        "force_N": pa.Column("float64"),
+    },
+    strict=False,
+    name="harmonic",
+)
