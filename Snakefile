@@ -20,6 +20,10 @@ include: "workflow/rules/windows.smk"
 include: "workflow/rules/repeatability.smk"
 include: "workflow/rules/characteristic.smk"
 include: "workflow/rules/figures.smk"
+include: "workflow/rules/design.smk"
+include: "workflow/rules/nominal.smk"
+include: "workflow/rules/harmonic.smk"
+include: "workflow/rules/models.smk"
 
 
 rule all:

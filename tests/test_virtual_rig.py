@@ -21,8 +21,8 @@ from isokinetic import tables
 from isokinetic.__main__ import main
 from isokinetic.campaign import read_ingested
 from isokinetic.plan import CasePlan
-from isokinetic.virtual_rig import (Hydraulics, Measurement, VirtualCampaign, export_raw_campaign, simulate_case,
-                                    true_response, write_campaign)
+from isokinetic.virtual_rig import (Hydraulics, Measurement, VirtualCampaign, export_raw_campaign, servo_response,
+                                    simulate_case, true_response, write_campaign)
 
 CONFIG = Path(__file__).resolve().parents[1] / "config" / "config.yaml"
 TABLE1 = dm.Damper(piston_area_m2=4.0e-3, chamber_volume_1_m3=3.0e-4, chamber_volume_2_m3=3.0e-4,
@@ -230,6 +230,126 @@ def test_stroke_that_empties_a_chamber_is_refused():
     limit = TABLE1.chamber_volume_1_m3 / TABLE1.piston_area_m2
     with pytest.raises(ValueError, match="end of the cylinder"):
         true_response(triangle(w_m_s=1e-3, period_s=4 * limit / 1e-3), TABLE1)
+
+
+# ---------------------------------------------------------------------------------- servo stiffness
+
+def independent_servo_dp(case: CasePlan, d: dm.Damper, e: dm.Effects, k: float):
+    """Δp with a servo of stiffness k, no play, no friction: x = c - A_p Δp / k = y and
+    (β 𝒱(y) + A_p²/k) dΔp/dt = A_p dc/dt - Q_N (Eq. 1 with the fixture compliance), Radau."""
+    a, c1, g = d.piston_area_m2, dm.laminar_coefficient(d, e), e.leakage_conductance_m3_s_Pa
+    beta = dm.effective_compressibility(d, e)
+    t = np.arange(int(round(case.duration_s * case.sample_rate_Hz)) + 1) / case.sample_rate_Hz
+    if case.waveform == "sine":
+        w = 2 * np.pi * case.frequency_Hz
+        edges, rates = [0.0, t[-1]], [lambda tt: case.amplitude_m * w * np.cos(w * tt)]
+
+        def cmd(tt):
+            return case.amplitude_m * np.sin(w * tt)
+    else:
+        speed = 4 * case.amplitude_m / case.period_s
+        edges = list(np.arange(0.0, case.duration_s + 1e-9, case.period_s / 2))
+        rates = [(lambda tt, s=(1.0 if k_ % 2 == 0 else -1.0): s * speed) for k_ in range(len(edges) - 1)]
+
+        def cmd(tt):
+            return case.amplitude_m * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * tt / case.period_s + case.phase_rad))
+    out, p = np.empty(t.size), 0.0
+    for n, (ta, tb) in enumerate(zip(edges[:-1], edges[1:])):
+        def rhs(tt, z, rate=rates[n]):
+            y = cmd(tt) - a * z[0] / k
+            q = dm.orifice_flow(z[0], c1, dm.turbulent_coefficient(d, e, z[0])) + g * z[0]
+            return [(a * rate(tt) - q) / (beta * dm.composite_volume(y, d) + a * a / k)]
+        sel = (t >= ta) & ((t <= tb) if n == len(edges) - 2 else (t < tb))
+        te = t[sel] if t[sel][-1] == tb else np.append(t[sel], tb)
+        sol = solve_ivp(rhs, (ta, tb), [p], method="Radau", rtol=1e-12, atol=1e-6, t_eval=te)
+        out[sel], p = sol.y[0, :sel.sum()], sol.y[0, -1]
+    return out
+
+
+@pytest.mark.parametrize("case", [sine(amp_m=0.45e-3, periods=2.0),
+                                  triangle(w_m_s=1.2e-3, period_s=4.0, rate_Hz=200.0)],
+                         ids=["sine", "triangle"])
+def test_servo_stiffness_without_play_matches_independent_solve_ivp(case):
+    effects = dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)
+    k = 3e7
+    df = true_response(case, TABLE1, effects, servo_stiffness_N_m=k)
+    ref = independent_servo_dp(case, TABLE1, effects, k)
+    assert np.abs(df.dp_Pa.to_numpy() - ref).max() < 1e-7 * np.abs(ref).max()
+    np.testing.assert_allclose(df.force_N, TABLE1.piston_area_m2 * df.dp_Pa, rtol=1e-12)
+    np.testing.assert_allclose(df.actuator_m, df.command_m - df.force_N / k, rtol=0, atol=1e-15)
+    # the compliance adds to the compressibility: the force is lower than with a rigid servo
+    rigid = true_response(case, TABLE1, effects)
+    assert df.force_N.abs().max() < rigid.force_N.abs().max()
+
+
+def test_stiff_servo_approaches_the_rigid_rig():
+    case = sine(amp_m=0.45e-3, periods=2.0)
+    effects = dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)
+    rigid = true_response(case, TABLE1, effects)
+    stiff = true_response(case, TABLE1, effects, servo_stiffness_N_m=1e16)
+    assert (rigid.actuator_m == rigid.command_m).all()
+    assert np.abs(stiff.force_N - rigid.force_N).max() < 1e-7 * rigid.force_N.abs().max()
+
+
+@pytest.mark.parametrize("case", [sine(amp_m=0.45e-3, periods=3.0),
+                                  triangle(w_m_s=1.0e-3, period_s=4.0, rate_Hz=200.0)],
+                         ids=["sine", "triangle"])
+def test_servo_with_backlash_and_friction_keeps_the_play_and_friction_laws(case):
+    """Play: |x - y| <= b/2, = b/2 with x - y of the sign of F while loaded; F = 0 only in the gap,
+    where x follows the command and the piston stands. Friction: a standing loaded piston needs
+    |F - A_p Δp| <= F_C, a sliding one F - A_p Δp = F_C sign(dy/dt). Servo: x = c - F/k."""
+    gap, k = 0.05e-3, 5e7
+    effects = dataclasses.replace(TRUTH, backlash_m=gap)
+    hyd = Hydraulics.from_damper(TABLE1, effects)
+    t, dp, yd, force, x, y = servo_response(case, hyd, effects, k)
+    c = true_response(case, TABLE1).command_m.to_numpy()
+    fc, a = effects.coulomb_force_N, TABLE1.piston_area_m2
+    np.testing.assert_allclose(x, c - force / k, rtol=0, atol=1e-15)
+    assert (np.abs(x - y) <= gap / 2 * (1 + 1e-9)).all()
+    loaded = force != 0
+    assert 0.005 < (~loaded).mean() < 0.3                      # the gap is crossed, briefly
+    np.testing.assert_allclose(np.abs(x - y)[loaded], gap / 2, rtol=1e-9)
+    assert (np.sign(x - y)[loaded] == np.sign(force[loaded])).all()
+    assert (yd[~loaded] == 0).all() and (x[~loaded] == c[~loaded]).all()
+    friction = force - a * dp
+    tol = 1e-6 * np.abs(force).max()
+    standing, sliding = loaded & (yd == 0), loaded & (yd != 0)
+    assert standing.any() and (np.abs(friction[standing]) <= fc + tol).all()
+    np.testing.assert_allclose(friction[sliding], fc * np.sign(yd[sliding]), rtol=0, atol=tol)
+
+
+def test_servo_does_not_change_the_steady_triangle_force():
+    """At constant velocity the load is constant, the servo lag too: F = A_p Δp* + F_C as rigid."""
+    case = triangle(w_m_s=1.0e-3, period_s=20.0)
+    effects = dataclasses.replace(TRUTH, backlash_m=0.05e-3)
+    rigid = true_response(case, TABLE1, effects)
+    servo = true_response(case, TABLE1, effects, servo_stiffness_N_m=5e7)
+    for sign in (1.0, -1.0):
+        np.testing.assert_allclose(windows(servo, case, sign).force_N, windows(rigid, case, sign).force_N, rtol=1e-6)
+
+
+def test_lvdt_measures_the_lagging_actuator():
+    m = Measurement(force_resolution_N=0.0, displacement_resolution_m=0.0, command_resolution_m=0.0,
+                    servo_stiffness_N_m=5e7)
+    case = sine(amp_m=0.45e-3, periods=1.0)
+    rec = simulate_case(case, TABLE1, TRUTH, m, 1)
+    np.testing.assert_allclose(rec.displacement_m, rec.command_m - rec.force_N / 5e7, rtol=0, atol=1e-15)
+    assert (rec.displacement_m - rec.command_m).abs().max() > 1e-5
+
+
+def test_servo_stiffness_config_key():
+    assert Measurement().servo_stiffness_N_m == math.inf
+    assert Measurement.from_config({"servo_stiffness_N_m": 2e8}).servo_stiffness_N_m == 2e8
+    assert Measurement.from_config({"servo_stiffness_N_m": float("inf")}).servo_stiffness_N_m == math.inf
+    for bad in (0.0, -1e8, True, "stiff", float("nan")):
+        with pytest.raises(ValueError, match="servo_stiffness_N_m"):
+            Measurement.from_config({"servo_stiffness_N_m": bad})
+
+
+def test_servo_refuses_stribeck_friction():
+    effects = dm.Effects(coulomb_force_N=90.0, stribeck_force_N=30.0)
+    with pytest.raises(ValueError, match="Coulomb friction only"):
+        true_response(sine(periods=1.0), TABLE1, effects, servo_stiffness_N_m=5e7)
 
 
 # ---------------------------------------------------------------------------------- effects

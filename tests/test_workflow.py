@@ -18,6 +18,7 @@ TINY = {
     "windows": {"start_fraction": 0.45, "end_fraction": 0.95},
     "repeatability": {"tolerance": 0.05},
     "validation": {"sample_rate_tolerance": 0.05},
+    "design": {"convergence_fraction": 0.999, "max_amplitude_mm": 10.0, "min_amplitude_mm": 0.1},
     "virtual_campaigns": {
         "tiny": {
             "description": "three short triangle cases",
@@ -96,10 +97,13 @@ def test_new_raw_campaign_runs_only_its_own_jobs(project, tmp_path):
     manifest = (dst / "campaign.yaml").read_text(encoding="utf-8").replace("campaign: tiny-export", "campaign: tiny-copy")
     (dst / "campaign.yaml").write_text(manifest, encoding="utf-8")
     planned = snakemake(work, "-n").stdout
-    jobs = [block for block in planned.split("\nrule ")[1:] if not block.startswith("all:")]
-    outputs = [line for block in jobs for line in block.splitlines() if line.strip().startswith("output:")]
-    assert len(jobs) == 6, planned  # ingest, validate, windows, repeatability, characteristic, figures
+    jobs = {block.split(":", 1)[0]: block for block in planned.split("\nrule ")[1:]}
+    own = {name: block for name, block in jobs.items() if name not in ("all", "design_summary")}
+    assert set(own) == {"ingest", "validate", "windows", "repeatability", "characteristic", "figures",
+                        "design", "nominal", "harmonic", "models"}, planned
+    outputs = [line for block in own.values() for line in block.splitlines() if line.strip().startswith("output:")]
     assert all("results/tiny-copy/" in line for line in outputs), outputs
+    assert "virtual_rig" not in jobs
 
 
 def test_broken_manifest_fails_its_campaign_alone(project, tmp_path):

@@ -10,12 +10,13 @@ Physics (noise free)
     The force is Eq. (8) with a massless piston: F = A_p Δp + F_f(dy/dt) (Coulomb + Stribeck).
     y = 0 is the position where the chamber volumes are V0,1 and V0,2 (the centre of the stroke).
 
-Backlash
+Backlash (rigid servo)
     ``Effects.backlash_m`` = b is a play operator between the actuator x (which follows the command
-    exactly; the LVDT measures x) and the piston y: y stays in [x - b/2, x + b/2] and only moves
-    when the actuator pushes it at one edge of the gap. While the gap is crossed the piston stands
-    still (W = 0) and Δp relaxes through the flow paths; the load cell is assumed to keep reading
-    A_p Δp (friction is sign(0) = 0 there), i.e. the piston is held by its seals, not floating.
+    exactly when ``Measurement.servo_stiffness_N_m`` is inf, the default; the LVDT measures x) and
+    the piston y: y stays in [x - b/2, x + b/2] and only moves when the actuator pushes it at one
+    edge of the gap. While the gap is crossed the piston stands still (W = 0) and Δp relaxes
+    through the flow paths; the load cell is assumed to keep reading A_p Δp (friction is
+    sign(0) = 0 there), i.e. the piston is held by its seals, not floating.
     At the start of a record the piston sits at the far side of the gap (as after a reversal), so
     the first motion also crosses the whole gap. Records start from rest with Δp(0) = 0.
 
@@ -40,11 +41,27 @@ Sine excitation
     equal accuracy), split at every velocity discontinuity (turning points, gap contacts), t_eval
     at the samples.
 
+Finite servo stiffness (``Measurement.servo_stiffness_N_m`` = k < inf): :func:`servo_response`
+    The rig is in displacement control with a servo of finite stiffness: x = command - F/k, F the
+    force transmitted by the attachment (read by the load cell), the LVDT on x. The coupled
+    actuator-gap-damper system is integrated as a hybrid ODE (LSODA, rtol 1e-10, event-located
+    mode switches): in contact the massless piston follows the actuator (sliding) or is held by
+    Coulomb seal friction (sticking); while the gap is crossed F = 0, so x = command. In sliding
+    contact dΔp/dt = (A_p dc/dt - Q_N) / (β_eff 𝒱 + A_p²/k): the servo compliance adds to the
+    effective compressibility like the fixture term of Eq. (3). Under load the actuator lags; when
+    the load vanishes at a force zero crossing it crosses the gap at the command velocity, which
+    the LVDT shows as a velocity spike (paper Sec. 4.5, Fig. 13). Both waveforms; Coulomb friction
+    only (Stribeck refused). With k = inf the fast paths above are used unchanged (byte-identical
+    exports); note that the rigid play model keeps the piston still from the reversal on and lets
+    the load cell read A_p Δp during the gap, whereas the servo model keeps contact while the load
+    is positive and reads F = 0 in the gap, so k -> inf with b > 0 does not reproduce it exactly.
+
 Measurement
     Seeded Gaussian noise, independent per case (``SeedSequence([seed, crc32(case)])``): LVDT noise
-    on the actuator position, additive plus |F|-proportional noise on the force (Fig. 12). Every
-    channel is then quantised to a stated resolution (ADC step), so the exported CSV prints exact
-    decimals and reading it back reproduces the simulated series to float rounding.
+    on the actuator position (the command for a rigid servo), additive plus |F|-proportional noise
+    on the force (Fig. 12). Every channel is then quantised to a stated resolution (ADC step), so
+    the exported CSV prints exact decimals and reading it back reproduces the simulated series to
+    float rounding.
 """
 
 from __future__ import annotations
@@ -116,13 +133,24 @@ def _check_keys(values: Mapping, allowed: Iterable[str], required: Iterable[str]
             raise KeyError(f"{where}: missing key {key!r}")
 
 
+def _stiffness(value, key: str) -> float:
+    """A servo stiffness from config: a number > 0, inf allowed (a rigid servo)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or math.isnan(value) or value <= 0:
+        raise ValueError(f"{key}: must be a number > 0 (inf: rigid servo), got {value!r}")
+    return float(value)
+
+
 @dataclass(frozen=True)
 class Measurement:
-    """Sensor model of the rig (1σ noise levels and ADC resolutions, SI).
+    """Sensor and servo model of the rig (1σ noise levels, ADC resolutions, servo stiffness, SI).
 
     Resolutions quantise the *measured* channels (and the command) to integer multiples of the
     step; 0 disables quantisation. A resolution must be a short decimal in the export unit
     (e.g. 0.1 N = 1e-4 kN) so that the CSV prints it exactly.
+
+    ``servo_stiffness_N_m`` k: the displacement-controlled actuator lags its command under load,
+    x = command - F/k, and the LVDT measures x (:func:`servo_response`). inf (the default) is a
+    rigid servo: x = command exactly, the fast paths of :func:`true_responses`.
     """
 
     force_noise_N: float = 0.0
@@ -131,10 +159,14 @@ class Measurement:
     force_resolution_N: float = 0.1
     displacement_resolution_m: float = 1.0e-7
     command_resolution_m: float = 1.0e-9
+    servo_stiffness_N_m: float = math.inf
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
-            _number(getattr(self, f.name), f"measurement.{f.name}", nonnegative=True)
+            if f.name == "servo_stiffness_N_m":
+                _stiffness(self.servo_stiffness_N_m, f"measurement.{f.name}")
+            else:
+                _number(getattr(self, f.name), f"measurement.{f.name}", nonnegative=True)
 
     @classmethod
     def ideal(cls) -> "Measurement":
@@ -147,7 +179,8 @@ class Measurement:
         values = _mapping(values or {}, where)
         names = [f.name for f in dataclasses.fields(cls)]
         _check_keys(values, names, (), where)
-        return cls(**{k: _number(v, f"{where}.{k}", nonnegative=True) for k, v in values.items()})
+        return cls(**{k: (_stiffness(v, f"{where}.{k}") if k == "servo_stiffness_N_m"
+                          else _number(v, f"{where}.{k}", nonnegative=True)) for k, v in values.items()})
 
 
 @dataclass(frozen=True)
@@ -810,29 +843,305 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
     return t, dp, vel
 
 
+# --------------------------------------------------------------------------------------------
+# Finite servo stiffness: the coupled actuator - gap - damper system
+# --------------------------------------------------------------------------------------------
+
+_GAP, _STICK, _SLIDE = "gap", "stick", "slide"
+
+
+@dataclass(frozen=True)
+class _Mode:
+    """State of the attachment in :func:`servo_response`.
+
+    ``side`` s is the contact side: +1 the actuator pushes the piston up (y = x - b/2, F >= 0),
+    -1 down (y = x + b/2, F <= 0), 0 bilateral (no gap, b = 0). ``sense`` σ is the sliding
+    direction of the piston (SLIDE), ``piston_m`` its position while it stands (GAP, STICK).
+    """
+
+    kind: str
+    side: float = 0.0
+    sense: float = 1.0
+    piston_m: float = 0.0
+
+
+def servo_response(case: CasePlan, hyd: Hydraulics, effects: Effects = NOMINAL,
+                   servo_stiffness_N_m: float = math.inf, rtol: float = 1e-10, method: str = "LSODA"):
+    """Triangle or sine case with a servo of finite stiffness k, backlash b and Coulomb friction.
+
+    The rig is in displacement control; the actuator x lags its command c under load,
+    x = c - F/k (massless, quasi-static servo), and the LVDT measures x. F is the force
+    transmitted by the attachment (what the load cell reads). The piston y is massless; the seal
+    friction is Coulomb, static = kinetic = F_C (Stribeck terms are refused). Per mode:
+
+    SLIDE (contact, piston moving, direction σ)
+        y = x ∓ b/2 follows the actuator; F = A_p Δp + σ F_C; eliminating x and ẏ gives
+        dΔp/dt = (A_p ċ - Q_N(Δp)) / (β_eff 𝒱(y) + A_p²/k): the servo compliance adds the volume
+        compliance A_p²/k to β_eff 𝒱, as the fixture term of Eq. (3) does. ẏ = ẋ = ċ - Ḟ/k.
+    STICK (contact, piston held by the seals)
+        ẏ = ẋ = 0, F = k (c - x) with x fixed, dΔp/dt = -Q_N(Δp) / (β_eff 𝒱(y)); the friction
+        force F - A_p Δp must stay in [-F_C, F_C], else the piston slides in that direction.
+    GAP (b > 0: the actuator crosses the play)
+        F = 0, so x = c; the massless piston stands, held by the seals (|A_p Δp| <= F_C; on entry
+        Δp is set to the nearest admissible value, Δp = 0 without friction) while Δp relaxes
+        through the flow paths. Contact resumes when x reaches y ± b/2.
+
+    Transitions are located as events (solve_ivp, terminal, directional): SLIDE -> STICK when ẏ
+    reaches 0; STICK -> SLIDE when the friction demand reaches ±F_C; contact -> GAP when the
+    transmitted force falls to zero (s·F = 0); GAP -> contact (STICK, or SLIDE without friction)
+    when the actuator closes the gap. At every event and turning point the mode is made
+    consistent with the state (contact and friction complementarity, judged on the trend). The
+    piston starts at the far side of the gap with Δp = 0, as in :func:`piston_segments`.
+
+    Backlash spikes: in contact near F = 0, ẋ = (1 - κ) ċ + κ Q_N/A_p with κ = k_h/(k + k_h) and
+    k_h = A_p²/(β_eff 𝒱) the hydraulic stiffness (and ẋ = 0 while the piston sticks); once the
+    load vanishes the actuator catches up with its command and crosses the gap at ċ. The LVDT
+    velocity therefore jumps up for b/|ċ| at each force zero crossing. With k = inf there is no
+    lag and no spike (use :func:`sine_response` / :func:`triangle_responses` then).
+
+    Returns (t_s, dp_Pa, piston_velocity_m_s, force_N, actuator_m, piston_m).
+    """
+    k = float(servo_stiffness_N_m)
+    if not (k > 0 and math.isfinite(k)):
+        raise ValueError(f"servo_stiffness_N_m must be finite and > 0 here, got {servo_stiffness_N_m!r}")
+    if case.waveform not in ("triangle", "sine"):
+        raise ValueError(f"case {case.case}: the virtual rig cannot simulate waveform {case.waveform!r}")
+    if effects.stribeck_force_N:
+        raise ValueError(f"case {case.case}: a finite servo stiffness supports Coulomb friction only "
+                         "(stribeck_force_N must be 0)")
+    _check_stroke(case, hyd)
+    b, fc = float(effects.backlash_m), float(effects.coulomb_force_N)
+    if b < 0:
+        raise ValueError("backlash_m must be >= 0")
+    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
+    v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
+    cs = a * a / k                                   # servo compliance as a volume compliance [m³/Pa]
+    amp = case.amplitude_m
+    tri = case.waveform == "triangle"
+    if tri:
+        omega, phase, speed = 2.0 * math.pi / case.period_s, case.phase_rad, 4.0 * amp / case.period_s
+    else:
+        omega, phase, speed = 2.0 * math.pi * case.frequency_Hz, 0.0, amp * 2.0 * math.pi * case.frequency_Hz
+    q_n, dq_n = hyd.flow, hyd.flow_derivative
+    pscale = max(abs(steady_pressure(a * speed, hyd)), abs(steady_pressure(-a * speed, hyd)), fc / a, 1.0)
+    atol = rtol * pscale
+    tol_f = 1e-9 * (a * pscale + fc)
+    tol_x = 1e-12 * max(amp, b, 1e-9)
+    probe = 1e-7 / omega       # trends at a transition are judged this much later (events are exact to ~1e-15)
+
+    def cmd(tt: float) -> float:
+        if tri:
+            return amp * (2.0 / math.pi) * math.asin(max(-1.0, min(1.0, math.sin(omega * tt + phase))))
+        return amp * math.sin(omega * tt)
+
+    def rate(tt: float, d: float) -> float:
+        return d * speed if tri else speed * math.cos(omega * tt)
+
+    def rates(ts: np.ndarray, d: float) -> np.ndarray:
+        return np.full(ts.shape, d * speed) if tri else speed * np.cos(omega * ts)
+
+    def vol(y):
+        return (v01 - a * y) * (v02 + a * y) / (v01 + v02)
+
+    def slide_state(tt: float, p: float, m: _Mode, r: float):
+        f = a * p + m.sense * fc
+        y = cmd(tt) - f / k - m.side * b / 2.0
+        dp = (a * r - q_n(p)) / (beta * vol(y) + cs)
+        return f, y, dp, r - a * dp / k
+
+    def contact(side: float, y: float) -> _Mode:
+        return _Mode(_STICK, side, 1.0, y) if fc > 0 else _Mode(_SLIDE, side, side or 1.0)
+
+    def gap(y: float, p: float) -> tuple[_Mode, float]:
+        return _Mode(_GAP, 0.0, 1.0, y), min(max(p, -fc / a), fc / a)
+
+    def settle(m: _Mode, tt: float, p: float, d: float) -> tuple[_Mode, float]:
+        """The mode consistent with the state at tt (complementarity of contact and friction).
+
+        Values are judged at tt, the sign of a quantity that sits at its threshold (a force at 0 or
+        ±F_C, a piston velocity at 0) a short ``probe`` later, so that an event located a rounding
+        error before the true crossing does not flip the mode back.
+        """
+        for _ in range(8):
+            r, c = rate(tt, d), cmd(tt)
+            r_probe = rate(tt + probe, d)
+            if m.kind == _GAP:
+                if c - (m.piston_m + b / 2.0) >= -tol_x and r > 0:
+                    m = contact(1.0, m.piston_m)
+                elif c - (m.piston_m - b / 2.0) <= tol_x and r < 0:
+                    m = contact(-1.0, m.piston_m)
+                else:
+                    return m, p
+            elif m.kind == _STICK:
+                f = k * (c - (m.piston_m + m.side * b / 2.0))
+                if b > 0 and (m.side * f < -tol_f or (abs(f) <= tol_f and m.side * r < 0)):
+                    m, p = gap(m.piston_m, p)
+                    continue
+                demand = f - a * p
+                rate_demand = k * r_probe + a * q_n(p) / (beta * vol(m.piston_m))
+                if demand > fc + tol_f or (demand >= fc - tol_f and rate_demand > 0):
+                    m = _Mode(_SLIDE, m.side, 1.0)
+                elif demand < -fc - tol_f or (demand <= -fc + tol_f and rate_demand < 0):
+                    m = _Mode(_SLIDE, m.side, -1.0)
+                else:
+                    return m, p
+            else:
+                f, y, dp, _ = slide_state(tt, p, m, r)
+                yd = slide_state(tt + probe, p + probe * dp, m, r_probe)[3]
+                if b > 0 and (m.side * f < -tol_f or (abs(f) <= tol_f and m.side * dp < 0)):
+                    m, p = gap(y, p)
+                elif fc > 0 and m.sense * yd < 0:
+                    m = _Mode(_STICK, m.side, 1.0, y)
+                else:
+                    return m, p
+        return m, p
+
+    def event(fun, direction: float, target):
+        def g(tt, z):
+            return fun(tt, z[0])
+        g.terminal, g.direction, g.target = True, direction, target
+        return g
+
+    def system(m: _Mode, d: float):
+        """rhs, jac and events of mode m on an interval of command direction d."""
+        if m.kind == _SLIDE:
+            def rhs(tt, z):
+                return [slide_state(tt, z[0], m, rate(tt, d))[2]]
+
+            def jac(tt, z):
+                return [[-dq_n(z[0]) / (beta * vol(slide_state(tt, z[0], m, 0.0)[1]) + cs)]]
+
+            events = []
+            if fc > 0:
+                events.append(event(lambda tt, p: slide_state(tt, p, m, rate(tt, d))[3], -m.sense,
+                                    lambda tt, p: (_Mode(_STICK, m.side, 1.0, slide_state(tt, p, m, 0.0)[1]), p)))
+            if b > 0:
+                events.append(event(lambda tt, p: m.side * (a * p + m.sense * fc), -1.0,
+                                    lambda tt, p: gap(slide_state(tt, p, m, 0.0)[1], p)))
+            return rhs, jac, events
+        y = m.piston_m
+        compliance = beta * vol(y)
+
+        def rhs(tt, z):
+            return [-q_n(z[0]) / compliance]
+
+        def jac(tt, z):
+            return [[-dq_n(z[0]) / compliance]]
+
+        if m.kind == _GAP:
+            events = [event(lambda tt, p: cmd(tt) - (y + b / 2.0), 1.0, lambda tt, p: (contact(1.0, y), p)),
+                      event(lambda tt, p: cmd(tt) - (y - b / 2.0), -1.0, lambda tt, p: (contact(-1.0, y), p))]
+            return rhs, jac, events
+        x = y + m.side * b / 2.0
+        events = [event(lambda tt, p: k * (cmd(tt) - x) - a * p - fc, 1.0,
+                        lambda tt, p: (_Mode(_SLIDE, m.side, 1.0), p)),
+                  event(lambda tt, p: k * (cmd(tt) - x) - a * p + fc, -1.0,
+                        lambda tt, p: (_Mode(_SLIDE, m.side, -1.0), p))]
+        if b > 0:
+            events.append(event(lambda tt, p: m.side * k * (cmd(tt) - x), -1.0, lambda tt, p: gap(y, p)))
+        return rhs, jac, events
+
+    def outputs(ts: np.ndarray, ps: np.ndarray, m: _Mode, d: float):
+        c = command_displacement(case, ts)
+        if m.kind == _SLIDE:
+            f = a * ps + m.sense * fc
+            x = c - f / k
+            y = x - m.side * b / 2.0
+            dp = (a * rates(ts, d) - total_flow(ps, hyd)) / (beta * vol(y) + cs)
+            return f, x, y, rates(ts, d) - a * dp / k
+        y = np.full(ts.shape, m.piston_m)
+        if m.kind == _STICK:
+            x = np.full(ts.shape, m.piston_m + m.side * b / 2.0)
+            return k * (c - x), x, y, np.zeros(ts.shape)
+        return np.zeros(ts.shape), c + 0.0, y, np.zeros(ts.shape)
+
+    t = sample_times(case)
+    end = record_end(case)
+    edges = [0.0, *_turning_times(case), end]
+    out = {name: np.empty(t.size) for name in ("dp", "force", "actuator", "piston", "velocity")}
+    d0 = 1.0 if math.cos(omega * 0.5 * (edges[0] + edges[1]) + phase) > 0 else -1.0
+    if b > 0:
+        m = _Mode(_GAP, 0.0, 1.0, cmd(0.0) + d0 * b / 2.0)
+    else:
+        m = contact(0.0, cmd(0.0))
+    tt, p, i = 0.0, 0.0, 0
+    stalls = 0
+    for ta, tb in zip(edges[:-1], edges[1:]):
+        d = 1.0 if math.cos(omega * 0.5 * (ta + tb) + phase) > 0 else -1.0
+        m, p = settle(m, tt, p, d)
+        while tt < tb:
+            j = int(np.searchsorted(t, tb, side="right"))
+            ts = t[i:j]
+            t_eval = ts if ts.size and ts[-1] == tb else np.append(ts, tb)
+            rhs, jac, events = system(m, d)
+            sol = solve_ivp(rhs, (tt, tb), [p], method=method, jac=jac, rtol=rtol, atol=atol, t_eval=t_eval,
+                            events=events or None)
+            if sol.status == -1:
+                raise RuntimeError(f"case {case.case}: servo integration failed: {sol.message}")
+            t_sol = np.asarray(sol.t, dtype=float)
+            n_done = min(t_sol.size, ts.size)
+            if n_done:
+                p_sol = np.asarray(sol.y, dtype=float)[0, :n_done]
+                f, x, y, yd = outputs(t_sol[:n_done], p_sol, m, d)
+                sl = slice(i, i + n_done)
+                out["dp"][sl], out["force"][sl], out["actuator"][sl] = p_sol, f, x
+                out["piston"][sl], out["velocity"][sl] = y, yd
+                i += n_done
+            if sol.status == 1:
+                hits = [(float(te[0]), n) for n, te in enumerate(sol.t_events) if te.size]
+                t_e, n = min(hits)
+                p_e = float(sol.y_events[n][0][0])
+                stalls = stalls + 1 if t_e - tt <= 1e-12 * end else 0
+                if stalls > 20:
+                    raise RuntimeError(f"case {case.case}: servo model chatters at t = {t_e:.9g} s ({m.kind})")
+                m, p = events[n].target(t_e, p_e)
+                tt = t_e
+                m, p = settle(m, tt, p, d)
+            else:
+                tt, p = tb, float(np.asarray(sol.y, dtype=float)[0, -1])
+    if i != t.size:
+        raise RuntimeError(f"case {case.case}: servo integration covered {i} of {t.size} samples")
+    return t, out["dp"], out["velocity"], out["force"], out["actuator"], out["piston"]
+
+
 def true_response(case: CasePlan, damper: Damper, effects: Effects = NOMINAL,
-                  hydraulics: Hydraulics | None = None) -> pd.DataFrame:
-    """Noise-free record: time_s, command_m, piston_velocity_m_s, dp_Pa, force_N (Eq. 8).
+                  hydraulics: Hydraulics | None = None, servo_stiffness_N_m: float = math.inf) -> pd.DataFrame:
+    """Noise-free record: time_s, command_m, actuator_m, piston_velocity_m_s, dp_Pa, force_N (Eq. 8).
 
     ``hydraulics`` overrides the coefficients derived from damper and effects (e.g. c2 = 0);
-    friction and backlash always come from ``effects``.
+    friction and backlash always come from ``effects``. ``actuator_m`` is what the LVDT sees: the
+    command itself for a rigid servo (k = inf), command - F/k otherwise (:func:`servo_response`).
     """
-    return true_responses([case], damper, effects, hydraulics)[0]
+    return true_responses([case], damper, effects, hydraulics, servo_stiffness_N_m)[0]
 
 
 def true_responses(cases: Sequence[CasePlan], damper: Damper, effects: Effects = NOMINAL,
-                   hydraulics: Hydraulics | None = None) -> list[pd.DataFrame]:
-    """:func:`true_response` of many cases (triangle tables built in one batch)."""
+                   hydraulics: Hydraulics | None = None,
+                   servo_stiffness_N_m: float = math.inf) -> list[pd.DataFrame]:
+    """:func:`true_response` of many cases (triangle tables built in one batch).
+
+    A rigid servo (k = inf) uses the quadrature (triangle) and the LSODA play-operator model
+    (sine); a finite k integrates the coupled actuator-gap-damper system (:func:`servo_response`)
+    for both waveforms.
+    """
     hyd = Hydraulics.from_damper(damper, effects) if hydraulics is None else hydraulics
+    servo = _stiffness(servo_stiffness_N_m, "servo_stiffness_N_m")
     for c in cases:
         if c.waveform not in ("triangle", "sine"):
             raise ValueError(f"case {c.case}: the virtual rig cannot simulate waveform {c.waveform!r}")
-    tri = iter(triangle_responses([c for c in cases if c.waveform == "triangle"], hyd, effects.backlash_m))
+    rigid = math.isinf(servo)
+    tri = iter(triangle_responses([c for c in cases if c.waveform == "triangle"] if rigid else [], hyd,
+                                  effects.backlash_m))
     out = []
     for case in cases:
-        t, dp, vel = next(tri) if case.waveform == "triangle" else sine_response(case, hyd, effects.backlash_m)
-        force = hyd.piston_area_m2 * dp + friction_force(vel, effects)
-        out.append(pd.DataFrame({"time_s": t, "command_m": command_displacement(case, t),
+        command = command_displacement(case, sample_times(case))
+        if rigid:
+            t, dp, vel = next(tri) if case.waveform == "triangle" else sine_response(case, hyd, effects.backlash_m)
+            force = hyd.piston_area_m2 * dp + friction_force(vel, effects)
+            actuator = command
+        else:
+            t, dp, vel, force, actuator, _ = servo_response(case, hyd, effects, servo)
+        out.append(pd.DataFrame({"time_s": t, "command_m": command, "actuator_m": actuator,
                                  "piston_velocity_m_s": vel, "dp_Pa": dp, "force_N": force}))
     return out
 
@@ -858,10 +1167,12 @@ def simulate_case(case: CasePlan, damper: Damper, effects: Effects, measurement:
                   seed: int) -> pd.DataFrame:
     """Measured record of one case (tables.TIMESERIES): row, time_s, displacement_m, force_N, command_m.
 
-    displacement = LVDT on the actuator (command + noise), force = Eq. (8) + additive and
-    |F|-proportional noise; both then quantised (``measurement`` resolutions).
+    displacement = LVDT on the actuator (the command for a rigid servo, command - F/k otherwise;
+    plus noise), force = transmitted force (Eq. 8 in contact) + additive and |F|-proportional
+    noise; both then quantised (``measurement`` resolutions).
     """
-    return measure(case, true_response(case, damper, effects), measurement, seed)
+    return measure(case, true_response(case, damper, effects, servo_stiffness_N_m=measurement.servo_stiffness_N_m),
+                   measurement, seed)
 
 
 def measure(case: CasePlan, truth: pd.DataFrame, measurement: Measurement, seed: int) -> pd.DataFrame:
@@ -877,8 +1188,9 @@ def measure(case: CasePlan, truth: pd.DataFrame, measurement: Measurement, seed:
     z_rel = rng.standard_normal(n)
     f = truth["force_N"].to_numpy()
     cmd = truth["command_m"].to_numpy()
+    lvdt = truth["actuator_m"].to_numpy() if "actuator_m" in truth else cmd
     force = f + measurement.force_noise_N * z_add + measurement.force_noise_rel * np.abs(f) * z_rel
-    disp = cmd + measurement.displacement_noise_m * z_disp
+    disp = lvdt + measurement.displacement_noise_m * z_disp
     return pd.DataFrame({
         "row": np.arange(n, dtype=np.int64),
         "time_s": truth["time_s"].to_numpy(),
@@ -891,7 +1203,7 @@ def measure(case: CasePlan, truth: pd.DataFrame, measurement: Measurement, seed:
 def simulate_cases(cases: Sequence[CasePlan], damper: Damper, effects: Effects, measurement: Measurement,
                    seed: int) -> dict[str, pd.DataFrame]:
     """:func:`simulate_case` of many cases, physics batched; {case id: record}, in the given order."""
-    truths = true_responses(cases, damper, effects)
+    truths = true_responses(cases, damper, effects, servo_stiffness_N_m=measurement.servo_stiffness_N_m)
     return {c.case: measure(c, truth, measurement, seed) for c, truth in zip(cases, truths)}
 
 

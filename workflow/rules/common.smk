@@ -52,13 +52,18 @@ def raw_files(wildcards):
 
 FIGURES = ["fig07_time_and_loops", "fig08_window_selection", "fig09_characteristic",
            "fig10_low_velocity", "fig11_loglog", "fig12_noise"]
+DESIGN_FIGURES = ["fig05_stroke_to_converge", "fig06_at_diagram"]
+MODEL_FIGURES = ["fig13_comparison", "fig14_comparison_loglog"]
 
 
 def campaign_outputs(campaign):
     root = f"results/{campaign}"
-    return [f"{root}/characteristic.parquet", f"{root}/repeatability.parquet",
-            f"{root}/quarantine.parquet"] + [f"{root}/figures/{name}.png" for name in FIGURES]
+    return ([f"{root}/characteristic.parquet", f"{root}/repeatability.parquet", f"{root}/quarantine.parquet",
+             f"{root}/models/models.parquet", f"{root}/harmonic/harmonic.parquet"]
+            + [f"{root}/figures/{name}.png" for name in FIGURES]
+            + [f"{root}/design/{name}.png" for name in DESIGN_FIGURES])
 
 
 def all_outputs():
-    return [path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]
+    return ["results/design/plan_check.parquet"] + [
+        path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]

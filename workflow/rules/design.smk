@@ -1,0 +1,33 @@
+rule design:
+    """Test design per case: G-numbers, stroke to converge, plan check; Fig. 5 and Fig. 6."""
+    input:
+        cases="results/{campaign}/cases.parquet",
+        ingest="results/{campaign}/ingest",
+    output:
+        plan_check="results/{campaign}/design/plan_check.parquet",
+        figures=[
+            report(f"results/{{campaign}}/design/{name}.png", caption=f"../report/{name}.rst",
+                   category="{campaign}", labels={"campaign": "{campaign}", "figure": name})
+            for name in DESIGN_FIGURES
+        ],
+    log:
+        "logs/{campaign}/design.log",
+    params:
+        phi=config["design"]["convergence_fraction"],
+        max_amplitude_m=config["design"]["max_amplitude_mm"] * 1e-3,
+        min_amplitude_m=config["design"]["min_amplitude_mm"] * 1e-3,
+        start_fraction=config["windows"]["start_fraction"],
+    script:
+        "../scripts/design.py"
+
+
+rule design_summary:
+    """All campaigns' plan checks in one table."""
+    input:
+        expand("results/{campaign}/design/plan_check.parquet", campaign=CAMPAIGNS),
+    output:
+        report("results/design/plan_check.parquet", caption="../report/plan_check.rst", category="design"),
+    log:
+        "logs/design_summary.log",
+    script:
+        "../scripts/design_summary.py"

@@ -1,0 +1,23 @@
+rule models:
+    """Nominal families, fitted Wallaschek/Surace models and the comparison (Fig. 13, 14)."""
+    input:
+        characteristic="results/{campaign}/characteristic.parquet",
+        nominal="results/{campaign}/nominal_windows.parquet",
+        harmonic="results/{campaign}/harmonic/harmonic.parquet",
+        ingest="results/{campaign}/ingest",
+    output:
+        models="results/{campaign}/models/models.parquet",
+        residuals="results/{campaign}/models/model_residuals.parquet",
+        comparison="results/{campaign}/models/comparison.parquet",
+        figures=[
+            report(f"results/{{campaign}}/models/{name}.png", caption=f"../report/{name}.rst",
+                   category="{campaign}", labels={"campaign": "{campaign}", "figure": name})
+            for name in MODEL_FIGURES
+        ],
+    log:
+        "logs/{campaign}/models.log",
+    params:
+        start_fraction=config["windows"]["start_fraction"],
+        end_fraction=config["windows"]["end_fraction"],
+    script:
+        "../scripts/models.py"
