@@ -696,7 +696,7 @@ def at_diagram_figure(campaign: str, plan_check_df: pd.DataFrame, damper: Damper
     if plan_check_df is not None and len(plan_check_df) and "waveform" in plan_check_df:
         other = int((plan_check_df["waveform"] != "triangle").sum())
         if other:
-            notes.append(f"{other} sine/free case(s) not shown")
+            notes.append(f"{other} sine/free case(s) not on the A–T diagram (no triangle period)")
     figures._footnote(fig, "; ".join(notes))
     return fig
 

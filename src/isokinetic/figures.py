@@ -643,7 +643,7 @@ def _status_note(cases: pd.DataFrame | None, char: pd.DataFrame | None) -> str:
         parts.append(f"ok but without windows: {', '.join(no_win[:12])}{' ...' if len(no_win) > 12 else ''}")
     other = cases[cases["waveform"] != "triangle"]
     if len(other):
-        parts.append(f"{len(other)} sine/free case(s) not shown")
+        parts.append(f"{len(other)} sine/free case(s): see harmonic/fig15_harmonic_loops.png")
     return "; ".join(parts)
 
 
