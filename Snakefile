@@ -24,6 +24,7 @@ include: "workflow/rules/design.smk"
 include: "workflow/rules/nominal.smk"
 include: "workflow/rules/harmonic.smk"
 include: "workflow/rules/models.smk"
+include: "workflow/rules/diagnosis.smk"
 
 
 rule all:

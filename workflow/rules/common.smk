@@ -59,7 +59,7 @@ MODEL_FIGURES = ["fig13_comparison", "fig14_comparison_loglog"]
 def campaign_outputs(campaign):
     root = f"results/{campaign}"
     return ([f"{root}/characteristic.parquet", f"{root}/repeatability.parquet", f"{root}/quarantine.parquet",
-             f"{root}/models/models.parquet", f"{root}/harmonic/harmonic.parquet"]
+             f"{root}/models/models.parquet", f"{root}/harmonic/harmonic.parquet", f"{root}/diagnosis.json"]
             + [f"{root}/figures/{name}.png" for name in FIGURES]
             + [f"{root}/design/{name}.png" for name in DESIGN_FIGURES])
 

@@ -1,0 +1,17 @@
+rule diagnosis:
+    """Sim-to-real gap: where it lies, which effect causes it, how far it shrinks (diagnosis.json)."""
+    input:
+        cases="results/{campaign}/cases.parquet",
+        ingest="results/{campaign}/ingest",
+        characteristic="results/{campaign}/characteristic.parquet",
+    output:
+        json="results/{campaign}/diagnosis.json",
+        figure=report("results/{campaign}/diagnosis/fig16_gap.png", caption="../report/fig16_gap.rst",
+                      category="{campaign}", labels={"campaign": "{campaign}", "figure": "fig16_gap"}),
+    log:
+        "logs/{campaign}/diagnosis.log",
+    params:
+        start_fraction=config["windows"]["start_fraction"],
+        end_fraction=config["windows"]["end_fraction"],
+    script:
+        "../scripts/diagnosis.py"
