@@ -33,7 +33,20 @@ def main() -> None:
     print(f"{'full rebuild (snakemake --cores 2 --forceall)':<50} {full:8.1f} s   target < 60 s")
     print(f"{'no-op rerun (snakemake --cores 2)':<50} {noop:8.1f} s   target < 5 s")
     sys.stdout.flush()
+    diag = diagnosis_seconds("paper-lag-damper")
+    print(f"{'diagnosis of paper-lag-damper (23 cases), one core':<50} {diag:8.1f} s   target < 30 s")
+    sys.stdout.flush()
     subprocess.run([sys.executable, str(ROOT / "benchmark" / "virtual_rig_throughput.py")], cwd=ROOT, check=True)
+
+
+def diagnosis_seconds(campaign: str) -> float:
+    """Wall time of diagnosing a built campaign in a fresh process pinned to one core (imports excluded)."""
+    code = ("import time, pathlib; from isokinetic.diagnosis import diagnose; t = time.perf_counter(); "
+            f"diagnose(pathlib.Path('results/{campaign}')); print(time.perf_counter() - t)")
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    out = subprocess.run(["taskset", "-c", "0", sys.executable, "-c", code], cwd=ROOT, check=True, env=env,
+                         capture_output=True, text=True)
+    return float(out.stdout.strip().splitlines()[-1])
 
 
 if __name__ == "__main__":
