@@ -25,6 +25,7 @@ include: "workflow/rules/nominal.smk"
 include: "workflow/rules/harmonic.smk"
 include: "workflow/rules/models.smk"
 include: "workflow/rules/diagnosis.smk"
+include: "workflow/rules/blind.smk"
 
 
 rule all:

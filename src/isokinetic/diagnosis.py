@@ -67,6 +67,9 @@ EFFECTS = ("friction", "leakage", "asymmetry", "discharge", "viscosity", "air")
 ALPHA = 1e-3
 #: Score difference (χ² units) within which two explaining candidates count as confounded.
 CONFOUNDED_SCORE = 10.0
+#: Relative tolerance on cost and parameters at which a fit stops: 1e-6 of a parameter is far
+#: below its statistical uncertainty, and the χ² changes by less than 1e-6 of itself.
+FIT_TOL = 1e-6
 #: Candidates of each size extended by one more effect while nothing explains the gap.
 BEAM = 3
 #: |z| of a characteristic point beyond which it is not explained by noise (for ``where``).
@@ -340,7 +343,7 @@ class Diagnoser:
             x0 = np.clip(np.asarray(x0, dtype=float), np.asarray(lower) + 1e-12, np.asarray(upper) - 1e-12)
             try:
                 res = optimize.least_squares(fun, x0, bounds=(lower, upper), method="trf", x_scale="jac",
-                                             diff_step=1e-6, max_nfev=60 * len(names))
+                                             diff_step=1e-6, ftol=FIT_TOL, xtol=FIT_TOL, max_nfev=60 * len(names))
             except (ValueError, FloatingPointError) as exc:  # e.g. a stroke that empties a chamber
                 log.warning("campaign %s: fit of %s from %s failed: %s", self.obs.campaign, names, x0, exc)
                 continue

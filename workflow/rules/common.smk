@@ -64,6 +64,11 @@ def campaign_outputs(campaign):
             + [f"{root}/design/{name}.png" for name in DESIGN_FIGURES])
 
 
+BLIND_OUTPUTS = ["results/blind/scores.parquet", "results/blind/summary.json",
+                 "results/blind/fig17_blind_confusion.png"]
+
+
 def all_outputs():
     return ["results/design/plan_check.parquet"] + [
-        path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]
+        path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)] + (
+        BLIND_OUTPUTS if config.get("blind") else [])
