@@ -2,7 +2,6 @@
 
 import json
 import math
-from dataclasses import replace
 
 import jsonschema
 import numpy as np

@@ -40,9 +40,9 @@ import pandas as pd
 from . import tables
 from .campaign import case_plan
 from .damper import NOMINAL, Damper, Effects, friction_force
-from .plan import CasePlan, half_periods, triangle_displacement
+from .plan import CasePlan, triangle_displacement
 from .virtual_rig import Hydraulics, sample_times, triangle_responses
-from .windows import MIN_WINDOW_SAMPLES, WindowSpec, line_slope
+from .windows import WindowSpec, line_slope, window_ranges
 
 log = logging.getLogger("isokinetic.nominal")
 
@@ -112,18 +112,8 @@ class ModelPlan:
             record = record_duration_s(row, durations)
             full = replace(plan, duration_s=record)
             t = sample_times(full)
-            segments = half_periods(plan.period_s, plan.phase_rad, float(t[-1]))[:4]
-            if len(segments) < 4:
-                raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds {len(segments)} complete "
-                                 f"half-periods of T = {plan.period_s:.6g} s, 4 needed")
-            half = plan.period_s / 2.0
             last = 0
-            for k, (t0, _t1, sign) in enumerate(segments, start=1):
-                i0 = int(np.searchsorted(t, t0 + spec.start_fraction * half, side="left"))
-                i1 = int(np.searchsorted(t, t0 + spec.end_fraction * half, side="right"))
-                if i1 - i0 < MIN_WINDOW_SAMPLES:
-                    raise ValueError(f"case {plan.case}: window of segment {k} holds {i1 - i0} samples, "
-                                     f"{MIN_WINDOW_SAMPLES} needed")
+            for k, sign, i0, i1 in window_ranges(plan, t, spec):
                 tw = t[i0:i1]
                 y = triangle_displacement(tw, plan.amplitude_m, plan.period_s, plan.phase_rad)
                 cols["case_index"].append(len(plans))

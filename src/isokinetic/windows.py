@@ -41,21 +41,19 @@ def line_slope(t, y) -> float:
     return float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
 
 
-def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec()) -> list[dict]:
-    """The four windows of one triangle case as rows (segment, direction, period, statistics).
+def window_ranges(plan: CasePlan, t, spec: WindowSpec = WindowSpec()) -> list[tuple[int, float, int, int]]:
+    """(segment 1-4, sign, i0, i1) of the four windows of a triangle record with sample times ``t``.
 
-    Raises ValueError when the record does not hold four complete half-periods or a window
-    holds fewer than MIN_WINDOW_SAMPLES samples.
+    The samples [i0, i1) lie in [t0 + start_fraction·T/2, t0 + end_fraction·T/2] of each complete
+    half-period (t0 its start, Eq. 26). Raises ValueError when the record does not hold four
+    complete half-periods or a window holds fewer than MIN_WINDOW_SAMPLES samples. Shared by the
+    measured windows and the model run through the plan, so both use the same samples.
     """
-    t = series["time_s"].to_numpy()
     segments = half_periods(plan.period_s, plan.phase_rad, float(t[-1]))[:4]
     if len(segments) < 4:
         raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds {len(segments)} complete "
                          f"half-periods of T = {plan.period_s:.6g} s, 4 needed")
     half = plan.period_s / 2.0
-    y = series["displacement_m"].to_numpy()
-    f = series["force_N"].to_numpy()
-    rows = series["row"].to_numpy()
     out = []
     for k, (t0, _t1, sign) in enumerate(segments, start=1):
         i0 = int(np.searchsorted(t, t0 + spec.start_fraction * half, side="left"))
@@ -63,6 +61,21 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
         if i1 - i0 < MIN_WINDOW_SAMPLES:
             raise ValueError(f"case {plan.case}: window of segment {k} holds {i1 - i0} samples, "
                              f"{MIN_WINDOW_SAMPLES} needed")
+        out.append((k, float(sign), i0, i1))
+    return out
+
+
+def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec()) -> list[dict]:
+    """The four windows of one triangle case as rows (segment, direction, period, statistics).
+
+    Raises ValueError as :func:`window_ranges` does.
+    """
+    t = series["time_s"].to_numpy()
+    y = series["displacement_m"].to_numpy()
+    f = series["force_N"].to_numpy()
+    rows = series["row"].to_numpy()
+    out = []
+    for k, sign, i0, i1 in window_ranges(plan, t, spec):
         tw, fw = t[i0:i1], f[i0:i1]
         out.append({
             "case": plan.case,
