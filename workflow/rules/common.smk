@@ -1,7 +1,9 @@
 # Helpers shared by the rules: config validation and campaign discovery.
 
 import logging
+import os
 import re
+import subprocess
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
@@ -13,6 +15,23 @@ if config["windows"]["start_fraction"] >= config["windows"]["end_fraction"]:
                         f"{config['windows']['start_fraction']} >= {config['windows']['end_fraction']}")
 
 CAMPAIGN_ID = re.compile(r"[a-z0-9][a-z0-9_-]*")
+
+
+def export_git_state():
+    """Git commit and dirty flag of the code, for every job's lineage (read here, once)."""
+    def git(*args):
+        return subprocess.run(["git", "-C", workflow.basedir, *args], capture_output=True, text=True,
+                              timeout=10).stdout.strip()
+    try:
+        commit = git("rev-parse", "HEAD")
+        dirty = "1" if git("status", "--porcelain", "--untracked-files=no") else "0"
+    except (OSError, subprocess.SubprocessError):
+        commit, dirty = "", ""
+    os.environ["ISOKINETIC_GIT_COMMIT"] = commit
+    os.environ["ISOKINETIC_GIT_DIRTY"] = dirty if commit else ""
+
+
+export_git_state()
 RAW_DIR = Path(config["raw_dir"])
 
 
