@@ -26,6 +26,8 @@ include: "workflow/rules/harmonic.smk"
 include: "workflow/rules/models.smk"
 include: "workflow/rules/diagnosis.smk"
 include: "workflow/rules/blind.smk"
+include: "workflow/rules/provenance.smk"
+include: "workflow/rules/report.smk"
 
 
 rule all:

@@ -6,6 +6,7 @@ Commands are registered in :func:`build_parser`; each sets ``func(args) -> int``
 from __future__ import annotations
 
 import argparse
+import inspect
 import sys
 from pathlib import Path
 
@@ -28,6 +29,21 @@ def _export_virtual(args: argparse.Namespace) -> int:
     return 0
 
 
+def _trace(args: argparse.Namespace) -> int:
+    """Show how one number of a results table was derived, re-derive it from the raw data and compare.
+
+    Exit status: 0 MATCH, 1 MISMATCH, 2 RAW FILE CHANGED / MISSING FILE / CANNOT TRACE.
+    """
+    import logging
+
+    from .trace import trace
+
+    logger = logging.getLogger("isokinetic")
+    if not logger.handlers:  # the stages' quarantine warnings would otherwise go to stderr raw
+        logger.addHandler(logging.NullHandler())
+    return trace(args.table, args.selector, root=args.root, config=args.config, rtol=args.rtol).exit_code
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="isokinetic", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True, metavar="command")
@@ -44,6 +60,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", help="campaign id written to campaign.yaml; must equal the --out folder name "
                                   "(default: that folder name)")
     p.set_defaults(func=_export_virtual)
+
+    p = sub.add_parser("trace", help="audit one number: its derivation, re-derived from the raw data",
+                       description=inspect.cleandoc(_trace.__doc__),
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog="examples:\n"
+                              "  trace results/paper-lag-damper/characteristic.parquet case=T12,segment=3\n"
+                              "  trace results/paper-lag-damper/repeatability.parquet case=T12,direction=-\n"
+                              "  trace results/lag-damper-demo/models/models.parquet "
+                              "model=surace,direction=+,parameter=D_L\n"
+                              "  trace results/paper-lag-damper/diagnosis.json gap_before\n"
+                              "  trace results/blind/scores.parquet scenario=blind-003\n"
+                              "  trace results/lag-damper-demo/ingest/timeseries/T12.parquet row=5")
+    p.add_argument("table", help="a results table (.parquet) or diagnosis.json")
+    p.add_argument("selector", nargs="?",
+                   help="column=value[,column=value...] picking one row, or row=N (0-based); for "
+                        "diagnosis.json a key path (gap_before, params.coulomb_force_N, '.' for all keys)")
+    p.add_argument("--root", help="project folder the tables' relative paths refer to "
+                                  "(default: the folder above results/)")
+    p.add_argument("--config", help="config YAML for stage parameters and virtual-rig specs when the files carry "
+                                    "no lineage record (default: <root>/config/config.yaml)")
+    p.add_argument("--rtol", type=float, help="relative tolerance of the comparison (default 1e-9; 1e-6 for "
+                                              "diagnosis.json and blind scores)")
+    p.set_defaults(func=_trace)
     return parser
 
 

@@ -747,11 +747,50 @@ def read_diagnoses(work_roots: Iterable[str | os.PathLike], names: Iterable[str]
     return found
 
 
+#: Row-level lineage columns of scores.parquet (:func:`score_sources`), after SCORE_COLUMNS.
+SOURCE_COLUMNS = ("raw_dir", "truth_file", "diagnosis_file")
+
+
+def score_sources(truth_root: str | os.PathLike, work_roots: Iterable[str | os.PathLike],
+                  names: Iterable[str]) -> pd.DataFrame:
+    """Where each scenario's score came from: scenario, raw_dir, truth_file, diagnosis_file.
+
+    truth_file: the truth record read (its 'scenario' key, under ``truth_root``); diagnosis_file: the
+    diagnosis.json found under ``work_roots`` (as :func:`read_diagnoses`); raw_dir: the raw campaign
+    folder that diagnosis ingested (the parent of ``manifest_file`` in its ingest/campaign.json),
+    else ``<truth_root>/../raw/<scenario>`` when that folder exists. '' where there is none.
+    """
+    truth_files = {}
+    for p in sorted(Path(truth_root).glob("*.json")):
+        name = json.loads(p.read_text(encoding="utf-8")).get("scenario")
+        truth_files.setdefault(str(name), p.as_posix())
+    roots = [Path(r) for r in work_roots]
+    rows = []
+    for name in names:
+        diagnosis, raw = "", ""
+        for r in roots:
+            if not diagnosis and (r / name / "diagnosis.json").is_file():
+                diagnosis = (r / name / "diagnosis.json").as_posix()
+            meta_path = r / name / "ingest" / "campaign.json"
+            if not raw and meta_path.is_file():
+                manifest = json.loads(meta_path.read_text(encoding="utf-8")).get("manifest_file") or ""
+                raw = Path(manifest).parent.as_posix() if manifest else ""
+        if not raw and (Path(truth_root).parent / "raw" / name).is_dir():
+            raw = (Path(truth_root).parent / "raw" / name).as_posix()
+        rows.append({"scenario": name, "raw_dir": raw, "truth_file": truth_files.get(name, ""),
+                     "diagnosis_file": diagnosis})
+    return pd.DataFrame(rows, columns=["scenario", *SOURCE_COLUMNS]).astype(str)
+
+
 def write_scores(truth_root, work_roots, scores_path, summary_path, figure_path) -> tuple[pd.DataFrame, dict]:
-    """Score the suite: scores.parquet, summary.json and the confusion figure; returns both."""
+    """Score the suite: scores.parquet (SCORE_COLUMNS and the sources, SOURCE_COLUMNS), summary.json and
+    the confusion figure; returns both."""
     truths = read_truths(truth_root)
+    work_roots = list(work_roots)
     diagnoses = read_diagnoses(work_roots, [t["scenario"] for t in truths])
     scores = score(truths, diagnoses)
+    scores = scores.merge(score_sources(truth_root, work_roots, scores["scenario"].tolist()), on="scenario",
+                          how="left", validate="one_to_one")
     summary = summarize(scores)
     write_parquet(scores, scores_path)
     write_json(summary, summary_path)

@@ -75,6 +75,9 @@ BEAM = 3
 #: |z| of a characteristic point beyond which it is not explained by noise (for ``where``).
 Z_SIGNIFICANT = 3.0
 SCHEMA_PATH = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "diagnosis.schema.json"
+#: Inputs of a diagnosis, relative to results/<campaign>/ (named in its ``sources`` key).
+CHARACTERISTIC_FILE = "characteristic.parquet"
+CASES_FILE = "cases.parquet"
 
 
 # ----------------------------------------------------------------------------------------------
@@ -545,8 +548,37 @@ def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame
     root = Path(campaign_root)
     meta = json.loads((root / "ingest" / "campaign.json").read_text(encoding="utf-8"))
     damper = None if meta.get("damper") is None else Damper.from_mapping(meta["damper"])
-    return meta["campaign"], damper, pd.read_parquet(root / "cases.parquet"), pd.read_parquet(
-        root / "characteristic.parquet")
+    return meta["campaign"], damper, pd.read_parquet(root / CASES_FILE), pd.read_parquet(
+        root / CHARACTERISTIC_FILE)
+
+
+def observation_sources(obs: Observations | None, cases: pd.DataFrame | None) -> dict:
+    """Row-level lineage of a diagnosis (its ``sources`` key; paths relative to results/<campaign>/).
+
+    ``windows``: the characteristic rows used as window observations, as (case, segment) keys
+    'T01/1,T01/2,...' (:func:`lineage.row_keys`); ``transient_bins``: 'case/segment:n' per
+    half-period with n transient bins taken from that case's time series; ``timeseries``: for each
+    case used, its time series file and raw file with sha256 (from ``cases.parquet``).
+    """
+    from .lineage import row_keys
+
+    out = {"characteristic_file": CHARACTERISTIC_FILE, "cases_file": CASES_FILE, "windows": "",
+           "transient_bins": "", "timeseries": {}}
+    if obs is None or len(obs) == 0:
+        return out
+    frame = pd.DataFrame({"case": obs.case, "segment": obs.segment, "kind": obs.kind})
+    out["windows"] = row_keys(frame[frame["kind"] == "window"])
+    bins = frame[frame["kind"] == "transient"].groupby(["case", "segment"], sort=False).size()
+    out["transient_bins"] = ",".join(f"{c}/{k}:{n}" for (c, k), n in bins.items())
+    used = list(dict.fromkeys(obs.case.tolist()))
+    if cases is not None and len(cases):
+        by_case = cases.set_index("case")
+        for c in used:
+            if c in by_case.index:
+                row = by_case.loc[c]
+                out["timeseries"][c] = {k: str(row[k]) for k in ("timeseries_file", "raw_file", "raw_sha256")
+                                        if k in row}
+    return out
 
 
 def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
@@ -554,17 +586,21 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     """Diagnose a processed campaign folder ``results/<campaign>/``.
 
     Returns (diagnosis dict, observations, predictions); observations is None when the campaign
-    cannot be diagnosed (no damper block, no triangle case).
+    cannot be diagnosed (no damper block, no triangle case). The dict's ``sources`` key lists the
+    observations used (:func:`observation_sources`).
     """
     root = Path(campaign_root)
     campaign, damper, cases, char = load_campaign(root)
     if damper is None:
-        return no_model(campaign, "campaign.yaml has no damper block: there is no nominal model"), None, {}
+        result = no_model(campaign, "campaign.yaml has no damper block: there is no nominal model")
+        return {**result, "sources": observation_sources(None, cases)}, None, {}
     if char.empty:
-        return no_model(campaign, "no status-ok triangle case: no characteristic to compare"), None, {}
+        result = no_model(campaign, "no status-ok triangle case: no characteristic to compare")
+        return {**result, "sources": observation_sources(None, cases)}, None, {}
     obs = build_observations(campaign, cases, char, lambda row: pd.read_parquet(root / row["timeseries_file"]),
                              spec, n_bins)
     result, predictions = diagnose_observations(obs, damper, alpha)
+    result["sources"] = observation_sources(obs, cases)
     return result, obs, predictions
 
 

@@ -34,6 +34,14 @@ Stage
     :func:`harmonic_stage` reads ``results/<campaign>/cases.parquet`` and the status-ok sine and
     free time series; :func:`write_harmonic` writes ``harmonic.parquet`` (tables.HARMONIC) and
     ``fig15_harmonic_loops.png``. Deterministic: same inputs, same bytes.
+
+Row-level lineage
+    Every row names the samples its point was computed from: ``row_start``/``row_stop`` (stop
+    exclusive, the raw file's data rows as in the time series' ``row`` column) and
+    ``loop_start_s``/``loop_end_s`` of the loop (:func:`loop` / :func:`free_loop`: all the
+    half-cycles a peak-to-peak point averages, every sample of the bins, every half-cycle of the
+    peak-velocity points), with the case's ``raw_file`` and ``raw_sha256``. The velocity of a
+    sample uses the displacement ``window_s``/2 either side of it.
 """
 
 from __future__ import annotations
@@ -81,7 +89,8 @@ N_BINS = 20
 #: Columns of the harmonic table (tables.HARMONIC plus the extras, in this order).
 COLUMNS = ["campaign", "case", "waveform", "kind", "direction", "velocity_m_s", "force_N",
            "velocity_std_m_s", "force_std_N", "n_points", "time_s", "lag_s", "phase_lag_rad",
-           "amplitude_m", "displacement_amplitude_m", "frequency_Hz", "window_s"]
+           "amplitude_m", "displacement_amplitude_m", "frequency_Hz", "window_s",
+           "row_start", "row_stop", "loop_start_s", "loop_end_s", "raw_file", "raw_sha256"]
 
 MM = 1e3
 
@@ -242,6 +251,20 @@ def _steady_start(k: np.ndarray, f: np.ndarray, n_whole: int) -> int:
     return start
 
 
+def _row_range(series: pd.DataFrame, keep: np.ndarray) -> dict:
+    """Source rows of the kept samples: {row_start, row_stop} (stop exclusive) in the series' ``row``
+    numbering (the raw file's data rows; positions when the series has no ``row`` column), in the
+    time order of :func:`_channels`. The kept samples are one contiguous run."""
+    idx = np.flatnonzero(keep)
+    if idx.size == 0:
+        return {"row_start": -1, "row_stop": -1}
+    if "row" in series:
+        rows = series.sort_values("time_s", kind="stable")["row"].to_numpy(dtype=np.int64)
+    else:
+        rows = np.arange(len(series), dtype=np.int64)
+    return {"row_start": int(rows[idx[0]]), "row_stop": int(rows[idx[-1]]) + 1}
+
+
 def loop(series: pd.DataFrame, frequency_Hz: float | None = None, skip_periods: int | None = None,
          window_s: float | None = None, polyorder: int = 3) -> pd.DataFrame:
     """The hysteresis loop of a sine record over whole periods after the start-up transient.
@@ -282,7 +305,8 @@ def loop(series: pd.DataFrame, frequency_Hz: float | None = None, skip_periods: 
     keep = (k >= skip) & (k < n_end)
     out = pd.DataFrame({"time_s": t[keep], "displacement_m": x[keep], "velocity_m_s": v[keep],
                         "force_N": f[keep], "period": k[keep] + 1})
-    out.attrs.update(frequency_Hz=float(frequency_Hz), window_s=float(window_s), skip_periods=skip)
+    out.attrs.update(frequency_Hz=float(frequency_Hz), window_s=float(window_s), skip_periods=skip,
+                     **_row_range(series, keep))
     return out.reset_index(drop=True)
 
 
@@ -302,7 +326,7 @@ def free_loop(series: pd.DataFrame, window_s: float | None = None, polyorder: in
     keep[half:t.size - half] = True
     out = pd.DataFrame({"time_s": t[keep], "displacement_m": x[keep], "velocity_m_s": v[keep],
                         "force_N": f[keep], "period": np.zeros(int(keep.sum()), dtype=np.int64)})
-    out.attrs.update(frequency_Hz=1.0 / period, window_s=float(window_s), skip_periods=0)
+    out.attrs.update(frequency_Hz=1.0 / period, window_s=float(window_s), skip_periods=0, **_row_range(series, keep))
     return out.reset_index(drop=True)
 
 
@@ -525,7 +549,8 @@ def _empty_table() -> pd.DataFrame:
     df = tables.empty(tables.HARMONIC)
     for c in COLUMNS:
         if c not in df:
-            df[c] = pd.Series(dtype="int64" if c == "n_points" else "float64")
+            df[c] = pd.Series(dtype="int64" if c in ("n_points", "row_start", "row_stop") else
+                              object if c in ("raw_file", "raw_sha256") else "float64")
     return df[COLUMNS]
 
 
@@ -553,7 +578,8 @@ def _harmonic(campaign_root) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], lis
             continue
         series = pd.read_parquet(path)
         base = {"campaign": str(c["campaign"]), "case": case, "waveform": waveform,
-                "amplitude_m": float(c["amplitude_m"]) if pd.notna(c["amplitude_m"]) else math.nan}
+                "amplitude_m": float(c["amplitude_m"]) if pd.notna(c["amplitude_m"]) else math.nan,
+                "raw_file": str(c.get("raw_file", "")), "raw_sha256": str(c.get("raw_sha256", ""))}
         try:
             if waveform == "sine":
                 freq = float(c["frequency_Hz"]) if pd.notna(c["frequency_Hz"]) else None
@@ -569,7 +595,10 @@ def _harmonic(campaign_root) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], lis
         loops[case] = lp
         amp = 0.5 * float(lp["displacement_m"].max() - lp["displacement_m"].min()) if len(lp) else math.nan
         extra = {"displacement_amplitude_m": amp, "frequency_Hz": float(lp.attrs["frequency_Hz"]),
-                 "window_s": float(lp.attrs["window_s"])}
+                 "window_s": float(lp.attrs["window_s"]), "row_start": int(lp.attrs.get("row_start", -1)),
+                 "row_stop": int(lp.attrs.get("row_stop", -1)),
+                 "loop_start_s": float(lp["time_s"].iloc[0]) if len(lp) else math.nan,
+                 "loop_end_s": float(lp["time_s"].iloc[-1]) if len(lp) else math.nan}
         for kind, pts in parts:
             if pts.empty:
                 notes.append(f"{case}: no {kind.replace('_', '-')} point")
@@ -585,7 +614,8 @@ def _harmonic(campaign_root) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], lis
     if not rows:
         table = _empty_table()
     else:
-        table = pd.DataFrame(rows, columns=COLUMNS).astype({"n_points": "int64"})
+        table = pd.DataFrame(rows, columns=COLUMNS).astype({"n_points": "int64", "row_start": "int64",
+                                                            "row_stop": "int64"})
         order = {c: i for i, c in enumerate(ok["case"].astype(str))}
         kind_order = {"peak_to_peak": 0, "binned": 1, "peak_velocity": 2}
         table = table.assign(_c=table["case"].map(order), _k=table["kind"].map(kind_order),

@@ -8,9 +8,13 @@ Every Parquet file a rule writes carries, in its schema metadata under the key
      "python": "3.11.7", "params": {...}, "params_sha256": "…", "config_sha256": "…",
      "inputs": {"results/x/cases.parquet": "<sha256>", ...}, "created_utc": "2026-11-21T08:20:00Z"}
 
-JSON outputs carry the same record under their top-level key ``lineage``. Row-level lineage
+JSON outputs carry the same record under their top-level key ``lineage``; PNG figures in an
+``iTXt`` chunk with the keyword ``isokinetic.lineage`` (pixels untouched). Row-level lineage
 lives in the tables themselves (raw file, sha256, row range and time window of each window;
-the keys of the rows an aggregate was computed from).
+the keys of the rows an aggregate was computed from, written by :func:`row_keys`).
+
+A pipeline script ends with ``finish(snakemake)``: the job's record (:func:`from_snakemake`) on
+every output (:func:`stamp_outputs`, folders: every Parquet, JSON and PNG file inside).
 """
 
 from __future__ import annotations
@@ -20,6 +24,8 @@ import hashlib
 import json
 import os
 import platform
+import struct
+import zlib
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
@@ -114,25 +120,104 @@ def stamp_json(path: str | os.PathLike, lineage: Mapping) -> None:
     write_json(data, path)
 
 
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_chunks(data: bytes) -> list[tuple[bytes, bytes]]:
+    """(type, payload) of every chunk of a PNG file's bytes (ValueError if not a PNG)."""
+    if not data.startswith(PNG_SIGNATURE):
+        raise ValueError("not a PNG file")
+    chunks, pos = [], len(PNG_SIGNATURE)
+    while pos < len(data):
+        if pos + 8 > len(data):
+            raise ValueError("truncated PNG chunk header")
+        (length,), kind = struct.unpack(">I", data[pos:pos + 4]), data[pos + 4:pos + 8]
+        payload = data[pos + 8:pos + 8 + length]
+        if len(payload) != length:
+            raise ValueError("truncated PNG chunk")
+        chunks.append((kind, payload))
+        pos += 12 + length
+        if kind == b"IEND":
+            break
+    return chunks
+
+
+def _png_chunk(kind: bytes, payload: bytes) -> bytes:
+    return struct.pack(">I", len(payload)) + kind + payload + struct.pack(">I", zlib.crc32(kind + payload))
+
+
+def _is_lineage_chunk(kind: bytes, payload: bytes) -> bool:
+    return kind == b"iTXt" and payload.startswith(METADATA_KEY + b"\0")
+
+
+def stamp_png(path: str | os.PathLike, lineage: Mapping) -> None:
+    """Put the lineage record in a PNG's ``iTXt`` chunk (keyword ``isokinetic.lineage``, before IEND).
+
+    The image chunks are copied byte for byte; an earlier lineage chunk is replaced.
+    """
+    from .io import _atomic
+
+    chunks = [c for c in _png_chunks(Path(path).read_bytes()) if not _is_lineage_chunk(*c)]
+    # iTXt: keyword NUL, compression flag, compression method, language tag NUL, translated keyword NUL, text
+    text = METADATA_KEY + b"\0" + b"\0\0" + b"\0" + b"\0" + canonical_json(lineage).encode("utf-8")
+    out = [PNG_SIGNATURE]
+    for kind, payload in chunks:
+        if kind == b"IEND":
+            out.append(_png_chunk(b"iTXt", text))
+        out.append(_png_chunk(kind, payload))
+
+    def write(tmp):
+        Path(tmp).write_bytes(b"".join(out))
+    _atomic(path, write)
+
+
+def _png_lineage(path: Path) -> dict | None:
+    for kind, payload in _png_chunks(path.read_bytes()):
+        if _is_lineage_chunk(kind, payload):
+            # keyword NUL flag method language NUL translated NUL text
+            rest = payload[len(METADATA_KEY) + 1:]
+            flag, rest = rest[0], rest[2:]
+            _lang, _, rest = rest.partition(b"\0")
+            _trans, _, text = rest.partition(b"\0")
+            if flag:
+                text = zlib.decompress(text)
+            return json.loads(text.decode("utf-8"))
+    return None
+
+
+#: File types that carry a lineage record.
+STAMPED_SUFFIXES = (".parquet", ".json", ".png")
+
+
 def read_lineage(path: str | os.PathLike) -> dict | None:
-    """The lineage record of a Parquet or JSON file written by the pipeline (None when absent)."""
+    """The lineage record of a Parquet, JSON or PNG file written by the pipeline (None when absent)."""
     path = Path(path)
     if path.suffix == ".json":
-        return json.loads(path.read_text(encoding="utf-8")).get("lineage")
+        data = json.loads(path.read_text(encoding="utf-8"))
+        return data.get("lineage") if isinstance(data, dict) else None
+    if path.suffix == ".png":
+        return _png_lineage(path)
     meta = pq.read_schema(path).metadata or {}
     raw = meta.get(METADATA_KEY)
     return None if raw is None else json.loads(raw.decode("utf-8"))
 
 
 def stamp_outputs(outputs: Iterable[str | os.PathLike], lineage: Mapping) -> list[Path]:
-    """Stamp every Parquet and JSON file among the outputs (folders: every such file inside)."""
+    """Stamp every Parquet, JSON and PNG file among the outputs (folders: every such file inside).
+
+    Other files (CSV, YAML, logs) and JSON files whose top level is not an object are left as they are.
+    """
     stamped = []
     for out in outputs:
         out = Path(out)
-        files = sorted(out.rglob("*")) if out.is_dir() else [out]
+        files = sorted(p for p in out.rglob("*") if p.is_file()) if out.is_dir() else [out]
         for f in files:
+            if f.name.startswith("."):          # an atomic write's temporary file
+                continue
             if f.suffix == ".parquet":
                 stamp_parquet(f, lineage)
+            elif f.suffix == ".png":
+                stamp_png(f, lineage)
             elif f.suffix == ".json":
                 try:
                     stamp_json(f, lineage)
@@ -145,8 +230,50 @@ def stamp_outputs(outputs: Iterable[str | os.PathLike], lineage: Mapping) -> lis
 
 
 def from_snakemake(smk, config_path: str = "config/config.yaml") -> dict:
-    """The lineage record of the running Snakemake job (rule, params, inputs, config hash)."""
+    """The lineage record of the running Snakemake job (rule, params, inputs, config hash).
+
+    Besides :func:`stage_lineage`'s keys: ``wildcards`` (all of the job's wildcards) and ``log``
+    (the job's log files), so a record leads to the log of the run that made the file.
+    """
     params = {k: v for k, v in smk.params.items()}
-    campaign = getattr(smk.wildcards, "campaign", None) if hasattr(smk, "wildcards") else None
+    wildcards = dict(smk.wildcards.items()) if hasattr(smk, "wildcards") else {}
+    campaign = wildcards.get("campaign")
     config_sha = sha256_text(canonical_json(smk.config)) if getattr(smk, "config", None) is not None else None
-    return stage_lineage(smk.rule, params, list(smk.input), campaign=campaign, config_sha256=config_sha)
+    record = stage_lineage(smk.rule, params, list(smk.input), campaign=campaign, config_sha256=config_sha)
+    record["wildcards"] = {str(k): str(v) for k, v in wildcards.items()}
+    record["log"] = [str(p) for p in getattr(smk, "log", [])]
+    return record
+
+
+def finish(smk) -> list[Path]:
+    """Last line of every pipeline script: stamp the job's outputs with its lineage record."""
+    return stamp_outputs(smk.output, from_snakemake(smk))
+
+
+# ----------------------------------------------------------------------------------------------
+# row-level lineage: keys of the rows an aggregate was computed from
+# ----------------------------------------------------------------------------------------------
+
+def row_keys(frame, columns: Iterable[str] = ("case", "segment")) -> str:
+    """Compact explicit list of row keys: 'T01/1,T01/2,T02/1' (values joined by '/', rows by ',').
+
+    Case ids cannot hold '/' or ',' (manifest.CASE_ID_RULE), so the text parses back unambiguously
+    (:func:`parse_row_keys`). Rows keep the frame's order; duplicates are dropped.
+    """
+    columns = list(columns)
+    seen, keys = set(), []
+    for values in frame[columns].itertuples(index=False, name=None):
+        key = "/".join(str(v) for v in values)
+        if key not in seen:
+            seen.add(key)
+            keys.append(key)
+    return ",".join(keys)
+
+
+def parse_row_keys(text: str) -> list[tuple[str, int]]:
+    """(case, segment) pairs of a :func:`row_keys` text over ('case', 'segment')."""
+    out = []
+    for key in filter(None, (text or "").split(",")):
+        case, _, segment = key.rpartition("/")
+        out.append((case, int(segment)))
+    return out

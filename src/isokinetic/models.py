@@ -44,6 +44,7 @@ from scipy import stats
 from . import tables
 from .damper import Damper, nominal_force
 from .figures import save_figure
+from .lineage import row_keys
 from .windows import WindowSpec
 
 log = logging.getLogger("isokinetic.models")
@@ -67,7 +68,7 @@ _PARAM_INFO = {
 
 MODEL_COLUMNS = ["campaign", "model", "direction", "parameter", "kind", "derived_from", "estimate", "ci_low",
                  "ci_high", "std_error", "unit", "description", "assumption", "n_points", "dof",
-                 "rms_residual_N", "residual_scale", "weighting", "confidence"]
+                 "rms_residual_N", "residual_scale", "weighting", "confidence", "source_file", "source_rows"]
 RESIDUAL_COLUMNS = ["campaign", "model", "case", "segment", "direction", "velocity_m_s", "force_N",
                     "predicted_N", "residual_N", "standard_error_N", "normalized_residual"]
 
@@ -219,7 +220,7 @@ def physical_readings(parameter: str, estimate: float, ci_low: float, ci_high: f
 def _empty_models() -> pd.DataFrame:
     df = pd.DataFrame({c: pd.Series(dtype=object if c in ("campaign", "model", "direction", "parameter", "kind",
                                                            "derived_from", "unit", "description", "assumption",
-                                                           "weighting") else
+                                                           "weighting", "source_file", "source_rows") else
                                      "int64" if c in ("n_points", "dof") else float)
                        for c in MODEL_COLUMNS})
     return df
@@ -231,11 +232,15 @@ def _empty_residuals() -> pd.DataFrame:
 
 
 def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str = "standard_error",
-               confidence: float = CONFIDENCE) -> tuple[pd.DataFrame, pd.DataFrame]:
+               confidence: float = CONFIDENCE, source_file: str = "characteristic.parquet"
+               ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Wallaschek and Surace fits of a CHARACTERISTIC (or WINDOWS) table: (models_df, residuals_df).
 
     models_df follows tables.MODELS plus kind ('fitted' | 'derived'), derived_from, std_error, unit,
-    description, assumption, n_points, dof, rms_residual_N, residual_scale, weighting, confidence.
+    description, assumption, n_points, dof, rms_residual_N, residual_scale, weighting, confidence,
+    and the row-level lineage: source_file (``source_file``, the table ``char`` was read from) and
+    source_rows, the (case, segment) keys of the rows that fit used, sorted, 'T01/1,T01/2,...'
+    (:func:`lineage.row_keys`; n_points of them). A derived row carries its parameter's sources.
     Derived physical readings need ``damper``; without it only the fitted rows are written. A model
     (or Surace direction) with fewer than 4 points or a rank-deficient design is skipped (logged).
     """
@@ -266,7 +271,8 @@ def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str 
         rms = float(np.sqrt(np.mean(resid**2)))
         common = {"campaign": campaign, "model": model, "direction": dirn, "n_points": int(mask.sum()),
                   "dof": int(r["dof"]), "rms_residual_N": rms, "residual_scale": r["residual_scale"],
-                  "weighting": weighting, "confidence": confidence}
+                  "weighting": weighting, "confidence": confidence, "source_file": source_file,
+                  "source_rows": row_keys(char.loc[mask].sort_values(["case", "segment"], kind="stable"))}
         for j, name in enumerate(PARAMETERS):
             unit, desc = _PARAM_INFO[name]
             est, lo, hi = float(r["estimate"][j]), float(r["ci_low"][j]), float(r["ci_high"][j])

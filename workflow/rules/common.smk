@@ -89,5 +89,7 @@ BLIND_OUTPUTS = ["results/blind/scores.parquet", "results/blind/summary.json",
 
 def all_outputs():
     return ["results/design/plan_check.parquet"] + [
-        path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)] + (
+        path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)] + [
+        f"results/{campaign}/provenance.json" for campaign in CAMPAIGNS] + [
+        f"results/{campaign}/report.html" for campaign in CAMPAIGNS] + ["results/index.html"] + (
         BLIND_OUTPUTS if config.get("blind") else [])

@@ -3,6 +3,7 @@ import time
 from pathlib import Path
 
 from isokinetic.blind import diagnose_suite
+from isokinetic.lineage import finish
 from isokinetic.logs import log_to_file
 from isokinetic.windows import WindowSpec
 
@@ -17,3 +18,4 @@ results = diagnose_suite(snakemake.input[0], p.names, out, WindowSpec(p.start_fr
 failed = sorted(n for n, d in results.items() if d is None)
 log.info("%d scenarios diagnosed in %.1f s%s", len(results), time.perf_counter() - start,
          f"; failed: {', '.join(failed)}" if failed else "")
+finish(snakemake)  # lineage record on every output (isokinetic.lineage)

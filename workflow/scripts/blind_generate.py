@@ -2,6 +2,7 @@
 import time
 
 from isokinetic.blind import generate_scenarios, write_suite
+from isokinetic.lineage import finish
 from isokinetic.logs import log_to_file
 from isokinetic.windows import WindowSpec
 
@@ -15,3 +16,4 @@ if names != list(p.names):
     raise RuntimeError(f"generated scenarios {names} differ from the workflow's {list(p.names)}")
 write_suite(scenarios, snakemake.output.raw, snakemake.output.truth)
 log.info("%d blind scenarios generated and exported in %.1f s", len(scenarios), time.perf_counter() - start)
+finish(snakemake)  # lineage record on every output (isokinetic.lineage)

@@ -2,6 +2,7 @@
 import sys
 
 from isokinetic.blind import summary_text, write_scores
+from isokinetic.lineage import finish
 from isokinetic.logs import log_to_file
 
 log = log_to_file(snakemake.log[0])
@@ -10,3 +11,4 @@ scores, summary = write_scores(snakemake.input.truth, snakemake.input.diagnoses,
 text = summary_text(summary)
 log.info("\n%s", text)
 print(text, file=sys.stderr, flush=True)
+finish(snakemake)  # lineage record on every output (isokinetic.lineage)

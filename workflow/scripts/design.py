@@ -2,6 +2,7 @@
 from pathlib import Path
 
 from isokinetic.design import plan_warnings, write_design
+from isokinetic.lineage import finish
 from isokinetic.logs import log_to_file
 
 log = log_to_file(snakemake.log[0])
@@ -12,3 +13,4 @@ plan_check, written = write_design(Path(snakemake.input.cases).parent, Path(snak
 for line in plan_warnings(plan_check):
     log.warning("plan check: %s", line)
 log.info("%d cases checked, %d flagged", len(plan_check), int(plan_check["flagged"].sum()))
+finish(snakemake)  # lineage record on every output (isokinetic.lineage)

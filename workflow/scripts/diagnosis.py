@@ -2,6 +2,7 @@
 from pathlib import Path
 
 from isokinetic.diagnosis import write_diagnosis
+from isokinetic.lineage import finish
 from isokinetic.logs import log_to_file
 from isokinetic.windows import WindowSpec
 
@@ -11,3 +12,4 @@ result = write_diagnosis(Path(snakemake.input.cases).parent, Path(snakemake.outp
                          Path(snakemake.output.figure), spec)
 log.info("verdict %s (explained: %s); %s %s -> %s, shrink %s; %s s", result["verdict"], result.get("explained"),
          result["metric"], result["gap_before"], result["gap_after"], result["shrink"], result.get("seconds"))
+finish(snakemake)  # lineage record on every output (isokinetic.lineage)

@@ -2,6 +2,7 @@
 from pathlib import Path
 
 from isokinetic.io import write_parquet
+from isokinetic.lineage import finish
 from isokinetic.logs import log_to_file
 from isokinetic.nominal import nominal_stage
 from isokinetic.windows import WindowSpec
@@ -11,3 +12,4 @@ spec = WindowSpec(snakemake.params.start_fraction, snakemake.params.end_fraction
 windows = nominal_stage(Path(snakemake.input.cases).parent, spec)
 write_parquet(windows, snakemake.output[0])
 log.info("%d nominal-model windows", len(windows))
+finish(snakemake)  # lineage record on every output (isokinetic.lineage)

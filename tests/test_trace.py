@@ -1,0 +1,342 @@
+"""The audit command: every table kind traced back to its raw data and re-derived.
+
+A small project is built in a temporary folder with the stage functions themselves: a simulated
+campaign (``mini``), the same campaign exported as a raw campaign and ingested (``mini-raw``, one
+CSV with comment lines before its header), a one-scenario blind suite and the all-campaigns plan
+check. Tampering tests work on copies.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from contextlib import contextmanager
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from isokinetic import blind, lineage, trace as tr
+from isokinetic.characteristic import assemble
+from isokinetic.design import plan_check
+from isokinetic.diagnosis import diagnose
+from isokinetic.harmonic import harmonic_stage
+from isokinetic.ingest import ingest_campaign
+from isokinetic.io import write_json, write_parquet
+from isokinetic.models import fit_models
+from isokinetic.nominal import nominal_stage
+from isokinetic.repeatability import repeatability
+from isokinetic.validate import write_validated
+from isokinetic.virtual_rig import VirtualCampaign, export_raw_campaign, write_campaign
+from isokinetic.windows import WindowSpec, windows_stage
+
+DAMPER = {"piston_area_m2": 4.0e-3, "chamber_volume_1_m3": 3.0e-4, "chamber_volume_2_m3": 3.0e-4,
+          "orifice_area_m2": 6.0e-8, "orifice_length_m": 5.0e-4, "discharge_coefficient": 0.6,
+          "density_kg_m3": 815.0, "viscosity_Pa_s": 0.03, "oil_compressibility_1_Pa": 3.8e-9}
+SPEC = {"description": "trace test campaign", "seed": 7, "temperature_C": 40.0, "damper": DAMPER,
+        "effects": {"friction": {"coulomb_force_N": 60.0}, "leakage": {"conductance_m3_s_Pa": 2.0e-12}},
+        "measurement": {"force_noise_N": 5.0, "force_noise_rel": 0.01, "displacement_noise_m": 1.0e-6},
+        "plan": {"triangle": {"velocities_mm_s": [0.02, 0.1, 0.4, 1.0], "periods_s": [40, 20, 20, 20],
+                              "sample_rate_Hz": 20.0},
+                 "sine": {"frequency_Hz": 1.75, "amplitudes_mm": [0.3], "periods": 4, "sample_rate_Hz": 200.0}}}
+CONFIG = {"raw_dir": "data/raw", "windows": {"start_fraction": 0.45, "end_fraction": 0.95},
+          "repeatability": {"tolerance": 0.05},
+          "design": {"convergence_fraction": 0.999, "max_amplitude_mm": 10.0, "min_amplitude_mm": 0.1},
+          "validation": {"sample_rate_tolerance": 0.05}, "virtual_campaigns": {"mini": SPEC}}
+SPEC_W = WindowSpec(0.45, 0.95)
+COMMENT = "# rig: bench 2\n# operator: trace fixture\n"
+
+
+@contextmanager
+def cwd(path: Path):
+    old = Path.cwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(old)
+
+
+def process(root: Path, damper) -> None:
+    """Every stage after ingest, as the rules run them, into ``root`` (results/<campaign>)."""
+    write_validated(root, sample_rate_tolerance=0.05)
+    win = windows_stage(root, SPEC_W)
+    rep = repeatability(win, 0.05)
+    write_parquet(win, root / "windows.parquet")
+    write_parquet(rep, root / "repeatability.parquet")
+    char = assemble(win, rep)
+    write_parquet(char, root / "characteristic.parquet")
+    write_parquet(nominal_stage(root, SPEC_W), root / "nominal_windows.parquet")
+    name = json.loads((root / "ingest" / "campaign.json").read_text())["campaign"]
+    write_parquet(plan_check(name, pd.read_parquet(root / "cases.parquet"), damper, phi=0.999, max_amplitude_m=0.01,
+                             min_amplitude_m=1e-4, start_fraction=0.45), root / "design" / "plan_check.parquet")
+    write_parquet(harmonic_stage(root)[0], root / "harmonic" / "harmonic.parquet")
+    models, residuals = fit_models(char, damper)
+    write_parquet(models, root / "models" / "models.parquet")
+    write_parquet(residuals, root / "models" / "model_residuals.parquet")
+    write_json(diagnose(root, SPEC_W)[0], root / "diagnosis.json")
+
+
+@pytest.fixture(scope="module")
+def project(tmp_path_factory) -> Path:
+    base = tmp_path_factory.mktemp("trace") / "project"
+    (base / "config").mkdir(parents=True)
+    (base / "config" / "config.yaml").write_text(yaml.safe_dump(CONFIG, sort_keys=False), encoding="utf-8")
+    vc = VirtualCampaign.from_config("mini", SPEC)
+    with cwd(base):  # relative paths, as the pipeline records them
+        write_campaign(vc, Path("results/mini"))
+        process(Path("results/mini"), vc.damper)
+        raw = export_raw_campaign(vc, Path("data/raw/mini-raw"))
+        csv = raw / "T02.csv"
+        csv.write_text(COMMENT + csv.read_text(encoding="utf-8"), encoding="utf-8")
+        ingest_campaign(raw, Path("results/mini-raw"))
+        process(Path("results/mini-raw"), vc.damper)
+        checks = [pd.read_parquet(f"results/{c}/design/plan_check.parquet") for c in ("mini", "mini-raw")]
+        write_parquet(pd.concat(checks, ignore_index=True), Path("results/design/plan_check.parquet"))
+        b = Path("results/blind")
+        export_raw_campaign(vc, b / "raw" / "blind-000")
+        write_json({"scenario": "blind-000", "truth": ["friction", "leakage"], "magnitude_x_detection": 3.0},
+                   b / "truth" / "blind-000.json")
+        blind.diagnose_suite(b / "raw", ["blind-000"], b / "diagnosis" / "chunk0", SPEC_W)
+        blind.write_scores(b / "truth", [b / "diagnosis" / "chunk0"], b / "scores.parquet", b / "summary.json",
+                           b / "fig17_blind_confusion.png")
+    return base
+
+
+def copy_project(project: Path, dst: Path, *parts: str) -> Path:
+    """A copy of the config and the named folders (e.g. 'results/mini', 'data/raw/mini-raw')."""
+    shutil.copytree(project / "config", dst / "config")
+    for part in parts:
+        shutil.copytree(project / part, dst / part)
+    return dst
+
+
+def run(table: Path, selector: str | None = None, **kwargs) -> tr.TraceResult:
+    return tr.trace(table, selector, stream=None, **kwargs)
+
+
+# --------------------------------------------------------------------------------------------
+# matches
+# --------------------------------------------------------------------------------------------
+
+def test_cli_traces_a_raw_characteristic_point_down_to_its_csv_lines(project, tmp_path):
+    table = project / "results/mini-raw/characteristic.parquet"
+    proc = subprocess.run([sys.executable, "-m", "isokinetic", "trace", str(table), "case=T02,segment=3"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    out = proc.stdout
+    assert out.rstrip().splitlines()[-1] == "MATCH"
+    row = pd.read_parquet(table).query("case == 'T02' and segment == 3").iloc[0]
+    lines = (project / "data/raw/mini-raw/T02.csv").read_text().splitlines()
+    first = lines[2 + 1 + int(row["row_start"])]  # two comment lines and the header come first
+    assert f"line {2 + 1 + int(row['row_start']) + 1}: {first}" in out
+    assert "data/raw/mini-raw/T02.csv" in out and row["raw_sha256"][:12] in out
+    assert "windows.window_ranges" in out and "least-squares slope" in out
+    assert "force_N" in out and "identical" in out
+
+
+CASES = [
+    ("results/mini/cases.parquet", "case=T01"),
+    ("results/mini/ingest/cases.parquet", "row=4"),
+    ("results/mini/ingest/timeseries/T03.parquet", "row=7"),
+    ("results/mini/windows.parquet", "row=5"),
+    ("results/mini/characteristic.parquet", "case=T03,segment=2"),
+    ("results/mini/repeatability.parquet", "case=T02,direction=-"),
+    ("results/mini/nominal_windows.parquet", "case=T04,segment=3"),
+    ("results/mini/design/plan_check.parquet", "case=T02"),
+    ("results/mini/design/plan_check.parquet", "case=H01"),
+    ("results/design/plan_check.parquet", "campaign=mini-raw,case=T03"),
+    ("results/mini/harmonic/harmonic.parquet", "case=H01,direction=+"),
+    ("results/mini/models/models.parquet", "model=surace,direction=-,parameter=D_Q"),
+    ("results/mini/models/models.parquet", "model=wallaschek,parameter=c1"),
+    ("results/mini/models/model_residuals.parquet", "model=wallaschek,case=T02,segment=1"),
+    ("results/mini/diagnosis.json", "gap_before"),
+    ("results/mini/diagnosis.json", None),
+    ("results/mini-raw/cases.parquet", "case=T02"),
+    ("results/mini-raw/ingest/timeseries/T02.parquet", "row=0"),
+    ("results/mini-raw/repeatability.parquet", "case=T04,direction=+"),
+    ("results/mini-raw/models/models.parquet", "model=surace,direction=+,parameter=F_C"),
+    ("results/mini-raw/harmonic/harmonic.parquet", "row=0"),
+    ("results/blind/scores.parquet", "scenario=blind-000"),
+    ("results/blind/diagnosis/chunk0/blind-000/characteristic.parquet", "case=T01,segment=4"),
+]
+
+
+@pytest.mark.parametrize("table, selector", CASES)
+def test_every_table_kind_is_rederived_to_a_match(project, table, selector):
+    result = run(project / table, selector)
+    assert result.status == tr.MATCH, result.text
+    assert result.exit_code == 0
+    assert result.comparisons and all(c.ok for c in result.comparisons)
+    assert result.text.rstrip().splitlines()[-1] == "MATCH"
+
+
+def test_timeseries_row_shows_the_raw_line_and_its_conversion(project):
+    result = run(project / "results/mini-raw/ingest/timeseries/T02.parquet", "row=3")
+    assert result.status == tr.MATCH, result.text
+    line = (project / "data/raw/mini-raw/T02.csv").read_text().splitlines()[2 + 1 + 3]
+    assert f"line 7: {line}" in result.text
+    assert "force_kN [kN] x 1000 -> force_N" in result.text
+
+
+def test_simulated_case_is_resimulated_and_its_csv_hash_checked(project):
+    result = run(project / "results/mini/characteristic.parquet", "case=T04,segment=1")
+    assert result.status == tr.MATCH
+    assert "virtual_campaigns.mini" in result.text and "(re-simulated CSV)" in result.text
+    sha = pd.read_parquet(project / "results/mini/cases.parquet").set_index("case").loc["T04", "raw_sha256"]
+    assert f"sha256 {sha[:12]}.. = recorded" in result.text
+
+
+def test_lineage_records_supply_the_spec_and_parameters_without_a_config(project, tmp_path):
+    dst = copy_project(project, tmp_path / "p", "results/mini")
+    with cwd(dst):
+        root = Path("results/mini")
+        lineage.stamp_outputs([root / "ingest"], lineage.stage_lineage("virtual_rig", {"spec": SPEC}, [], "mini"))
+        lineage.stamp_outputs([root / "cases.parquet"], lineage.stage_lineage(
+            "validate", {"sample_rate_tolerance": 0.05}, [root / "ingest"], "mini"))
+        lineage.stamp_outputs([root / "windows.parquet"], lineage.stage_lineage(
+            "windows", {"start_fraction": 0.45, "end_fraction": 0.95}, [root / "cases.parquet", root / "ingest"],
+            "mini"))
+        lineage.stamp_outputs([root / "repeatability.parquet"], lineage.stage_lineage(
+            "repeatability", {"tolerance": 0.05}, [root / "windows.parquet"], "mini"))
+        lineage.stamp_outputs([root / "characteristic.parquet"], lineage.stage_lineage(
+            "characteristic", {}, [root / "windows.parquet", root / "repeatability.parquet"], "mini"))
+    shutil.rmtree(dst / "config")
+    result = run(dst / "results/mini/characteristic.parquet", "case=T02,segment=2")
+    assert result.status == tr.MATCH, result.text
+    assert "lineage: rule characteristic, campaign mini" in result.text
+    assert "input results/mini/windows.parquet" in result.text and "unchanged" in result.text
+    assert "spec from lineage params of results/mini/ingest/cases.parquet" in result.text
+    assert "from lineage params of results/mini/windows.parquet" in result.text
+
+
+# --------------------------------------------------------------------------------------------
+# changed raw data, missing files, tampered derived values
+# --------------------------------------------------------------------------------------------
+
+def flip_one_byte(path: Path) -> None:
+    data = bytearray(path.read_bytes())
+    i = data.rindex(b"\n", 0, len(data) - 1) - 1   # last character of the second-to-last line
+    data[i] = ord("7") if data[i] != ord("7") else ord("3")
+    path.write_bytes(bytes(data))
+
+
+def test_one_byte_edit_of_a_raw_file_is_reported_and_exit_2(project, tmp_path):
+    dst = copy_project(project, tmp_path / "p", "data/raw/mini-raw", "results/mini-raw")
+    flip_one_byte(dst / "data/raw/mini-raw/T03.csv")
+    table = dst / "results/mini-raw/characteristic.parquet"
+    proc = subprocess.run([sys.executable, "-m", "isokinetic", "trace", str(table), "case=T03,segment=1"],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    lines = proc.stdout.rstrip().splitlines()
+    assert lines[-1] == "RAW FILE CHANGED"
+    assert "T03.csv has sha256" in proc.stdout and "recorded in results/mini-raw/cases.parquet" in proc.stdout
+    assert "Window statistics" not in proc.stdout  # nothing recomputed from the changed file
+    # a fit over the whole campaign notices it as well; an untouched case still matches
+    assert run(dst / "results/mini-raw/models/models.parquet", "row=0").status == tr.RAW_CHANGED
+    assert run(dst / "results/mini-raw/characteristic.parquet", "case=T01,segment=1").status == tr.MATCH
+
+
+def test_missing_raw_file_and_edited_manifest(project, tmp_path):
+    dst = copy_project(project, tmp_path / "p", "data/raw/mini-raw", "results/mini-raw")
+    (dst / "data/raw/mini-raw/T04.csv").unlink()
+    result = run(dst / "results/mini-raw/repeatability.parquet", "case=T04,direction=+")
+    assert result.status == tr.MISSING and result.exit_code == 2, result.text
+    assert "T04.csv not found" in result.text
+    manifest = dst / "data/raw/mini-raw/campaign.yaml"
+    manifest.write_text(manifest.read_text().replace("disp_mm", "disp_um"), encoding="utf-8")
+    result = run(dst / "results/mini-raw/characteristic.parquet", "case=T01,segment=1")
+    assert result.status == tr.RAW_CHANGED and result.exit_code == 2
+    assert "campaign.yaml" in result.text
+    assert run(dst / "results/mini-raw/nominal.parquet", "row=0").status == tr.MISSING
+
+
+def test_changed_virtual_spec_is_reported_as_changed_raw_data(project, tmp_path):
+    dst = copy_project(project, tmp_path / "p", "results/mini")
+    config = yaml.safe_load((dst / "config/config.yaml").read_text())
+    config["virtual_campaigns"]["mini"]["seed"] = 8
+    (dst / "config/config.yaml").write_text(yaml.safe_dump(config), encoding="utf-8")
+    result = run(dst / "results/mini/windows.parquet", "case=T01,segment=1")
+    assert result.status == tr.RAW_CHANGED and result.exit_code == 2, result.text
+    assert "or the simulator changed after processing" in result.text
+
+
+def test_tampered_derived_values_are_mismatches(project, tmp_path):
+    dst = copy_project(project, tmp_path / "p", "results/mini")
+    path = dst / "results/mini/characteristic.parquet"
+    char = pd.read_parquet(path)
+    i = char.index[(char["case"] == "T03") & (char["segment"] == 2)][0]
+    char.loc[i, "force_N"] *= 1 + 1e-7
+    write_parquet(char, path)
+    result = run(path, "case=T03,segment=2")
+    assert result.status == tr.MISMATCH and result.exit_code == 1, result.text
+    assert [c.name for c in result.comparisons if not c.ok] == ["force_N"]
+    assert "DIFFER" in result.text and result.text.rstrip().splitlines()[-1] == "MISMATCH"
+    # the untouched neighbour still matches; a tampered fit and diagnosis value are caught too
+    assert run(path, "case=T03,segment=4").status == tr.MATCH
+    char["note"] = "added by a script"  # a column the stage functions do not make is listed, not compared
+    write_parquet(char, path)
+    result = run(path, "case=T03,segment=4")
+    assert result.status == tr.MATCH and "not compared: note" in result.text
+    models = pd.read_parquet(dst / "results/mini/models/models.parquet")
+    models.loc[0, "estimate"] += 1.0
+    write_parquet(models, dst / "results/mini/models/models.parquet")
+    assert run(dst / "results/mini/models/models.parquet", "row=0").status == tr.MISMATCH
+    diag = json.loads((dst / "results/mini/diagnosis.json").read_text())
+    diag["gap_after"] *= 1.001
+    write_json(diag, dst / "results/mini/diagnosis.json")
+    result = run(dst / "results/mini/diagnosis.json", "gap_after")
+    assert result.status == tr.MISMATCH and result.exit_code == 1
+
+
+# --------------------------------------------------------------------------------------------
+# selectors and refusals
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("table, selector, words", [
+    ("results/mini/characteristic.parquet", "case=T03", "4 rows match case=T03; narrow it with one of segment"),
+    ("results/mini/characteristic.parquet", "cas=T03", "no column 'cas'"),
+    ("results/mini/characteristic.parquet", "case=T99", "no row matches case=T99"),
+    ("results/mini/characteristic.parquet", "row=999", "row=999"),
+    ("results/mini/characteristic.parquet", None, "give a selector"),
+    ("results/mini/diagnosis.json", "seconds", "not re-derivable"),
+    ("results/mini/diagnosis.json", "params.nothing", "no 'nothing'"),
+    ("results/mini/quarantine.parquet", "row=0", "not a table trace knows"),
+])
+def test_bad_selectors_and_unknown_tables_cannot_be_traced(project, table, selector, words):
+    result = run(project / table, selector)
+    assert result.status == tr.CANNOT and result.exit_code == 2
+    assert words in result.text, result.text
+
+
+def test_simulated_campaign_without_spec_cannot_be_traced(project, tmp_path):
+    result = run(project / "results/mini/characteristic.parquet", "row=0", config=tmp_path / "absent.yaml")
+    assert result.status == tr.CANNOT and "nothing to re-simulate from" in result.text
+
+
+def test_selector_parsing_and_value_comparison():
+    assert tr.parse_selector("case=T12, direction=-") == {"case": "T12", "direction": "-"}
+    with pytest.raises(tr.TraceStop):
+        tr.parse_selector("T12")
+    assert tr.compare_value("x", 1.0, 1.0 + 1e-12, rtol=1e-9)[0].ok
+    assert not tr.compare_value("x", 1.0, 1.0 + 1e-8, rtol=1e-9)[0].ok
+    assert tr.compare_value("x", float("nan"), float("nan"), rtol=1e-9)[0].ok
+    assert tr.compare_value("s", 1e-15, 0.0, rtol=1e-9, atol=1e-7)[0].ok  # a rounding-size spread
+    nested = tr.compare_value("", {"a": [1.0, {"b": 2.0}], "seconds": 3.0}, {"a": [1.0, {"b": 2.5}], "seconds": 9.0},
+                              rtol=1e-9)
+    assert [(c.name, c.ok) for c in nested] == [("a.0", True), ("a.1.b", False)]
+
+
+def test_blind_score_is_rescored_from_the_truth_file_and_a_fresh_diagnosis(project):
+    result = run(project / "results/blind/scores.parquet", "scenario=blind-000")
+    assert result.status == tr.MATCH, result.text
+    assert "results/blind/truth/blind-000.json" in result.text
+    assert "results/blind/raw/blind-000/T01.csv" in result.text and "diagnosis.diagnose" in result.text
+    scores = pd.read_parquet(project / "results/blind/scores.parquet")
+    for col in ("raw_dir", "truth_file", "diagnosis_file"):  # provenance columns, when write_scores adds them
+        if col in scores.columns:
+            assert col in result.text.split("not compared:")[1].splitlines()[0]
