@@ -26,6 +26,7 @@ include: "workflow/rules/harmonic.smk"
 include: "workflow/rules/models.smk"
 include: "workflow/rules/diagnosis.smk"
 include: "workflow/rules/blind.smk"
+include: "workflow/rules/raw_check.smk"
 include: "workflow/rules/provenance.smk"
 include: "workflow/rules/report.smk"
 
@@ -33,3 +34,12 @@ include: "workflow/rules/report.smk"
 rule all:
     input:
         all_outputs(),
+
+
+onsuccess:
+    if check_raw_after_run():
+        raise WorkflowError("raw data changed during the run: see the errors above")
+
+
+onerror:
+    check_raw_after_run()

@@ -186,3 +186,53 @@ def assert_quarantine(campaign: RawCampaign, cases: pd.DataFrame, quarantine: pd
         assert r.reason.startswith(f"campaign {r.campaign}, case {r.case}, ")
         assert repr(r.column) in r.reason
         assert pd.isna(r.row) or f"row {r.row}:" in r.reason
+
+
+# --- helpers for damaged copies (tests/test_damage.py) -------------------------------------------
+
+@pytest.fixture(scope="session")
+def baseline(pristine_campaign, tmp_path_factory) -> dict[str, pd.DataFrame]:
+    """Canonical series of every case of the undamaged campaign (ingest + validate run once)."""
+    root = tmp_path_factory.mktemp("baseline") / CAMPAIGN
+    ingest_campaign(pristine_campaign, root)
+    cases, quarantine = write_validated(root)
+    assert quarantine.empty and (cases["quality"] == "ok").all()
+    return {row.case: pd.read_parquet(root / row.timeseries_file) for row in cases.itertuples()}
+
+
+def assert_rest_unchanged(campaign: RawCampaign, cases: pd.DataFrame, baseline: dict[str, pd.DataFrame],
+                          damaged: set[str]) -> None:
+    """Every case not in ``damaged`` is ok, quality 'ok', with a series identical to the undamaged run."""
+    table = cases.set_index("case")
+    for case in set(CASE_IDS) - set(damaged):
+        assert (table.loc[case, "status"], table.loc[case, "quality"]) == ("ok", "ok"), case
+        pd.testing.assert_frame_equal(pd.read_parquet(campaign.root / table.loc[case, "timeseries_file"]),
+                                      baseline[case])
+
+
+def csv_path(campaign: RawCampaign, case: str) -> Path:
+    return campaign.raw_dir / f"{case}.csv"
+
+
+def edit_bytes(campaign: RawCampaign, case: str, edit) -> None:
+    """Apply ``edit(bytes) -> bytes`` to a case CSV as stored."""
+    path = csv_path(campaign, case)
+    path.write_bytes(edit(path.read_bytes()))
+
+
+def data_line(case_bytes: bytes, row: int) -> int:
+    """Index (in ``bytes.split(b'\\n')``) of data row ``row`` of a fixture CSV (comments, header first)."""
+    return COMMENTS.count("\n") + 1 + row
+
+
+def drop_rows(start: int, stop: int):
+    """A table edit: data rows [start, stop) removed (samples missing)."""
+    return lambda t: t.drop(index=range(start, stop)).reset_index(drop=True)
+
+
+def scale_column(column: str, factor: float):
+    """A table edit: every value of ``column`` multiplied (a wrong declared unit)."""
+    def edit(t: pd.DataFrame) -> pd.DataFrame:
+        t[column] = (t[column].astype(float) * factor).map("{:.10g}".format)
+        return t
+    return edit

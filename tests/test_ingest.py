@@ -73,12 +73,15 @@ def test_file_missing(raw_campaign):
 
 @pytest.mark.parametrize("name", ["../T02.csv", "sub/T02.csv", "/tmp/T02.csv", "sub\\T02.csv"])
 def test_file_name_with_a_path(raw_campaign, name):
+    """A file name with a path refuses the whole manifest before any file is read (hostile input)."""
     Path("data/raw/T02.csv").write_bytes((raw_campaign.raw_dir / "T02.csv").read_bytes())  # a tempting target
     raw_campaign.edit_manifest(lambda m: raw_campaign.case_entry(m, "T02").update(file=name))
-    cases, quarantine = raw_campaign.run()
-    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T02", "ingest", "file", None)])
-    assert cases.set_index("case").loc["T02", "raw_sha256"] == ""   # never opened
-    assert f"got {name!r}" in quarantine["reason"].iloc[0]
+    with pytest.raises(ManifestError) as info:
+        raw_campaign.run()
+    assert info.value.key == "cases.T02.file"
+    assert str(info.value) == ("data/raw/demo/campaign.yaml: key 'cases.T02.file': must be a bare file name "
+                               f"inside the campaign folder, got {name!r}")
+    assert not raw_campaign.root.exists()   # nothing written
 
 
 def test_unknown_unit_in_a_case(raw_campaign):

@@ -97,7 +97,7 @@ def test_unknown_record_length_falls_back_to_sample_count():
     unknown = known.assign(duration_s=math.nan)
     pd.testing.assert_frame_equal(model_windows("unit", unknown, TABLE1), model_windows("unit", known, TABLE1))
     short = unknown.assign(n_samples=int(1.9 * 40.0 * 100))      # 1.9 T recorded: segment 4 incomplete
-    with pytest.raises(ValueError, match="case T01: record of .* holds 3 complete half-periods"):
+    with pytest.raises(ValueError, match="case T01: record of .* holds the windows of 3 half-periods"):
         model_windows("unit", short, TABLE1)
 
 

@@ -69,7 +69,7 @@ def test_configurable_window_fractions():
 
 def test_short_record_is_refused():
     series = make_series()
-    with pytest.raises(ValueError, match="3 complete half-periods"):
+    with pytest.raises(ValueError, match="holds the windows of 3 half-periods"):
         case_windows(plan(), series[series.time_s <= 35.0])
 
 

@@ -1,5 +1,8 @@
 """End-to-end: the Snakemake workflow on a tiny config in a scratch copy of the project."""
 
+import hashlib
+import json
+import os
 import shutil
 import subprocess
 import sys
@@ -58,8 +61,20 @@ def project(tmp_path_factory):
     (work / "config").mkdir()
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(TINY), encoding="utf-8")
     export(work, "tiny-export")
+    before = raw_tree(work)
     snakemake(work)
+    (work / "raw_tree_before.json").write_text(json.dumps(before), encoding="utf-8")
     return work
+
+
+def raw_tree(work):
+    """sha256, mode, size and mtime of every entry under data/raw (the run must change none)."""
+    out = {}
+    for path in sorted((work / "data/raw").rglob("*")):
+        st = os.lstat(path)
+        out[str(path.relative_to(work))] = [hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else "",
+                                           st.st_mode, st.st_size, st.st_mtime_ns]
+    return out
 
 
 def copy_project(project, tmp_path):
@@ -86,6 +101,11 @@ def test_exported_raw_campaign_gives_the_simulated_characteristic(project):
         assert raw[col].to_numpy() == pytest.approx(sim[col].to_numpy(), rel=1e-9, abs=1e-12), col
 
 
+def test_full_run_changes_no_byte_under_data_raw(project):
+    before = json.loads((project / "raw_tree_before.json").read_text(encoding="utf-8"))
+    assert before and raw_tree(project) == before
+
+
 def test_rerun_with_nothing_changed_does_nothing(project):
     assert "Nothing to be done" in snakemake(project, "-n").stdout
 
@@ -101,7 +121,7 @@ def test_new_raw_campaign_runs_only_its_own_jobs(project, tmp_path):
     own = {name: block for name, block in jobs.items() if name not in ("all", "design_summary", "report_index")}
     assert set(own) == {"ingest", "validate", "windows", "repeatability", "characteristic", "figures",
                         "design", "nominal", "harmonic", "models", "diagnosis", "provenance",
-                        "campaign_report"}, planned
+                        "campaign_report", "raw_check"}, planned
     outputs = [line for block in own.values() for line in block.splitlines() if line.strip().startswith("output:")]
     assert all("results/tiny-copy/" in line for line in outputs), outputs
     assert "virtual_rig" not in jobs

@@ -53,9 +53,9 @@ from scipy import optimize, stats
 
 from .campaign import case_plan
 from .damper import AIR_COMPRESSIBILITY_1_PA, NOMINAL, Damper, Effects, friction_force, laminar_coefficient
-from .plan import CasePlan, half_periods
+from .plan import CasePlan
 from .virtual_rig import Hydraulics, triangle_responses
-from .windows import WindowSpec
+from .windows import WindowSpec, windowed_half_periods
 
 log = logging.getLogger("isokinetic.diagnosis")
 
@@ -163,7 +163,7 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
         f = series["force_N"].to_numpy()
         fs = plan.sample_rate_Hz
         half = plan.period_s / 2.0
-        segs = half_periods(plan.period_s, plan.phase_rad, float(t[-1]))[:4]
+        segs = windowed_half_periods(plan, float(t[-1]), spec)
         win = by_case[plan.case]
         last = 0
 

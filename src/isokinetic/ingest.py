@@ -12,10 +12,14 @@ schema-valid series.
 
 from __future__ import annotations
 
+import codecs
+import csv
 import dataclasses
 import datetime as dt
+import io
 import logging
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -40,23 +44,116 @@ class CaseFileError(Exception):
         self.problem = problem
 
 
-def read_case_csv(path: str | Path) -> pd.DataFrame:
+#: Byte-order marks of encodings other than UTF-8 (refused: the format is UTF-8).
+FOREIGN_BOMS = {codecs.BOM_UTF32_LE: "UTF-32", codecs.BOM_UTF32_BE: "UTF-32",
+                codecs.BOM_UTF16_LE: "UTF-16", codecs.BOM_UTF16_BE: "UTF-16"}
+_INTEGER = re.compile(r"[+-]?\d+")
+_DIGITS = re.compile(r"\d+(?:[eE][+-]?\d+)?")
+
+
+def _data_lines(lines: list[str], header: int) -> list[tuple[int, str]]:
+    """(data row, line) of the non-blank lines after the header: rows as pandas numbers them."""
+    out = []
+    for line in lines[header + 1:]:
+        if line.strip():
+            out.append((len(out), line))
+    return out
+
+
+def _encoding_problem(data: bytes, exc: UnicodeDecodeError) -> Problem:
+    """The row and column of the first byte that is not UTF-8."""
+    start = exc.start
+    bad = data[start]
+    line_start = data.rfind(b"\n", 0, start) + 1
+    line_end = data.find(b"\n", start)
+    line_end = len(data) if line_end < 0 else line_end
+    lines = data[:line_start].decode("utf-8", errors="replace").split("\n")[:-1]
+    header = next((i for i, line in enumerate(lines) if line.strip() and not line.startswith("#")), None)
+    if header is None:     # in a comment or the header itself
+        text = data[line_start:line_end].rstrip(b"\r")
+        return Problem("file", f"not UTF-8: byte 0x{bad:02x} in line {len(lines) + 1} ({text!r}), "
+                               "before the data", kind="key")
+    names = next(csv.reader([lines[header].rstrip("\r")]))
+    row = len(_data_lines(lines, header))
+    field = data.count(b",", line_start, start)
+    fields = data[line_start:line_end].rstrip(b"\r").split(b",")
+    raw = fields[field] if field < len(fields) else b""
+    column = names[field].strip() if field < len(names) else "file"
+    return Problem(column, f"not UTF-8: byte 0x{bad:02x} in {raw!r}", row=row,
+                   kind="column" if field < len(names) else "key")
+
+
+def _field_count_problem(names: list[str], row: int, fields: list[str], last: bool, ends_in_newline: bool):
+    """A data row whose field count differs from the header's (cut off, ragged, decimal commas)."""
+    n, want = len(fields), len(names)
+    if n < want:
+        cut = last and not ends_in_newline
+        what = "the file is cut off mid-row" if cut else "a ragged row"
+        return Problem(names[n], f"row ends after {n} of {want} fields: {what}", row=row)
+    extra, i = n - want, 0
+    while extra > 0 and i < want and i + 1 < n:
+        if _INTEGER.fullmatch(fields[i].strip()) and _DIGITS.fullmatch(fields[i + 1].strip()):
+            return Problem(names[i], f"decimal comma in '{fields[i].strip()},{fields[i + 1].strip()}' (row has "
+                                     f"{n} fields, the header {want}): the format needs ',' between fields "
+                                     f"and '.' as the decimal mark", row=row)
+        i += 1
+    return Problem("file", f"row has {n} fields, the header {want}", row=row, kind="key")
+
+
+def read_case_csv(path: str | Path, warnings: list[str] | None = None) -> pd.DataFrame:
     """A case CSV as strings (NaN for empty/NA cells), opened read-only.
 
-    Blank lines and ``#`` lines before the header are skipped; header names are stripped.
+    Blank lines and ``#`` lines before the header are skipped; header names are stripped; a
+    UTF-8 byte-order mark is stripped. Raises :class:`CaseFileError` for an empty file, bytes
+    that are not UTF-8 (naming row and column), a ``;`` or tab delimiter, and a data row whose
+    field count differs from the header's (a file cut off mid-row, decimal commas). A last row
+    without a line end is kept, with a warning appended to ``warnings``.
     """
     try:
-        with open(path, encoding="utf-8-sig", newline="") as fh:
-            while True:
-                start = fh.tell()
-                line = fh.readline()
-                if not line or (line.strip() and not line.startswith("#")):
-                    fh.seek(start)
-                    break
-            df = pd.read_csv(fh, dtype=str, skipinitialspace=True)
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise CaseFileError(Problem("file", f"unreadable CSV: {exc}", kind="key")) from None
+    if not data:
+        raise CaseFileError(Problem("file", "empty file (0 bytes)", kind="key"))
+    for bom, encoding in FOREIGN_BOMS.items():
+        if data.startswith(bom):
+            raise CaseFileError(Problem("file", f"{encoding} byte-order mark: the file is {encoding}, "
+                                                "the format needs UTF-8", kind="key"))
+    if data.startswith(codecs.BOM_UTF8):
+        data = data[len(codecs.BOM_UTF8):]
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise CaseFileError(_encoding_problem(data, exc)) from None
+    if "\n" not in text and "\r" in text:       # old Mac line ends
+        text = text.replace("\r", "\n")
+    lines = text.split("\n")
+    ends_in_newline = lines[-1] == ""
+    if ends_in_newline:
+        lines.pop()
+    lines = [line[:-1] if line.endswith("\r") else line for line in lines]
+    header = next((i for i, line in enumerate(lines) if line.strip() and not line.startswith("#")), None)
+    if header is None:
+        raise CaseFileError(Problem("file", "no header row", kind="key"))
+    names = next(csv.reader([lines[header]]))
+    if len(names) == 1:
+        for sep, label in ((";", "';'"), ("\t", "tabs")):
+            if sep in lines[header]:
+                raise CaseFileError(Problem("file", f"fields are separated by {label}, not ',' (header "
+                                                    f"{lines[header]!r}): the format needs ',' between fields "
+                                                    "and '.' as the decimal mark", kind="key"))
+    names = [name.strip() for name in names]
+    rows = _data_lines(lines, header)
+    for (row, line), fields in zip(rows, csv.reader([line for _, line in rows])):
+        if len(fields) != len(names):
+            raise CaseFileError(_field_count_problem(names, row, fields, row == len(rows) - 1, ends_in_newline))
+    if rows and not ends_in_newline and warnings is not None:
+        warnings.append(f"no line end after the last row ({rows[-1][0]}): it may be cut off in its last value")
+    try:
+        df = pd.read_csv(io.StringIO("\n".join(lines[header:]) + "\n"), dtype=str, skipinitialspace=True)
     except pd.errors.EmptyDataError:
         raise CaseFileError(Problem("file", "no header row", kind="key")) from None
-    except (pd.errors.ParserError, UnicodeDecodeError, OSError) as exc:
+    except pd.errors.ParserError as exc:
         raise CaseFileError(Problem("file", f"unreadable CSV: {exc}", kind="key")) from None
     df.columns = [str(c).strip() for c in df.columns]
     return df
@@ -102,7 +199,7 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict
     """One case: its CASES row, its problems, and its time series when it is ok."""
     problems = list(spec.problems)
     path = campaign_dir / spec.file if spec.file is not None else None
-    sha, n_samples, df = "", 0, None
+    sha, n_samples, df, warnings = "", 0, None, []
     if path is not None:
         if path.is_file():
             sha = sha256_file(path)
@@ -110,7 +207,7 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict
             problems.append(Problem("file", f"file not found: {path.as_posix()}", kind="key"))
     if not problems:
         try:
-            raw = read_case_csv(path)
+            raw = read_case_csv(path, warnings)
         except CaseFileError as exc:
             problems.append(exc.problem)
         else:
@@ -122,7 +219,8 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict
     row = {"campaign": campaign, **dataclasses.asdict(spec.plan),
            "raw_file": path.as_posix() if path is not None else str(spec.keys.get("file") or ""),
            "raw_sha256": sha, "timeseries_file": "" if problems else timeseries_relpath(spec.id),
-           "n_samples": n_samples, "status": "quarantined" if problems else "ok"}
+           "n_samples": n_samples, "status": "quarantined" if problems else "ok",
+           "quality": "quarantined" if problems else ("; ".join(warnings) or "ok")}
     return row, problems, (None if problems else df)
 
 

@@ -4,9 +4,23 @@
 
 * a *broken manifest* (unparseable, wrong shape, bad campaign-level key) raises
   :class:`ManifestError` naming the file and the key: the campaign fails alone;
-* a problem that concerns one case (a missing period, a file name with a path, an unknown
+* a problem that concerns one case (a missing period, a missing file key, an unknown
   unit on a column the case uses, ...) is recorded in that case's ``problems``: ingest
   quarantines the case and carries on with the others.
+
+Hostile input is refused as a broken manifest, before any case file is opened and before the
+YAML is turned into Python objects (:func:`check_yaml_events` walks the parser's events first):
+
+* a manifest larger than :data:`MAX_MANIFEST_BYTES` (1 MB) or not a regular file;
+* YAML anchors and aliases (``&a`` / ``*a``: the "billion laughs" expansion bomb), merge keys
+  (``<<``), duplicate mapping keys (PyYAML would silently keep the last one), tags other than the
+  plain YAML types (``!!python/object:...``, ``!!binary``, local ``!tags``: nothing constructs
+  objects), complex (non-scalar) mapping keys, nesting deeper than :data:`MAX_DEPTH`, more than
+  :data:`MAX_NODES` values;
+* a case ``file`` that is not a bare name inside the campaign folder (path separator, ``..``,
+  absolute path, drive letter, NUL), or a symlink whose target lies outside the campaign folder;
+* sizes that make no physical sense or would allocate gigabytes (:data:`BOUNDS`, per key, and
+  :data:`MAX_PLANNED_SAMPLES` samples per planned record; at most :data:`MAX_CASES` cases).
 
 Keys the spec does not define are kept in ``metadata``, mirroring the manifest's structure
 (top-level keys, unknown ``columns`` channels, extra ``damper`` keys, per-case keys under
@@ -35,6 +49,8 @@ CAMPAIGN_PATTERN = re.compile(CAMPAIGN_RULE)
 #: Case ids name files (``timeseries/<id>.parquet``), so they are restricted to safe characters.
 CASE_ID_RULE = "[A-Za-z0-9][A-Za-z0-9_.-]*"
 CASE_ID_PATTERN = re.compile(CASE_ID_RULE)
+#: Longest case id: ids name the case's result files, and file names are limited (255 bytes).
+MAX_CASE_ID_LENGTH = 64
 
 #: Channel -> unit -> factor to SI; ``None`` marks ISO 8601 stamps (seconds from the first sample).
 UNITS: dict[str, dict[str, float | None]] = {
@@ -52,6 +68,31 @@ CASE_KEYS = frozenset({"id", "waveform", "file", "sample_rate_Hz", "columns", "p
                        "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s"})
 COLUMN_KEYS = ("name", "unit", "invert")
 DEFAULT_TRIANGLE_PHASE_RAD = -math.pi / 2
+
+#: A manifest is a page of YAML; anything larger is refused unread (bytes).
+MAX_MANIFEST_BYTES = 1_000_000
+#: Deepest nesting of mappings/sequences (the spec needs 5: top, cases, case, columns, channel).
+MAX_DEPTH = 32
+#: Most YAML values (scalars and collections) in one manifest (1000 cases use about 20 000).
+MAX_NODES = 200_000
+#: Most cases in one campaign.
+MAX_CASES = 1_000
+#: Upper bounds (inclusive) of positive sizes, campaign-level or per case. A value above its bound
+#: is a unit or typing error, or hostile: the campaign is refused. Lower bounds: > 0 as before.
+BOUNDS = {
+    "sample_rate_Hz": 1.0e6,     # 1 MHz: far above any damper rig's acquisition rate
+    "period_s": 1.0e5,           # about 28 h per triangle period
+    "frequency_Hz": 1.0e4,       # 10 kHz excitation
+    "amplitude_mm": 1.0e3,       # 1 m of piston amplitude
+    "duration_s": 1.0e6,         # about 11.6 days of record
+}
+#: Most samples a planned record may need (sample rate x the longer of the plan's required
+#: duration and ``duration_s``): 1e7 samples = 80 MB per float64 channel. Stages that simulate the
+#: plan (nominal model, diagnosis) allocate this many samples.
+MAX_PLANNED_SAMPLES = 10_000_000
+#: YAML tags a manifest may carry explicitly (the plain types of the YAML core schema).
+SAFE_TAGS = frozenset("tag:yaml.org,2002:" + t for t in
+                      ("null", "bool", "int", "float", "str", "seq", "map", "timestamp"))
 
 
 class ManifestError(ValueError):
@@ -116,7 +157,7 @@ def number(value) -> float | None:
         return None
     try:
         out = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         return None
     return out if math.isfinite(out) else None
 
@@ -155,15 +196,144 @@ def _column(spec: Mapping) -> Column:
     return Column(name=spec["name"].strip(), unit=spec.get("unit"), invert=bool(spec.get("invert", False)))
 
 
+def _at(mark) -> str:
+    return f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+
+
+def _short_tag(tag: str) -> str:
+    return "!!" + tag[len("tag:yaml.org,2002:"):] if tag.startswith("tag:yaml.org,2002:") else tag
+
+
+def check_yaml_events(data: bytes, where: str) -> None:
+    """Refuse hostile YAML from the parser's event stream, before any object is built.
+
+    Raises :class:`ManifestError` naming the key path (``cases[2].file``, ``columns.force``; None at
+    the top level) for: an anchor or alias, a merge key ``<<``, a duplicate mapping key, a tag other
+    than :data:`SAFE_TAGS`, a non-scalar mapping key, nesting deeper than :data:`MAX_DEPTH`, more
+    than :data:`MAX_NODES` values. Syntax errors are left to the caller (raised as yaml.YAMLError).
+    Aliases are never expanded here, so the walk costs one pass over at most 1 MB of text.
+    """
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    stack: list[dict] = []   # open collections: kind, path, expect_key, key, index, keys
+    nodes = 0
+
+    def path_of_next() -> str | None:
+        if not stack:
+            return None
+        top = stack[-1]
+        if top["kind"] == "seq":
+            return f"{top['path'] or ''}[{top['index']}]"
+        if top["expect_key"]:
+            return top["path"] or None
+        return f"{top['path']}.{top['key']}" if top["path"] else top["key"]
+
+    def refuse(key, problem, event):
+        raise ManifestError(where, key, f"invalid YAML{_at(event.start_mark)}: {problem}")
+
+    def done_value():
+        if stack:
+            top = stack[-1]
+            if top["kind"] == "seq":
+                top["index"] += 1
+            else:
+                top["expect_key"] = True
+
+    for event in yaml.parse(data, Loader=loader):
+        if isinstance(event, (yaml.StreamStartEvent, yaml.StreamEndEvent, yaml.DocumentStartEvent,
+                              yaml.DocumentEndEvent)):
+            continue
+        if isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+            stack.pop()
+            done_value()
+            continue
+        key = path_of_next()
+        as_key = bool(stack) and stack[-1]["kind"] == "map" and stack[-1]["expect_key"]
+        if isinstance(event, yaml.AliasEvent):
+            refuse(key, f"alias *{event.anchor} is not allowed (anchors and aliases are refused: "
+                        "they can expand to gigabytes)", event)
+        nodes += 1
+        if nodes > MAX_NODES:
+            refuse(key, f"more than {MAX_NODES} values", event)
+        if event.anchor is not None:
+            refuse(key, f"anchor &{event.anchor} is not allowed (anchors and aliases are refused: "
+                        "they can expand to gigabytes)", event)
+        if event.tag not in (None, "!") and event.tag not in SAFE_TAGS:
+            refuse(key, f"tag {_short_tag(event.tag)!r} is not allowed (only plain values: "
+                        "no tag constructs objects)", event)
+        if as_key:
+            top = stack[-1]
+            if not isinstance(event, yaml.ScalarEvent):
+                refuse(key, "mapping keys must be plain values, got a "
+                            + ("sequence" if isinstance(event, yaml.SequenceStartEvent) else "mapping"), event)
+            name = event.value
+            full = f"{top['path']}.{name}" if top["path"] else name
+            if name == "<<" and event.implicit[0]:
+                refuse(full, "merge keys '<<' are not allowed", event)
+            if name in top["keys"]:
+                refuse(full, "duplicate key (YAML would silently keep the last value)", event)
+            top["keys"].add(name)
+            top["key"], top["expect_key"] = name, False
+            continue
+        if isinstance(event, yaml.ScalarEvent):
+            done_value()
+        else:
+            if len(stack) >= MAX_DEPTH:
+                refuse(key, f"nested deeper than {MAX_DEPTH} levels", event)
+            stack.append({"kind": "seq" if isinstance(event, yaml.SequenceStartEvent) else "map",
+                          "path": key or "", "expect_key": True, "key": None, "index": 0, "keys": set()})
+
+
 def _parse_yaml(data: bytes, where: str):
-    """yaml.safe_load, with syntax errors turned into a ManifestError giving line and column."""
+    """:func:`check_yaml_events`, then yaml.safe_load; syntax errors become a ManifestError giving
+    line and column."""
     try:
-        return yaml.safe_load(data)
+        check_yaml_events(data, where)
+        return yaml.load(data, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
-        at = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         problem = getattr(exc, "problem", None) or str(exc)
-        raise ManifestError(where, None, f"invalid YAML{at}: {problem}") from None
+        raise ManifestError(where, None, f"invalid YAML{_at(mark)}: {problem}") from None
+    except (ValueError, OverflowError, RecursionError) as exc:   # e.g. an integer of 5000 digits
+        if isinstance(exc, ManifestError):
+            raise
+        raise ManifestError(where, None, f"invalid YAML: {exc}") from None
+
+
+def read_manifest_bytes(path: str | Path) -> bytes:
+    """The manifest's bytes, refused unread when it is not a regular file, is a symlink leading out
+    of its folder, or holds more than :data:`MAX_MANIFEST_BYTES`."""
+    where, p = str(path), Path(path)
+    if p.is_symlink() and not _inside(p, p.absolute().parent):
+        raise ManifestError(where, None, f"is a symlink to {p.resolve().as_posix()}, outside the campaign folder")
+    if not p.is_file():
+        raise ManifestError(where, None, "not found" if not p.exists() else "not a regular file")
+    size = p.stat().st_size
+    if size > MAX_MANIFEST_BYTES:
+        raise ManifestError(where, None, f"{size} bytes, more than the {MAX_MANIFEST_BYTES} bytes "
+                                         "a manifest may have")
+    with open(p, "rb") as fh:
+        data = fh.read(MAX_MANIFEST_BYTES + 1)
+    if len(data) > MAX_MANIFEST_BYTES:   # grew after the stat
+        raise ManifestError(where, None, f"more than the {MAX_MANIFEST_BYTES} bytes a manifest may have")
+    return data
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """True when ``path`` (symlinks followed) lies inside ``folder`` (symlinks followed)."""
+    try:
+        path.resolve().relative_to(folder.resolve())
+    except ValueError:
+        return False
+    return True
+
+
+def _bounded(value: float, key: str, where: str, name: str | None = None) -> float:
+    """``value`` unless it exceeds ``BOUNDS[name]`` (name defaults to the key's last part)."""
+    bound = BOUNDS[name or key.rsplit(".", 1)[-1]]
+    if value > bound:
+        raise ManifestError(where, key, f"{value:g} is above the bound {bound:g} (a unit error? "
+                                        "bounds: isokinetic.manifest.BOUNDS)")
+    return value
 
 
 def _campaign_columns(block, where: str) -> tuple[dict[str, Mapping], dict]:
@@ -225,6 +395,9 @@ def _case_id(entry, index: int, where: str) -> str:
     if not isinstance(case, str) or not CASE_ID_PATTERN.fullmatch(case):
         raise ManifestError(where, f"cases[{index}].id",
                             f"must be a string matching {CASE_ID_RULE}, got {case!r}")
+    if len(case) > MAX_CASE_ID_LENGTH:
+        raise ManifestError(where, f"cases[{index}].id", f"{len(case)} characters, more than the "
+                            f"{MAX_CASE_ID_LENGTH} a case id may have (it names the case's files)")
     return case
 
 
@@ -262,7 +435,7 @@ def _case_columns(base: dict[str, Mapping], override) -> tuple[dict[str, Column]
 
 
 def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[str, Mapping],
-          where: str) -> CaseSpec:
+          where: str, folder: Path) -> CaseSpec:
     """Parse one case entry; problems that concern only this case go to ``problems``."""
     waveform = entry.get("waveform")
     if waveform not in WAVEFORMS:
@@ -274,9 +447,11 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
     if file is None:
         problems.append(Problem("file", "missing", kind="key"))
     elif not bare_file_name(file):
-        problems.append(Problem("file", f"must be a bare file name inside the campaign folder, got {file!r}",
-                                kind="key"))
-        file = None
+        raise ManifestError(where, f"cases.{case}.file",
+                            f"must be a bare file name inside the campaign folder, got {file!r}")
+    elif (folder / file).is_symlink() and not _inside(folder / file, folder):
+        raise ManifestError(where, f"cases.{case}.file", f"{file!r} is a symlink to "
+                            f"{(folder / file).resolve().as_posix()}, outside the campaign folder")
     columns, column_issues = _case_columns(base_columns, entry.get("columns"))
     problems += column_issues
     plan = dict(amplitude_m=math.nan, period_s=math.nan, frequency_Hz=math.nan, phase_rad=math.nan)
@@ -293,9 +468,23 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
         plan["frequency_Hz"] = _positive(entry, "frequency_Hz", problems)
         plan["phase_rad"] = 0.0
     duration = _positive(entry, "duration_s", problems, required=False)
+    for key, value in (("sample_rate_Hz", rate), ("period_s", plan["period_s"]),
+                       ("frequency_Hz", plan["frequency_Hz"]), ("amplitude_mm", plan["amplitude_m"] * 1e3),
+                       ("duration_s", duration)):
+        if not math.isnan(value):
+            _bounded(value, f"cases.{case}.{key}", where)
+    plan_ = CasePlan(case=case, waveform=waveform, sample_rate_Hz=sample_rate_Hz if math.isnan(rate) else rate,
+                     duration_s=duration, **plan)
+    for key, seconds in (("duration_s", duration), ("period_s" if waveform == "triangle" else "frequency_Hz",
+                                                     plan_.required_duration_s)):
+        samples = plan_.sample_rate_Hz * seconds
+        if not math.isnan(samples) and samples > MAX_PLANNED_SAMPLES:
+            raise ManifestError(where, f"cases.{case}.{key}",
+                                f"the record would need {samples:.3g} samples ({seconds:g} s at "
+                                f"{plan_.sample_rate_Hz:g} Hz), more than the {MAX_PLANNED_SAMPLES:.0e} "
+                                "a case may have")
     return CaseSpec(
-        plan=CasePlan(case=case, waveform=waveform, sample_rate_Hz=sample_rate_Hz if math.isnan(rate) else rate,
-                      duration_s=duration, **plan),
+        plan=plan_,
         file=file, columns=columns, keys=dict(entry),
         metadata={k: v for k, v in entry.items() if k not in CASE_KEYS}, problems=tuple(problems))
 
@@ -303,7 +492,7 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
 def load_manifest(path: str | Path) -> Manifest:
     """Read and check ``campaign.yaml``; raises :class:`ManifestError` for a broken manifest."""
     where = str(path)
-    data = Path(path).read_bytes()
+    data = read_manifest_bytes(path)
     doc = _parse_yaml(data, where)
     if not isinstance(doc, Mapping):
         raise ManifestError(where, None, "expected a mapping at the top level, got "
@@ -325,18 +514,21 @@ def load_manifest(path: str | Path) -> Manifest:
     if rate is None or rate <= 0:
         raise ManifestError(where, "sample_rate_Hz", "missing" if doc.get("sample_rate_Hz") is None
                             else f"must be a positive number, got {doc['sample_rate_Hz']!r}")
+    _bounded(rate, "sample_rate_Hz", where)
     base_columns, extra_columns = _campaign_columns(doc.get("columns"), where)
     damper, extra_damper = _damper(doc.get("damper"), where)
     entries = doc.get("cases")
     if not isinstance(entries, list) or not entries:
         raise ManifestError(where, "cases", "missing" if entries is None else "must be a non-empty list of cases")
+    if len(entries) > MAX_CASES:
+        raise ManifestError(where, "cases", f"{len(entries)} cases, more than the {MAX_CASES} a campaign may have")
     cases, seen = [], set()
     for index, entry in enumerate(entries):
         case = _case_id(entry, index, where)
         if case in seen:
             raise ManifestError(where, f"cases[{index}].id", f"duplicate case id {case!r}")
         seen.add(case)
-        cases.append(_case(entry, case, rate, base_columns, where))
+        cases.append(_case(entry, case, rate, base_columns, where, Path(path).parent))
     metadata = {k: v for k, v in doc.items() if k not in TOP_KEYS}
     for key, extra in (("columns", extra_columns), ("damper", extra_damper)):
         if extra:

@@ -180,6 +180,7 @@ class ModelPlan:
             "row_stop": self.stop,
             "raw_file": MODEL_PREFIX + (effects_label(effects) if label is None else label),
             "raw_sha256": "",
+            "quality": "ok",  # a noise-free model record has nothing to flag
         }, columns=list(tables.WINDOWS.columns))
         df = df.astype({c: "int64" for c in _INT_COLUMNS})
         return tables.validate_table(df, tables.WINDOWS) if validate else df

@@ -54,6 +54,9 @@ CASES = pa.DataFrameSchema(
         "timeseries_file": pa.Column(str),
         "n_samples": pa.Column("int64", Check.ge(0)),
         "status": pa.Column(str, Check.isin(STATUS)),
+        # 'ok', 'quarantined', or the flagged-but-usable warnings ('; '-joined); absent in
+        # ingest tables written before the column existed (validation then fills 'ok')
+        "quality": pa.Column(str, nullable=True, required=False),
     },
     strict=False,
     name="cases",
@@ -90,6 +93,8 @@ _WINDOW_COLUMNS = {
     "row_stop": pa.Column("int64", Check.ge(0)),
     "raw_file": pa.Column(str),
     "raw_sha256": pa.Column(str),
+    # 'ok' or the case's flagged-but-usable warnings (e.g. samples missing outside the windows)
+    "quality": pa.Column(str, nullable=True, required=False),
 }
 
 #: One row per constant-velocity window (item 7): four per triangle case.
@@ -165,9 +170,10 @@ MODELS = pa.DataFrameSchema(
         "model": pa.Column(str, Check.isin(["wallaschek", "surace"])),
         "direction": pa.Column(str, Check.isin(["both", "+", "-"])),
         "parameter": pa.Column(str),
-        "estimate": pa.Column("float64"),
-        "ci_low": pa.Column("float64"),
-        "ci_high": pa.Column("float64"),
+        # NaN: not fitted (e.g. fewer characteristic points than parameters)
+        "estimate": pa.Column("float64", nullable=True),
+        "ci_low": pa.Column("float64", nullable=True),
+        "ci_high": pa.Column("float64", nullable=True),
     },
     strict=False,
     name="models",

@@ -898,13 +898,13 @@ def _series_step(ctx: Context, src: RawSource, scratch: Path, case: str) -> pd.D
 def _window_steps(ctx: Context, src: RawSource, scratch: Path, row: pd.Series, spec, spec_where: str,
                   series: pd.DataFrame) -> None:
     from .campaign import case_plan
-    from .plan import half_periods
+    from .windows import windowed_half_periods
 
     cases = pd.read_parquet(scratch / "cases.parquet").set_index("case", drop=False)
     plan = case_plan(cases.loc[str(row["case"])])
     k = int(row["segment"])
     t = series["time_s"].to_numpy()
-    segs = half_periods(plan.period_s, plan.phase_rad, float(t[-1]))
+    segs = windowed_half_periods(plan, float(t[-1]), spec)
     half = plan.period_s / 2.0
     raw = RawText(ctx, src, scratch, str(row["case"]))
     if len(segs) >= k:

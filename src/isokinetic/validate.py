@@ -6,7 +6,12 @@ column and row, e.g. ``campaign demo, case T03, column 'force_kN', row 17: non-n
 
 :func:`validate_campaign` checks every case an ingest left ``ok`` (raw or simulated alike):
 the canonical time-series schema (NaN/inf, time not strictly increasing), too few samples,
-a record shorter than the plan needs, a sample rate far from the manifest's.
+a record shorter than the plan needs, a sample rate far from the manifest's; then gaps in time,
+saturated (flat-topped) force or displacement, and implausible magnitudes (a unit mix-up, checked
+against the plan and the nominal damper model). Gaps and saturation inside the analysed data (the
+windows of a triangle case; the whole record of a sine or free case) quarantine; a few missing
+samples or a flat top outside the windows are *flagged but usable*: warnings carried into the
+``quality`` column of ``cases.parquet`` ('ok' when there are none).
 """
 
 from __future__ import annotations
@@ -22,14 +27,31 @@ import pandera.pandas as pa
 
 from . import tables
 from .campaign import case_plan, read_ingested
+from .damper import Damper, nominal_force
 from .io import write_parquet
-from .plan import CasePlan
+from .plan import CasePlan, half_periods
+from .windows import WindowSpec, windowed_half_periods
 
 log = logging.getLogger("isokinetic")
 
 #: Fewer samples than this cannot describe a record (and leave no sample interval to check).
 MIN_SAMPLES = 10
 QUARANTINE_COLUMNS = tuple(tables.QUARANTINE.columns)
+#: A sample interval above GAP_FACTOR / sample_rate_Hz is a gap (missing samples).
+GAP_FACTOR = 1.5
+#: A gap outside the windows that misses more samples than this quarantines the case.
+MAX_GAP_SAMPLES = 10
+#: This many consecutive identical samples at a channel's maximum or minimum are a flat top.
+SATURATION_MIN_RUN = 10
+#: Median |force| of a triangle record against the nominal force (Eq. 31) at its planned
+#: velocity: outside [FORCE_RATIO_MIN, FORCE_RATIO_MAX] is implausible. Measured records of the
+#: shipped and simulated campaigns lie within 0.02 .. 11 (friction dominates slow cases).
+FORCE_RATIO_MIN, FORCE_RATIO_MAX = 1e-3, 100.0
+#: Physical limit of the force: piston area times this pressure difference.
+MAX_PRESSURE_PA = 50e6
+#: Measured displacement (or command) amplitude against the planned one: beyond this factor either
+#: way is implausible (shipped and simulated records: 0.91 .. 1.01).
+AMPLITUDE_RATIO = 5.0
 
 
 @dataclass(frozen=True)
@@ -130,30 +152,194 @@ def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: f
     return problems
 
 
+def analysed_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec = WindowSpec()) -> list[tuple[str, float, float]]:
+    """(label, start, end) of the time spans whose samples the later stages use: the windows of a
+    triangle case (windows.window_ranges), the whole record of a sine or free case."""
+    if plan.waveform != "triangle":
+        return [(f"the record (a {plan.waveform} record is used whole)", float(time_s[0]), float(time_s[-1]))]
+    half = plan.period_s / 2.0
+    out = []
+    for k, (t0, _t1, _sign) in enumerate(windowed_half_periods(plan, float(time_s[-1]), spec), 1):
+        a, b = t0 + spec.start_fraction * half, t0 + spec.end_fraction * half
+        out.append((f"the window of segment {k} (t = {a:.6g} .. {b:.6g} s)", a, b))
+    return out
+
+
+def _inside(spans, a: float, b: float) -> str | None:
+    """The label of the first span that [a, b] overlaps."""
+    return next((label for label, s0, s1 in spans if a <= s1 and b >= s0), None)
+
+
+def gap_problems(df: pd.DataFrame, plan: CasePlan, spans, max_gap_samples: int = MAX_GAP_SAMPLES
+                 ) -> tuple[list[Problem], list[str]]:
+    """Missing samples: a sample interval above GAP_FACTOR/sample_rate_Hz. A gap inside an analysed
+    span, or missing more than ``max_gap_samples``, is a problem (the first one, at the row after
+    the gap); other gaps are warnings."""
+    t = df["time_s"].to_numpy()
+    rows = df["row"].to_numpy()
+    dt_s = 1.0 / plan.sample_rate_Hz
+    warnings = []
+    for j in np.flatnonzero(np.diff(t) > GAP_FACTOR * dt_s):
+        ta, tb = float(t[j]), float(t[j + 1])
+        missing = max(int(round((tb - ta) / dt_s)) - 1, 1)
+        what = (f"gap in time: {missing} sample(s) missing between t = {ta:.6g} s and {tb:.6g} s "
+                f"(interval {tb - ta:.6g} s, 1/sample_rate_Hz = {dt_s:.6g} s)")
+        where = _inside(spans, ta, tb)
+        if where is not None:
+            return [Problem("time_s", f"{what}, inside {where}", row=int(rows[j + 1]))], warnings
+        if missing > max_gap_samples:
+            return [Problem("time_s", f"{what}, more than the {max_gap_samples} tolerated outside the windows",
+                            row=int(rows[j + 1]))], warnings
+        warnings.append(f"{missing} sample(s) missing at t = {ta + dt_s:.6g} s (outside windows)")
+    return [], warnings
+
+
+def saturation_problems(df: pd.DataFrame, spans, min_run: int = SATURATION_MIN_RUN
+                        ) -> tuple[list[Problem], list[str]]:
+    """Flat tops: ``min_run`` or more consecutive identical samples at the maximum or minimum of the
+    force or displacement channel (a load cell or LVDT at the end of its range). Inside an analysed
+    span a problem (first run, its first row), outside a warning."""
+    t = df["time_s"].to_numpy()
+    rows = df["row"].to_numpy()
+    problems, warnings = [], []
+    for column, unit in (("force_N", "N"), ("displacement_m", "m")):
+        x = df[column].to_numpy()
+        runs = []
+        for side, extreme in (("maximum", x.max()), ("minimum", x.min())):
+            at = np.concatenate([[False], x == extreme, [False]])
+            edges = np.flatnonzero(np.diff(at.astype(np.int8)))
+            runs += [(i0, i1, side, extreme) for i0, i1 in zip(edges[::2], edges[1::2]) if i1 - i0 >= min_run]
+        for i0, i1, side, extreme in sorted(runs, key=lambda r: r[0]):
+            ta, tb = float(t[i0]), float(t[i1 - 1])
+            what = (f"saturated: {i1 - i0} consecutive samples at the {side} {extreme:.6g} {unit} "
+                    f"(t = {ta:.6g} .. {tb:.6g} s)")
+            where = _inside(spans, ta, tb)
+            if where is not None:
+                problems.append(Problem(column, f"{what}, inside {where}", row=int(rows[i0])))
+                break
+            warnings.append(f"{column} {what}, outside windows")
+    return problems, warnings
+
+
+def _times(ratio: float) -> str:
+    return f"{ratio:.3g}" if ratio < 100 else f"{ratio:.0f}"
+
+
+def _first_row(df: pd.DataFrame, mask: np.ndarray) -> int | None:
+    return int(df["row"].iloc[int(np.argmax(mask))]) if mask.any() else None
+
+
+def plausibility_problems(df: pd.DataFrame, plan: CasePlan, damper: Damper | None) -> list[Problem]:
+    """Magnitudes that betray a wrong declared unit (values are never rescaled).
+
+    Force: the median |force| against the nominal model (Eq. 31) at the planned velocity of a
+    triangle case (both ways) or the peak velocity of a sine case (too large only: compressibility
+    makes a loop's force small), and against the piston area times MAX_PRESSURE_PA. Displacement
+    and command: the amplitude (max - min)/2 against the planned amplitude. The row is the first
+    sample beyond the plausible bound (None for too small values).
+    """
+    problems = []
+    f = np.abs(df["force_N"].to_numpy())
+    median = float(np.median(f))
+    if damper is not None:
+        limit = damper.piston_area_m2 * MAX_PRESSURE_PA
+        v = {"triangle": plan.velocity_m_s, "sine": 2 * np.pi * plan.frequency_Hz * plan.amplitude_m}.get(
+            plan.waveform, np.nan)
+        nominal = abs(float(nominal_force(v, damper))) if np.isfinite(v) and v != 0 else np.nan
+        ratio = median / nominal if nominal > 0 else np.nan
+        said = (f"median |force| {median:.4g} N is {_times(ratio)} x the nominal model's {nominal:.4g} N at the "
+                f"planned {abs(v) * 1e3:.4g} mm/s (Eq. 31)") if np.isfinite(ratio) else f"median |force| {median:.4g} N"
+        bounds = []
+        if ratio > FORCE_RATIO_MAX:
+            bounds.append(FORCE_RATIO_MAX * nominal)
+        if median > limit:
+            bounds.append(limit)
+            said += f"{' and' if np.isfinite(ratio) else ''} above the physical limit {limit:.4g} N " \
+                    f"(piston area x {MAX_PRESSURE_PA / 1e6:g} MPa)"
+        if bounds:
+            problems.append(Problem("force_N", f"{said}: implausibly large, a unit mix-up "
+                                               "(e.g. values in N declared as kN)?", row=_first_row(df, f > min(bounds))))
+        elif plan.waveform == "triangle" and ratio < FORCE_RATIO_MIN:
+            problems.append(Problem("force_N", f"{said}: implausibly small, a unit mix-up "
+                                               "(e.g. values in kN declared as N)?"))
+    amplitude = plan.amplitude_m
+    if np.isfinite(amplitude) and amplitude > 0:
+        for column in ("displacement_m", "command_m"):
+            if column not in df:
+                continue
+            y = df[column].to_numpy()
+            mid, amp = (y.max() + y.min()) / 2.0, (y.max() - y.min()) / 2.0
+            ratio = amp / amplitude
+            said = f"amplitude {amp * 1e3:.4g} mm is {_times(ratio)} x the planned {amplitude * 1e3:.4g} mm"
+            if ratio > AMPLITUDE_RATIO:
+                problems.append(Problem(column, f"{said}: implausibly large, a unit mix-up (e.g. values in um "
+                                                "declared as mm, or in mm declared as m)?",
+                                        row=_first_row(df, np.abs(y - mid) > AMPLITUDE_RATIO * amplitude)))
+            elif ratio < 1.0 / AMPLITUDE_RATIO:
+                problems.append(Problem(column, f"{said}: implausibly small, a unit mix-up (e.g. values in m "
+                                                "declared as mm, or in mm declared as um)?"))
+    return problems
+
+
+def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
+                window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES
+                ) -> tuple[list[Problem], list[str]]:
+    """All checks of one canonical time series: (problems, flagged-but-usable warnings).
+
+    The schema first, then the record (length, sample rate), then gaps, saturation and
+    plausibility; each step only once the previous ones hold (at most one problem per column).
+    """
+    problems = timeseries_problems(df) or record_problems(df["time_s"].to_numpy(), plan, sample_rate_tolerance,
+                                                          min_samples)
+    if problems:
+        return problems, []
+    spans = analysed_spans(plan, df["time_s"].to_numpy(), window_spec)
+    gaps, warnings = gap_problems(df, plan, spans, max_gap_samples)
+    flat, flat_warnings = saturation_problems(df, spans)
+    found: dict[str, Problem] = {}
+    for problem in gaps + flat + plausibility_problems(df, plan, damper):
+        found.setdefault(problem.column, problem)
+    return list(found.values()), warnings + flat_warnings
+
+
 def case_problems(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
-                  min_samples: int = MIN_SAMPLES) -> list[Problem]:
-    """All checks of one canonical time series; record checks only once the schema holds."""
-    return timeseries_problems(df) or record_problems(df["time_s"].to_numpy(), plan, sample_rate_tolerance,
-                                                      min_samples)
+                  min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
+                  window_spec: WindowSpec = WindowSpec()) -> list[Problem]:
+    """The problems of :func:`case_checks` (warnings dropped)."""
+    return case_checks(df, plan, sample_rate_tolerance, min_samples, damper, window_spec)[0]
 
 
 def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
-                      min_samples: int = MIN_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
+                      min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
+                      max_gap_samples: int = MAX_GAP_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Check every ``ok`` case of ``<campaign_root>/ingest``.
 
-    Returns (cases, quarantine): all cases with their final status, and the ingest's
-    quarantine rows followed by this stage's (``stage="validate"``).
+    Returns (cases, quarantine): all cases with their final status and ``quality`` (the ingest's
+    warnings followed by this stage's, 'ok' when none, 'quarantined'), and the ingest's
+    quarantine rows followed by this stage's (``stage="validate"``). Each warning is logged.
     """
     ingested = read_ingested(campaign_root)
     campaign = ingested.meta["campaign"]
+    damper = ingested.damper
     cases = ingested.cases.copy()
+    if "quality" not in cases:
+        cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
+    cases["quality"] = cases["quality"].fillna("ok").astype(str)
     rows = []
     for i, row in cases[cases["status"] == "ok"].iterrows():
         df = pd.read_parquet(ingested.root / row["timeseries_file"])
-        problems = case_problems(df, case_plan(row), sample_rate_tolerance, min_samples)
+        problems, warnings = case_checks(df, case_plan(row), sample_rate_tolerance, min_samples, damper,
+                                         window_spec, max_gap_samples)
         if problems:
-            cases.loc[i, "status"] = "quarantined"
+            cases.loc[i, ["status", "quality"]] = ["quarantined", "quarantined"]
             rows += quarantine_rows(campaign, row["case"], "validate", problems)
+        elif warnings:
+            earlier = [] if row["quality"] == "ok" else [row["quality"]]
+            cases.loc[i, "quality"] = "; ".join(earlier + warnings)
+        if not problems and cases.loc[i, "quality"] != "ok":
+            log.warning("flagged (usable) at validate: campaign %s, case %s: %s", campaign, row["case"],
+                        cases.loc[i, "quality"])
     quarantine = ingested.quarantine
     if rows:
         new = quarantine_frame(rows)
@@ -162,10 +348,11 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
 
 
 def write_validated(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
-                    min_samples: int = MIN_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
+                    min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
+                    max_gap_samples: int = MAX_GAP_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Validate and write ``<campaign_root>/cases.parquet`` and ``quarantine.parquet``."""
     root = Path(campaign_root)
-    cases, quarantine = validate_campaign(root, sample_rate_tolerance, min_samples)
+    cases, quarantine = validate_campaign(root, sample_rate_tolerance, min_samples, window_spec, max_gap_samples)
     write_parquet(tables.validate_table(quarantine, tables.QUARANTINE), root / "quarantine.parquet")
     write_parquet(tables.validate_table(cases, tables.CASES), root / "cases.parquet")
     return cases, quarantine

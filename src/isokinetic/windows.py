@@ -41,17 +41,28 @@ def line_slope(t, y) -> float:
     return float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
 
 
+def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec = WindowSpec()):
+    """The first four half-periods (rows t_start, t_end, sign) whose window ends within the record.
+
+    A half-period counts when its window [start, end]·T/2 lies before the record's last sample
+    ``t_end_s``; the rest of it need not be recorded (a record ending one sample before 2T still
+    holds four windows).
+    """
+    half = plan.period_s / 2.0
+    return half_periods(plan.period_s, plan.phase_rad, t_end_s + (1.0 - spec.end_fraction) * half)[:4]
+
+
 def window_ranges(plan: CasePlan, t, spec: WindowSpec = WindowSpec()) -> list[tuple[int, float, int, int]]:
     """(segment 1-4, sign, i0, i1) of the four windows of a triangle record with sample times ``t``.
 
-    The samples [i0, i1) lie in [t0 + start_fraction·T/2, t0 + end_fraction·T/2] of each complete
-    half-period (t0 its start, Eq. 26). Raises ValueError when the record does not hold four
-    complete half-periods or a window holds fewer than MIN_WINDOW_SAMPLES samples. Shared by the
+    The samples [i0, i1) lie in [t0 + start_fraction·T/2, t0 + end_fraction·T/2] of each of the
+    first four half-periods (t0 its start, Eq. 26; :func:`windowed_half_periods`). Raises ValueError
+    when the record does not hold four windows or a window holds fewer than MIN_WINDOW_SAMPLES samples. Shared by the
     measured windows and the model run through the plan, so both use the same samples.
     """
-    segments = half_periods(plan.period_s, plan.phase_rad, float(t[-1]))[:4]
+    segments = windowed_half_periods(plan, float(t[-1]), spec)
     if len(segments) < 4:
-        raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds {len(segments)} complete "
+        raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds the windows of {len(segments)} "
                          f"half-periods of T = {plan.period_s:.6g} s, 4 needed")
     half = plan.period_s / 2.0
     out = []
@@ -104,10 +115,11 @@ def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec = WindowS
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     for _, case in ok.iterrows():
         for row in case_windows(case_plan(case), load_series(case), spec):
-            row.update(campaign=case["campaign"], raw_file=case["raw_file"], raw_sha256=case["raw_sha256"])
+            row.update(campaign=case["campaign"], raw_file=case["raw_file"], raw_sha256=case["raw_sha256"],
+                       quality=case.get("quality", "ok") if isinstance(case.get("quality"), str) else "ok")
             rows.append(row)
     columns = list(tables.WINDOWS.columns)
-    df = pd.DataFrame(rows, columns=columns) if rows else tables.empty(tables.WINDOWS)
+    df = pd.DataFrame(rows, columns=columns) if rows else tables.empty(tables.WINDOWS).reindex(columns=columns)
     df = df.astype({"segment": "int64", "period": "int64", "n_samples": "int64",
                     "row_start": "int64", "row_stop": "int64"})
     return tables.validate_table(df[columns], tables.WINDOWS)

@@ -80,7 +80,19 @@ def campaign_outputs(campaign):
     return ([f"{root}/characteristic.parquet", f"{root}/repeatability.parquet", f"{root}/quarantine.parquet",
              f"{root}/models/models.parquet", f"{root}/harmonic/harmonic.parquet", f"{root}/diagnosis.json"]
             + [f"{root}/figures/{name}.png" for name in FIGURES]
-            + [f"{root}/design/{name}.png" for name in DESIGN_FIGURES])
+            + [f"{root}/design/{name}.png" for name in DESIGN_FIGURES]
+            + ([f"{root}/raw_check.json"] if campaign in RAW_CAMPAIGNS else []))
+
+
+def check_raw_after_run():
+    """After a run: every raw file an ingest read still has the sha256 it recorded (else log each)."""
+    from isokinetic.rawcheck import describe, raw_changes
+
+    bad = [describe(c, change) for c in RAW_CAMPAIGNS if Path(f"results/{c}/ingest").is_dir()
+           for change in raw_changes(f"results/{c}")]
+    for line in bad:
+        logging.getLogger("isokinetic").error(line)
+    return bad
 
 
 BLIND_OUTPUTS = ["results/blind/scores.parquet", "results/blind/summary.json",

@@ -9,5 +9,7 @@ rule validate:
         "logs/{campaign}/validate.log",
     params:
         sample_rate_tolerance=config["validation"]["sample_rate_tolerance"],
+        start_fraction=config["windows"]["start_fraction"],
+        end_fraction=config["windows"]["end_fraction"],
     script:
         "../scripts/validate.py"
