@@ -8,7 +8,6 @@ diagnosis JSON schema, the real model fit), so the pages are tested without runn
 from __future__ import annotations
 
 import base64
-import json
 import os
 import re
 import struct

@@ -29,7 +29,7 @@ from . import tables
 from .campaign import case_plan, read_ingested
 from .damper import Damper, nominal_force
 from .io import write_parquet
-from .plan import CasePlan, half_periods
+from .plan import CasePlan
 from .windows import WindowSpec, windowed_half_periods
 
 log = logging.getLogger("isokinetic")
