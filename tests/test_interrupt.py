@@ -17,47 +17,18 @@ import io
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
-import yaml
 from PIL import Image
 
 from isokinetic.lineage import read_lineage
-
-ROOT = Path(__file__).resolve().parents[1]
-BIN = Path(sys.executable).parent
-SNAKEMAKE = str(BIN / "snakemake")
-
-#: test_workflow.TINY: three cases are the fewest the models stage accepts.
-TINY = {
-    "raw_dir": "data/raw",
-    "windows": {"start_fraction": 0.45, "end_fraction": 0.95},
-    "repeatability": {"tolerance": 0.05},
-    "validation": {"sample_rate_tolerance": 0.05},
-    "design": {"convergence_fraction": 0.999, "max_amplitude_mm": 10.0, "min_amplitude_mm": 0.1},
-    "virtual_campaigns": {
-        "tiny": {
-            "description": "three short triangle cases",
-            "seed": 7,
-            "temperature_C": 40.0,
-            "damper": {"piston_area_m2": 4.0e-3, "chamber_volume_1_m3": 3.0e-4, "chamber_volume_2_m3": 3.0e-4,
-                       "orifice_area_m2": 6.0e-8, "orifice_length_m": 5.0e-4, "discharge_coefficient": 0.6,
-                       "density_kg_m3": 815.0, "viscosity_Pa_s": 0.03, "oil_compressibility_1_Pa": 3.8e-9},
-            "effects": {"friction": {"coulomb_force_N": 90.0}, "leakage": {"conductance_m3_s_Pa": 2.2e-12}},
-            "measurement": {"force_noise_N": 5.0, "force_noise_rel": 0.01, "displacement_noise_m": 1.0e-6},
-            "plan": {"triangle": {"velocities_mm_s": [0.05, 0.5, 1.5], "periods_s": [8, 8, 8],
-                                  "sample_rate_Hz": 20.0}},
-        }
-    },
-}
+from scratch_project import SNAKEMAKE, export, make_project
 
 #: Kill points, applied one after the other to the same tree: SIGKILL the process group
 #: ``delay`` seconds after the ``n``-th job of that run was started (so a job is mid-way).
@@ -69,16 +40,10 @@ VOLATILE_KEYS = {"lineage", "created_utc", "last_run_utc", "seconds"}
 SHA256 = re.compile(r"[0-9a-f]{64}")
 
 
-def make_project(work: Path) -> Path:
-    work.mkdir(parents=True)
-    shutil.copy(ROOT / "Snakefile", work / "Snakefile")
-    shutil.copytree(ROOT / "workflow", work / "workflow", ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copytree(ROOT / "profiles", work / "profiles")
-    (work / "config").mkdir()
-    (work / "config" / "config.yaml").write_text(yaml.safe_dump(TINY), encoding="utf-8")
-    subprocess.run([sys.executable, "-m", "isokinetic", "export-virtual", "--config", "config/config.yaml",
-                    "--campaign", "tiny", "--name", "tiny-export", "--out", "data/raw/tiny-export"],
-                   cwd=work, check=True, capture_output=True)
+def make_tiny_project(work: Path) -> Path:
+    """The scratch project with the tiny simulated campaign and its raw export."""
+    make_project(work)
+    export(work, "tiny-export")
     return work
 
 
@@ -162,12 +127,12 @@ def tmp_files(work: Path) -> list[str]:
 
 def test_kill_and_rerun_gives_the_uninterrupted_results(tmp_path):
     """SLOW: three SIGKILLs of the build, each followed by --unlock and --rerun-incomplete."""
-    clean = make_project(tmp_path / "clean")
+    clean = make_tiny_project(tmp_path / "clean")
     snakemake(clean, "--cores", "2")
     expected = results_contents(clean)
     assert len(expected) > 40 and any(k.endswith("characteristic.parquet") for k in expected)
 
-    work = make_project(tmp_path / "killed")
+    work = make_tiny_project(tmp_path / "killed")
     for i, (n_jobs, delay) in enumerate(KILL_POINTS):
         run_and_kill(work, n_jobs, delay, tmp_path / f"kill{i}.log")
         assert not (work / "results/index.html").exists(), "the kill came after the last job"
