@@ -60,7 +60,7 @@ from matplotlib.lines import Line2D
 from scipy.signal import savgol_coeffs, savgol_filter
 
 from . import tables
-from .figures import save_figure
+from .figures import _say_missing, save_figure
 from .io import write_parquet
 
 log = logging.getLogger("isokinetic")
@@ -682,6 +682,14 @@ def _case_label(row: Mapping, lp: pd.DataFrame) -> str:
     return f"{case}: free record (dominant {lp.attrs.get('frequency_Hz', math.nan):.3g} Hz)"
 
 
+
+def _empty_panel(ax, text: str) -> None:
+    """A panel with nothing to draw: the reason in its middle (figures' style), no ticks."""
+    _say_missing(ax, text)
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
 def harmonic_figure(table: pd.DataFrame, loops: Mapping[str, pd.DataFrame], cases: pd.DataFrame | None = None,
                     *, campaign: str = "campaign ?", note: str = "") -> Figure:
     """Fig. 15: loops of the sine and free cases.
@@ -712,10 +720,7 @@ def harmonic_figure(table: pd.DataFrame, loops: Mapping[str, pd.DataFrame], case
     if not case_ids:
         msg = "no status-ok sine or free case in this campaign: nothing to show"
         for ax in (ax_s, ax_f):
-            ax.text(0.5, 0.5, msg, transform=ax.transAxes, ha="center", va="center", fontsize=10,
-                    color="tab:red", wrap=True)
-            ax.set_xticks([])
-            ax.set_yticks([])
+            _empty_panel(ax, msg)
     p2p = table[table["kind"] == "peak_to_peak"] if len(table) else table
     for c in sine_ids:
         lp = loops[c]
@@ -728,10 +733,7 @@ def harmonic_figure(table: pd.DataFrame, loops: Mapping[str, pd.DataFrame], case
     if sine_ids:
         ax_s.legend(fontsize=7.5, loc="upper left", frameon=False)
     elif case_ids:
-        ax_s.text(0.5, 0.5, "no status-ok sine case", transform=ax_s.transAxes, ha="center", va="center",
-                  fontsize=10, color="tab:red")
-        ax_s.set_xticks([])
-        ax_s.set_yticks([])
+        _empty_panel(ax_s, "no status-ok sine case")
     binned = table[table["kind"] == "binned"] if len(table) else table
     for c in free_ids:
         b = binned[binned["case"] == c].sort_values("velocity_m_s", kind="stable")
@@ -740,10 +742,7 @@ def harmonic_figure(table: pd.DataFrame, loops: Mapping[str, pd.DataFrame], case
     if free_ids:
         ax_f.legend(fontsize=7.5, loc="upper left", frameon=False)
     elif case_ids:
-        ax_f.text(0.5, 0.5, "no status-ok free case", transform=ax_f.transAxes, ha="center", va="center",
-                  fontsize=10, color="tab:red")
-        ax_f.set_xticks([])
-        ax_f.set_yticks([])
+        _empty_panel(ax_f, "no status-ok free case")
 
     for (ax_v, ax_y), c in zip(axes[1:], shown):
         lp = loops[c]
