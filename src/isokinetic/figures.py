@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 import textwrap
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -25,6 +24,8 @@ import pandas as pd
 from matplotlib.figure import Figure  # used directly: no pyplot state, Agg canvas when saving
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, NullFormatter
+
+from .io import write_atomic
 
 #: File names written by :func:`write_campaign_figures`, in order.
 FIGURE_FILES = ("fig07_time_and_loops.png", "fig08_window_selection.png", "fig09_characteristic.png",
@@ -615,17 +616,7 @@ def _read(root: Path, name: str) -> pd.DataFrame | None:
 
 def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = DPI) -> Path:
     """Write a PNG atomically with fixed metadata (identical figures give identical bytes)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        fig.savefig(tmp, format="png", dpi=dpi, metadata=PNG_METADATA)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return path
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi, metadata=PNG_METADATA))
 
 
 def _status_note(cases: pd.DataFrame | None, char: pd.DataFrame | None) -> str:

@@ -102,13 +102,13 @@ def stage_lineage(rule: str, params: Mapping, inputs: Iterable[str | os.PathLike
 
 def stamp_parquet(path: str | os.PathLike, lineage: Mapping) -> None:
     """Attach the lineage record to a Parquet file's schema metadata (rewritten atomically)."""
-    from .io import _atomic
+    from .io import write_atomic
 
     table = pq.read_table(path)
     meta = dict(table.schema.metadata or {})
     meta[METADATA_KEY] = canonical_json(lineage).encode("utf-8")
     table = table.replace_schema_metadata(meta)
-    _atomic(path, lambda tmp: pq.write_table(table, tmp))
+    write_atomic(path, lambda tmp: pq.write_table(table, tmp))
 
 
 def stamp_json(path: str | os.PathLike, lineage: Mapping) -> None:
@@ -155,7 +155,7 @@ def stamp_png(path: str | os.PathLike, lineage: Mapping) -> None:
 
     The image chunks are copied byte for byte; an earlier lineage chunk is replaced.
     """
-    from .io import _atomic
+    from .io import write_atomic
 
     chunks = [c for c in _png_chunks(Path(path).read_bytes()) if not _is_lineage_chunk(*c)]
     # iTXt: keyword NUL, compression flag, compression method, language tag NUL, translated keyword NUL, text
@@ -168,7 +168,7 @@ def stamp_png(path: str | os.PathLike, lineage: Mapping) -> None:
 
     def write(tmp):
         Path(tmp).write_bytes(b"".join(out))
-    _atomic(path, write)
+    write_atomic(path, write)
 
 
 def _png_lineage(path: Path) -> dict | None:
