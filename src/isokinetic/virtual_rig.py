@@ -580,11 +580,15 @@ def relaxations(dp0_Pa: Sequence[float], piston_flows_m3_s: Sequence[float], hyd
         f[o] = qp[o] - q[o] - g * (c1 * q[o] + c2[o] * q[o] * aq[o])
         dtau[o] = dpdq[o] * e[o] / np.abs(f[o])
         delta[o] = c1 * q[o] + c2[o] * q[o] * aq[o] - p_star[o]
-    # τ at the nodes: cumulative panel integrals, restarted at each problem's first node
+    # τ at the nodes: cumulative panel integrals summed within each problem alone (one row per
+    # problem). A running sum over the whole batch, less its value at the problem's first node,
+    # would carry the rounding of the earlier problems' τ (often far larger) into this one's.
     z = np.zeros(n)
     z[hi + 1] = half * (dtau[n:].reshape(pts.shape) @ _GL_W)
-    tau = np.cumsum(z)
-    tau -= np.repeat(tau[first], sizes)
+    col = np.arange(n) - np.repeat(first, sizes)
+    rows = np.zeros((sizes.size, int(sizes.max())))
+    rows[prob, col] = z
+    tau = np.cumsum(rows, axis=1)[prob, col]
     with np.errstate(divide="ignore", invalid="ignore"):
         # d²Δp/dτ² = f'(q) dq/dτ = -(1 + g dΔp/dq) f / (dΔp/dq); infinite where dΔp/dq = 0
         curv = np.where(dpdq[:n] > 0, -(1.0 + g * dpdq[:n]) * f[:n] / dpdq[:n], np.inf)
