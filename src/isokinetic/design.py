@@ -40,7 +40,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from . import figures, tables
 from .damper import (NOMINAL, Damper, Effects, effective_compressibility, laminar_coefficient,
@@ -486,13 +485,6 @@ def _new_figure(width_in: float, height_in: float) -> Figure:
     return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
-def _plain_log_ticks(ax) -> None:
-    for axis in (ax.xaxis, ax.yaxis):
-        if axis.get_scale() == "log":
-            axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
-            axis.set_minor_formatter(NullFormatter())
-
-
 def _air_label(frac: float) -> str:
     return "no air" if frac == 0 else f"{frac * 100:g} % air"
 
@@ -539,7 +531,7 @@ def stroke_to_converge_figure(damper: Damper | None, velocities_m_s, phi: float 
         if len(plan):
             ax.set_ylim(bottom=0.0)
             ax.legend(loc="upper left", fontsize=8)
-        _plain_log_ticks(ax)
+        figures.plain_log_ticks(ax)
         return fig
     if w.size == 0:
         figures._say_missing(ax, "no positive velocities to plot")
@@ -576,7 +568,7 @@ def stroke_to_converge_figure(damper: Damper | None, velocities_m_s, phi: float 
     top = max_stroke_m if max_stroke_m is not None else min(max(ymax_plot, 1e-6), limit)
     ax.set_ylim(0.0, top * MM)
     ax.set_xlim(w[0] * MM, w[-1] * MM)
-    _plain_log_ticks(ax)
+    figures.plain_log_ticks(ax)
     ax.grid(True, which="major", color="0.88", lw=0.5)
     ax.grid(True, which="minor", color="0.95", lw=0.4)
     ax.legend(loc="upper left", fontsize=8)
@@ -687,7 +679,7 @@ def at_diagram_figure(campaign: str, plan_check_df: pd.DataFrame, damper: Damper
                         fontsize=7, color="tab:red", zorder=6)
     if plan.empty:
         figures._say_missing(ax, "no triangle case with a finite amplitude and period in the plan")
-    _plain_log_ticks(ax)
+    figures.plain_log_ticks(ax)
     ax.grid(True, which="major", color="0.9", lw=0.5)
     ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8)
     notes = []

@@ -75,6 +75,14 @@ def _force_unit(forces_N: Iterable[float]) -> tuple[float, str]:
     return (1e3, "kN") if a.size and a.max() >= 1e3 else (1.0, "N")
 
 
+def plain_log_ticks(ax) -> None:
+    """Label the log-scaled axes of ``ax`` 0.01, 0.1, 1 rather than 10^-2 ..., without minor labels."""
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() == "log":
+            axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
+            axis.set_minor_formatter(NullFormatter())
+
+
 def _say_missing(ax, text: str) -> None:
     """Write a 'missing data' message in the middle of an axes."""
     ax.text(0.5, 0.5, text, transform=ax.transAxes, **_MISSING_STYLE)
@@ -528,9 +536,7 @@ def loglog_characteristic(char: pd.DataFrame, *, campaign: str | None = None, n_
                     if i == 0 else None)
     ax.set_xlim(v_lo, v_hi)
     ax.set_ylim(f_lo, f_hi)
-    for axis in (ax.xaxis, ax.yaxis):  # 0.01, 0.1, 1 rather than 10^-2 ...
-        axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
-        axis.set_minor_formatter(NullFormatter())
+    plain_log_ticks(ax)
     ax.grid(True, which="major", color="0.88", lw=0.5)
     ax.grid(True, which="minor", color="0.95", lw=0.4)
     ax.legend(loc="upper left", fontsize=8)

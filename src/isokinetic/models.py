@@ -38,12 +38,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
-from matplotlib.ticker import FuncFormatter, NullFormatter
 from scipy import stats
 
 from . import tables
 from .damper import Damper, nominal_force
-from .figures import save_figure
+from .figures import plain_log_ticks, save_figure
 from .lineage import row_keys
 from .windows import WindowSpec
 
@@ -584,9 +583,7 @@ def comparison_loglog_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame |
             ax.plot(bv[ok][o] * MM, bf[ok][o] / fs, lw=0.8, mfc="white", zorder=6, gid=f"measured{d}", **style)
     ax.set_xlim(v_lo * MM, v_hi * MM)
     ax.set_ylim(f_lo / fs, f_hi / fs)
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
-        axis.set_minor_formatter(NullFormatter())
+    plain_log_ticks(ax)
     ax.grid(True, which="major", color="0.88", lw=0.5)
     ax.grid(True, which="minor", color="0.95", lw=0.4)
     ax.legend(loc="upper left", fontsize=7.5)
