@@ -1,6 +1,8 @@
 """A scratch copy of the project with a tiny config, for the end-to-end workflow tests."""
 
+import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -50,3 +52,12 @@ def export(work: Path, name: str, campaign: str = "tiny") -> None:
     subprocess.run([sys.executable, "-m", "isokinetic", "export-virtual", "--config", "config/config.yaml",
                     "--campaign", campaign, "--name", name, "--out", f"data/raw/{name}"], cwd=work, check=True,
                    capture_output=True)
+
+
+def kill_build(proc: subprocess.Popen) -> None:
+    """SIGKILL a build started with ``start_new_session=True``: Snakemake and all its jobs."""
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.wait(timeout=30)

@@ -6,12 +6,10 @@ has been refused, and the tree is unlocked as after any crash.
 
 from __future__ import annotations
 
-import os
-import signal
 import subprocess
 import time
 
-from scratch_project import SNAKEMAKE, make_project
+from scratch_project import SNAKEMAKE, kill_build, make_project
 
 def test_second_build_on_the_same_tree_is_refused(tmp_path):
     work = make_project(tmp_path / "project")
@@ -37,11 +35,7 @@ def test_second_build_on_the_same_tree_is_refused(tmp_path):
         assert "rule " not in message.split("Directory cannot be locked")[0].split("Building DAG")[-1], \
             "the refused build started a job"
     finally:
-        try:
-            os.killpg(first.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        first.wait(timeout=30)
+        kill_build(first)
 
     # A killed build leaves its lock behind; --unlock clears it.
     assert any(locks.iterdir())

@@ -15,9 +15,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import os
 import re
-import signal
 import subprocess
 import time
 from pathlib import Path
@@ -28,7 +26,7 @@ import pyarrow.parquet as pq
 from PIL import Image
 
 from isokinetic.lineage import read_lineage
-from scratch_project import SNAKEMAKE, export, make_project
+from scratch_project import SNAKEMAKE, export, kill_build, make_project
 
 #: Kill points, applied one after the other to the same tree: SIGKILL the process group
 #: ``delay`` seconds after the ``n``-th job of that run was started (so a job is mid-way).
@@ -67,11 +65,7 @@ def run_and_kill(work: Path, n_jobs: int, delay: float, log: Path) -> None:
         time.sleep(delay)
         assert proc.poll() is None, f"build ended before the kill point:\n{log.read_text()[-3000:]}"
     finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        proc.wait(timeout=30)
+        kill_build(proc)
 
 
 def scrub(obj, derived: bool = False):
