@@ -266,3 +266,53 @@ def test_sample_rate_far_from_the_manifest(raw_campaign, baseline):
     check(raw_campaign, baseline, cases, quarantine, "validate", "H01", "time_s", None,
           f"{W} H01, column 'time_s': median sample interval 0.005 s is +25.0% off 1/sample_rate_Hz = "
           "0.004 s (tolerance 5.0%)")
+
+
+# --- timing from the record: the measured motion against the plan ---------------------------------
+
+def delay_rows(rows: int):
+    """A table edit: displacement and force ``rows`` samples later on the same time axis (the piston
+    held at its start before), as an actuator delay gives them; the command stays as it was."""
+    def edit(t: pd.DataFrame) -> pd.DataFrame:
+        for column in ("disp_mm", "force_kN"):
+            values = t[column].tolist()
+            t[column] = values[:1] * rows + values[:-rows]
+        return t
+    return edit
+
+
+def test_force_with_the_opposite_sign_convention(raw_campaign, baseline):
+    raw_campaign.edit_table("T02", scale_column("force_kN", -1.0))     # a forgotten `invert: true`
+    cases, quarantine = raw_campaign.run()
+    check(raw_campaign, baseline, cases, quarantine, "validate", "T02", "force_N", 45,
+          f"{W} T02, column 'force_N', row 45: the mean force opposes the measured velocity in all four windows "
+          "(-550.6 N at +1 mm/s, +551.3 N at -0.9995 mm/s, -549.6 N at +1.002 mm/s, +549.7 N at -0.9993 mm/s): "
+          "the rig's sign convention looks opposite: add `invert: true` to the manifest's `force` column")
+
+
+def test_displacement_with_the_opposite_sign_convention(raw_campaign, baseline):
+    raw_campaign.edit_table("T01", scale_column("disp_mm", -1.0))
+    cases, quarantine = raw_campaign.run()
+    # the force is right: it is not blamed for the inverted velocity
+    check(raw_campaign, baseline, cases, quarantine, "validate", "T01", "displacement_m", None,
+          f"{W} T01, column 'displacement_m': the displacement moves against the plan in every half-period "
+          "(measured -0.3002, +0.3, -0.3, +0.3001 mm/s, planned +0.3, -0.3, +0.3, -0.3 mm/s): the rig's sign "
+          "convention looks opposite: add `invert: true` to the manifest's `displacement` column")
+
+
+def test_piston_speed_20_percent_off_the_plan(raw_campaign, baseline):
+    raw_campaign.edit_table("T01", scale_column("disp_mm", 1.2))
+    cases, quarantine = raw_campaign.run()
+    check(raw_campaign, baseline, cases, quarantine, "validate", "T01", "displacement_m", None,
+          f"{W} T01, column 'displacement_m': measured piston speed 0.3601 mm/s (mean |v| of the half-periods: "
+          "+0.3603, -0.36, +0.3601, -0.3601 mm/s) is +20.0% off the planned 4Y/T = 0.3 mm/s (Eq. 26; tolerance "
+          "5%): a wrong period_s or amplitude in the manifest, or a wrong LVDT scale?")
+
+
+def test_delay_too_large_for_the_windows_to_fit(raw_campaign, baseline):
+    raw_campaign.edit_table("T01", delay_rows(10))          # 0.2 s at 50 Hz; window 4 would end at 8.1 s
+    cases, quarantine = raw_campaign.run()
+    check(raw_campaign, baseline, cases, quarantine, "validate", "T01", "time_s", None,
+          f"{W} T01, column 'time_s': the windows do not fit the record at the measured motion start, 200 ms "
+          "after the first sample: record of 7.98 s holds the windows of 3 half-periods of T = 4 s (motion start "
+          "at t = 0.199951 s), 4 needed")

@@ -57,12 +57,38 @@ def sine_displacement(t_s, amplitude_m: float, frequency_Hz: float):
     return amplitude_m * np.sin(2.0 * np.pi * frequency_Hz * np.asarray(t_s, dtype=float))
 
 
-def half_periods(period_s: float, phase_rad: float, duration_s: float):
+#: Without a sample interval, a turning point this close to t = 0 (as a phase, rad) lies at t = 0: a
+#: phase rounded to three decimals (-1.571) still means -π/2 (raw-campaign spec).
+PHASE_TOLERANCE_RAD = 1e-3
+
+
+def _tolerance_s(period_s: float, tolerance_s: float | None) -> float:
+    return PHASE_TOLERANCE_RAD / (2.0 * math.pi) * period_s if tolerance_s is None else float(tolerance_s)
+
+
+def snapped_phase_rad(period_s: float, phase_rad: float, tolerance_s: float | None = None) -> float:
+    """The phase of Eq. (26) with a turning point within ``tolerance_s`` of t = 0 moved onto t = 0.
+
+    A manifest's rounded ``-1.5707963`` or ``-1.5708`` means -π/2 (raw-campaign spec): the record
+    starts at a turning point, and its half-periods are exactly those of -π/2. Turning points lie
+    where 2πt/T + φ = π/2 + kπ; the nearest to t = 0 is snapped (φ becomes π/2 + kπ exactly), a
+    phase with none that close is returned as it is. Default tolerance: PHASE_TOLERANCE_RAD of phase.
+    """
+    k = round((phase_rad - math.pi / 2) / math.pi)
+    t_turn = (math.pi / 2 + k * math.pi - phase_rad) * period_s / (2.0 * math.pi)
+    return math.pi / 2 + k * math.pi if abs(t_turn) <= _tolerance_s(period_s, tolerance_s) else phase_rad
+
+
+def half_periods(period_s: float, phase_rad: float, duration_s: float, tolerance_s: float | None = None):
     """The complete constant-velocity half-periods of a triangle record on [0, duration_s].
 
     Returns an array of rows (t_start_s, t_end_s, sign), sign = +1 for rising displacement.
-    Turning points of Y tri(2πt/T + φ) lie where the argument is π/2 + kπ.
+    Turning points of Y tri(2πt/T + φ) lie where the argument is π/2 + kπ. A turning point within
+    ``tolerance_s`` of t = 0 (one sample interval for a record, :func:`snapped_phase_rad`) lies at
+    t = 0: a rounded phase loses no half-period.
     """
+    tol = _tolerance_s(period_s, tolerance_s)
+    phase_rad = snapped_phase_rad(period_s, phase_rad, tol)
     half = period_s / 2.0
     k0 = math.ceil((phase_rad - math.pi / 2) / math.pi - 1e-9)  # first turning point at t >= 0
     rows = []

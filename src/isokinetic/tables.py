@@ -17,6 +17,8 @@ STATUS = ("ok", "quarantined")
 DIRECTIONS = ("+", "-")
 
 _finite = Check(lambda s: pd.Series(pd.to_numeric(s, errors="coerce")).abs() < float("inf"), name="finite")
+#: Finite or NaN (a nullable column's missing value), never ±inf.
+_not_inf = Check(lambda s: ~pd.Series(pd.to_numeric(s, errors="coerce")).abs().eq(float("inf")), name="not_inf")
 
 
 def _increasing(s: pd.Series) -> pd.Series:
@@ -57,6 +59,16 @@ CASES = pa.DataFrameSchema(
         # 'ok', 'quarantined', or the flagged-but-usable warnings ('; '-joined); absent in
         # ingest tables written before the column existed (validation then fills 'ok')
         "quality": pa.Column(str, nullable=True, required=False),
+        # measured motion of a triangle case (validate, motion.estimate_motion); NaN for sine and
+        # free cases and cases set aside before the motion check; absent in ingest tables:
+        # record time [s] at which the plan's t = 0 lies (windows: motion start + plan times)
+        "motion_start_s": pa.Column("float64", _not_inf, nullable=True, required=False),
+        # motion_start_s - the first time stamp: command-to-piston delay (actuator delay + servo lag) [s]
+        "delay_s": pa.Column("float64", _not_inf, nullable=True, required=False),
+        # mean measured |v| of the four half-periods / planned W = 4Y/T (Eq. 26)
+        "velocity_ratio": pa.Column("float64", Check.ge(0), nullable=True, required=False),
+        # rms departure of the measured displacement from the planned triangle at the motion start [m]
+        "motion_rms_m": pa.Column("float64", Check.ge(0), nullable=True, required=False),
     },
     strict=False,
     name="cases",

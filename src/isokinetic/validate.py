@@ -12,11 +12,20 @@ against the plan and the nominal damper model). Gaps and saturation inside the a
 windows of a triangle case; the whole record of a sine or free case) quarantine; a few missing
 samples or a flat top outside the windows are *flagged but usable*: warnings carried into the
 ``quality`` column of ``cases.parquet`` ('ok' when there are none).
+
+Timing from the record: the motion of a triangle case is measured from its displacement channel
+(:func:`motion.estimate_motion`) and its windows are placed at the measured motion start, not at
+the plan's t = 0 (``motion_start_s``, ``delay_s``, ``velocity_ratio``, ``motion_rms_m`` in
+``cases.parquet``). A motion that departs from its plan beyond the tolerances below, windows that
+no longer fit the record at the measured start, or a force against the measured velocity in all
+four windows (a forgotten ``invert: true``) quarantine; a time axis offset from the motion start
+or one half-period off its planned speed is flagged.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,8 +38,9 @@ from . import tables
 from .campaign import case_plan, read_ingested
 from .damper import Damper, nominal_force
 from .io import write_parquet
+from .motion import Motion, estimate_motion
 from .plan import CasePlan
-from .windows import WindowSpec, windowed_half_periods
+from .windows import WindowSpec, case_windows, windowed_half_periods
 
 log = logging.getLogger("isokinetic")
 
@@ -52,6 +62,25 @@ MAX_PRESSURE_PA = 50e6
 #: Measured displacement (or command) amplitude against the planned one: beyond this factor either
 #: way is implausible (shipped and simulated records: 0.91 .. 1.01).
 AMPLITUDE_RATIO = 5.0
+#: Measured piston speed against the planned W = 4Y/T (Eq. 26): the mean |v| of the four half-periods
+#: off by more than this quarantines (the steady points would not lie at the planned speeds: a wrong
+#: period or amplitude in the manifest, or a wrong LVDT scale); one half-period off by more than this
+#: while the mean holds is flagged. Rig and simulated records lie within 0.1 %, a manifest amplitude
+#: rounded to 4 significant digits adds 0.05 %.
+MAX_VELOCITY_ERROR = 0.05
+#: rms departure of the measured displacement from the planned triangle at the measured motion start,
+#: beyond the LVDT noise (sqrt(rms² - noise²)), as a fraction of the planned amplitude: above this the
+#: record does not follow its plan (wrong waveform, period or phase) and is quarantined. A speed 5 %
+#: off gives 2.9 %; servo lag, corner rounding and noise give well under 1 %.
+MAX_MOTION_RMS_FRACTION = 0.05
+#: A motion start further than this from t = 0 of the record's time axis is flagged (and aligned).
+TIME_OFFSET_NOTE_S = 0.1
+#: A window's mean force counts as against the velocity only when this many standard errors from 0.
+FORCE_SIGN_SIGMAS = 3.0
+#: The hint a record with the opposite sign convention gets.
+INVERT_HINT = "the rig's sign convention looks opposite: add `invert: true`"
+#: cases.parquet columns of the measured motion (NaN unless a triangle case reached the motion check).
+MOTION_COLUMNS = ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m")
 
 
 @dataclass(frozen=True)
@@ -152,14 +181,15 @@ def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: f
     return problems
 
 
-def analysed_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec = WindowSpec()) -> list[tuple[str, float, float]]:
+def analysed_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec = WindowSpec(),
+                   motion_start_s: float = 0.0) -> list[tuple[str, float, float]]:
     """(label, start, end) of the time spans whose samples the later stages use: the windows of a
-    triangle case (windows.window_ranges), the whole record of a sine or free case."""
+    triangle case at the motion start (windows.window_ranges), the whole record of a sine or free case."""
     if plan.waveform != "triangle":
         return [(f"the record (a {plan.waveform} record is used whole)", float(time_s[0]), float(time_s[-1]))]
     half = plan.period_s / 2.0
     out = []
-    for k, (t0, _t1, _sign) in enumerate(windowed_half_periods(plan, float(time_s[-1]), spec), 1):
+    for k, (t0, _t1, _sign) in enumerate(windowed_half_periods(plan, float(time_s[-1]), spec, motion_start_s), 1):
         a, b = t0 + spec.start_fraction * half, t0 + spec.end_fraction * half
         out.append((f"the window of segment {k} (t = {a:.6g} .. {b:.6g} s)", a, b))
     return out
@@ -281,33 +311,152 @@ def plausibility_problems(df: pd.DataFrame, plan: CasePlan, damper: Damper | Non
     return problems
 
 
-def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
-                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
-                window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES
-                ) -> tuple[list[Problem], list[str]]:
-    """All checks of one canonical time series: (problems, flagged-but-usable warnings).
+def _pct(x: float) -> str:
+    return f"{x:+.1%}"
 
-    The schema first, then the record (length, sample rate), then gaps, saturation and
-    plausibility; each step only once the previous ones hold (at most one problem per column).
+
+def motion_problems(motion: Motion, plan: CasePlan) -> tuple[list[Problem], list[str]]:
+    """The measured motion against the plan (Eq. 26): (problems, flagged-but-usable warnings).
+
+    Displacement against the plan in every half-period (an inverted LVDT), the mean speed off the
+    plan by more than MAX_VELOCITY_ERROR, or an rms departure beyond MAX_MOTION_RMS_FRACTION of the
+    amplitude (noise removed) quarantine, in that order (one problem for the column). One
+    half-period off its speed while the mean holds, and a motion start more than TIME_OFFSET_NOTE_S
+    from t = 0, are warnings.
+    """
+    problems, warnings = [], []
+    w_mm_s = plan.velocity_m_s * 1e3
+    ratios = motion.velocity_ratios
+    measured = np.isfinite(ratios)
+    speeds = ", ".join(f"{v * 1e3:+.4g}" for v in motion.velocities_m_s)
+    planned = ", ".join(f"{v * 1e3:+.4g}" for v in motion.planned_velocities_m_s)
+    if measured.any() and (ratios[measured] < 0).all():
+        problems.append(Problem("displacement_m", f"the displacement moves against the plan in every half-period "
+                                                  f"(measured {speeds} mm/s, planned {planned} mm/s): {INVERT_HINT} "
+                                                  "to the manifest's `displacement` column"))
+    elif abs(motion.velocity_ratio - 1.0) > MAX_VELOCITY_ERROR:
+        problems.append(Problem("displacement_m", f"measured piston speed {motion.velocity_ratio * w_mm_s:.4g} mm/s "
+                                                  f"(mean |v| of the half-periods: {speeds} mm/s) is "
+                                                  f"{_pct(motion.velocity_ratio - 1.0)} off the planned 4Y/T = "
+                                                  f"{w_mm_s:.4g} mm/s (Eq. 26; tolerance {MAX_VELOCITY_ERROR:.0%}): a "
+                                                  "wrong period_s or amplitude in the manifest, or a wrong LVDT "
+                                                  "scale?"))
+    elif motion.excess_rms_m > MAX_MOTION_RMS_FRACTION * plan.amplitude_m:
+        problems.append(Problem("displacement_m", f"the displacement departs from the planned triangle (Eq. 26, "
+                                                  f"shifted to the measured motion start t = "
+                                                  f"{motion.motion_start_s:.6g} s) by {motion.rms_m * 1e3:.4g} mm "
+                                                  f"rms, {motion.excess_rms_m / plan.amplitude_m:.1%} of the "
+                                                  f"{plan.amplitude_m * 1e3:.4g} mm amplitude beyond the LVDT "
+                                                  f"noise {motion.noise_m * 1e3:.2g} mm (tolerance "
+                                                  f"{MAX_MOTION_RMS_FRACTION:.0%})"))
+    else:
+        for k in np.flatnonzero(measured & (np.abs(np.abs(ratios) - 1.0) > MAX_VELOCITY_ERROR)):
+            warnings.append(f"half-period {k + 1} moves at {motion.velocities_m_s[k] * 1e3:+.4g} mm/s, "
+                            f"{_pct(abs(ratios[k]) - 1.0)} off the planned {w_mm_s:.4g} mm/s")
+    if abs(motion.motion_start_s) > TIME_OFFSET_NOTE_S:
+        first = motion.motion_start_s - motion.delay_s
+        warnings.append(f"time axis offset: the motion starts at t = {motion.motion_start_s:.6g} s of the record "
+                        f"(first sample at t = {first:.6g} s, delay {motion.delay_s * 1e3:.3g} ms); windows "
+                        "aligned to the measured motion")
+    return problems, warnings
+
+
+def window_problems(df: pd.DataFrame, plan: CasePlan, motion: Motion, spec: WindowSpec = WindowSpec()
+                    ) -> list[Problem]:
+    """The four windows at the measured motion start: that they fit the record, and the force's sign.
+
+    A record that does not hold the windows at the motion start (a delay too large, a record cut
+    short) is a ``time_s`` problem; a mean force against the measured velocity in every window,
+    each mean FORCE_SIGN_SIGMAS standard errors from zero, is a ``force_N`` problem with the
+    INVERT_HINT (Force resists positive velocity: raw-campaign spec, "Waveforms and signs").
+    """
+    try:
+        rows = case_windows(plan, df, spec, motion.motion_start_s)
+    except ValueError as exc:
+        said = str(exc).removeprefix(f"case {plan.case}: ")
+        return [Problem("time_s", f"the windows do not fit the record at the measured motion start, "
+                                  f"{motion.delay_s * 1e3:.4g} ms after the first sample: {said}")]
+    forces = np.array([r["force_N"] for r in rows])
+    velocities = np.array([r["velocity_m_s"] for r in rows])
+    se = np.array([r["force_std_N"] / math.sqrt(r["n_samples"]) for r in rows])
+    if np.all(forces * velocities < 0) and np.all(np.abs(forces) > FORCE_SIGN_SIGMAS * se):
+        pairs = ", ".join(f"{f:+.4g} N at {v * 1e3:+.4g} mm/s" for f, v in zip(forces, velocities))
+        row = int(rows[0]["row_start"])
+        return [Problem("force_N", f"the mean force opposes the measured velocity in all four windows ({pairs}): "
+                                   f"{INVERT_HINT} to the manifest's `force` column", row=row)]
+    return []
+
+
+@dataclass(frozen=True)
+class CaseCheck:
+    """What the checks of one case found: problems, flagged-but-usable warnings, the measured motion
+    (None unless a triangle case got as far as the motion check)."""
+
+    problems: list[Problem]
+    warnings: list[str]
+    motion: Motion | None = None
+
+
+def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+               min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
+               window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES) -> CaseCheck:
+    """All checks of one canonical time series.
+
+    The schema first, then the record (length, sample rate); then the measured motion of a triangle
+    case, whose start places the windows; then gaps, saturation, plausibility, the motion against
+    the plan and the windows (fit, force sign); each step only once the previous ones hold (at most
+    one problem per column, the first found).
     """
     problems = timeseries_problems(df) or record_problems(df["time_s"].to_numpy(), plan, sample_rate_tolerance,
                                                           min_samples)
     if problems:
-        return problems, []
-    spans = analysed_spans(plan, df["time_s"].to_numpy(), window_spec)
+        return CaseCheck(problems, [])
+    t = df["time_s"].to_numpy()
+    motion, start_s = None, 0.0
+    if plan.waveform == "triangle":
+        motion = estimate_motion(t, df["displacement_m"].to_numpy(), plan)
+        start_s = motion.motion_start_s
+    spans = analysed_spans(plan, t, window_spec, start_s)
     gaps, warnings = gap_problems(df, plan, spans, max_gap_samples)
     flat, flat_warnings = saturation_problems(df, spans)
     found: dict[str, Problem] = {}
-    for problem in gaps + flat + plausibility_problems(df, plan, damper):
+    later, motion_warnings = [], []
+    if motion is not None:
+        later, motion_warnings = motion_problems(motion, plan)
+        windows = window_problems(df, plan, motion, window_spec)
+        # with the displacement inverted, the force is checked against a velocity of the wrong sign
+        inverted = any(INVERT_HINT in p.message for p in later)
+        later += [p for p in windows if not (inverted and p.column == "force_N")]
+    for problem in gaps + flat + plausibility_problems(df, plan, damper) + later:
         found.setdefault(problem.column, problem)
-    return list(found.values()), warnings + flat_warnings
+    return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings, motion)
+
+
+def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
+                window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES
+                ) -> tuple[list[Problem], list[str]]:
+    """(problems, flagged-but-usable warnings) of :func:`check_case`."""
+    found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, max_gap_samples)
+    return found.problems, found.warnings
 
 
 def case_problems(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                   min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
                   window_spec: WindowSpec = WindowSpec()) -> list[Problem]:
-    """The problems of :func:`case_checks` (warnings dropped)."""
-    return case_checks(df, plan, sample_rate_tolerance, min_samples, damper, window_spec)[0]
+    """The problems of :func:`check_case` (warnings dropped)."""
+    return check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec).problems
+
+
+def motion_columns(motion: Motion | None, plan: CasePlan) -> dict[str, float]:
+    """The MOTION_COLUMNS of cases.parquet: motion_start_s (record time of the plan's t = 0),
+    delay_s (motion start - first time stamp), velocity_ratio (mean measured |v| / planned 4Y/T),
+    motion_rms_m (rms departure of the displacement from the planned triangle at the motion start,
+    noise included); NaN without a measured motion."""
+    if motion is None:
+        return dict.fromkeys(MOTION_COLUMNS, math.nan)
+    return {"motion_start_s": motion.motion_start_s, "delay_s": motion.delay_s,
+            "velocity_ratio": motion.velocity_ratio, "motion_rms_m": motion.rms_m}
 
 
 def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
@@ -316,7 +465,8 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
     """Check every ``ok`` case of ``<campaign_root>/ingest``.
 
     Returns (cases, quarantine): all cases with their final status and ``quality`` (the ingest's
-    warnings followed by this stage's, 'ok' when none, 'quarantined'), and the ingest's
+    warnings followed by this stage's, 'ok' when none, 'quarantined') and the measured motion of
+    each triangle case (MOTION_COLUMNS, :func:`motion_columns`), and the ingest's
     quarantine rows followed by this stage's (``stage="validate"``). Each warning is logged.
     """
     ingested = read_ingested(campaign_root)
@@ -326,11 +476,16 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
     if "quality" not in cases:
         cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
     cases["quality"] = cases["quality"].fillna("ok").astype(str)
+    for column in MOTION_COLUMNS:
+        cases[column] = math.nan
     rows = []
     for i, row in cases[cases["status"] == "ok"].iterrows():
         df = pd.read_parquet(ingested.root / row["timeseries_file"])
-        problems, warnings = case_checks(df, case_plan(row), sample_rate_tolerance, min_samples, damper,
-                                         window_spec, max_gap_samples)
+        plan = case_plan(row)
+        found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, max_gap_samples)
+        problems, warnings = found.problems, found.warnings
+        for column, value in motion_columns(found.motion, plan).items():
+            cases.loc[i, column] = value
         if problems:
             cases.loc[i, ["status", "quality"]] = ["quarantined", "quarantined"]
             rows += quarantine_rows(campaign, row["case"], "validate", problems)

@@ -1,13 +1,15 @@
 """Window extraction (Sec. 4.4): one steady point per constant-velocity half-period.
 
 For each triangle case the four complete half-periods of its two-period record are found
-from the plan (Eq. 26), and the samples in [start_fraction, end_fraction]·T/2 of each are
-reduced to the mean force, its standard deviation, and the velocity of a least-squares
-line through the displacement.
+from the plan (Eq. 26), placed on the record's own time axis at the measured motion start
+(``motion_start_s`` of cases.parquet, :mod:`isokinetic.motion`; 0 when absent), and the samples
+in [start_fraction, end_fraction]·T/2 of each are reduced to the mean force, its standard
+deviation, and the velocity of a least-squares line through the displacement.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,34 +43,56 @@ def line_slope(t, y) -> float:
     return float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
 
 
-def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec = WindowSpec()):
+def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec = WindowSpec(),
+                          motion_start_s: float = 0.0):
     """The first four half-periods (rows t_start, t_end, sign) whose window ends within the record.
 
+    Times are on the record's axis: the plan's (Eq. 26) plus ``motion_start_s``, the record time at
+    which the plan's t = 0 lies (0: plan time is record time). A turning point within one sample
+    interval of the plan's t = 0 counts (a rounded phase such as -1.5707963 loses no half-period).
     A half-period counts when its window [start, end]·T/2 lies before the record's last sample
     ``t_end_s``; the rest of it need not be recorded (a record ending one sample before 2T still
     holds four windows).
     """
     half = plan.period_s / 2.0
-    return half_periods(plan.period_s, plan.phase_rad, t_end_s + (1.0 - spec.end_fraction) * half)[:4]
+    rows = half_periods(plan.period_s, plan.phase_rad, t_end_s - motion_start_s + (1.0 - spec.end_fraction) * half,
+                        tolerance_s=1.0 / plan.sample_rate_Hz)[:4]
+    rows[:, :2] += motion_start_s
+    return rows
 
 
-def window_ranges(plan: CasePlan, t, spec: WindowSpec = WindowSpec()) -> list[tuple[int, float, int, int]]:
+def time_tolerance_s(plan: CasePlan) -> float:
+    """A sample this close to a window edge is on it (float rounding of shifted time axes) [s]."""
+    return 1e-6 / plan.sample_rate_Hz
+
+
+def window_ranges(plan: CasePlan, t, spec: WindowSpec = WindowSpec(),
+                  motion_start_s: float = 0.0) -> list[tuple[int, float, int, int]]:
     """(segment 1-4, sign, i0, i1) of the four windows of a triangle record with sample times ``t``.
 
-    The samples [i0, i1) lie in [t0 + start_fraction·T/2, t0 + end_fraction·T/2] of each of the
-    first four half-periods (t0 its start, Eq. 26; :func:`windowed_half_periods`). Raises ValueError
-    when the record does not hold four windows or a window holds fewer than MIN_WINDOW_SAMPLES samples. Shared by the
-    measured windows and the model run through the plan, so both use the same samples.
+    The samples [i0, i1) lie in motion_start_s + [t0 + start_fraction·T/2, t0 + end_fraction·T/2]
+    of each of the first four half-periods (t0 its start in plan time, Eq. 26;
+    :func:`windowed_half_periods`); ``motion_start_s`` is the record time of the plan's t = 0
+    (0, the default: ``t`` is plan time, as on a model grid). Raises ValueError when the record does
+    not hold four windows, a window starts before the first sample, or a window holds fewer than
+    MIN_WINDOW_SAMPLES samples. Shared by the measured windows and the model run through the plan,
+    so both use the same samples.
     """
-    segments = windowed_half_periods(plan, float(t[-1]), spec)
+    segments = windowed_half_periods(plan, float(t[-1]), spec, motion_start_s)
     if len(segments) < 4:
+        aligned = f" (motion start at t = {motion_start_s:.6g} s)" if motion_start_s != 0.0 else ""
         raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds the windows of {len(segments)} "
-                         f"half-periods of T = {plan.period_s:.6g} s, 4 needed")
+                         f"half-periods of T = {plan.period_s:.6g} s{aligned}, 4 needed")
     half = plan.period_s / 2.0
+    eps = time_tolerance_s(plan)
     out = []
     for k, (t0, _t1, sign) in enumerate(segments, start=1):
-        i0 = int(np.searchsorted(t, t0 + spec.start_fraction * half, side="left"))
-        i1 = int(np.searchsorted(t, t0 + spec.end_fraction * half, side="right"))
+        a, b = t0 + spec.start_fraction * half, t0 + spec.end_fraction * half
+        if a < t[0] - eps:
+            raise ValueError(f"case {plan.case}: window of segment {k} starts at t = {a:.6g} s, before the "
+                             f"record's first sample at {t[0]:.6g} s (motion start at t = {motion_start_s:.6g} s)")
+        i0 = int(np.searchsorted(t, a - eps, side="left"))
+        i1 = int(np.searchsorted(t, b + eps, side="right"))
         if i1 - i0 < MIN_WINDOW_SAMPLES:
             raise ValueError(f"case {plan.case}: window of segment {k} holds {i1 - i0} samples, "
                              f"{MIN_WINDOW_SAMPLES} needed")
@@ -76,9 +100,12 @@ def window_ranges(plan: CasePlan, t, spec: WindowSpec = WindowSpec()) -> list[tu
     return out
 
 
-def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec()) -> list[dict]:
+def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec(),
+                 motion_start_s: float = 0.0) -> list[dict]:
     """The four windows of one triangle case as rows (segment, direction, period, statistics).
 
+    Cut at ``motion_start_s`` + the plan's window times (:func:`window_ranges`); window_start_s and
+    window_end_s are on the record's time axis, velocity_m_s is the measured slope in the window.
     Raises ValueError as :func:`window_ranges` does.
     """
     t = series["time_s"].to_numpy()
@@ -86,7 +113,7 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
     f = series["force_N"].to_numpy()
     rows = series["row"].to_numpy()
     out = []
-    for k, sign, i0, i1 in window_ranges(plan, t, spec):
+    for k, sign, i0, i1 in window_ranges(plan, t, spec, motion_start_s):
         tw, fw = t[i0:i1], f[i0:i1]
         out.append({
             "case": plan.case,
@@ -106,15 +133,27 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
     return out
 
 
+def motion_start_of(case) -> float:
+    """``motion_start_s`` of a cases-table row: the record time of the plan's t = 0 (0 when the
+    column is absent or NaN, as in tables written before it existed)."""
+    value = case.get("motion_start_s") if hasattr(case, "get") else None
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return 0.0
+    return value if math.isfinite(value) else 0.0
+
+
 def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
-    """Windows of every status-ok triangle case of a cases table (tables.WINDOWS).
+    """Windows of every status-ok triangle case of a cases table (tables.WINDOWS), cut at each case's
+    ``motion_start_s`` (0 when the table has no such column).
 
     ``load_series(case_row)`` returns the case's canonical time series.
     """
     rows = []
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     for _, case in ok.iterrows():
-        for row in case_windows(case_plan(case), load_series(case), spec):
+        for row in case_windows(case_plan(case), load_series(case), spec, motion_start_of(case)):
             row.update(campaign=case["campaign"], raw_file=case["raw_file"], raw_sha256=case["raw_sha256"],
                        quality=case.get("quality", "ok") if isinstance(case.get("quality"), str) else "ok")
             rows.append(row)
