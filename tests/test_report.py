@@ -34,6 +34,11 @@ SPEEDS = {"T01": 1.0e-5, "T02": 1.0e-4, "T03": 1.0e-3}
 QUARANTINE_REASON = "campaign demo, case T04, column 'force_kN', row 12: 'abc' is not a number"
 PLAN_REASON = "window starts after 2.39 mm of stroke (0.45 T/2), before the 2.89 mm needed (Eq. 28)"
 COMMIT = "0123456789abcdef0123456789abcdef01234567"
+#: Measured motion of the cases (validate): T02 starts 23.4 ms late on a time axis offset by 7.3 s.
+MOTION_NONE = {"motion_start_s": 0.0, "delay_s": 0.0, "velocity_ratio": 1.0002, "motion_rms_m": 1.0e-6, "quality": "ok"}
+TIME_NOTE = "time axis offset: the motion starts at t = 7.3234 s of the record"
+MOTION = {"T02": {"motion_start_s": 7.3234, "delay_s": 0.0234, "velocity_ratio": 0.9987, "motion_rms_m": 1.2e-6,
+                  "quality": TIME_NOTE}}
 PROV_COMMIT = "feedc0defeedc0defeedc0defeedc0defeedc0de"
 CI = os.environ.get("CI", "").strip().lower() in {"1", "true", "yes"}
 
@@ -84,6 +89,7 @@ def diagnosis() -> dict:
              {"effects": ["leakage"], "params": {"leakage_conductance_m3_s_Pa": 1.3e-12}, "gap_after": 7.7,
               "holdout_gap_after": 7.9, "score": 4051.0, "explained": False}],
          "confounded": [["friction", "air"]],
+         "instrument": {"delay_s": 0.0123, "force_offset_N": 4.56, "force_gain": None},
          "rms_rel_before": 0.41, "rms_rel_after": 0.004}
     validate_diagnosis(d)
     return d
@@ -99,11 +105,12 @@ def build_campaign(root: Path, *, damper: bool = True, stamp: bool = True) -> Pa
         {"campaign": CAMPAIGN, "case": c, "waveform": "triangle", "sample_rate_Hz": 50.0, "amplitude_m": w * 10,
          "period_s": 40.0, "frequency_Hz": np.nan, "phase_rad": -np.pi / 2, "duration_s": 80.0,
          "raw_file": f"data/raw/demo/{c}.csv", "raw_sha256": "ab" * 32, "timeseries_file": f"ingest/timeseries/{c}.parquet",
-         "n_samples": 4000, "status": "ok"} for c, w in SPEEDS.items()]
+         "n_samples": 4000, "status": "ok", **MOTION.get(c, MOTION_NONE)} for c, w in SPEEDS.items()]
         + [{"campaign": CAMPAIGN, "case": "T04", "waveform": "triangle", "sample_rate_Hz": 50.0, "amplitude_m": 0.01,
             "period_s": 20.0, "frequency_Hz": np.nan, "phase_rad": 0.0, "duration_s": 40.0,
             "raw_file": "data/raw/demo/T04.csv", "raw_sha256": "ef" * 32, "timeseries_file": "", "n_samples": 0,
-            "status": "quarantined"}])
+            "status": "quarantined", "motion_start_s": np.nan, "delay_s": np.nan, "velocity_ratio": np.nan,
+            "motion_rms_m": np.nan, "quality": "quarantined"}])
     write_parquet(tables.validate_table(cases, tables.CASES), root / "cases.parquet")
     quarantine = pd.DataFrame({"campaign": [CAMPAIGN], "case": ["T04"], "stage": ["validate"], "column": ["force_kN"],
                                "row": pd.array([12], dtype="Int64"), "reason": [QUARANTINE_REASON]})
@@ -262,10 +269,11 @@ def test_campaign_page_shows_the_numbers(built):
         QUARANTINE_REASON,                                                       # quarantine
         report.fmt_text(5539.8), "0.0953",                                       # harmonic
         report.fmt_text(characteristic()["force_N"].iloc[0]),                    # a characteristic point
+        "delay [ms]", "motion start [s]", "23.4", "7.3234", "0.9987", TIME_NOTE,  # cases: measured motion
     ]
     missing = [e for e in expected if e not in text]
     assert not missing, missing
-    for section in ("header", "plan", "characteristic", "repeatability", "models", "harmonic", "design",
+    for section in ("header", "plan", "cases", "characteristic", "repeatability", "models", "harmonic", "design",
                     "diagnosis", "quarantine", "lineage"):
         assert f'<section id="{section}">' in (root / "report.html").read_text(encoding="utf-8")
 
@@ -323,6 +331,32 @@ def test_page_without_damper_or_diagnosis_says_so(results):
     problems = report.page_problems(page, report.campaign_figure_files())
     assert any("fig12_noise.png not on the page" in p for p in problems)
     assert "lineage not recorded in the file" in page
+
+
+def test_cases_table_shows_the_delay_of_each_case(built):
+    page = (built / CAMPAIGN / "report.html").read_text(encoding="utf-8")
+    table = page[page.index('<table id="cases-table">'):]
+    table = table[:table.index("</table>")]
+    rows = {}
+    for r in table.split("<tr")[2:]:
+        cells = [plain(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", r)]
+        rows[cells[0]] = cells
+    # case, waveform, status, samples, motion start [s], delay [ms], speed / planned, motion rms [um], quality
+    assert rows["T02"][4:] == ["7.3234", "23.4", "0.9987", "1.20", TIME_NOTE]
+    assert rows["T01"][4:] == ["0", "0", "1.000", "1.00", "ok"]
+    assert rows["T04"][2:] == ["quarantined", "0", "-", "-", "-", "-", "quarantined"]
+    assert 'class="warned"' in table
+    cell = next(c for c in parse(page).cells if "cases.parquet [case=T02]" in c["title"] and "delay_s" in c["title"])
+    assert "audit: python -m isokinetic trace results/demo/cases.parquet case=T02" in cell["title"]
+
+
+def test_cases_table_written_before_the_motion_was_measured(results):
+    root = build_campaign(results / "oldcases", stamp=False)
+    cases = pd.read_parquet(root / "cases.parquet").drop(columns=["motion_start_s", "delay_s", "velocity_ratio",
+                                                                  "motion_rms_m", "quality"])
+    write_parquet(cases, root / "cases.parquet")
+    page = report.render_campaign_report(root)
+    assert '<section id="cases">' in page and "delay [ms]" in page
 
 
 def test_page_problems_catches_external_resources_and_bad_images():

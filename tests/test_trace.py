@@ -340,3 +340,33 @@ def test_blind_score_is_rescored_from_the_truth_file_and_a_fresh_diagnosis(proje
     for col in ("raw_dir", "truth_file", "diagnosis_file"):  # provenance columns, when write_scores adds them
         if col in scores.columns:
             assert col in result.text.split("not compared:")[1].splitlines()[0]
+
+
+# --------------------------------------------------------------------------------------------
+# timing from the record: windows at the measured motion start
+# --------------------------------------------------------------------------------------------
+
+def test_windows_of_a_delayed_case_on_an_offset_time_axis_are_rederived(project, tmp_path):
+    dst = copy_project(project, tmp_path / "p", "data/raw/mini-raw")
+    csv = dst / "data/raw/mini-raw/T03.csv"
+    table = pd.read_csv(csv, dtype=str)
+    table["time_s"] = (table["time_s"].astype(float) + 7.3).map("{:.10g}".format)   # time axis offset
+    for column in ("disp_mm", "force_kN"):                                          # 150 ms actuator delay
+        values = table[column].tolist()
+        table[column] = values[:1] * 3 + values[:-3]
+    csv.write_text(table.to_csv(index=False), encoding="utf-8")
+    with cwd(dst):
+        root = Path("results/mini-raw")
+        ingest_campaign(Path("data/raw/mini-raw"), root)
+        write_validated(root, sample_rate_tolerance=0.05)
+        write_parquet(windows_stage(root, SPEC_W), root / "windows.parquet")
+    t03 = pd.read_parquet(dst / "results/mini-raw/cases.parquet").set_index("case").loc["T03"]
+    assert t03["status"] == "ok" and t03["delay_s"] == pytest.approx(0.15, abs=0.005)
+    assert t03["motion_start_s"] == pytest.approx(7.45, abs=0.005) and "time axis offset" in t03["quality"]
+    result = run(dst / "results/mini-raw/windows.parquet", "case=T03,segment=2")
+    assert result.status == tr.MATCH, result.text
+    assert f"plan t = 0 at record t = {t03['motion_start_s']:.6g} s" in result.text
+    assert f"delay {t03['delay_s'] * 1e3:.4g} ms after the first sample" in result.text
+    result = run(dst / "results/mini-raw/cases.parquet", "case=T03")
+    assert result.status == tr.MATCH, result.text
+    assert "motion_start_s" in result.text and "delay_s" in result.text

@@ -1,39 +1,56 @@
 """Sim-to-real gap diagnosis: where the gap lies, which unmodelled effect causes it, how far it shrinks.
 
-Output contract: shared/spec/diagnosis-output.md (schema: workflow/schemas/diagnosis.schema.json).
+Output contract: shared/spec/diagnosis-output.md, version 1.1 (schema: diagnosis.schema.json,
+package data beside this module).
 
 Data. The *observations* of a campaign are, for every status-ok triangle case and each of its four
 half-periods, the steady window of the characteristic (mean force over [start, end]·T/2) and
 ``n_bins`` *transient bins* that split the part before the window, [0, start]·T/2, into equal
-times (the relaxation after each velocity reversal that the windows leave out). Each observation
-has a standard error σ: for a window, the window's force standard deviation over √n; for a bin,
-the standard deviation of its segment's window over √n_bin (the force noise there is at most the
-window's, which sits at the segment's largest |F|); both combined with a repeatability term
-``rep_rel·|F|``, the period-to-period scatter beyond window noise pooled over the campaign (the
-median over case/direction pairs, so that a few pairs whose periods differ for physical reasons,
-e.g. a first half-period that starts from rest, do not inflate it).
+times (the relaxation after each velocity reversal that the windows leave out). All times are
+*plan times*: record time minus the case's measured motion start (``motion_start_s`` of
+cases.parquet), so windows and bins sit where the piston really moved, whatever the actuator
+delay or the time axis' origin.
 
-Model. The nominal damper of ``campaign.json`` (no effects) simulated noise-free through the
-same cases on the plan's sample grid (k/fs), reduced over the same sample ranges; a candidate adds
-effects with fitted parameters. Simulation: :func:`virtual_rig.triangle_responses` (Eq. 13-14).
+Noise. Each observation's standard error combines (a) the variance of a mean of n consecutive
+samples under the campaign's pooled force-noise model (:mod:`isokinetic.noise`: white plus
+first-order coloured noise with an additive and a force-proportional part, fitted to the windows'
+variograms, so autocorrelated noise is not mistaken for signal) at the observation's mean square
+force, and (b) a between-period scatter ``rep_rel·|F|``, the period-to-period difference of the
+window means beyond (a), estimated robustly and consistently (:func:`noise.between_period_scatter`).
+
+Model. The nominal damper of ``campaign.json`` simulated noise-free through each case *driven by
+its measured kinematics* (:class:`virtual_rig.Drive`: the measured speed of each half-period, on
+the measured samples' plan times), reduced over the same samples; a candidate adds damper effects
+with fitted parameters. Simulation: :func:`virtual_rig.triangle_responses` (Eq. 13-14).
+
+Instrument terms. The load cell reads F_meas = g·F + F_0: a gain g (|g - 1| <= GAIN_BOUND) and a
+zero offset F_0 (|F_0| <= OFFSET_BOUND_REL of the largest window force) are profiled out of every
+fit in closed form (bounded weighted least squares). The actuator delay is measured, not fitted:
+the median over cases of ``delay_s`` (motion start minus the record's first time stamp). They are
+reported under ``instrument`` and never count as damper effects; a term is reported (non-null)
+only where a likelihood-ratio test at ``alpha`` needs it.
 
 Gap metric ``rms_z``. Root mean square over the characteristic points (windows) of
 z = (F_measured - F_model)/σ. A model that explains the data to within noise gives rms_z ≈ 1.
 
 Candidates. Each effect of :data:`EFFECTS` alone (one parameter each), every pair, then, while
-nothing explains, the :data:`BEAM` best candidates of the largest size extended by one more effect. Each is fitted with bounded
-least squares (scipy ``least_squares``, 'trf') on the period-1 observations (segments 1-2, windows
-and transient bins) and scored on period 2 (segments 3-4), which the fit did not see:
-``score`` = χ²(period 2) + k·ln(n_fit) (lower is better; k parameters). A candidate *explains* the
-gap when both its fit χ² (n_fit - k degrees of freedom) and its holdout χ² (n_holdout) are
-consistent with noise at level ``alpha``. The verdict is the smallest explaining set with the
-best score; ``[]`` when the nominal model already explains all observations. Explaining
-candidates of the verdict's size whose score is within ``CONFOUNDED_SCORE`` of the best are listed
-as ``confounded``: the data cannot tell them apart. Identifiability of the verdict's parameters is
-reported from the Fisher information JᵀJ of the fit (standard errors, correlation). When no
+nothing explains, the :data:`BEAM` best candidates of the largest size extended by one more effect;
+a size is tried only while no smaller set explains (none when the nominal model does). Coulomb
+friction, like the load-cell terms, is linear in the means and profiled in closed form
+(:class:`LinearTerms`); the other effects are fitted.
+Each is fitted with bounded least squares (scipy ``least_squares``, 'trf') on the period-1
+observations (segments 1-2, windows and transient bins) and scored on period 2 (segments 3-4),
+which the fit did not see: ``score`` = χ²(period 2) + k·ln(n_fit) (lower is better; k parameters,
+instrument terms included). A candidate *explains* the gap when both its fit χ² (n_fit - k degrees
+of freedom) and its holdout χ² (n_holdout) are consistent with noise at level ``alpha``. The
+verdict is the smallest explaining set with the best score; ``[]`` when the nominal model (with the
+instrument terms) already explains all observations. Explaining candidates of the verdict's size
+whose score is within ``CONFOUNDED_SCORE`` of the best are listed as ``confounded``, and so is a
+load-cell gain that discharge and viscosity together explain as well (or the reverse). When no
 candidate explains the gap, the verdict is the candidate with the best overdispersed score
 (:func:`overdispersed_score`), ``explained`` is false and a note says the gap lies outside the
-catalogue.
+catalogue. A fit that fails is listed under ``failed_fits`` with its reason; a campaign that cannot
+be diagnosed at all still gets a diagnosis.json with ``status: failed`` and the reason.
 """
 
 from __future__ import annotations
@@ -44,7 +61,8 @@ import logging
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from importlib import resources
 from pathlib import Path
 
 import numpy as np
@@ -53,28 +71,43 @@ from scipy import optimize, stats
 
 from .campaign import case_plan
 from .damper import AIR_COMPRESSIBILITY_1_PA, NOMINAL, Damper, Effects, friction_force, laminar_coefficient
+from .nominal import grid_offset, motion_start
+from .noise import between_period_scatter, fit_noise_model, scaled_chi2_sf
 from .plan import CasePlan
-from .virtual_rig import Hydraulics, triangle_responses
+from .virtual_rig import Drive, Hydraulics, drive_times, triangle_responses
 from .windows import WindowSpec, windowed_half_periods
 
 log = logging.getLogger("isokinetic.diagnosis")
 
 FORMAT_VERSION = 1
+CONTRACT_VERSION = "1.1"
 METRIC = "rms_z"
 #: The candidate effects, in the contract's names.
 EFFECTS = ("friction", "leakage", "asymmetry", "discharge", "viscosity", "air")
+#: Instrument terms profiled out of every fit (load cell): F_meas = gain·F + offset.
+INSTRUMENT = ("force_offset", "force_gain")
+#: Largest load-cell gain error |g - 1| a calibrated load cell is allowed.
+GAIN_BOUND = 0.02
+#: Largest load-cell zero offset, as a fraction of the largest window force |F|.
+OFFSET_BOUND_REL = 0.05
 #: Significance level: a χ² with a smaller p-value is not noise.
 ALPHA = 1e-3
 #: Score difference (χ² units) within which two explaining candidates count as confounded.
 CONFOUNDED_SCORE = 10.0
-#: Relative tolerance on cost and parameters at which a fit stops: 1e-6 of a parameter is far
-#: below its statistical uncertainty, and the χ² changes by less than 1e-6 of itself.
-FIT_TOL = 1e-6
+#: Relative tolerance on cost and parameters at which a search fit stops: 1e-3 of a χ² or of a
+#: parameter is far below what ranks candidates or matters against the parameter's uncertainty.
+FIT_TOL = 1e-3
+#: Tolerance of the verdict's final (polishing) fit, whose parameters are reported.
+POLISH_TOL = 1e-6
 #: Candidates of each size extended by one more effect while nothing explains the gap.
 BEAM = 3
+#: Panel width of the model's segment tables (virtual_rig.DEFAULT_STEP is 0.03): error ~1e-8 of the
+#: pressure scale, far below any window's noise, with about half the nodes.
+MODEL_STEP = 0.06
 #: |z| of a characteristic point beyond which it is not explained by noise (for ``where``).
 Z_SIGNIFICANT = 3.0
-SCHEMA_PATH = Path(__file__).resolve().parents[2] / "workflow" / "schemas" / "diagnosis.schema.json"
+#: The diagnosis.json schema, shipped as package data beside this module.
+SCHEMA_RESOURCE = "diagnosis.schema.json"
 #: Inputs of a diagnosis, relative to results/<campaign>/ (named in its ``sources`` key).
 CHARACTERISTIC_FILE = "characteristic.parquet"
 CASES_FILE = "cases.parquet"
@@ -89,7 +122,7 @@ class Observations:
     """Measured window and transient-bin means of a campaign, with the model's sample ranges."""
 
     campaign: str
-    plans: tuple[CasePlan, ...]   # simulated plans, cut to the last sample needed
+    plans: tuple[CasePlan, ...]   # simulated plans (plan time), cut to the last sample needed
     case: np.ndarray              # case id per observation
     case_index: np.ndarray        # index into plans
     kind: np.ndarray              # 'window' | 'transient'
@@ -101,7 +134,9 @@ class Observations:
     stop: np.ndarray
     force_N: np.ndarray
     sigma_N: np.ndarray
-    rep_rel: float                # pooled relative repeatability scatter
+    rep_rel: float                # between-period relative scatter beyond the noise model
+    drives: tuple[Drive | None, ...] = ()
+    noise: dict = field(default_factory=dict)   # the pooled noise model(s), for the report
 
     def __len__(self) -> int:
         return int(self.force_N.size)
@@ -115,59 +150,72 @@ class Observations:
         keep = np.flatnonzero(mask)
         used = sorted(set(self.case_index[keep].tolist()))
         remap = {old: new for new, old in enumerate(used)}
-        plans = []
+        plans, drives = [], []
         for old in used:
             rows = keep[self.case_index[keep] == old]
             plan = self.plans[old]
-            plans.append(replace(plan, duration_s=int(self.stop[rows].max()) / plan.sample_rate_Hz))
-        fields = {name: getattr(self, name)[keep] for name in ("case", "kind", "segment", "period", "sign",
-                                                               "speed_m_s", "start", "stop", "force_N", "sigma_N")}
+            drive = self.drives[old] if self.drives else None
+            offset = 0.0 if drive is None else drive.grid_offset_s
+            plans.append(replace(plan, duration_s=offset + (int(self.stop[rows].max()) - 1) / plan.sample_rate_Hz))
+            drives.append(drive)
+        fields_ = {name: getattr(self, name)[keep] for name in ("case", "kind", "segment", "period", "sign",
+                                                                "speed_m_s", "start", "stop", "force_N", "sigma_N")}
         return Observations(campaign=self.campaign, plans=tuple(plans), rep_rel=self.rep_rel,
                             case_index=np.array([remap[i] for i in self.case_index[keep]], dtype=np.int64),
-                            **fields)
+                            drives=tuple(drives) if self.drives else (), noise=self.noise, **fields_)
 
 
-def repeatability_scatter(char: pd.DataFrame) -> float:
-    """Pooled relative period-to-period scatter beyond window noise (one measurement, 1 σ).
-
-    For each case and direction q = (d² - se1² - se2²) / (2 F̄²), d = F2 - F1, se = std/√n;
-    returns sqrt(max(0, median q)).
-    """
-    if char.empty:
-        return 0.0
-    se = char["force_std_N"] / np.sqrt(char["n_samples"])
-    wide = char.assign(se=se).pivot_table(index=["case", "direction"], columns="period",
-                                          values=["force_N", "se"], aggfunc="first").dropna()
-    if wide.empty:
-        return 0.0
-    d = wide[("force_N", 2)] - wide[("force_N", 1)]
-    mean = 0.5 * (wide[("force_N", 1)].abs() + wide[("force_N", 2)].abs())
-    q = (d**2 - wide[("se", 1)] ** 2 - wide[("se", 2)] ** 2) / (2.0 * mean**2)
-    return float(math.sqrt(max(0.0, float(np.median(q)))))
+def case_drive(char_rows: pd.DataFrame, first_time_s: float, start_s: float, fs: float) -> Drive | None:
+    """The measured drive of one case: |velocity| of its windows 1-4, the plan time of its first sample."""
+    rows = char_rows.sort_index()
+    speeds = tuple(float(abs(v)) for v in rows["velocity_m_s"])
+    if len(speeds) != 4 or not all(math.isfinite(v) and v > 0 for v in speeds):
+        return None
+    return Drive(speeds, grid_offset(first_time_s, start_s, fs))
 
 
 def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
                        load_series: Callable[[pd.Series], pd.DataFrame], spec: WindowSpec = WindowSpec(),
-                       n_bins: int = 4) -> Observations:
-    """Windows (from the characteristic) and transient bins (from the series) of every triangle case."""
-    rep_rel = repeatability_scatter(char)
+                       n_bins: int = 4, force_offset_N: float = 0.0,
+                       unsteady: frozenset = frozenset()) -> Observations:
+    """Windows and transient bins of every triangle case, in plan time, with honest standard errors.
+
+    Measured means are taken from the case's series over [a, b) in plan time (record time minus
+    ``motion_start_s``), the model's over the same plan-time interval of its driven grid, so both
+    use the same samples. The proportional part of the noise scales with the true force, so the
+    noise model sees the samples less a known load-cell offset ``force_offset_N``, and only the
+    windows not named (case, segment) in ``unsteady`` (:func:`prepare` finds both first).
+    """
     by_case = {c: g.set_index("segment") for c, g in char.groupby("case")}
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle") & cases["case"].isin(by_case)]
     cols: dict[str, list] = {k: [] for k in ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s",
-                                             "start", "stop", "force_N", "sigma_N")}
-    plans = []
+                                             "start", "stop", "force_N", "msq_N2", "n", "fs", "white_se2")}
+    plans, drives, window_samples, all_windows = [], [], {}, {}
     for _, row in ok.iterrows():
         plan = case_plan(row)
         series = load_series(row)
+        start_s = motion_start(row)
         t = series["time_s"].to_numpy()
+        tau = t - start_s
         f = series["force_N"].to_numpy()
         fs = plan.sample_rate_Hz
         half = plan.period_s / 2.0
-        segs = windowed_half_periods(plan, float(t[-1]), spec)
         win = by_case[plan.case]
+        if sorted(win.index) != [1, 2, 3, 4]:
+            continue
+        drive = case_drive(win, float(t[0]), start_s, fs)
+        full = replace(plan, duration_s=float(tau[-1]))
+        tm = drive_times(full, drive)
+        segs = windowed_half_periods(plan, float(tau[-1]), spec)
         last = 0
 
-        def add(kind, k, sign, i0, i1, force, sigma):
+        def add(kind, k, sign, a, b):
+            m0, m1 = np.searchsorted(tau, [a, b], side="left")
+            j0, j1 = np.searchsorted(tm, [a, b], side="left")
+            if m1 - m0 < 2 or j1 - j0 < 2:
+                return 0
+            fw = f[m0:m1]
+            fn = fw - force_offset_N
             cols["case"].append(plan.case)
             cols["case_index"].append(len(plans))
             cols["kind"].append(kind)
@@ -175,32 +223,72 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
             cols["period"].append((k + 1) // 2)
             cols["sign"].append(sign)
             cols["speed_m_s"].append(plan.velocity_m_s)
-            cols["start"].append(i0)
-            cols["stop"].append(i1)
-            cols["force_N"].append(force)
-            cols["sigma_N"].append(sigma)
+            cols["start"].append(int(j0))
+            cols["stop"].append(int(j1))
+            cols["force_N"].append(float(fw.mean()))
+            cols["msq_N2"].append(float(np.mean(fn * fn)))
+            cols["n"].append(int(m1 - m0))
+            cols["fs"].append(fs)
+            if kind == "window":
+                all_windows.setdefault(fs, []).append(fn)
+                if (plan.case, k) not in unsteady:
+                    window_samples.setdefault(fs, []).append(fn)
+            cols["white_se2"].append(float(np.var(fw, ddof=1)) / fw.size)
+            return int(j1)
 
         for k, (t0, _t1, sign) in enumerate(segs, start=1):
-            w = win.loc[k]
-            noise = float(w["force_std_N"])
-            i0 = int(round(float(w["window_start_s"]) * fs))
-            i1 = int(round(float(w["window_end_s"]) * fs)) + 1
-            add("window", k, sign, i0, i1, float(w["force_N"]),
-                math.hypot(noise / math.sqrt(float(w["n_samples"])), rep_rel * float(w["force_N"])))
-            last = max(last, i1)
+            # the window's end is closed (as windows.window_ranges): one step past it, half a sample
+            last = max(last, add("window", k, sign, t0 + spec.start_fraction * half,
+                                 t0 + spec.end_fraction * half + 0.5 / fs))
             edges = t0 + np.linspace(0.0, spec.start_fraction * half, n_bins + 1)
             for a, b in zip(edges[:-1], edges[1:]):
-                m0, m1 = np.searchsorted(t, a, side="left"), np.searchsorted(t, b, side="left")
-                j0, j1 = int(math.ceil(a * fs - 1e-9)), int(math.ceil(b * fs - 1e-9))
-                if m1 - m0 < 2 or j1 - j0 < 2:
-                    continue
-                mean = float(f[m0:m1].mean())
-                add("transient", k, sign, j0, j1, mean, math.hypot(noise / math.sqrt(m1 - m0), rep_rel * mean))
-        plans.append(replace(plan, duration_s=last / fs))
-    ints = ("case_index", "segment", "period", "start", "stop")
+                add("transient", k, sign, a, b)
+        plans.append(replace(plan, duration_s=float(tm[max(last - 1, 0)])))
+        drives.append(drive)
+    ints = ("case_index", "segment", "period", "start", "stop", "n")
     arrays = {k: np.asarray(v, dtype=np.int64 if k in ints else (object if k in ("case", "kind") else float))
               for k, v in cols.items()}
-    return Observations(campaign=campaign, plans=tuple(plans), rep_rel=rep_rel, **arrays)
+    se2, noise = _noise_variances({**all_windows, **window_samples}, arrays)
+    # a floor where the noise model has nothing (constant, quantised windows): the samples' own scatter
+    floor = np.maximum(arrays["white_se2"], (1e-9 * np.abs(arrays["force_N"]) + 1e-9) ** 2)
+    se2 = np.where(se2 > 0.0, se2, floor)
+    force = arrays["force_N"]
+    rep_rel = _between_period(arrays, se2)
+    sigma = np.sqrt(se2 + (rep_rel * force) ** 2)
+    keep = {k: arrays[k] for k in ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s", "start",
+                                   "stop", "force_N")}
+    return Observations(campaign=campaign, plans=tuple(plans), drives=tuple(drives), rep_rel=rep_rel,
+                        sigma_N=sigma, noise={**noise, "between_period_rel": rep_rel}, **keep)
+
+
+def _noise_variances(window_samples: Mapping[float, list], arrays: Mapping[str, np.ndarray]) -> tuple[np.ndarray, dict]:
+    """Variance of every observation's mean under the pooled noise model of its sample rate."""
+    se2 = np.zeros(arrays["force_N"].size)
+    rel_sd = np.zeros(arrays["force_N"].size)
+    models, objects = {}, {}
+    for fs, samples in window_samples.items():
+        model = fit_noise_model(samples, fs)
+        at = arrays["fs"] == fs
+        se2[at] = model.mean_variance(arrays["n"][at], arrays["msq_N2"][at])
+        if model.param_cov is not None:
+            rel_sd[at] = model.mean_variance_rel_sd(arrays["n"][at], arrays["msq_N2"][at])
+        models[f"{fs:g}"] = {k: v for k, v in model.to_dict().items() if k != "param_cov"}
+        objects[fs] = model
+    scale = float(np.mean(np.clip(rel_sd, 0.0, 2.0))) if rel_sd.size else 0.0
+    return se2, {"model": models, "objects": objects, "scale_rel_sd": scale}
+
+
+def _between_period(arrays: Mapping[str, np.ndarray], se2: np.ndarray) -> float:
+    """Between-period relative scatter of the window means beyond their noise variance."""
+    win = arrays["kind"] == "window"
+    df = pd.DataFrame({"case": arrays["case"][win], "sign": arrays["sign"][win], "period": arrays["period"][win],
+                       "force": arrays["force_N"][win], "se2": se2[win]})
+    wide = df.pivot_table(index=["case", "sign"], columns="period", values=["force", "se2"], aggfunc="first").dropna()
+    if wide.empty:
+        return 0.0
+    d = (wide[("force", 2)] - wide[("force", 1)]).to_numpy()
+    mean = 0.5 * (wide[("force", 1)].abs() + wide[("force", 2)].abs()).to_numpy()
+    return float(between_period_scatter(d, (wide[("se2", 1)] + wide[("se2", 2)]).to_numpy(), mean))
 
 
 class Evaluator:
@@ -209,7 +297,8 @@ class Evaluator:
     def __init__(self, obs: Observations, damper: Damper):
         self.obs = obs
         self.damper = damper
-        sizes = np.array([int(round(p.duration_s * p.sample_rate_Hz)) + 1 for p in obs.plans], dtype=np.int64)
+        drives = obs.drives or (None,) * len(obs.plans)
+        sizes = np.array([drive_times(p, d).size for p, d in zip(obs.plans, drives)], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes + 1)])  # +1: a leading zero per case in the cumsum
         self._lo = offsets[obs.case_index] + obs.start
         self._hi = offsets[obs.case_index] + obs.stop
@@ -218,14 +307,73 @@ class Evaluator:
 
     def predict(self, effects: Effects = NOMINAL) -> np.ndarray:
         """Model mean force of every observation [N] (Eq. 8 with Δp from Eq. 13-14)."""
+        return self._moments(effects, 1)[0]
+
+    def spread(self, effects: Effects = NOMINAL) -> np.ndarray:
+        """Standard deviation of the model force over each observation's samples [N]: how far the
+        window is from steady (a window that starts before convergence, Eq. 28-29, is not)."""
+        mean, square = self._moments(effects, 2)
+        return np.sqrt(np.maximum(square - mean * mean, 0.0))
+
+    def _moments(self, effects: Effects, order: int) -> list[np.ndarray]:
         self.calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
-        parts = []
-        for _t, dp, vel in triangle_responses(self.obs.plans, hyd, 0.0):
+        parts = [[] for _ in range(order)]
+        drives = self.obs.drives if self.obs.drives else None
+        for _t, dp, vel in triangle_responses(self.obs.plans, hyd, 0.0, MODEL_STEP, drives):
             force = hyd.piston_area_m2 * dp + friction_force(vel, effects)
-            parts.append(np.concatenate([[0.0], np.cumsum(force)]))
-        cs = np.concatenate(parts)
-        return (cs[self._hi] - cs[self._lo]) / self._n
+            for k in range(order):
+                parts[k].append(np.concatenate([[0.0], np.cumsum(force ** (k + 1))]))
+        out = []
+        for k in range(order):
+            cs = np.concatenate(parts[k])
+            out.append((cs[self._hi] - cs[self._lo]) / self._n)
+        return out
+
+
+# ----------------------------------------------------------------------------------------------
+# instrument terms
+# ----------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LinearTerms:
+    """Terms linear in the measured means, profiled out of every fit in closed form.
+
+    F_meas = g·(m + F_C·s) + F_0 with m the hydraulic model (Eq. 8 without friction), s = ±1 the
+    observation's direction (Coulomb friction, Eq. 8's F_f, is sign(v)·F_C over a constant-velocity
+    segment), g the load-cell gain, F_0 its zero offset. Solved as bounded weighted linear least
+    squares in (g, g·F_C, F_0) (scipy ``lsq_linear``). ``free`` names the instrument terms fitted
+    (others fixed at g = 1, F_0 = 0).
+    """
+
+    free: tuple[str, ...] = INSTRUMENT
+    offset_bound_N: float = 0.0
+    gain_bound: float = GAIN_BOUND
+    friction_bound_N: float = math.inf
+
+    def solve(self, force_N: np.ndarray, model_N: np.ndarray, sign: np.ndarray, weight: np.ndarray,
+              friction: bool) -> tuple[float, float, float]:
+        """(gain, coulomb_force_N, offset_N) minimising Σ w (F - g (m + F_C s) - F_0)² within the bounds."""
+        root_w = np.sqrt(weight)
+        y = force_N.copy()
+        cols, lo, hi, names = [], [], [], []
+        if "force_gain" in self.free:
+            cols.append(model_N), lo.append(1.0 - self.gain_bound), hi.append(1.0 + self.gain_bound), names.append("g")
+        else:
+            y = y - model_N
+        if friction:
+            cols.append(sign), lo.append(0.0), hi.append((1.0 + self.gain_bound) * self.friction_bound_N)
+            names.append("c")
+        if "force_offset" in self.free and self.offset_bound_N > 0:
+            cols.append(np.ones_like(y)), lo.append(-self.offset_bound_N), hi.append(self.offset_bound_N)
+            names.append("o")
+        if not cols:
+            return 1.0, 0.0, 0.0
+        a = np.column_stack(cols) * root_w[:, None]
+        sol = optimize.lsq_linear(a, y * root_w, bounds=(lo, hi), method="bvls").x
+        v = dict(zip(names, sol))
+        g = float(v.get("g", 1.0))
+        return g, float(v.get("c", 0.0)) / g, float(v.get("o", 0.0))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -263,8 +411,10 @@ class Parametrisation:
                 "discharge": [0.2, -0.2], "viscosity": [0.2, -0.2], "air": [0.05, 5.0]}[effect]
 
     def si(self, effect: str, x: float) -> tuple[str, float]:
-        """(SI parameter name, value) of an optimiser value."""
+        """(SI parameter name, value) of an optimiser value (clipped to the effect's bounds)."""
         d = self.damper
+        lo, hi = self.bounds(effect)
+        x = min(max(float(x), lo), hi)
         return {"friction": ("coulomb_force_N", x * self.force_ref_N),
                 "leakage": ("leakage_conductance_m3_s_Pa", x / self._c1),
                 "asymmetry": ("asymmetry", x),
@@ -283,9 +433,9 @@ class Parametrisation:
 @dataclass(frozen=True)
 class Candidate:
     effects: tuple[str, ...]
-    x: np.ndarray
+    x: np.ndarray                   # optimiser values in ``effects`` order (friction: F_C / F_ref)
     params: dict
-    prediction: np.ndarray
+    prediction: np.ndarray          # the damper model, before the instrument terms
     chi2_fit: float
     chi2_holdout: float
     n_fit: int
@@ -294,22 +444,40 @@ class Candidate:
     holdout_gap_after: float
     score: float
     explained: bool
-    jacobian: np.ndarray
+    instrument: tuple[str, ...] = INSTRUMENT   # instrument terms free in the fit
+    gain: float = 1.0
+    offset_N: float = 0.0
+
+    @property
+    def k(self) -> int:
+        """Fitted parameters: damper effects plus free instrument terms."""
+        return len(self.effects) + len(self.instrument)
+
+    @property
+    def measured_prediction(self) -> np.ndarray:
+        """What the load cell would read: gain·F_model + offset."""
+        return self.gain * self.prediction + self.offset_N
 
     def to_dict(self) -> dict:
         return {"effects": list(self.effects), "params": self.params, "gap_after": self.gap_after,
                 "holdout_gap_after": self.holdout_gap_after, "score": self.score, "explained": self.explained,
                 "chi2_fit": self.chi2_fit, "chi2_holdout": self.chi2_holdout, "n_fit": self.n_fit,
-                "n_holdout": self.n_holdout}
+                "n_holdout": self.n_holdout,
+                "instrument": {"force_gain": self.gain if "force_gain" in self.instrument else None,
+                               "force_offset_N": self.offset_N if "force_offset" in self.instrument else None}}
 
 
 def rms(z: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.square(z)))) if z.size else float("nan")
 
 
-def consistent_with_noise(chi2: float, dof: int, alpha: float = ALPHA) -> bool:
-    """χ² test: True when a χ² this large has probability >= alpha under noise alone."""
-    return dof > 0 and float(stats.chi2.sf(chi2, dof)) >= alpha
+def consistent_with_noise(chi2: float, dof: int, alpha: float = ALPHA, scale_rel_sd: float = 0.0) -> bool:
+    """χ² test: True when a χ² this large has probability >= alpha under noise alone.
+
+    ``scale_rel_sd``: relative uncertainty of the noise model's variance scale, common to all the
+    z in the sum (:func:`noise.scaled_chi2_sf`); 0 for a plain χ² test.
+    """
+    return dof > 0 and math.isfinite(chi2) and scaled_chi2_sf(chi2, dof, scale_rel_sd) >= alpha
 
 
 class Diagnoser:
@@ -321,68 +489,142 @@ class Diagnoser:
         self.alpha = alpha
         windows = np.abs(obs.force_N[obs.is_window])
         self.param = Parametrisation(damper, float(np.median(windows)) if windows.size else 1.0)
+        self.linear = LinearTerms(offset_bound_N=OFFSET_BOUND_REL * float(windows.max()) if windows.size else 0.0,
+                                  friction_bound_N=self.param.bounds("friction")[1] * self.param.force_ref_N)
+        self.weight = 1.0 / obs.sigma_N**2
         self.fit_mask = obs.period == 1
         self.hold_mask = obs.period == 2
         self.fit_obs = obs.subset(self.fit_mask)   # period 1: simulated only up to its last sample
         self.fit_evaluator = Evaluator(self.fit_obs, damper)
         self.nominal = self.evaluator.predict(NOMINAL)
+        self.scale_rel_sd = float(obs.noise.get("scale_rel_sd", 0.0))
+        self.failed: list[dict] = []
 
     def z(self, prediction: np.ndarray) -> np.ndarray:
         return (self.obs.force_N - prediction) / self.obs.sigma_N
 
-    def _residuals(self, names: Sequence[str]):
-        obs = self.fit_obs
+    def terms(self, instrument: Sequence[str]) -> LinearTerms:
+        return replace(self.linear, free=tuple(instrument))
+
+    def _residuals(self, nonlinear: Sequence[str], friction: bool, terms: LinearTerms):
+        obs, w = self.fit_obs, 1.0 / self.fit_obs.sigma_N**2
 
         def fun(x):
-            return (obs.force_N - self.fit_evaluator.predict(self.param.effects(names, x))) / obs.sigma_N
+            m = self.fit_evaluator.predict(self.param.effects(nonlinear, x))
+            g, fc, o = terms.solve(obs.force_N, m, obs.sign, w, friction)
+            return (obs.force_N - g * (m + fc * obs.sign) - o) / obs.sigma_N
         return fun
 
-    def fit(self, names: Sequence[str], starts: Sequence[Sequence[float]]) -> Candidate:
-        """Best of bounded least-squares fits from the given starting points."""
-        lower, upper = zip(*(self.param.bounds(n) for n in names))
-        fun = self._residuals(names)
-        best = None
+    def fit(self, names: Sequence[str], starts: Sequence[Sequence[float]],
+            instrument: Sequence[str] = INSTRUMENT, tol: float = FIT_TOL) -> Candidate | None:
+        """Best of bounded least-squares fits of the nonlinear effects from the given starting points
+        (one value per effect of ``names`` other than friction, which is profiled with the instrument
+        terms); None (and a record in ``failed``) when no fit succeeds."""
+        names = tuple(names)
+        terms = self.terms(instrument)
+        nonlinear = tuple(n for n in names if n != "friction")
+        friction = "friction" in names
+        if not nonlinear:
+            return self._guarded(names, nonlinear, np.empty(0), terms)
+        lower, upper = zip(*(self.param.bounds(n) for n in nonlinear))
+        fun = self._residuals(nonlinear, friction, terms)
+        best, errors = None, []
         for x0 in starts:
             x0 = np.clip(np.asarray(x0, dtype=float), np.asarray(lower) + 1e-12, np.asarray(upper) - 1e-12)
             try:
-                res = optimize.least_squares(fun, x0, bounds=(lower, upper), method="trf", x_scale="jac",
-                                             diff_step=1e-6, ftol=FIT_TOL, xtol=FIT_TOL, max_nfev=60 * len(names))
-            except (ValueError, FloatingPointError) as exc:  # e.g. a stroke that empties a chamber
-                log.warning("campaign %s: fit of %s from %s failed: %s", self.obs.campaign, names, x0, exc)
+                with np.errstate(over="raise", invalid="raise", divide="raise"):
+                    res = optimize.least_squares(fun, x0, bounds=(lower, upper), method="trf", x_scale="jac",
+                                                 diff_step=1e-6, ftol=tol, xtol=tol,
+                                                 max_nfev=40 * len(nonlinear))
+            except (ValueError, FloatingPointError, ArithmeticError, np.linalg.LinAlgError) as exc:
+                errors.append(f"from {np.round(x0, 6).tolist()}: {type(exc).__name__}: {exc}")
+                continue
+            if not np.all(np.isfinite(res.fun)):
+                errors.append(f"from {np.round(x0, 6).tolist()}: non-finite residuals")
                 continue
             if best is None or res.cost < best.cost:
                 best = res
         if best is None:
-            raise RuntimeError(f"campaign {self.obs.campaign}: no fit of {list(names)} converged")
-        return self._score(tuple(names), best.x, best.jac)
+            log.warning("campaign %s: no fit of %s converged: %s", self.obs.campaign, list(names), "; ".join(errors))
+            self.failed.append({"effects": list(names), "instrument": list(instrument),
+                                "reason": "; ".join(errors) or "no starting point"})
+            return None
+        return self._guarded(names, nonlinear, best.x, terms)
 
-    def _score(self, names: tuple[str, ...], x: np.ndarray, jac: np.ndarray) -> Candidate:
-        pred = self.evaluator.predict(self.param.effects(names, x))
-        z = self.z(pred)
+    def _guarded(self, names, nonlinear, x, terms) -> Candidate | None:
+        try:
+            with np.errstate(over="raise", invalid="raise", divide="raise"):
+                return self._score(names, nonlinear, x, terms)
+        except (ValueError, FloatingPointError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            self.failed.append({"effects": list(names), "instrument": list(terms.free),
+                                "reason": f"scoring failed: {type(exc).__name__}: {exc}"})
+            return None
+
+    def _score(self, names: tuple[str, ...], nonlinear: tuple[str, ...], x: np.ndarray,
+               terms: LinearTerms) -> Candidate:
+        hydraulic = self.evaluator.predict(self.param.effects(nonlinear, x)) if nonlinear else self.nominal
+        fm, sign = self.fit_mask, self.obs.sign
+        g, fc, o = terms.solve(self.obs.force_N[fm], hydraulic[fm], sign[fm], self.weight[fm], "friction" in names)
+        pred = hydraulic + fc * sign
+        z = self.z(g * pred + o)
         win = self.obs.is_window
-        chi2_fit = float(np.sum(z[self.fit_mask] ** 2))
+        chi2_fit = float(np.sum(z[fm] ** 2))
         chi2_hold = float(np.sum(z[self.hold_mask] ** 2))
-        n_fit, n_hold, k = int(self.fit_mask.sum()), int(self.hold_mask.sum()), len(names)
-        explained = (consistent_with_noise(chi2_fit, n_fit - k, self.alpha)
-                     and consistent_with_noise(chi2_hold, n_hold, self.alpha))
-        return Candidate(effects=names, x=np.asarray(x, dtype=float),
-                         params=dict(self.param.si(n, float(v)) for n, v in zip(names, x)),
+        n_fit, n_hold = int(fm.sum()), int(self.hold_mask.sum())
+        k = len(names) + len(terms.free)
+        eps = self.scale_rel_sd
+        explained = (consistent_with_noise(chi2_fit, n_fit - k, self.alpha, eps)
+                     and consistent_with_noise(chi2_hold, n_hold, self.alpha, eps))
+        values = dict(zip(nonlinear, np.asarray(x, dtype=float)))
+        values["friction"] = fc / self.param.force_ref_N
+        full_x = np.array([values[n] for n in names], dtype=float)
+        return Candidate(effects=names, x=full_x, params=dict(self.param.si(n, v) for n, v in zip(names, full_x)),
                          prediction=pred, chi2_fit=chi2_fit, chi2_holdout=chi2_hold, n_fit=n_fit, n_holdout=n_hold,
-                         gap_after=rms(z[win & self.fit_mask]), holdout_gap_after=rms(z[win & self.hold_mask]),
-                         score=chi2_hold + k * math.log(n_fit), explained=explained, jacobian=np.asarray(jac))
+                         gap_after=rms(z[win & fm]), holdout_gap_after=rms(z[win & self.hold_mask]),
+                         score=chi2_hold + k * math.log(n_fit), explained=explained,
+                         instrument=tuple(terms.free), gain=g, offset_N=o)
 
-    def nominal_explains(self) -> bool:
-        z = self.z(self.nominal)
-        return consistent_with_noise(float(np.sum(z**2)), len(z), self.alpha)
+    def refit(self, names: Sequence[str], instrument: Sequence[str], warm: Candidate | None = None,
+              tol: float = FIT_TOL) -> Candidate | None:
+        """Fit ``names`` with the instrument terms ``instrument``, warm-started from ``warm``."""
+        nonlinear = [n for n in names if n != "friction"]
+        x0 = [warm.x[warm.effects.index(n)] if warm is not None and n in warm.effects else self.param.starts(n)[0]
+              for n in nonlinear]
+        return self.fit(tuple(names), [x0], instrument, tol)
+
+    def nominal_p_value(self, instrument: Sequence[str] = INSTRUMENT) -> float:
+        """p-value of the χ² test of the nominal model with the instrument terms (fitted on all
+        observations): the probability of a χ² this large from noise alone."""
+        terms = self.terms(instrument)
+        g, _fc, o = terms.solve(self.obs.force_N, self.nominal, self.obs.sign, self.weight, False)
+        z = self.z(g * self.nominal + o)
+        dof = len(z) - len(terms.free)
+        return scaled_chi2_sf(float(np.sum(z**2)), dof, self.scale_rel_sd) if dof > 0 else 0.0
+
+    def nominal_explains(self, instrument: Sequence[str] = INSTRUMENT) -> bool:
+        """The nominal model with the instrument terms is within noise at level ``alpha``."""
+        return self.nominal_p_value(instrument) >= self.alpha
 
     def search(self) -> list[Candidate]:
-        """Singles, pairs (warm-started from the singles), then greedy extension while nothing explains."""
-        singles = {e: self.fit((e,), [[s] for s in self.param.starts(e)]) for e in EFFECTS}
-        found = list(singles.values())
-        for a, b in itertools.combinations(EFFECTS, 2):
-            found.append(self.fit((a, b), [[singles[a].x[0], singles[b].x[0]]]))
+        """Singles, then pairs (warm-started from the singles), then greedy extension of the BEAM best
+        of the largest size, each size only while no smaller set explains the gap (the verdict is the
+        smallest explaining set, so larger ones cannot change it)."""
+        singles = {e: self.fit((e,), [[s] for s in self.param.starts(e)] if e != "friction" else [[]])
+                   for e in EFFECTS}
+        found = [c for c in singles.values() if c is not None]
+        start = {e: (c.x[0] if c is not None else self.param.starts(e)[0]) for e, c in singles.items()}
+
+        def nonlinear_start(names, source=None):
+            return [[(source.x[source.effects.index(n)] if source is not None and n in source.effects else start[n])
+                     for n in names if n != "friction"]]
+
+        if not any(c.explained for c in found):
+            for pair in itertools.combinations(EFFECTS, 2):
+                c = self.fit(pair, nonlinear_start(pair))
+                if c is not None:
+                    found.append(c)
         size = 2
-        while not any(c.explained for c in found) and size < len(EFFECTS):
+        while found and not any(c.explained for c in found) and size < len(EFFECTS):
             bases = sorted((c for c in found if len(c.effects) == size), key=lambda c: c.score)[:BEAM]
             tried = set()
             for base in bases:
@@ -391,8 +633,9 @@ class Diagnoser:
                     if e in base.effects or names in tried:
                         continue
                     tried.add(names)
-                    x0 = [base.x[base.effects.index(n)] if n in base.effects else singles[n].x[0] for n in names]
-                    found.append(self.fit(names, [x0]))
+                    c = self.fit(names, nonlinear_start(names, base))
+                    if c is not None:
+                        found.append(c)
             size += 1
         return sorted(found, key=lambda c: (not c.explained, len(c.effects) if c.explained else 0, c.score))
 
@@ -402,28 +645,56 @@ def overdispersed_score(candidate: Candidate, candidates: Sequence[Candidate]) -
 
     ŝ² = min over candidates of χ²_fit/(n_fit - k), the noise inflation that the best model needs.
     """
-    s2 = min(c.chi2_fit / max(c.n_fit - len(c.effects), 1) for c in candidates)
-    return candidate.chi2_holdout / max(s2, 1.0) + len(candidate.effects) * math.log(candidate.n_fit)
+    s2 = min(c.chi2_fit / max(c.n_fit - c.k, 1) for c in candidates)
+    return candidate.chi2_holdout / max(s2, 1.0) + candidate.k * math.log(candidate.n_fit)
 
 
-def identifiability(candidate: Candidate, param: Parametrisation) -> dict:
-    """Standard errors (SI) and correlation of the parameters from the Fisher information JᵀJ."""
-    jac = candidate.jacobian
-    info = jac.T @ jac
+def identifiability(dg: Diagnoser, candidate: Candidate) -> dict:
+    """Standard errors (SI) and correlations of the effect parameters from the Fisher information JᵀJ.
+
+    J: derivatives of the fit residuals (period 1) with respect to every effect parameter (optimiser
+    units; friction analytic, the others by forward differences) and the free instrument terms, so
+    the standard errors account for the instrument terms fitted alongside.
+    """
+    fm = dg.fit_mask
+    sigma, sign = dg.obs.sigma_N[fm], dg.obs.sign[fm]
+    g = candidate.gain
+    cols = []
+    nonlinear = [n for n in candidate.effects if n != "friction"]
+    base = dict(zip(candidate.effects, candidate.x))
+    for name in candidate.effects:
+        if name == "friction":
+            cols.append(-g * sign * dg.param.force_ref_N / sigma)
+            continue
+        h = 1e-6 * max(1.0, abs(base[name]))
+        shifted = dict(base, **{name: base[name] + h})
+        m = dg.evaluator.predict(dg.param.effects(nonlinear, [shifted[n] for n in nonlinear]))[fm]
+        m0 = candidate.prediction[fm] - base.get("friction", 0.0) * dg.param.force_ref_N * sign
+        cols.append(-g * (m - m0) / h / sigma)
+    if "force_gain" in candidate.instrument:
+        cols.append(-candidate.prediction[fm] / sigma)
+    if "force_offset" in candidate.instrument:
+        cols.append(-1.0 / sigma)
+    if not candidate.effects:
+        return {"identifiable": True, "parameters": {}}
+    jac = np.column_stack(cols)
     try:
-        cov = np.linalg.inv(info)
+        cov = np.linalg.inv(jac.T @ jac)
     except np.linalg.LinAlgError:
         return {"identifiable": False, "reason": "singular Fisher information"}
+    if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0):
+        return {"identifiable": False, "reason": "ill-conditioned Fisher information"}
     out: dict = {"identifiable": True, "parameters": {}}
     for i, name in enumerate(candidate.effects):
         x, sx = float(candidate.x[i]), float(math.sqrt(max(cov[i, i], 0.0)))
-        key, value = param.si(name, x)
-        _, shifted = param.si(name, x + sx)
+        key, value = dg.param.si(name, x)
+        _, shifted = dg.param.si(name, x + sx)
         out["parameters"][key] = {"estimate": value, "std_error": abs(shifted - value),
                                   "relative_std_error": abs(shifted - value) / abs(value) if value else None}
     if len(candidate.effects) > 1:
-        d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
-        corr = cov / np.outer(d, d)
+        k = len(candidate.effects)
+        d = np.sqrt(np.clip(np.diag(cov)[:k], 1e-300, None))
+        corr = cov[:k, :k] / np.outer(d, d)
         out["correlation"] = {f"{a}~{b}": float(corr[i, j])
                               for (i, a), (j, b) in itertools.combinations(enumerate(candidate.effects), 2)}
     return out
@@ -473,28 +744,100 @@ def _json_number(x: float) -> float | None:
     return float(x) if x is not None and math.isfinite(float(x)) else None
 
 
-def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPHA) -> tuple[dict, dict]:
+def instrument_report(dg: Diagnoser, best: Candidate, delay_s: float | None) -> tuple[dict, dict]:
+    """The ``instrument`` key and its test details: each load-cell term refitted as fixed (gain 1,
+    offset 0) and kept where the fit χ² rises beyond the χ²₁ quantile at 1 - alpha."""
+    needed = {}
+    tests = {}
+    threshold = float(stats.chi2.isf(dg.alpha, 1))
+    for term in INSTRUMENT:
+        reduced = tuple(t for t in best.instrument if t != term)
+        if term not in best.instrument:
+            needed[term] = False
+            continue
+        alt = dg.refit(best.effects, reduced, best)
+        rise = math.inf if alt is None else alt.chi2_fit - best.chi2_fit
+        needed[term] = bool(rise > threshold)
+        tests[term] = {"estimate": best.gain if term == "force_gain" else best.offset_N,
+                       "chi2_rise_if_fixed": rise, "threshold": threshold, "needed": needed[term]}
+    return ({"delay_s": delay_s,
+             "force_offset_N": best.offset_N if needed["force_offset"] else None,
+             "force_gain": best.gain if needed["force_gain"] else None}, tests)
+
+
+def gain_confounding(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate],
+                     gain_needed: bool) -> list[str] | None:
+    """The group [force_gain, discharge, viscosity] when a load-cell gain and discharge plus viscosity
+    explain the data alike (within CONFOUNDED_SCORE), else None.
+
+    A gain scales every force; discharge and viscosity together scale the turbulent and laminar parts,
+    so a gain error of a few per cent can be mistaken for them, and the reverse, unless the transient
+    bins (which a gain scales but does not reshape) tell them apart.
+    """
+    physics = ("discharge", "viscosity")
+    if gain_needed:
+        names = tuple(e for e in EFFECTS if e in best.effects or e in physics)
+        alt = dg.refit(names, tuple(t for t in best.instrument if t != "force_gain"), best)
+    elif any(e in best.effects for e in physics):
+        rest = tuple(e for e in best.effects if e not in physics)
+        alt = next((c for c in candidates if c.effects == rest and "force_gain" in c.instrument), None) if rest \
+            else dg.refit((), INSTRUMENT)
+    else:
+        return None
+    if alt is not None and alt.explained and abs(alt.score - best.score) < CONFOUNDED_SCORE:
+        return ["force_gain", *[e for e in physics if e in best.effects or e in alt.effects]]
+    return None
+
+
+def case_delays(cases: pd.DataFrame) -> dict:
+    """Measured actuator delay over the status-ok triangle cases (``delay_s`` of cases.parquet)."""
+    if "delay_s" not in cases:
+        return {"delay_s": None}
+    ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
+    d = ok["delay_s"].to_numpy(dtype=float)
+    d = d[np.isfinite(d)]
+    if not d.size:
+        return {"delay_s": None}
+    return {"delay_s": float(np.median(d)), "delay_min_s": float(d.min()), "delay_max_s": float(d.max()),
+            "n_cases": int(d.size)}
+
+
+def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPHA,
+                          delays: Mapping | None = None) -> tuple[dict, dict]:
     """The diagnosis dict of the contract, and the predictions (nominal, verdict) for figures."""
     started = time.perf_counter()
+    delays = dict(delays or {"delay_s": None})
     dg = Diagnoser(obs, damper, alpha)
     win = obs.is_window
     z_nom = dg.z(dg.nominal)
     gap_before = rms(z_nom[win])
-    out = {"format_version": FORMAT_VERSION, "campaign": obs.campaign, "status": "ok", "metric": METRIC,
+    out = {"format_version": FORMAT_VERSION, "contract_version": CONTRACT_VERSION, "campaign": obs.campaign,
+           "status": "ok", "metric": METRIC,
            "gap_before": gap_before, "where": [b for b in gap_bands(obs, dg.nominal) if b["significant"]],
-           "noise": {"repeatability_rel": obs.rep_rel, "n_windows": int(win.sum()),
+           "noise": {**{k: v for k, v in obs.noise.items() if k != "objects"}, "repeatability_rel": obs.rep_rel, "n_windows": int(win.sum()),
                      "n_transient_bins": int((~win).sum()), "alpha": alpha},
            "rms_rel_before": rms(((obs.force_N - dg.nominal) / np.abs(obs.force_N))[win])}
-    nominal_ok = dg.nominal_explains()
-    candidates = dg.search()
+    nominal_fit = dg.refit((), INSTRUMENT)
+    out["nominal_p_value"] = dg.nominal_p_value()
+    nominal_ok = out["nominal_p_value"] >= alpha
+    candidates = [] if nominal_ok else dg.search()
     out["candidates"] = [c.to_dict() for c in candidates]
     explaining = [c for c in candidates if c.explained]
-    if nominal_ok:
-        verdict, best = [], None
-        out.update(verdict=[], explained=True, gap_after=gap_before,
-                   holdout_gap_after=rms(z_nom[win & dg.hold_mask]), shrink=1.0)
+    if nominal_ok or not candidates:
+        best = nominal_fit
+        verdict = []
+        if nominal_ok:
+            out["search_note"] = "the nominal model with the instrument terms explains the data: no effect searched"
+        if not nominal_ok:
+            out["unexplained_note"] = "no candidate fit succeeded (see failed_fits)"
+        out.update(verdict=[], explained=bool(nominal_ok), gap_after=best.gap_after,
+                   holdout_gap_after=best.holdout_gap_after,
+                   shrink=gap_before / best.gap_after if best.gap_after > 0 else None)
     else:
         best = explaining[0] if explaining else min(candidates, key=lambda c: overdispersed_score(c, candidates))
+        polished = dg.refit(best.effects, best.instrument, best, POLISH_TOL)
+        if polished is not None and polished.chi2_fit <= best.chi2_fit:
+            best = polished
         verdict = list(best.effects)
         if not explaining:
             out["unexplained_note"] = (
@@ -505,9 +848,9 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
         out.update(verdict=verdict, explained=best.explained, gap_after=best.gap_after,
                    holdout_gap_after=best.holdout_gap_after, params=best.params,
                    shrink=gap_before / best.gap_after if best.gap_after > 0 else None,
-                   rms_rel_after=rms(((obs.force_N - best.prediction) / np.abs(obs.force_N))[win]),
-                   identifiability=identifiability(best, dg.param))
-        rivals = [c for c in explaining if len(c.effects) == len(best.effects) and c is not best
+                   rms_rel_after=rms(((obs.force_N - best.measured_prediction) / np.abs(obs.force_N))[win]),
+                   identifiability=identifiability(dg, best))
+        rivals = [c for c in explaining if len(c.effects) == len(best.effects) and c.effects != best.effects
                   and c.score - best.score < CONFOUNDED_SCORE]
         if rivals:
             out["confounded"] = [sorted({e for c in [best, *rivals] for e in c.effects})] if len(best.effects) > 1 \
@@ -515,10 +858,26 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
             out["confounded_note"] = (f"{len(rivals)} other candidate(s) of the same size also explain the gap "
                                       f"within noise with a score less than {CONFOUNDED_SCORE:g} worse; the verdict "
                                       "holds the best-scoring one")
+    instrument, tests = instrument_report(dg, best, delays.get("delay_s"))
+    out["instrument"] = instrument
+    out["instrument_tests"] = {**tests, "delay": {k: v for k, v in delays.items() if k != "delay_s"},
+                               "bounds": {"force_gain": [1.0 - GAIN_BOUND, 1.0 + GAIN_BOUND],
+                                          "force_offset_N": [-dg.linear.offset_bound_N,
+                                                             dg.linear.offset_bound_N]}}
+    group = gain_confounding(dg, best, candidates, instrument["force_gain"] is not None)
+    if group:
+        out.setdefault("confounded", []).append(group)
+        out["confounded_instrument_note"] = (
+            "a load-cell gain error and a change of discharge coefficient plus viscosity explain the data "
+            "alike: the data cannot tell an instrument gain from these damper effects; calibrate the load cell "
+            "to decide")
+    if dg.failed:
+        out["failed_fits"] = dg.failed
     out["nominal_explains"] = nominal_ok
     out["model_evaluations"] = dg.evaluator.calls + dg.fit_evaluator.calls
     out["seconds"] = round(time.perf_counter() - started, 3)
-    predictions = {"nominal": dg.nominal, "verdict": None if best is None else best.prediction}
+    predictions = {"nominal": dg.nominal,
+                   "verdict": None if best is None or not verdict else best.measured_prediction}
     return _finite(out), predictions
 
 
@@ -537,10 +896,13 @@ def _finite(obj):
     return obj
 
 
-def no_model(campaign: str, reason: str) -> dict:
-    """The diagnosis of a campaign that cannot be diagnosed (no damper data, no triangle case)."""
-    return {"format_version": FORMAT_VERSION, "campaign": campaign, "status": "not_diagnosed", "reason": reason,
-            "metric": METRIC, "gap_before": None, "where": [], "candidates": [], "verdict": [],
+def no_model(campaign: str, reason: str, status: str = "not_diagnosed") -> dict:
+    """The diagnosis of a campaign that cannot be diagnosed (no damper data, no triangle case), or
+    whose diagnosis failed (``status`` 'failed', with the reason)."""
+    return {"format_version": FORMAT_VERSION, "contract_version": CONTRACT_VERSION, "campaign": campaign,
+            "status": status, "reason": reason, "metric": METRIC, "gap_before": None, "where": [],
+            "candidates": [], "verdict": [], "explained": False,
+            "instrument": {"delay_s": None, "force_offset_N": None, "force_gain": None},
             "gap_after": None, "holdout_gap_after": None, "shrink": None}
 
 
@@ -581,6 +943,60 @@ def observation_sources(obs: Observations | None, cases: pd.DataFrame | None) ->
     return out
 
 
+def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
+            alpha: float = ALPHA) -> tuple[str, Damper | None, pd.DataFrame, Observations | None, str]:
+    """(campaign, damper, cases, observations, reason) of a processed campaign folder.
+
+    Observations are built twice: first to profile the load-cell offset against the nominal model,
+    then with the noise model fitted to offset-free samples (the proportional noise scales with the
+    true force). Observations is None, with the reason, when the campaign cannot be diagnosed.
+    """
+    root = Path(campaign_root)
+    campaign, damper, cases, char = load_campaign(root)
+    if damper is None:
+        return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model"
+    if char.empty:
+        return campaign, damper, cases, None, "no status-ok triangle case: no characteristic to compare"
+    cache: dict[str, pd.DataFrame] = {}
+
+    def load(row):
+        key = str(row["timeseries_file"])
+        if key not in cache:
+            cache[key] = pd.read_parquet(root / key)
+        return cache[key]
+
+    obs = build_observations(campaign, cases, char, load, spec, n_bins)
+    if len(obs):
+        dg0 = Diagnoser(obs, damper, alpha)
+        first = dg0.refit((), INSTRUMENT)
+        offset = 0.0 if first is None else first.offset_N
+        obs = build_observations(campaign, cases, char, load, spec, n_bins, offset,
+                                 unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)))
+    if len(obs) == 0:
+        return campaign, damper, cases, None, "no triangle case with four windows: nothing to compare"
+    return campaign, damper, cases, obs, ""
+
+
+#: A window whose nominal-model force varies by more than this fraction of the per-sample noise
+#: (standard deviations) is still relaxing and is kept out of the noise fit.
+UNSTEADY_FRACTION = 0.25
+
+
+def unsteady_windows(obs: Observations, model_spread_N: np.ndarray) -> frozenset:
+    """(case, segment) of the windows whose nominal-model force is not steady: its spread over the
+    window exceeds UNSTEADY_FRACTION of the per-sample noise the first noise fit estimated (at most
+    half of the windows, the least steady first, so that the noise fit keeps data)."""
+    win = np.flatnonzero(obs.is_window)
+    models = obs.noise.get("objects") or {}
+    per_sample = np.array([math.sqrt(max(models[obs.plans[obs.case_index[i]].sample_rate_Hz]
+                                         .sample_variance_N2(obs.force_N[i] ** 2), 1e-300))
+                           if obs.plans[obs.case_index[i]].sample_rate_Hz in models else math.inf for i in win])
+    ratio = model_spread_N[win] / per_sample
+    order = win[np.argsort(-ratio)]
+    bad = [i for i in order[: len(win) // 2] if model_spread_N[i] > UNSTEADY_FRACTION * per_sample[win == i][0]]
+    return frozenset((str(obs.case[i]), int(obs.segment[i])) for i in bad)
+
+
 def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
              alpha: float = ALPHA) -> tuple[dict, Observations | None, dict]:
     """Diagnose a processed campaign folder ``results/<campaign>/``.
@@ -589,27 +1005,24 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     cannot be diagnosed (no damper block, no triangle case). The dict's ``sources`` key lists the
     observations used (:func:`observation_sources`).
     """
-    root = Path(campaign_root)
-    campaign, damper, cases, char = load_campaign(root)
-    if damper is None:
-        result = no_model(campaign, "campaign.yaml has no damper block: there is no nominal model")
-        return {**result, "sources": observation_sources(None, cases)}, None, {}
-    if char.empty:
-        result = no_model(campaign, "no status-ok triangle case: no characteristic to compare")
-        return {**result, "sources": observation_sources(None, cases)}, None, {}
-    obs = build_observations(campaign, cases, char, lambda row: pd.read_parquet(root / row["timeseries_file"]),
-                             spec, n_bins)
-    result, predictions = diagnose_observations(obs, damper, alpha)
+    campaign, damper, cases, obs, reason = prepare(campaign_root, spec, n_bins, alpha)
+    if obs is None:
+        return {**no_model(campaign, reason), "sources": observation_sources(None, cases)}, None, {}
+    result, predictions = diagnose_observations(obs, damper, alpha, case_delays(cases))
     result["sources"] = observation_sources(obs, cases)
     return result, obs, predictions
 
 
+def diagnosis_schema() -> dict:
+    """The diagnosis.json schema (package data, so a regular install validates too)."""
+    return json.loads(resources.files(__package__).joinpath(SCHEMA_RESOURCE).read_text(encoding="utf-8"))
+
+
 def validate_diagnosis(result: Mapping) -> None:
-    """Validate a diagnosis dict against workflow/schemas/diagnosis.schema.json (raises ValidationError)."""
+    """Validate a diagnosis dict against the diagnosis.json schema (raises ValidationError)."""
     import jsonschema
 
-    schema = json.loads(SCHEMA_PATH.read_text(encoding="utf-8"))
-    jsonschema.validate(result, schema)
+    jsonschema.validate(result, diagnosis_schema())
 
 
 def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path, spec: WindowSpec = WindowSpec(),
@@ -619,7 +1032,16 @@ def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path, spe
     from .figures import save_figure
     from .io import write_json
 
-    result, obs, predictions = diagnose(Path(campaign_root), spec, n_bins)
+    try:
+        result, obs, predictions = diagnose(Path(campaign_root), spec, n_bins)
+    except Exception as exc:  # noqa: BLE001 - an accepted campaign always gets its diagnosis.json
+        log.exception("diagnosis of %s failed", campaign_root)
+        name = Path(campaign_root).name
+        try:
+            name = load_campaign(Path(campaign_root))[0]
+        except Exception:  # noqa: BLE001
+            pass
+        result, obs, predictions = no_model(name, f"diagnosis failed: {type(exc).__name__}: {exc}", "failed"), None, {}
     validate_diagnosis(result)
     write_json(result, json_path)
     save_figure(gap_figure(result, obs, predictions), figure_path)

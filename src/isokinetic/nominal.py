@@ -41,7 +41,7 @@ from . import tables
 from .campaign import case_plan
 from .damper import NOMINAL, Damper, Effects, friction_force
 from .plan import CasePlan, triangle_displacement
-from .virtual_rig import Hydraulics, sample_times, triangle_responses
+from .virtual_rig import Drive, Hydraulics, drive_times, triangle_responses
 from .windows import WindowSpec, line_slope, window_ranges
 
 log = logging.getLogger("isokinetic.nominal")
@@ -95,27 +95,35 @@ class ModelPlan:
     window_start_s: np.ndarray
     window_end_s: np.ndarray
 
+    drives: tuple[Drive | None, ...] = ()
+
     @classmethod
     def from_cases(cls, campaign: str, cases: pd.DataFrame, spec: WindowSpec = WindowSpec(),
-                   durations: Mapping[str, float] | None = None) -> "ModelPlan":
+                   durations: Mapping[str, float] | None = None,
+                   drives: Mapping[str, Drive] | None = None) -> "ModelPlan":
         """Status-ok triangle cases of a cases table (tables.CASES).
+
+        ``drives`` (case -> :class:`virtual_rig.Drive`, :func:`case_drives`) runs a case with its
+        measured half-period speeds on its measured sample grid; a case without one runs the plan.
 
         Raises ValueError naming the case when its record does not hold four complete
         half-periods or a window holds fewer than MIN_WINDOW_SAMPLES samples (as
         :func:`windows.case_windows` does for the measured record).
         """
         ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
-        plans, cols = [], {k: [] for k in ("case_index", "segment", "sign", "start", "stop", "velocity_m_s",
+        plans, used, cols = [], [], {k: [] for k in ("case_index", "segment", "sign", "start", "stop", "velocity_m_s",
                                            "window_start_s", "window_end_s")}
         for _, row in ok.iterrows():
             plan = case_plan(row)
+            drive = None if drives is None else drives.get(str(row["case"]))
             record = record_duration_s(row, durations)
             full = replace(plan, duration_s=record)
-            t = sample_times(full)
+            t = drive_times(full, drive)
             last = 0
             for k, sign, i0, i1 in window_ranges(plan, t, spec):
                 tw = t[i0:i1]
-                y = triangle_displacement(tw, plan.amplitude_m, plan.period_s, plan.phase_rad)
+                y = (triangle_displacement(tw, plan.amplitude_m, plan.period_s, plan.phase_rad) if drive is None
+                     else sign * drive.speed(k - 1) * tw)
                 cols["case_index"].append(len(plans))
                 cols["segment"].append(k)
                 cols["sign"].append(sign)
@@ -125,11 +133,12 @@ class ModelPlan:
                 cols["window_start_s"].append(float(tw[0]))
                 cols["window_end_s"].append(float(tw[-1]))
                 last = max(last, i1 - 1)
-            # causal response: simulate up to the last window sample only (same grid k / fs)
-            plans.append(replace(plan, duration_s=last / plan.sample_rate_Hz))
+            # causal response: simulate up to the last window sample only (same grid)
+            plans.append(replace(plan, duration_s=float(t[last])))
+            used.append(drive)
         arrays = {k: np.asarray(v, dtype=float if k in ("sign", "velocity_m_s", "window_start_s", "window_end_s")
                                 else np.int64) for k, v in cols.items()}
-        return cls(campaign=campaign, spec=spec, plans=tuple(plans), **arrays)
+        return cls(campaign=campaign, spec=spec, plans=tuple(plans), drives=tuple(used), **arrays)
 
     def __len__(self) -> int:
         return int(self.segment.size)
@@ -146,7 +155,8 @@ class ModelPlan:
         if not self.plans:
             return mean, std
         hyd = Hydraulics.from_damper(damper, effects) if hydraulics is None else hydraulics
-        responses = triangle_responses(self.plans, hyd, effects.backlash_m)
+        responses = triangle_responses(self.plans, hyd, effects.backlash_m,
+                                       drives=self.drives if any(self.drives) else None)
         a = hyd.piston_area_m2
         for w in range(len(self)):
             _t, dp, vel = responses[self.case_index[w]]
@@ -188,13 +198,62 @@ class ModelPlan:
 
 def model_windows(campaign: str, cases: pd.DataFrame, damper: Damper, effects: Effects = NOMINAL,
                   spec: WindowSpec = WindowSpec(), durations: Mapping[str, float] | None = None,
-                  label: str | None = None, validate: bool = True) -> pd.DataFrame:
+                  label: str | None = None, validate: bool = True,
+                  drives: Mapping[str, Drive] | None = None) -> pd.DataFrame:
     """Noise-free model windows of every status-ok triangle case of ``cases`` (tables.WINDOWS).
 
     One-shot form of ``ModelPlan.from_cases(...).windows(...)``; inside a fit prepare the
     ModelPlan once and call :meth:`ModelPlan.forces` (or ``windows(validate=False)``).
     """
-    return ModelPlan.from_cases(campaign, cases, spec, durations).windows(damper, effects, label, validate)
+    return ModelPlan.from_cases(campaign, cases, spec, durations, drives).windows(damper, effects, label, validate)
+
+
+def motion_start(row: Mapping) -> float:
+    """Record time at which the plan's t = 0 lies (``motion_start_s`` of cases.parquet; 0 if absent)."""
+    value = row.get("motion_start_s", 0.0)
+    return float(value) if value is not None and math.isfinite(float(value)) else 0.0
+
+
+def grid_offset(first_time_s: float, motion_start_s: float, sample_rate_Hz: float) -> float:
+    """Plan time in [0, 1/fs) of the first sample after the motion start, on a uniform grid [s]."""
+    phase = (first_time_s - motion_start_s) * sample_rate_Hz
+    frac = phase - math.floor(phase)
+    return 0.0 if frac < 1e-9 or frac > 1.0 - 1e-9 else frac / sample_rate_Hz
+
+
+def case_drives(cases: pd.DataFrame, windows: pd.DataFrame | None) -> dict[str, Drive]:
+    """The measured drive of every status-ok triangle case with four measured windows.
+
+    Speeds: |velocity_m_s| of the case's windows, segments 1-4 (the least-squares slope of the
+    measured displacement in each half-period's window); grid offset from the record's first time
+    stamp (``motion_start_s - delay_s``) and its motion start (:func:`grid_offset`).
+    """
+    if windows is None or windows.empty:
+        return {}
+    out = {}
+    by_case = {c: g.sort_values("segment") for c, g in windows.groupby("case")}
+    ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
+    for _, row in ok.iterrows():
+        g = by_case.get(str(row["case"]))
+        if g is None or list(g["segment"]) != [1, 2, 3, 4]:
+            continue
+        speeds = tuple(float(abs(v)) for v in g["velocity_m_s"])
+        if not all(math.isfinite(v) and v > 0 for v in speeds):
+            continue
+        start = motion_start(row)
+        delay = row.get("delay_s", 0.0)
+        delay = float(delay) if delay is not None and math.isfinite(float(delay)) else 0.0
+        out[str(row["case"])] = Drive(speeds, grid_offset(start - delay, start, float(row["sample_rate_Hz"])))
+    return out
+
+
+def plan_time_ends(cases: pd.DataFrame, load_times) -> dict[str, float]:
+    """Plan time of the last sample of every status-ok triangle case: last time stamp - motion start.
+
+    ``load_times(row)`` returns the case's time stamps [s].
+    """
+    ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
+    return {str(row["case"]): float(load_times(row)[-1]) - motion_start(row) for _, row in ok.iterrows()}
 
 
 def nominal_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
@@ -212,13 +271,11 @@ def nominal_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFram
         return tables.empty(tables.WINDOWS)
     damper = Damper.from_mapping(meta["damper"])
     cases = pd.read_parquet(root / "cases.parquet")
-    ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
-    durations = {}
-    for _, row in ok.iterrows():
-        if not math.isfinite(float(row["duration_s"])):
-            t = pd.read_parquet(root / row["timeseries_file"], columns=["time_s"])["time_s"]
-            durations[str(row["case"])] = float(t.iloc[-1])
-    out = model_windows(campaign, cases, damper, NOMINAL, spec, durations)
+    windows = pd.read_parquet(root / "windows.parquet") if (root / "windows.parquet").is_file() else None
+    drives = case_drives(cases, windows)
+    durations = plan_time_ends(cases, lambda row: pd.read_parquet(root / row["timeseries_file"], columns=["time_s"])
+                               ["time_s"].to_numpy())
+    out = model_windows(campaign, cases, damper, NOMINAL, spec, durations, drives=drives)
     log.info("campaign %s: %d nominal model windows from %d triangle case(s)", campaign, len(out),
              out["case"].nunique() if len(out) else 0)
     return out

@@ -478,6 +478,7 @@ td.name{white-space:nowrap}
 #lineage-table details{margin:0}
 tbody tr:nth-child(even){background:#fafbfc}
 tr.flagged,tr.flagged:nth-child(even){background:var(--bad)}
+tr.warned,tr.warned:nth-child(even){background:var(--warn)}
 tr.verdict,tr.verdict:nth-child(even){background:var(--good)}
 .lineage{font-size:12px;color:var(--muted);margin:2px 0 14px;word-break:break-word}
 .lineage code{font-size:11.5px;word-break:break-all}
@@ -773,6 +774,43 @@ def _plan_section(d: CampaignData) -> str:
     return "".join(out)
 
 
+def _cases_section(d: CampaignData) -> str:
+    """The cases table: status, quality and the measured motion of each case (validate)."""
+    out = ['<section id="cases"><h2>Cases and measured motion</h2>']
+    cases = d.cases
+    src = d.sources("cases.parquet")
+    if cases is None:
+        return "".join(out) + lineage_line(src) + "</section>"
+    cases = cases.copy()
+    for column in ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m"):
+        if column not in cases:
+            cases[column] = np.nan      # a cases table written before the motion was measured
+    if "quality" not in cases:
+        cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
+    out.append(note("Windows are cut where the measured piston motion is: at the <em>motion start</em> (the record "
+                    "time at which the plan's t = 0 lies, from the displacement channel) plus the plan's window "
+                    "times. The <em>delay</em> is the motion start after the record's first sample (actuator delay "
+                    "and servo lag); the speed ratio is the mean measured |v| of the four half-periods over the "
+                    "planned 4Y/T (Eq. 26); the motion rms is the displacement's rms departure from the planned "
+                    "triangle (LVDT noise included)."))
+    cols = [Col("case", "case", text, False), Col("waveform", "waveform", text, False),
+            Col("status", "status", text, False), Col("n_samples", "samples"),
+            Col("motion_start_s", "motion start [s]", lambda x: fmt(x, 5)),
+            Col("delay_s", "delay [ms]", lambda x: fmt(x, 3), scale=1e3),
+            Col("velocity_ratio", "speed / planned", lambda x: fmt(x, 4)),
+            Col("motion_rms_m", "motion rms [&micro;m]", lambda x: fmt(x, 3), scale=1e6),
+            Col("quality", "quality", text, False)]
+
+    def row_class(r: Mapping) -> str:
+        if r["status"] != "ok":
+            return "flagged"
+        return "warned" if isinstance(r.get("quality"), str) and r["quality"] != "ok" else ""
+
+    out.append(table_html(cases, cols, src, ["case"], row_class=row_class, table_id="cases-table"))
+    out.append("</section>")
+    return "".join(out)
+
+
 def _figures(d: CampaignData, figures: Sequence[tuple[str, str]], captions: Mapping[str, str]) -> str:
     return "".join(figure_html(d.sources(rel), title, captions.get(Path(rel).stem, ""), fig_id=Path(rel).stem)
                    for rel, title in figures)
@@ -979,9 +1017,23 @@ def _diagnosis_section(d: CampaignData, captions: Mapping[str, str]) -> str:
     noise = diag.get("noise") or {}
     if noise:
         items.append(("data", f"{noise.get('n_windows', '-')} windows + {noise.get('n_transient_bins', '-')} "
-                              f"transient bins; repeatability scatter {fmt_pct(noise.get('repeatability_rel'))}",
+                              f"transient bins; between-period scatter {fmt_pct(noise.get('repeatability_rel'))}",
                       t("noise", "noise")))
+    if "nominal_p_value" in diag:
+        items.append(("nominal test p-value (chi-squared, instrument terms fitted)", fmt(diag.get("nominal_p_value"), 3),
+                      t("nominal_p_value", "nominal_p_value")))
     out.append("<h3>How far</h3>" + kv_table(items))
+    inst = diag.get("instrument") or {}
+    if inst:
+        def shown(key, scale=1.0, unit=""):
+            value = inst.get(key)
+            return "not needed" if value is None else f"{fmt(value * scale)} {unit}".strip()
+        out.append("<h3>Instrument terms (the rig's own errors, never damper effects)</h3>" + kv_table([
+            ("actuator delay (median over cases)", shown("delay_s", 1e3, "ms"), t("instrument.delay_s", "delay_s")),
+            ("load-cell zero offset", shown("force_offset_N", 1.0, "N"), t("instrument.force_offset_N", "force_offset_N")),
+            ("load-cell gain", shown("force_gain"), t("instrument.force_gain", "force_gain"))]))
+        if diag.get("confounded_instrument_note"):
+            out.append(note(esc(diag["confounded_instrument_note"]), "warn"))
 
     ident = (diag.get("identifiability") or {}).get("parameters") or {}
     params = diag.get("params") or {}
@@ -1134,7 +1186,8 @@ def _lineage_section(sources: Sequence[Source]) -> str:
             f"<th>inputs</th></tr></thead><tbody>{''.join(rows)}</tbody></table></div></section>")
 
 
-CAMPAIGN_NAV = [("header", "Campaign"), ("plan", "Plan check"), ("characteristic", "Characteristic"),
+CAMPAIGN_NAV = [("header", "Campaign"), ("plan", "Plan check"), ("cases", "Cases"),
+                ("characteristic", "Characteristic"),
                 ("repeatability", "Repeatability"), ("models", "Models"), ("harmonic", "Harmonic"),
                 ("design", "Design"), ("diagnosis", "Diagnosis"), ("quarantine", "Quarantine"),
                 ("lineage", "Lineage")]
@@ -1146,7 +1199,7 @@ def render_campaign_report(campaign_root: str | os.PathLike, *, captions_dir: st
     d = CampaignData.read(campaign_root)
     captions = read_captions(captions_dir)
     meta = d.meta or {}
-    sections = [_header_section(d), _plan_section(d), _characteristic_section(d, captions),
+    sections = [_header_section(d), _plan_section(d), _cases_section(d), _characteristic_section(d, captions),
                 _repeatability_section(d), _models_section(d, captions), _harmonic_section(d, captions),
                 _design_section(d, captions), _diagnosis_section(d, captions), _quarantine_section(d)]
     sections.append(_lineage_section(d.sources.all()))
@@ -1222,6 +1275,10 @@ def _campaign_row(results_root: Path, campaign: str) -> tuple[str, list[Source]]
     return f"<tr>{''.join(cells)}</tr>", srcs.all()
 
 
+def _pass_badge(ok: bool | None) -> str:
+    return badge("N/A", "warn") if ok is None else (badge("PASS", "good") if ok else badge("FAIL", "bad"))
+
+
 def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[str, list[Source]]:
     srcs = Sources(blind_dir)
     summary = _read_json(blind_dir / "summary.json")
@@ -1241,19 +1298,29 @@ def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[str, l
                     "good" if all_pass else "bad"))
     rows = []
     for key, target in (summary.get("targets") or {}).items():
-        if "rate" in target:
+        if "claimed" in target:
+            result = f"{target.get('claimed')}/{target.get('n')} claimed"
+            threshold = (f"&le; alpha = {fmt(target['alpha'])}" if "alpha" in target else "0 claimed")
+        elif "flagged" in target:
+            result = f"{target.get('flagged')}/{target.get('n')} = {fmt_pct(target.get('rate'))}"
+            threshold = f"&ge; {fmt_pct(target.get('threshold'))}"
+        elif "rate" in target:
             result = f"{target.get('exact', '?')}/{target.get('n', '?')} = {fmt_pct(target.get('rate'))}"
             threshold = f"&ge; {fmt_pct(target.get('threshold'))}"
-        elif "claimed" in target:
-            result = f"{target.get('claimed')}/{target.get('n')} claimed"
-            threshold = "0 claimed"
+        elif "param_error_max" in target:
+            result = (f"effect sizes within {fmt_pct(target.get('param_error_max'))}; delay within "
+                      f"{fmt((target.get('delay_error_max_s') or 0) * 1e3, 3)} ms; offset within "
+                      f"{fmt(target.get('offset_error_max_N'), 3)} N")
+            threshold = "15 %; 2 ms; 2 N"
+            target = {**target, "misses": sorted({*target.get("param_misses", []), *target.get("delay_misses", []),
+                                                   *target.get("offset_misses", [])})}
         else:
             result = f"median {fmt(target.get('median'), 3)} over {target.get('n', '?')}"
             threshold = f"&ge; {fmt(target.get('threshold'), 3)}"
         misses = ", ".join(map(str, target.get("misses") or [])) or "-"
         rows.append(f"<tr><td><strong>{esc(key)}</strong></td><td>{esc(target.get('description', ''))}</td>"
                     f'<td class="num" title="{esc(ssrc.title(f"targets.{key}", key))}">{result}</td>'
-                    f"<td>{threshold}</td><td>{badge('PASS', 'good') if target.get('pass') else badge('FAIL', 'bad')}</td>"
+                    f"<td>{threshold}</td><td>{_pass_badge(target.get('pass'))}</td>"
                     f"<td>{esc(misses)}</td></tr>")
     out.append('<h3>Targets</h3><div class="tablewrap"><table id="blind-targets"><thead><tr><th>target</th>'
                "<th>what</th><th>result</th><th>threshold</th><th></th><th>misses</th></tr></thead>"

@@ -785,7 +785,7 @@ TABLE_KINDS = {
 }
 
 PRIMARY = {
-    "cases": ["raw_sha256", "n_samples", "status"],
+    "cases": ["raw_sha256", "n_samples", "status", "motion_start_s", "delay_s"],
     "ingest_cases": ["raw_sha256", "n_samples", "status"],
     "timeseries": ["time_s", "displacement_m", "force_N", "command_m"],
     "windows": ["force_N", "force_std_N", "velocity_m_s", "n_samples"],
@@ -898,15 +898,21 @@ def _series_step(ctx: Context, src: RawSource, scratch: Path, case: str) -> pd.D
 def _window_steps(ctx: Context, src: RawSource, scratch: Path, row: pd.Series, spec, spec_where: str,
                   series: pd.DataFrame) -> None:
     from .campaign import case_plan
-    from .windows import windowed_half_periods
+    from .windows import motion_start_of, windowed_half_periods
 
     cases = pd.read_parquet(scratch / "cases.parquet").set_index("case", drop=False)
-    plan = case_plan(cases.loc[str(row["case"])])
+    case_row = cases.loc[str(row["case"])]
+    plan = case_plan(case_row)
+    start = motion_start_of(case_row)
     k = int(row["segment"])
     t = series["time_s"].to_numpy()
-    segs = windowed_half_periods(plan, float(t[-1]), spec)
+    segs = windowed_half_periods(plan, float(t[-1]), spec, start)
     half = plan.period_s / 2.0
     raw = RawText(ctx, src, scratch, str(row["case"]))
+    delay = case_row.get("delay_s", math.nan)
+    delay_text = f", delay {float(delay) * 1e3:.4g} ms after the first sample" if pd.notna(delay) else ""
+    motion = (f"motion start (validate, motion.estimate_motion from the displacement): plan t = 0 at record "
+              f"t = {start:.6g} s{delay_text}; windows at motion start + plan times")
     if len(segs) >= k:
         t0, t1, sign = segs[k - 1]
         geometry = (f"half-period {k}: t = {t0:g} .. {t1:g} s, direction {'+' if sign > 0 else '-'} "
@@ -917,7 +923,7 @@ def _window_steps(ctx: Context, src: RawSource, scratch: Path, row: pd.Series, s
                   f"(fractions from {spec_where})")
     else:
         geometry, window = f"half-period {k}: not in the re-derived record", ""
-    ctx.report.step("Window selection (windows.window_ranges)", geometry, window,
+    ctx.report.step("Window selection (windows.window_ranges)", motion, geometry, window,
                     f"stored rows [{int(row['row_start'])}, {int(row['row_stop'])}), t = {row['window_start_s']:g} .. "
                     f"{row['window_end_s']:g} s, n = {int(row['n_samples'])}",
                     f"first sample, {raw.label} {raw.line(int(row['row_start']))}",
@@ -1042,6 +1048,15 @@ def handle_nominal(ctx: Context, kind: str, path: Path, df: pd.DataFrame, pos: i
     ctx.report.step(f"Case plan of {case} (from the raw manifest / spec; status after validation {c['status']})",
                     plan_text(c),
                     f"window fractions [{spec.start_fraction:g}, {spec.end_fraction:g}] from {spec_where}")
+    from .io import write_parquet
+    from .windows import windows_stage
+
+    measured = windows_stage(scratch, spec)
+    write_parquet(measured, scratch / "windows.parquet")
+    speeds = ", ".join(f"{abs(v) * 1e3:.6g}" for v in measured.sort_values("segment")["velocity_m_s"])
+    ctx.report.step(f"Measured kinematics that drive the model (windows of {case}, re-derived)",
+                    f"half-period speeds [mm/s]: {speeds}; motion start {c.get('motion_start_s', 0.0):g} s "
+                    "(the model runs each half-period at its measured speed, nominal.case_drives)")
     new = match_row(nominal_stage(scratch, spec), df, pos, kind, "nominal model windows of the case")
     ctx.report.step(f"Model window {int(new['segment'])} (direction {new['direction']}): rows "
                     f"[{int(new['row_start'])}, {int(new['row_stop'])}) of the model's sample grid k/fs, "

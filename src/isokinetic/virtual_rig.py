@@ -744,27 +744,94 @@ def triangle_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, 
     return triangle_responses([case], hyd, backlash_m, step)[0]
 
 
+@dataclass(frozen=True)
+class Drive:
+    """The piston motion a triangle case really had, measured from its displacement record.
+
+    The model is then run "on equal terms" with the rig (paper Sec. 4.5): half-period j (1-based)
+    moves at the measured speed ``speeds_m_s[j-1]`` (later half-periods repeat the last measured
+    one of the same direction) between the plan's turning points (Eq. 26), the piston position
+    chained from -Y; ``grid_offset_s`` in [0, 1/fs) is the plan time of the first sample, so that
+    model samples fall at the measured samples' plan times (record time minus motion start).
+    """
+
+    speeds_m_s: tuple[float, ...]
+    grid_offset_s: float = 0.0
+
+    def __post_init__(self):
+        if not self.speeds_m_s or any(not (math.isfinite(v) and v > 0) for v in self.speeds_m_s):
+            raise ValueError(f"drive: speeds must be positive and finite, got {self.speeds_m_s}")
+        if not (math.isfinite(self.grid_offset_s) and self.grid_offset_s >= 0):
+            raise ValueError(f"drive: grid offset must be >= 0, got {self.grid_offset_s}")
+
+    def speed(self, j: int) -> float:
+        """Speed of half-period j (0-based); beyond the measured ones, the last of the same direction."""
+        n = len(self.speeds_m_s)
+        if j < n:
+            return self.speeds_m_s[j]
+        k = n - 1 if (j - (n - 1)) % 2 == 0 else n - 2
+        return self.speeds_m_s[max(k, 0)]
+
+
+def drive_times(case: CasePlan, drive: Drive | None = None) -> np.ndarray:
+    """Model sample times: k / fs (plan grid), or grid_offset + k / fs up to the duration [s]."""
+    if drive is None or drive.grid_offset_s == 0.0:
+        return sample_times(case)
+    n = int(math.floor((case.duration_s - drive.grid_offset_s) * case.sample_rate_Hz + 1e-9))
+    return drive.grid_offset_s + np.arange(max(n, 0) + 1, dtype=float) / case.sample_rate_Hz
+
+
+def driven_segments(case: CasePlan, drive: Drive) -> list[Segment]:
+    """Contact segments between the plan's turning points at the drive's measured speeds.
+
+    The piston starts at the command's start -Y (Eq. 26) and its position is chained through the
+    segments, so amplitude follows from the measured speeds.
+    """
+    edges = [0.0, *_turning_times(case), max(record_end(case), float(drive_times(case, drive)[-1]))]
+    omega, phase = 2.0 * math.pi / case.period_s, case.phase_rad
+    y = float(command_displacement(case, 0.0))
+    segs = []
+    for j, (ta, tb) in enumerate(zip(edges[:-1], edges[1:])):
+        d = 1.0 if math.cos(omega * 0.5 * (ta + tb) + phase) > 0 else -1.0
+        segs.append(Segment(ta, tb, True, y, 0.0, d))
+        y += d * drive.speed(j) * (tb - ta)
+    return segs
+
+
 def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: float = 0.0,
-                       step: float = DEFAULT_STEP) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+                       step: float = DEFAULT_STEP, drives: Sequence[Drive | None] | None = None
+                       ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """:func:`triangle_response` of many cases, their segment tables built in one batch.
 
     Each segment is assumed to start from the previous one's steady Δp* (true once a segment has
     settled, when the chained Δp equals Δp* exactly); the tables for those starts are built in one
     vectorised :func:`relaxations` call and reused when the chain confirms them, otherwise (a
     segment cut short, e.g. a gap crossing) the table is built from the actual start.
+    ``drives`` (one per case, None: the plan) runs a case with its measured half-period speeds on
+    its measured sample grid (:class:`Drive`; no backlash).
     """
     a = hyd.piston_area_m2
+    drives = [None] * len(cases) if drives is None else list(drives)
+    if len(drives) != len(cases):
+        raise ValueError(f"{len(drives)} drives for {len(cases)} cases")
     plans = []
-    for case in cases:
+    for case, drive in zip(cases, drives):
         if case.waveform != "triangle":
             raise ValueError(f"case {case.case}: not a triangle")
-        _check_stroke(case, hyd)
-        w = 4.0 * case.amplitude_m / case.period_s
-        segs = piston_segments(case, backlash_m)
-        flows = [a * seg.direction * w if seg.contact else 0.0 for seg in segs]
-        plans.append((case, segs, flows))
+        if drive is None:
+            _check_stroke(case, hyd)
+            w = 4.0 * case.amplitude_m / case.period_s
+            segs = piston_segments(case, backlash_m)
+            flows = [a * seg.direction * w if seg.contact else 0.0 for seg in segs]
+        else:
+            if backlash_m:
+                raise ValueError(f"case {case.case}: a measured drive has no backlash model")
+            segs = driven_segments(case, drive)
+            flows = [a * seg.direction * drive.speed(j) for j, seg in enumerate(segs)]
+            _check_positions(case, segs, flows, hyd)
+        plans.append((case, drive, segs, flows))
     guesses = {}
-    for _, segs, flows in plans:
+    for _, _, segs, flows in plans:
         prev = 0.0
         for qp in flows:
             guesses.setdefault((prev, qp), None)
@@ -772,8 +839,8 @@ def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: f
     keys = list(guesses)
     tables_ = dict(zip(keys, relaxations([k[0] for k in keys], [k[1] for k in keys], hyd, step)))
     out = []
-    for case, segs, flows in plans:
-        t = sample_times(case)
+    for case, drive, segs, flows in plans:
+        t = drive_times(case, drive)
         dp = np.empty(t.size)
         vel = np.zeros(t.size)
         p = 0.0
@@ -789,6 +856,16 @@ def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: f
             p = float(values[-1])
         out.append((t, dp, vel))
     return out
+
+
+def _check_positions(case: CasePlan, segs: Sequence[Segment], flows: Sequence[float], hyd: Hydraulics) -> None:
+    """A driven piston must not empty a chamber anywhere on its path (Eq. 12)."""
+    limit = min(hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3) / hyd.piston_area_m2
+    for seg, qp in zip(segs, flows):
+        end = seg.piston_start_m + qp / hyd.piston_area_m2 * (seg.t_end_s - seg.t_start_s)
+        if max(abs(seg.piston_start_m), abs(end)) >= limit:
+            raise ValueError(f"case {case.case}: the measured motion reaches the end of the cylinder "
+                             f"(V0/A_p = {limit:g} m)")
 
 
 def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol: float = 1e-12,

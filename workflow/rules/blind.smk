@@ -3,8 +3,7 @@
 # scoring job. Only blind_score reads the truth.
 
 BLIND = config.get("blind") or {}
-BLIND_NAMES = [f"blind-{k:03d}" for k in range(6 * BLIND.get("n_per_effect", 0) + BLIND.get("n_pairs", 0)
-                                               + BLIND.get("n_none", 0))]
+BLIND_NAMES = blind_scenario_names(BLIND)
 BLIND_CHUNKS = max(1, min(int(BLIND.get("chunks", 2)), len(BLIND_NAMES)))
 if BLIND and "blind" in CAMPAIGNS:
     raise WorkflowError("a campaign named 'blind' would share results/blind/ with the blind test; rename it")
@@ -27,6 +26,7 @@ rule blind_generate:
         n_per_effect=BLIND.get("n_per_effect", 0),
         n_pairs=BLIND.get("n_pairs", 0),
         n_none=BLIND.get("n_none", 0),
+        n_out=BLIND.get("n_out_of_catalogue", 0),
         names=BLIND_NAMES,
         start_fraction=config["windows"]["start_fraction"],
         end_fraction=config["windows"]["end_fraction"],

@@ -105,3 +105,13 @@ def all_outputs():
         f"results/{campaign}/provenance.json" for campaign in CAMPAIGNS] + [
         f"results/{campaign}/report.html" for campaign in CAMPAIGNS] + ["results/index.html"] + (
         BLIND_OUTPUTS if config.get("blind") else [])
+
+
+def blind_scenario_names(blind):
+    """Names of the blind scenarios of the config's ``blind`` block (isokinetic.blind.suite_size)."""
+    from isokinetic.blind import scenario_names, suite_size
+
+    if not blind:
+        return []
+    return scenario_names(suite_size(blind.get("n_per_effect", 0), blind.get("n_pairs", 0),
+                                     blind.get("n_none", 0), blind.get("n_out_of_catalogue", 0)))

@@ -4,6 +4,7 @@ rule diagnosis:
         cases="results/{campaign}/cases.parquet",
         ingest="results/{campaign}/ingest",
         characteristic="results/{campaign}/characteristic.parquet",
+        windows="results/{campaign}/windows.parquet",
     output:
         json="results/{campaign}/diagnosis.json",
         figure=report("results/{campaign}/diagnosis/fig16_gap.png", caption="../report/fig16_gap.rst",

@@ -3,6 +3,7 @@ rule nominal:
     input:
         cases="results/{campaign}/cases.parquet",
         ingest="results/{campaign}/ingest",
+        windows="results/{campaign}/windows.parquet",
     output:
         "results/{campaign}/nominal_windows.parquet",
     log:

@@ -9,7 +9,7 @@ from isokinetic.windows import WindowSpec
 log = log_to_file(snakemake.log[0])
 p = snakemake.params
 start = time.perf_counter()
-scenarios = generate_scenarios(p.seed, p.n_per_effect, p.n_pairs, p.n_none,
+scenarios = generate_scenarios(p.seed, p.n_per_effect, p.n_pairs, p.n_none, p.n_out,
                                spec=WindowSpec(p.start_fraction, p.end_fraction))
 names = [s.name for s in scenarios]
 if names != list(p.names):
