@@ -67,13 +67,12 @@ from .io import write_json, write_parquet
 from .nominal import ModelPlan
 from .plan import CasePlan, paper_plan
 from .repeatability import repeatability
+from .scenarios import EFFECTS, OUT_OF_CATALOGUE, SCENARIO_PREFIX, scenario_names, suite_size  # noqa: F401
 from .validate import write_validated
 from .windows import WindowSpec, windows_stage
 
 log = logging.getLogger("isokinetic.blind")
 
-#: Effect names of the diagnosis contract, in their canonical order (verdict/truth text order).
-EFFECTS = ("friction", "leakage", "asymmetry", "discharge", "viscosity", "air")
 
 #: Table 1 of the reference paper: the centre of the drawn geometries.
 TABLE1 = Damper(piston_area_m2=4.0e-3, chamber_volume_1_m3=3.0e-4, chamber_volume_2_m3=3.0e-4,
@@ -108,8 +107,6 @@ HIGH_END_MM_S = (0.4, 1.5)        # log-uniform range of the fastest speed
 N_VELOCITIES = (8, 12)
 MAX_REDRAWS = 50
 
-#: Out-of-catalogue effects of the suite (:func:`out_of_catalogue_effects`).
-OUT_OF_CATALOGUE = ("stribeck", "backlash", "relief")
 
 #: Ranges of the rig nuisances drawn in every scenario: actuator delay and first-order servo lag
 #: [s]; white force noise [N]; proportional coloured noise (1 sigma, relative) and its corner [Hz];
@@ -122,18 +119,8 @@ RIG_RANGES = {"delay_s": (0.0, 0.025), "servo_lag_s": (0.002, 0.010), "force_noi
 #: The diagnosis' significance level, against which false alarms are judged (target b).
 ALPHA_DEFAULT = 1e-3
 
-SCENARIO_PREFIX = "blind-"
 DESCRIPTION = "Blind-test scenario: simulated damper test campaign; its unmodelled effects are withheld."
 DIAGNOSIS_FIGURE = "diagnosis/fig16_gap.png"   # as rule diagnosis writes it
-
-
-def scenario_names(n: int) -> list[str]:
-    """blind-000, blind-001, ... (n names)."""
-    return [f"{SCENARIO_PREFIX}{k:03d}" for k in range(n)]
-
-
-def suite_size(n_per_effect: int, n_pairs: int, n_none: int, n_out: int = 0) -> int:
-    return len(EFFECTS) * n_per_effect + n_pairs + n_none + n_out
 
 
 def effect_text(effects: Iterable[str]) -> str:

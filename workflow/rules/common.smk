@@ -108,8 +108,8 @@ def all_outputs():
 
 
 def blind_scenario_names(blind):
-    """Names of the blind scenarios of the config's ``blind`` block (isokinetic.blind.suite_size)."""
-    from isokinetic.blind import scenario_names, suite_size
+    """Names of the blind scenarios of the config's ``blind`` block (isokinetic.scenarios)."""
+    from isokinetic.scenarios import scenario_names, suite_size
 
     if not blind:
         return []
