@@ -124,3 +124,12 @@ def test_gap_bands_group_contiguous_points_of_equal_significance_and_sign():
                    (pytest.approx(5e-4), pytest.approx(5e-4), False), (pytest.approx(6e-4), pytest.approx(6e-4), True)]
     assert bands[1]["mean_rel_error"] == pytest.approx(-0.11)  # damper 11 % weaker than the model
     assert bands[3]["mean_rel_error"] == pytest.approx(0.10)
+
+
+def test_parametrisation_never_overflows_at_any_bound():
+    p = dg.Parametrisation(TABLE1, force_ref_N=1000.0)
+    for effect in dg.EFFECTS:
+        lo, hi = p.bounds(effect)
+        for x in (lo, hi, hi + 1e6, lo - 1e6):
+            name, value = p.si(effect, x)
+            assert math.isfinite(value), (effect, x, name)

@@ -82,4 +82,5 @@ def test_every_accepted_campaign_gets_a_valid_diagnosis_json(tmp_path, friction,
     result = blind.diagnose_raw_campaign(raw, tmp_path / "work")
     written = json.loads((tmp_path / "work" / name / "diagnosis.json").read_text())
     dg.validate_diagnosis(written)
-    assert written["status"] in ("ok", "not_diagnosed", "failed") and written == json.loads(json.dumps(result))
+    assert written["status"] in ("ok", "not_diagnosed"), written.get("reason")  # "failed" would hide a bug here
+    assert written == json.loads(json.dumps(result))

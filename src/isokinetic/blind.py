@@ -108,6 +108,10 @@ N_VELOCITIES = (8, 12)
 MAX_REDRAWS = 50
 
 
+#: Stribeck breakaway peak of the out-of-catalogue scenario, as a fraction of the nominal hydraulic
+#: force at the Stribeck velocity.
+STRIBECK_PEAK = 0.2
+
 #: Ranges of the rig nuisances drawn in every scenario: actuator delay and first-order servo lag
 #: [s]; white force noise [N]; proportional coloured noise (1 sigma, relative) and its corner [Hz];
 #: load-cell offset (fraction of full scale, either sign) and gain error (either sign); LVDT noise
@@ -396,15 +400,16 @@ def out_of_catalogue_effects(kind: str, damper: Damper, cases: Sequence[CasePlan
                              friction_detection_N: float) -> rr.TrueEffects:
     """An effect outside the catalogue, strong enough to be seen (OUT_OF_CATALOGUE).
 
-    stribeck: a Coulomb force of 3x its detection level plus a breakaway peak F_S = 3 F_C decaying
-    over v_S at the geometric middle of the plan's speeds (seals: 0.1-1 mm/s); backlash: 20-40 um of free play; relief: a relief valve that
+    stribeck: a Coulomb force of 3x its detection level plus a breakaway peak decaying over v_S at the
+    geometric middle of the plan's speeds (seals: 0.1-1 mm/s), F_S = STRIBECK_PEAK of the nominal
+    hydraulic force at v_S (a weaker hump is absorbed by friction + viscosity: README); backlash: 20-40 um of free play; relief: a relief valve that
     cracks at half the plan's largest steady pressure and passes 30 % of the piston flow at it.
     """
     speeds = np.array([c.velocity_m_s for c in cases])
     if kind == "stribeck":
-        fc = 3.0 * friction_detection_N
-        return rr.TrueEffects(coulomb_force_N=fc, stribeck_force_N=3.0 * fc,
-                              stribeck_velocity_m_s=float(np.sqrt(speeds.min() * speeds.max())))
+        v_s = float(np.sqrt(speeds.min() * speeds.max()))
+        return rr.TrueEffects(coulomb_force_N=3.0 * friction_detection_N, stribeck_velocity_m_s=v_s,
+                              stribeck_force_N=STRIBECK_PEAK * float(nominal_force(v_s, damper)))
     if kind == "backlash":
         return rr.TrueEffects(backlash_m=30e-6)
     if kind == "relief":
