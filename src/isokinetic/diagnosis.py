@@ -139,6 +139,7 @@ class Observations:
     rep_rel: float                # between-period relative scatter beyond the noise model
     drives: tuple[Drive | None, ...] = ()
     noise: dict = field(default_factory=dict)   # the pooled noise model(s), for the report
+    speed_rel_se: np.ndarray | None = None      # relative standard error of the drive's measured speed
 
     def __len__(self) -> int:
         return int(self.force_N.size)
@@ -164,7 +165,8 @@ class Observations:
                                                                 "speed_m_s", "start", "stop", "force_N", "sigma_N")}
         return Observations(campaign=self.campaign, plans=tuple(plans), rep_rel=self.rep_rel,
                             case_index=np.array([remap[i] for i in self.case_index[keep]], dtype=np.int64),
-                            drives=tuple(drives) if self.drives else (), noise=self.noise, **fields_)
+                            drives=tuple(drives) if self.drives else (), noise=self.noise,
+                            speed_rel_se=None if self.speed_rel_se is None else self.speed_rel_se[keep], **fields_)
 
 
 def case_drive(char_rows: pd.DataFrame, first_time_s: float, start_s: float, fs: float) -> Drive | None:
@@ -179,7 +181,7 @@ def case_drive(char_rows: pd.DataFrame, first_time_s: float, start_s: float, fs:
 def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
                        load_series: Callable[[pd.Series], pd.DataFrame], spec: WindowSpec = WindowSpec(),
                        n_bins: int = 4, force_offset_N: float = 0.0,
-                       unsteady: frozenset = frozenset()) -> Observations:
+                       unsteady: frozenset = frozenset(), input_var_N2: np.ndarray | None = None) -> Observations:
     """Windows and transient bins of every triangle case, in plan time, with honest standard errors.
 
     Measured means are taken from the case's series over [a, b) in plan time (record time minus
@@ -187,11 +189,14 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
     use the same samples. The proportional part of the noise scales with the true force, so the
     noise model sees the samples less a known load-cell offset ``force_offset_N``, and only the
     windows not named (case, segment) in ``unsteady`` (:func:`prepare` finds both first).
+    ``input_var_N2`` adds, per observation, the variance that the measured drive speed's own error
+    propagates into the model (:func:`prepare`).
     """
     by_case = {c: g.set_index("segment") for c, g in char.groupby("case")}
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle") & cases["case"].isin(by_case)]
     cols: dict[str, list] = {k: [] for k in ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s",
-                                             "start", "stop", "force_N", "msq_N2", "n", "fs", "white_se2")}
+                                             "start", "stop", "force_N", "msq_N2", "n", "fs", "white_se2",
+                                             "speed_rel_se")}
     plans, drives, window_samples, all_windows = [], [], {}, {}
     for _, row in ok.iterrows():
         plan = case_plan(row)
@@ -200,6 +205,7 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
         t = series["time_s"].to_numpy()
         tau = t - start_s
         f = series["force_N"].to_numpy()
+        y = series["displacement_m"].to_numpy()
         fs = plan.sample_rate_Hz
         half = plan.period_s / 2.0
         win = by_case[plan.case]
@@ -240,11 +246,14 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
 
         for k, (t0, _t1, sign) in enumerate(segs, start=1):
             # the window's end is closed (as windows.window_ranges): one step past it, half a sample
-            last = max(last, add("window", k, sign, t0 + spec.start_fraction * half,
-                                 t0 + spec.end_fraction * half + 0.5 / fs))
+            a, b = t0 + spec.start_fraction * half, t0 + spec.end_fraction * half + 0.5 / fs
+            before = len(cols["case"])
+            last = max(last, add("window", k, sign, a, b))
+            rel_se = speed_relative_se(tau, y, a, b)
             edges = t0 + np.linspace(0.0, spec.start_fraction * half, n_bins + 1)
             for a, b in zip(edges[:-1], edges[1:]):
                 add("transient", k, sign, a, b)
+            cols["speed_rel_se"] += [rel_se] * (len(cols["case"]) - before)
         plans.append(replace(plan, duration_s=float(tm[max(last - 1, 0)])))
         drives.append(drive)
     ints = ("case_index", "segment", "period", "start", "stop", "n")
@@ -254,13 +263,31 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
     # a floor where the noise model has nothing (constant, quantised windows): the samples' own scatter
     floor = np.maximum(arrays["white_se2"], (1e-9 * np.abs(arrays["force_N"]) + 1e-9) ** 2)
     se2 = np.where(se2 > 0.0, se2, floor)
+    if input_var_N2 is not None and len(input_var_N2) == se2.size:
+        se2 = se2 + input_var_N2
     force = arrays["force_N"]
     rep_rel = _between_period(arrays, se2)
     sigma = np.sqrt(se2 + (rep_rel * force) ** 2)
     keep = {k: arrays[k] for k in ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s", "start",
                                    "stop", "force_N")}
     return Observations(campaign=campaign, plans=tuple(plans), drives=tuple(drives), rep_rel=rep_rel,
-                        sigma_N=sigma, noise={**noise, "between_period_rel": rep_rel}, **keep)
+                        sigma_N=sigma, noise={**noise, "between_period_rel": rep_rel},
+                        speed_rel_se=arrays["speed_rel_se"], **keep)
+
+
+def speed_relative_se(tau: np.ndarray, y: np.ndarray, a: float, b: float) -> float:
+    """Relative standard error of the least-squares speed of the displacement over [a, b) (plan time):
+    the error with which the measured drive speed enters the model (LVDT noise)."""
+    m0, m1 = np.searchsorted(tau, [a, b], side="left")
+    if m1 - m0 < 3:
+        return 0.0
+    tw, yw = tau[m0:m1], y[m0:m1]
+    tc = tw - tw.mean()
+    sxx = float(np.dot(tc, tc))
+    slope = float(np.dot(tc, yw - yw.mean())) / sxx
+    resid = yw - yw.mean() - slope * tc
+    se = math.sqrt(float(np.dot(resid, resid)) / (tw.size - 2) / sxx)
+    return se / abs(slope) if slope else 0.0
 
 
 def _noise_variances(window_samples: Mapping[float, list], arrays: Mapping[str, np.ndarray]) -> tuple[np.ndarray, dict]:
@@ -989,10 +1016,26 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
         first = dg0.refit((), INSTRUMENT)
         offset = 0.0 if first is None else first.offset_N
         obs = build_observations(campaign, cases, char, load, spec, n_bins, offset,
-                                 unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)))
+                                 unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
+                                 drive_input_variance(obs, damper, dg0.nominal))
     if len(obs) == 0:
         return campaign, damper, cases, None, "no triangle case with four windows: nothing to compare"
     return campaign, damper, cases, obs, ""
+
+
+#: Relative step of the drive speeds for the model's speed sensitivity (:func:`drive_input_variance`).
+SPEED_STEP = 1e-4
+
+
+def drive_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarray) -> np.ndarray:
+    """Variance [N²] that the error of each measured drive speed propagates into the model means:
+    (∂F/∂ln v · se(v)/v)², ∂F/∂ln v from the nominal model with every speed scaled by 1 + SPEED_STEP."""
+    if obs.speed_rel_se is None or not obs.drives or not any(obs.drives):
+        return np.zeros(len(obs))
+    scaled = tuple(None if d is None else replace(d, speeds_m_s=tuple(v * (1.0 + SPEED_STEP) for v in d.speeds_m_s))
+                   for d in obs.drives)
+    shifted = Evaluator(replace(obs, drives=scaled), damper).predict(NOMINAL)
+    return ((shifted - nominal_N) / SPEED_STEP * obs.speed_rel_se) ** 2
 
 
 #: A window whose nominal-model force varies by more than this fraction of the per-sample noise
