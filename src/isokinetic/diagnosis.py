@@ -349,8 +349,11 @@ class Evaluator:
         hyd = Hydraulics.from_damper(self.damper, effects)
         parts = [[] for _ in range(order)]
         drives = self.obs.drives if self.obs.drives else None
+        friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
         for _t, dp, vel in triangle_responses(self.obs.plans, hyd, 0.0, MODEL_STEP, drives):
-            force = hyd.piston_area_m2 * dp + friction_force(vel, effects)
+            force = hyd.piston_area_m2 * dp
+            if friction:  # the search profiles friction linearly (LinearTerms): its runs carry none
+                force = force + friction_force(vel, effects)
             for k in range(order):
                 parts[k].append(np.concatenate([[0.0], np.cumsum(force ** (k + 1))]))
         out = []
