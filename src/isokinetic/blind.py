@@ -55,7 +55,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import yaml
 from scipy.optimize import brentq
 
 from .characteristic import assemble
@@ -67,7 +66,7 @@ from .io import write_json, write_parquet
 from .nominal import ModelPlan
 from .plan import CasePlan, paper_plan
 from .repeatability import repeatability
-from .scenarios import EFFECTS, OUT_OF_CATALOGUE, SCENARIO_PREFIX, scenario_names, suite_size  # noqa: F401
+from .scenarios import EFFECTS, OUT_OF_CATALOGUE, scenario_names
 from .validate import write_validated
 from .windows import WindowSpec, windows_stage
 

@@ -73,7 +73,7 @@ from scipy import optimize, stats
 
 from .campaign import case_plan
 from .damper import AIR_COMPRESSIBILITY_1_PA, NOMINAL, Damper, Effects, friction_force, laminar_coefficient
-from .nominal import grid_offset, motion_start
+from .nominal import measured_drive, motion_start
 from .noise import between_period_scatter, fit_noise_model, scaled_chi2_sf
 from .plan import CasePlan
 from .virtual_rig import Drive, Hydraulics, drive_times, triangle_responses
@@ -169,15 +169,6 @@ class Observations:
                             speed_rel_se=None if self.speed_rel_se is None else self.speed_rel_se[keep], **fields_)
 
 
-def case_drive(char_rows: pd.DataFrame, first_time_s: float, start_s: float, fs: float) -> Drive | None:
-    """The measured drive of one case: |velocity| of its windows 1-4, the plan time of its first sample."""
-    rows = char_rows.sort_index()
-    speeds = tuple(float(abs(v)) for v in rows["velocity_m_s"])
-    if len(speeds) != 4 or not all(math.isfinite(v) and v > 0 for v in speeds):
-        return None
-    return Drive(speeds, grid_offset(first_time_s, start_s, fs))
-
-
 def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
                        load_series: Callable[[pd.Series], pd.DataFrame], spec: WindowSpec = WindowSpec(),
                        n_bins: int = 4, force_offset_N: float = 0.0,
@@ -211,7 +202,7 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
         win = by_case[plan.case]
         if sorted(win.index) != [1, 2, 3, 4]:
             continue
-        drive = case_drive(win, float(t[0]), start_s, fs)
+        drive = measured_drive(win.index, win["velocity_m_s"], float(t[0]), start_s, fs)
         full = replace(plan, duration_s=float(tau[-1]))
         tm = drive_times(full, drive)
         segs = windowed_half_periods(plan, float(tau[-1]), spec)

@@ -235,16 +235,26 @@ def case_drives(cases: pd.DataFrame, windows: pd.DataFrame | None) -> dict[str, 
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     for _, row in ok.iterrows():
         g = by_case.get(str(row["case"]))
-        if g is None or list(g["segment"]) != [1, 2, 3, 4]:
-            continue
-        speeds = tuple(float(abs(v)) for v in g["velocity_m_s"])
-        if not all(math.isfinite(v) and v > 0 for v in speeds):
+        if g is None:
             continue
         start = motion_start(row)
         delay = row.get("delay_s", 0.0)
         delay = float(delay) if delay is not None and math.isfinite(float(delay)) else 0.0
-        out[str(row["case"])] = Drive(speeds, grid_offset(start - delay, start, float(row["sample_rate_Hz"])))
+        drive = measured_drive(g["segment"], g["velocity_m_s"], start - delay, start, float(row["sample_rate_Hz"]))
+        if drive is not None:
+            out[str(row["case"])] = drive
     return out
+
+
+def measured_drive(segments, velocities_m_s, first_time_s: float, motion_start_s: float,
+                   sample_rate_Hz: float) -> Drive | None:
+    """The drive of one case: |velocity| of its windows 1-4 (in segment order) and the plan time of its
+    first sample on the uniform grid (:func:`grid_offset`); None without four finite, non-zero speeds."""
+    pairs = sorted(zip((int(k) for k in segments), velocities_m_s))
+    speeds = tuple(float(abs(v)) for _, v in pairs)
+    if [k for k, _ in pairs] != [1, 2, 3, 4] or not all(math.isfinite(v) and v > 0 for v in speeds):
+        return None
+    return Drive(speeds, grid_offset(first_time_s, motion_start_s, sample_rate_Hz))
 
 
 def plan_time_ends(cases: pd.DataFrame, load_times) -> dict[str, float]:
