@@ -106,6 +106,11 @@ BEAM = 3
 #: Panel width of the model's segment tables (virtual_rig.DEFAULT_STEP is 0.03): error ~1e-8 of the
 #: pressure scale, far below any window's noise, with about half the nodes.
 MODEL_STEP = 0.06
+#: Relative step of the drive speeds for the model's speed sensitivity (:func:`drive_input_variance`).
+SPEED_STEP = 1e-4
+#: A window whose nominal-model force varies by more than this fraction of the per-sample noise
+#: (standard deviations) is still relaxing and is kept out of the noise fit (:func:`unsteady_windows`).
+UNSTEADY_FRACTION = 0.25
 #: |z| of a characteristic point beyond which it is not explained by noise (for ``where``).
 Z_SIGNIFICANT = 3.0
 #: The diagnosis.json schema, shipped as package data beside this module.
@@ -1017,10 +1022,6 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
     return campaign, damper, cases, obs, ""
 
 
-#: Relative step of the drive speeds for the model's speed sensitivity (:func:`drive_input_variance`).
-SPEED_STEP = 1e-4
-
-
 def drive_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarray) -> np.ndarray:
     """Variance [N²] that the error of each measured drive speed propagates into the model means:
     (∂F/∂ln v · se(v)/v)², ∂F/∂ln v from the nominal model with every speed scaled by 1 + SPEED_STEP."""
@@ -1032,23 +1033,18 @@ def drive_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarra
     return ((shifted - nominal_N) / SPEED_STEP * obs.speed_rel_se) ** 2
 
 
-#: A window whose nominal-model force varies by more than this fraction of the per-sample noise
-#: (standard deviations) is still relaxing and is kept out of the noise fit.
-UNSTEADY_FRACTION = 0.25
-
-
 def unsteady_windows(obs: Observations, model_spread_N: np.ndarray) -> frozenset:
     """(case, segment) of the windows whose nominal-model force is not steady: its spread over the
     window exceeds UNSTEADY_FRACTION of the per-sample noise the first noise fit estimated (at most
     half of the windows, the least steady first, so that the noise fit keeps data)."""
     win = np.flatnonzero(obs.is_window)
     models = obs.noise.get("objects") or {}
-    per_sample = np.array([math.sqrt(max(models[obs.plans[obs.case_index[i]].sample_rate_Hz]
-                                         .sample_variance_N2(obs.force_N[i] ** 2), 1e-300))
-                           if obs.plans[obs.case_index[i]].sample_rate_Hz in models else math.inf for i in win])
-    ratio = model_spread_N[win] / per_sample
-    order = win[np.argsort(-ratio)]
-    bad = [i for i in order[: len(win) // 2] if model_spread_N[i] > UNSTEADY_FRACTION * per_sample[win == i][0]]
+    rates = [obs.plans[obs.case_index[i]].sample_rate_Hz for i in win]
+    per_sample = np.array([math.sqrt(max(models[fs].sample_variance_N2(obs.force_N[i] ** 2), 1e-300))
+                           if fs in models else math.inf for i, fs in zip(win, rates)])
+    spread = model_spread_N[win]
+    least_steady = np.argsort(-spread / per_sample)[: len(win) // 2]
+    bad = [win[j] for j in least_steady if spread[j] > UNSTEADY_FRACTION * per_sample[j]]
     return frozenset((str(obs.case[i]), int(obs.segment[i])) for i in bad)
 
 
