@@ -3,8 +3,8 @@
     .venv/bin/python benchmark/blind_suite.py [--seed 777] [--per-effect 6] [--pairs 9] [--none 9]
                                               [--out 6] [--jobs 2]
 
-Generates the suite exactly as the pipeline's blind_generate does (isokinetic.blind, reference
-rig, nuisances in every scenario), diagnoses every scenario through the raw-campaign chain in
+Generates the suite exactly as the pipeline's blind_generate does (isokinetic.stages.blind_generate,
+reference rig, nuisances in every scenario), diagnoses every scenario through the raw-campaign chain in
 ``--jobs`` processes, scores it and prints the same summary table as the pipeline's blind_score,
 plus the wall time. Works in a temporary folder; asserts nothing.
 """
@@ -19,12 +19,14 @@ from pathlib import Path
 
 import pandas as pd
 
-from isokinetic import blind
+from isokinetic.stages.blind_diagnose import diagnose_suite
+from isokinetic.stages.blind_generate import generate_scenarios, write_suite
+from isokinetic.stages.blind_score import read_truths, score, summarize, summary_text
 
 
 def diagnose_chunk(args: tuple[str, list[str], str]) -> dict:
     raw, names, work = args
-    return blind.diagnose_suite(raw, names, work)
+    return diagnose_suite(raw, names, work)
 
 
 def main() -> None:
@@ -37,10 +39,10 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=2)
     args = parser.parse_args()
     started = time.perf_counter()
-    scenarios = blind.generate_scenarios(args.seed, args.per_effect, args.pairs, args.none, args.out)
+    scenarios = generate_scenarios(args.seed, args.per_effect, args.pairs, args.none, args.out)
     with tempfile.TemporaryDirectory() as tmp:
         raw, truth, work = Path(tmp) / "raw", Path(tmp) / "truth", Path(tmp) / "work"
-        blind.write_suite(scenarios, raw, truth)
+        write_suite(scenarios, raw, truth)
         generated = time.perf_counter() - started
         names = [s.name for s in scenarios]
         chunks = [(str(raw), names[k::args.jobs], str(work)) for k in range(args.jobs)]
@@ -48,11 +50,11 @@ def main() -> None:
         with ProcessPoolExecutor(args.jobs) as pool:
             for part in pool.map(diagnose_chunk, chunks):
                 diagnoses.update(part)
-        scores = blind.score(blind.read_truths(truth), diagnoses)
-    summary = blind.summarize(scores)
+        scores = score(read_truths(truth), diagnoses)
+    summary = summarize(scores)
     print(f"blind suite: seed {args.seed}, {len(scenarios)} scenarios; generated in {generated:.0f} s, "
           f"total {time.perf_counter() - started:.0f} s with {args.jobs} processes")
-    print(blind.summary_text(summary))
+    print(summary_text(summary))
     wrong = scores[~scores["exact"] & (scores["out_of_catalogue"] == "")]
     if len(wrong):
         with pd.option_context("display.width", 200, "display.max_columns", 20):

@@ -4,7 +4,7 @@
 
 For each noise kind (``white``: white plus white proportional force noise; ``coloured``: white
 plus proportional first-order noise with its corner drawn in [0.1, 5] Hz), N scenarios of the
-independent reference rig (isokinetic.reference_rig) with every rig nuisance drawn as in the blind
+independent reference rig (isokinetic.physics.reference_rig) with every rig nuisance drawn as in the blind
 suite (delay, servo lag, load-cell offset and gain, LVDT noise, viscosity drift) and no damper
 effect are taken through the real chain (ingest to characteristic) and the diagnosis'
 observations; the nominal test's p-value (nominal model plus the profiled instrument terms, χ²
@@ -25,8 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from isokinetic import blind
-from isokinetic import diagnosis as dg
+from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.stages.blind_diagnose import process_raw_campaign
+from isokinetic.stages.blind_generate import export_scenario, make_scenario
+from isokinetic.stages.diagnosis import prepare
 
 ALPHAS = (0.05, 0.01, 0.001)
 SEED = 20261122
@@ -34,16 +36,16 @@ SEED = 20261122
 
 def null_p_value(args: tuple[str, int]) -> tuple[str, float]:
     kind, k = args
-    scenario = blind.make_scenario(f"null-{kind}-{k:03d}", (), np.random.SeedSequence([SEED, k]))
+    scenario = make_scenario(f"null-{kind}-{k:03d}", (), np.random.SeedSequence([SEED, k]))
     if kind == "white":  # proportional noise without colour: a corner far above fs/2
         scenario = dataclasses.replace(scenario, rig=dataclasses.replace(scenario.rig, noise_corner_Hz=1.0e4))
     with tempfile.TemporaryDirectory() as tmp:
-        blind.export_scenario(scenario, Path(tmp) / "raw", Path(tmp) / "truth")
-        root = blind.process_raw_campaign(Path(tmp) / "raw" / scenario.name, Path(tmp) / "work")
-        _campaign, damper, _cases, obs, reason = dg.prepare(root)
+        export_scenario(scenario, Path(tmp) / "raw", Path(tmp) / "truth")
+        root = process_raw_campaign(Path(tmp) / "raw" / scenario.name, Path(tmp) / "work")
+        _campaign, damper, _cases, obs, reason = prepare(root)
         if obs is None:
             return kind, float("nan")
-        return kind, dg.Diagnoser(obs, damper).nominal_p_value()
+        return kind, Diagnoser(obs, damper).nominal_p_value()
 
 
 def main() -> None:

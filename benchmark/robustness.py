@@ -36,9 +36,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from isokinetic.ingest import ingest_campaign  # noqa: E402
-from isokinetic.manifest import MAX_CASES, MAX_MANIFEST_BYTES, ManifestError  # noqa: E402
-from isokinetic.validate import write_validated  # noqa: E402
+from isokinetic.contracts.manifest import MAX_CASES, MAX_MANIFEST_BYTES, ManifestError  # noqa: E402
+from isokinetic.stages.ingest import ingest_campaign  # noqa: E402
+from isokinetic.stages.validate import write_validated  # noqa: E402
 
 CONFIG_CAMPAIGN = "lag-damper-backlash"
 CASES = ("T01", "T03", "H01")
@@ -247,7 +247,8 @@ def main(argv=None) -> int:
         if r["error"]:
             outcome = f"CRASH {r['error']}"
         elif r["manifest_error"]:
-            outcome = "refused: " + (r["manifest_error"] if args.verbose else r["manifest_error"].split(": ", 1)[1][:90])
+            said = r["manifest_error"]
+            outcome = "refused: " + (said if args.verbose else said.split(": ", 1)[1][:90])
         else:
             outcome = ", ".join(f"{c} {s}" for c, s in r["status"].items())
         print(f"{category:9} {kind:36} {'yes' if caught else 'NO':7} {lost:<9d} {r['raw_changed']:<11d} {outcome}")

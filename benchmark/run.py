@@ -27,7 +27,8 @@ def timed(cmd: list[str]) -> float:
 
 def main() -> None:
     snakemake = str(BIN / "snakemake")
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    machine = platform.processor() or platform.machine()
+    print(f"machine: {machine}, {os.cpu_count()} cores, Python {platform.python_version()}")
     full = timed([snakemake, "--cores", "2", "--forceall"])
     noop = timed([snakemake, "--cores", "2"])
     print(f"{'full rebuild (snakemake --cores 2 --forceall)':<50} {full:8.1f} s   target < 60 s")
@@ -41,7 +42,7 @@ def main() -> None:
 
 def diagnosis_seconds(campaign: str) -> float:
     """Wall time of diagnosing a built campaign in a fresh process pinned to one core (imports excluded)."""
-    code = ("import time, pathlib; from isokinetic.diagnosis import diagnose; t = time.perf_counter(); "
+    code = ("import time, pathlib; from isokinetic.stages.diagnosis import diagnose; t = time.perf_counter(); "
             f"diagnose(pathlib.Path('results/{campaign}')); print(time.perf_counter() - t)")
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
     out = subprocess.run(["taskset", "-c", "0", sys.executable, "-c", code], cwd=ROOT, check=True, env=env,

@@ -4,7 +4,7 @@ Run: .venv/bin/python benchmark/virtual_rig_throughput.py [--config config/confi
 
 For the 23 triangle cases of the default config (truth effects, noise free Δp):
   1. reference: solve_ivp DOP853 at rtol 1e-13, split at every velocity reversal;
-  2. the quadrature (virtual_rig.triangle_responses, all cases in one call): error, samples/s;
+  2. the quadrature (responses.triangle_responses, all cases in one call): error, samples/s;
   3. plain solve_ivp (LSODA, analytic Jacobian, split at reversals, t_eval = samples), with the
      loosest rtol in 1e-6, 1e-7, ... whose max error is no larger than the quadrature's;
      samples/s at that tolerance, and the speed ratio.
@@ -22,9 +22,11 @@ import numpy as np
 import yaml
 from scipy.integrate import solve_ivp
 
-from isokinetic.plan import triangle_displacement
-from isokinetic.virtual_rig import (Hydraulics, VirtualCampaign, piston_segments, sample_times,
-                                    steady_pressure, triangle_responses)
+from isokinetic.physics.excitation import piston_segments, sample_times
+from isokinetic.physics.hydraulics import Hydraulics, steady_pressure
+from isokinetic.physics.plan import triangle_displacement
+from isokinetic.physics.responses import triangle_responses
+from isokinetic.stages.virtual_rig import VirtualCampaign
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -13,9 +13,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from isokinetic.ingest import ingest_campaign
-from isokinetic.plan import sine_displacement, triangle_displacement
-from isokinetic.validate import write_validated
+from isokinetic.physics.plan import sine_displacement, triangle_displacement
+from isokinetic.stages.ingest import ingest_campaign
+from isokinetic.stages.validate import write_validated
 
 CAMPAIGN = "demo"
 FORCE_A_N = 150.0          # force = sign(v) (a + b|v|) + noise

@@ -1,14 +1,34 @@
-"""Atomic writes: a reader never sees a part-written file, and a killed writer's leftovers go."""
+"""Atomic writes: a reader never sees a part-written file, and a killed writer's leftovers go.
+Lineage: the record attached as a file is written (Parquet, JSON, PNG), the data kept, the record read back."""
 
+import json
 import os
+import struct
 import subprocess
 import sys
 import textwrap
+import zlib
 
+import matplotlib.image
+import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
+from matplotlib.figure import Figure
 
-from isokinetic.io import remove_stale_tmp, write_atomic, write_json, write_parquet
+from isokinetic.audit import lineage
+from isokinetic.io import (
+    LINEAGE_KEY,
+    canonical_json,
+    lineage_context,
+    read_lineage,
+    remove_stale_tmp,
+    sha256_file,
+    write_atomic,
+    write_json,
+    write_parquet,
+)
+from isokinetic.plots.style import save_figure
 
 
 def test_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path):
@@ -67,3 +87,81 @@ def test_atomic_write_gives_ordinary_file_permissions(tmp_path):
     finally:
         os.umask(umask)
     assert path.stat().st_mode & 0o777 == 0o644
+
+
+# ----------------------------------------------------------------------------------------------
+# the lineage record, attached as the file is written
+# ----------------------------------------------------------------------------------------------
+
+def frame(n=50):
+    rng = np.random.default_rng(1)
+    return pd.DataFrame({"case": [f"T{i % 5:02d}" for i in range(n)], "segment": np.arange(n, dtype="int64") % 4 + 1,
+                         "force_N": rng.normal(size=n), "ok": rng.normal(size=n) > 0})
+
+
+RECORD = lineage.stage_lineage("windows", {"start_fraction": 0.45}, [], campaign="demo")
+PLAIN = json.loads(canonical_json(RECORD))
+
+
+def figure() -> Figure:
+    fig = Figure(figsize=(2, 1.5))
+    fig.add_subplot().plot([0, 1, 2], [0, 1, 0])
+    return fig
+
+
+def test_parquet_carries_the_record_in_its_schema_and_keeps_the_data(tmp_path):
+    df = frame()
+    plain = write_parquet(df, tmp_path / "plain.parquet")
+    assert read_lineage(plain) is None
+    df.to_parquet(tmp_path / "pandas.parquet", index=False)  # outside a job: the bytes pandas writes
+    assert sha256_file(plain) == sha256_file(tmp_path / "pandas.parquet")
+    with lineage_context(RECORD):
+        path = write_parquet(df, tmp_path / "t.parquet")
+    pd.testing.assert_frame_equal(pd.read_parquet(path), df)
+    assert read_lineage(path) == PLAIN
+    assert pq.read_schema(path).metadata[b"isokinetic.lineage"] == canonical_json(RECORD).encode()
+
+
+def test_json_object_gets_one_key_and_keeps_the_rest(tmp_path):
+    data = {"a": 1, "b": [1.5, None, "x"], "nested": {"k": True}}
+    with lineage_context(RECORD):
+        path = write_json(data, tmp_path / "d.json")
+        listed = write_json([1, 2], tmp_path / "list.json")     # not an object: left alone
+    got = json.loads(path.read_text())
+    assert got.pop("lineage") == read_lineage(path) == PLAIN
+    assert got == data and "lineage" not in data                # the caller's object is not changed
+    assert json.loads(listed.read_text()) == [1, 2] and read_lineage(listed) is None
+
+
+def test_png_carries_the_record_in_a_text_chunk_and_keeps_every_pixel(tmp_path):
+    plain = save_figure(figure(), tmp_path / "plain.png")
+    with lineage_context(RECORD):
+        path = save_figure(figure(), tmp_path / "f.png")
+    assert read_lineage(plain) is None and read_lineage(path) == PLAIN
+    assert np.array_equal(matplotlib.image.imread(path), matplotlib.image.imread(plain))
+    with lineage_context(RECORD):                               # same figure and record: same bytes
+        again = save_figure(figure(), tmp_path / "g.png")
+    assert sha256_file(again) == sha256_file(path)
+
+
+def _chunk(kind: bytes, payload: bytes) -> bytes:
+    return struct.pack(">I", len(payload)) + kind + payload + struct.pack(">I", zlib.crc32(kind + payload))
+
+
+def test_png_stamped_by_earlier_versions_still_reads(tmp_path):
+    """Earlier versions rewrote the PNG with an iTXt chunk before IEND (after the image data)."""
+    data = save_figure(figure(), tmp_path / "plain.png").read_bytes()
+    itxt = LINEAGE_KEY.encode() + b"\0\0\0\0\0" + canonical_json(RECORD).encode()
+    end = data.rindex(b"IEND") - 4
+    old = tmp_path / "old.png"
+    old.write_bytes(data[:end] + _chunk(b"iTXt", itxt) + data[end:])
+    assert read_lineage(old) == PLAIN
+
+
+def test_every_file_written_in_the_context_is_stamped_folders_included(tmp_path):
+    folder = tmp_path / "ingest"
+    with lineage_context(RECORD):
+        write_parquet(frame(), folder / "timeseries" / "T01.parquet")
+        write_parquet(frame(), folder / "cases.parquet")
+        write_json({"campaign": "demo"}, folder / "campaign.json")
+    assert all(read_lineage(p) == PLAIN for p in folder.rglob("*") if p.is_file())

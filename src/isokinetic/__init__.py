@@ -1,8 +1,16 @@
 """isokinetic: steady hydraulic damper characteristics from piecewise constant velocity tests.
 
-The method is that of the reference paper (shared/reference): a triangular piston
-displacement gives piecewise constant velocity; once the compressibility transient has
-died out, a window of each half-period gives one point of the force-velocity characteristic.
+The method is that of Titurus et al., "A method for the identification of hydraulic damper
+characteristics from steady velocity inputs" (equation, table and figure numbers in the package
+refer to it): a triangular piston displacement gives piecewise constant velocity; once the
+compressibility transient has died out, a window of each half-period gives one point of the
+force-velocity characteristic.
+
+Sub-packages, by kind: ``physics`` (damper, plan, convergence, the virtual rig's parts, the
+independent reference rig), ``measurement`` (what a record says: motion timing, noise),
+``contracts`` (manifest, table schemas, campaign layout, outputs), ``stages`` (one module per
+pipeline rule), ``diagnosis`` (the sim-to-real gap method), ``plots`` (every figure), ``audit``
+(lineage, provenance, raw check, trace) and ``report`` (the HTML pages).
 All quantities inside the package are SI; units appear in names (``force_N``, ``velocity_m_s``).
 """
 

@@ -1,12 +1,22 @@
 """Command line: ``python -m isokinetic <command> ...``.
 
-Commands are registered in :func:`build_parser`; each sets ``func(args) -> int``.
+``python -m isokinetic --help`` lists the commands, one line each; ``<command> --help`` explains one:
+
+- ``export-virtual``: write a config's simulated campaign in the raw campaign format;
+- ``trace``: audit one number of a results table, re-derived from the raw data (:mod:`isokinetic.audit.trace`);
+- ``raw-check``: every raw file a processed campaign read still has its recorded sha256
+  (:mod:`isokinetic.audit.raw_check`).
+
+Commands are registered in :func:`build_parser`; each sets ``func(args) -> int``. A command imports
+its modules when it runs (function-local imports, on purpose): ``--help`` and each command load
+only what they use, not the whole scientific stack.
 """
 
 from __future__ import annotations
 
 import argparse
 import inspect
+import logging
 import sys
 from pathlib import Path
 
@@ -15,7 +25,7 @@ import yaml
 
 def _export_virtual(args: argparse.Namespace) -> int:
     """Export a config virtual campaign as a raw campaign folder (raw-campaign-format.md)."""
-    from .virtual_rig import VirtualCampaign, export_raw_campaign
+    from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
 
     config = yaml.safe_load(Path(args.config).read_text(encoding="utf-8")) or {}
     campaigns = config.get("virtual_campaigns") or {}
@@ -34,9 +44,7 @@ def _trace(args: argparse.Namespace) -> int:
 
     Exit status: 0 MATCH, 1 MISMATCH, 2 RAW FILE CHANGED / MISSING FILE / CANNOT TRACE.
     """
-    import logging
-
-    from .trace import trace
+    from isokinetic.audit.trace import trace
 
     logger = logging.getLogger("isokinetic")
     if not logger.handlers:  # the stages' quarantine warnings would otherwise go to stderr raw
@@ -44,11 +52,33 @@ def _trace(args: argparse.Namespace) -> int:
     return trace(args.table, args.selector, root=args.root, config=args.config, rtol=args.rtol).exit_code
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="isokinetic", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True, metavar="command")
+def _raw_check(args: argparse.Namespace) -> int:
+    """Re-hash every raw file the processed campaigns read and compare with the sha256 recorded at ingest.
 
-    p = sub.add_parser("export-virtual", help="write a simulated campaign in the raw campaign format",
+    Prints one line per changed or missing file. Exit status: 0 none, 1 any.
+    """
+    from isokinetic.audit.raw_check import print_changes
+
+    return 1 if print_changes(args.campaign_roots, args.base) else 0
+
+
+#: One line of help per command (``--help`` lists them).
+COMMANDS = {
+    "export-virtual": "write a simulated campaign in the raw campaign format",
+    "trace": "audit one number: its derivation, re-derived from the raw data",
+    "raw-check": "check that the raw files a processed campaign read are unchanged",
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    listing = "\n".join(f"  {name:<16}{text}" for name, text in COMMANDS.items())
+    parser = argparse.ArgumentParser(prog="isokinetic", usage="%(prog)s [-h] <command> ...",
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     description="Tools of the isokinetic package.",
+                                     epilog=f"commands:\n{listing}\n\n'isokinetic <command> --help' explains one.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="command", help=argparse.SUPPRESS)
+
+    p = sub.add_parser("export-virtual", help=COMMANDS["export-virtual"],
                        description=_export_virtual.__doc__)
     p.add_argument("--config", required=True, help="config YAML with a virtual_campaigns block")
     p.add_argument("--campaign", required=True, help="name of the virtual campaign in the config")
@@ -61,7 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
                                   "(default: that folder name)")
     p.set_defaults(func=_export_virtual)
 
-    p = sub.add_parser("trace", help="audit one number: its derivation, re-derived from the raw data",
+    p = sub.add_parser("trace", help=COMMANDS["trace"],
                        description=inspect.cleandoc(_trace.__doc__),
                        formatter_class=argparse.RawDescriptionHelpFormatter,
                        epilog="examples:\n"
@@ -83,6 +113,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--rtol", type=float, help="relative tolerance of the comparison (default 1e-9; 1e-6 for "
                                               "diagnosis.json and blind scores)")
     p.set_defaults(func=_trace)
+
+    p = sub.add_parser("raw-check", help=COMMANDS["raw-check"],
+                       description=inspect.cleandoc(_raw_check.__doc__))
+    p.add_argument("campaign_roots", nargs="+", help="processed campaign folders, e.g. results/<campaign>")
+    p.add_argument("--base", default=".", help="directory the recorded paths are relative to (default: .)")
+    p.set_defaults(func=_raw_check)
     return parser
 
 

@@ -2,23 +2,12 @@
 # number of chunks (each job starts Python once and diagnoses its share of the scenarios), one
 # scoring job. Only blind_score reads the truth.
 
-BLIND = config.get("blind") or {}
-BLIND_NAMES = blind_scenario_names(BLIND)
-BLIND_CHUNKS = max(1, min(int(BLIND.get("chunks", 2)), len(BLIND_NAMES)))
-if BLIND and "blind" in CAMPAIGNS:
-    raise WorkflowError("a campaign named 'blind' would share results/blind/ with the blind test; rename it")
-
-
-def blind_chunk(wildcards):
-    """The scenarios of chunk k: a fixed partition of the names (every k-th)."""
-    return BLIND_NAMES[int(wildcards.chunk)::BLIND_CHUNKS]
-
 
 rule blind_generate:
     """Blind scenarios: raw campaigns without their truth, and the truth kept apart for scoring."""
     output:
-        raw=directory("results/blind/raw"),
-        truth=directory("results/blind/truth"),
+        raw=directory(f"{BLIND_ROOT}/raw"),
+        truth=directory(f"{BLIND_ROOT}/truth"),
     log:
         "logs/blind/generate.log",
     params:
@@ -37,9 +26,9 @@ rule blind_generate:
 rule blind_diagnose:
     """The per-campaign chain (ingest to diagnosis) of one chunk of blind scenarios, truth unseen."""
     input:
-        "results/blind/raw",
+        f"{BLIND_ROOT}/raw",
     output:
-        directory("results/blind/diagnosis/chunk{chunk}"),
+        directory(f"{BLIND_ROOT}/diagnosis/chunk{{chunk}}"),
     log:
         "logs/blind/diagnose-chunk{chunk}.log",
     wildcard_constraints:
@@ -57,13 +46,10 @@ rule blind_diagnose:
 rule blind_score:
     """Verdicts against the truth: scores, targets, confusion matrix (Fig. 17)."""
     input:
-        truth="results/blind/truth",
-        diagnoses=expand("results/blind/diagnosis/chunk{chunk}", chunk=range(BLIND_CHUNKS)),
+        truth=f"{BLIND_ROOT}/truth",
+        diagnoses=expand(f"{BLIND_ROOT}/diagnosis/chunk{{chunk}}", chunk=range(BLIND_CHUNKS)),
     output:
-        scores="results/blind/scores.parquet",
-        summary="results/blind/summary.json",
-        figure=report("results/blind/fig17_blind_confusion.png", caption="../report/blind_confusion.rst",
-                      category="blind", labels={"campaign": "blind", "figure": "fig17_blind_confusion"}),
+        **rule_outputs("blind_score", root=BLIND_ROOT, campaign="blind"),
     log:
         "logs/blind/score.log",
     script:

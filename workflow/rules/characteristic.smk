@@ -4,7 +4,7 @@ rule characteristic:
         windows="results/{campaign}/windows.parquet",
         repeatability="results/{campaign}/repeatability.parquet",
     output:
-        "results/{campaign}/characteristic.parquet",
+        **rule_outputs("characteristic"),
     log:
         "logs/{campaign}/characteristic.log",
     script:

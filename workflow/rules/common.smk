@@ -1,4 +1,5 @@
-# Helpers shared by the rules: config validation and campaign discovery.
+# Helpers shared by the rules: config validation, campaign discovery, and every rule's outputs,
+# built from isokinetic.contracts.outputs (the one place that says what is written where).
 
 import logging
 import os
@@ -9,19 +10,25 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
+from isokinetic.contracts.outputs import CAMPAIGN_ID, CAMPAIGN_ID_PATTERN, FIGURES, RULE_OUTPUTS, figures_of, is_folder
+from isokinetic.contracts.scenarios import scenario_names, suite_size
+
 validate(config, schema="../schemas/config.schema.yaml")
 if config["windows"]["start_fraction"] >= config["windows"]["end_fraction"]:
-    raise WorkflowError("config key 'windows': start_fraction must be below end_fraction, got "
-                        f"{config['windows']['start_fraction']} >= {config['windows']['end_fraction']}")
-
-CAMPAIGN_ID = re.compile(r"[a-z0-9][a-z0-9_-]*")
+    raise WorkflowError(
+        "config key 'windows': start_fraction must be below end_fraction, got "
+        f"{config['windows']['start_fraction']} >= {config['windows']['end_fraction']}"
+    )
 
 
 def export_git_state():
     """Git commit and dirty flag of the code, for every job's lineage (read here, once)."""
+
     def git(*args):
-        return subprocess.run(["git", "-C", workflow.basedir, *args], capture_output=True, text=True,
-                              timeout=10).stdout.strip()
+        return subprocess.run(
+            ["git", "-C", workflow.basedir, *args], capture_output=True, text=True, timeout=10
+        ).stdout.strip()
+
     try:
         commit = git("rev-parse", "HEAD")
         dirty = "1" if git("status", "--porcelain", "--untracked-files=no") else "0"
@@ -32,6 +39,8 @@ def export_git_state():
 
 
 export_git_state()
+
+
 RAW_DIR = Path(config["raw_dir"])
 
 
@@ -44,8 +53,11 @@ def discover_raw_campaigns(raw_dir):
             found.append(name)
         else:
             logging.getLogger("isokinetic").warning(
-                "%s: folder name %r is not a campaign id ([a-z0-9][a-z0-9_-]*); campaign skipped",
-                manifest.parent, name)
+                "%s: folder name %r is not a campaign id (%s); campaign skipped",
+                manifest.parent,
+                name,
+                CAMPAIGN_ID_PATTERN,
+            )
     return found
 
 
@@ -53,8 +65,10 @@ RAW_CAMPAIGNS = discover_raw_campaigns(RAW_DIR)
 VIRTUAL_CAMPAIGNS = sorted(config.get("virtual_campaigns") or {})
 _clash = sorted(set(RAW_CAMPAIGNS) & set(VIRTUAL_CAMPAIGNS))
 if _clash:
-    raise WorkflowError(f"campaign names used both by a raw campaign in {RAW_DIR}/ and by "
-                        f"config 'virtual_campaigns': {', '.join(_clash)}; rename one of them")
+    raise WorkflowError(
+        f"campaign names used both by a raw campaign in {RAW_DIR}/ and by "
+        f"config 'virtual_campaigns': {', '.join(_clash)}; rename one of them"
+    )
 CAMPAIGNS = RAW_CAMPAIGNS + VIRTUAL_CAMPAIGNS
 
 
@@ -69,49 +83,126 @@ def raw_files(wildcards):
     return sorted(str(p) for p in folder.iterdir() if p.is_file())
 
 
-FIGURES = ["fig07_time_and_loops", "fig08_window_selection", "fig09_characteristic",
-           "fig10_low_velocity", "fig11_loglog", "fig12_noise"]
-DESIGN_FIGURES = ["fig05_stroke_to_converge", "fig06_at_diagram"]
-MODEL_FIGURES = ["fig13_comparison", "fig14_comparison_loglog"]
+def campaign_path(root, path):
+    """<root>/<path> of an output path of isokinetic.contracts.outputs (a folder without its slash)."""
+    return str(Path(root, path))
+
+
+def rule_outputs(rule, root="results/{campaign}", campaign="{campaign}"):
+    """Name -> output of a rule, from isokinetic.contracts.outputs: a folder as directory(), figures
+    as report items with their caption (one figure is named 'figure', several are the list 'figures')."""
+    out = {}
+    for name, path in RULE_OUTPUTS[rule].items():
+        out[name] = directory(campaign_path(root, path)) if is_folder(path) else campaign_path(root, path)
+    labels = {"campaign": campaign}
+    figures = [report_item(f"{root}/{f.path}", f.name, campaign, labels) for f in figures_of(rule)]
+    if len(figures) == 1:
+        out["figure"] = figures[0]
+    elif figures:
+        out["figures"] = figures
+    return out
+
+
+def report_item(path, name, category, labels):
+    """A figure for `snakemake --report`, with its caption workflow/report/<name>.rst."""
+    return report(path, caption=f"../report/{name}.rst", category=category, labels={**labels, "figure": name})
+
+
+def output_path(rule, name, campaign="{campaign}"):
+    """results/<campaign>/<path> of one named output of a rule."""
+    return campaign_path(f"results/{campaign}", RULE_OUTPUTS[rule][name])
+
+
+def figure_paths(rule, campaign="{campaign}"):
+    """results/<campaign>/<folder>/<figure>.png of every figure a rule draws."""
+    return [f"results/{campaign}/{f.path}" for f in figures_of(rule)]
 
 
 def campaign_outputs(campaign):
-    root = f"results/{campaign}"
-    return ([f"{root}/characteristic.parquet", f"{root}/repeatability.parquet", f"{root}/quarantine.parquet",
-             f"{root}/models/models.parquet", f"{root}/harmonic/harmonic.parquet", f"{root}/diagnosis.json"]
-            + [f"{root}/figures/{name}.png" for name in FIGURES]
-            + [f"{root}/design/{name}.png" for name in DESIGN_FIGURES]
-            + ([f"{root}/raw_check.json"] if campaign in RAW_CAMPAIGNS else []))
+    """What a campaign's provenance record covers: its tables, diagnosis and figures."""
+    return (
+        [
+            output_path(rule, name, campaign)
+            for rule, name in (
+                ("characteristic", "characteristic"),
+                ("repeatability", "repeatability"),
+                ("validate", "quarantine"),
+                ("models", "models"),
+                ("harmonic", "table"),
+                ("diagnosis", "json"),
+            )
+        ]
+        + figure_paths("figures", campaign)
+        + figure_paths("design", campaign)
+        + ([output_path("raw_check", "raw_check", campaign)] if campaign in RAW_CAMPAIGNS else [])
+    )
 
 
 def check_raw_after_run():
     """After a run: every raw file an ingest read still has the sha256 it recorded (else log each)."""
-    from isokinetic.rawcheck import describe, raw_changes
+    # imported here, once at the end of a run, so that building the DAG does not pay for it
+    from isokinetic.audit.raw_check import describe, raw_changes
 
-    bad = [describe(c, change) for c in RAW_CAMPAIGNS if Path(f"results/{c}/ingest").is_dir()
-           for change in raw_changes(f"results/{c}")]
+    bad = [
+        describe(c, change)
+        for c in RAW_CAMPAIGNS
+        if Path(f"results/{c}/ingest").is_dir()
+        for change in raw_changes(f"results/{c}")
+    ]
     for line in bad:
         logging.getLogger("isokinetic").error(line)
     return bad
 
 
-BLIND_OUTPUTS = ["results/blind/scores.parquet", "results/blind/summary.json",
-                 "results/blind/fig17_blind_confusion.png"]
-
-
-def all_outputs():
-    return ["results/design/plan_check.parquet"] + [
-        path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)] + [
-        f"results/{campaign}/provenance.json" for campaign in CAMPAIGNS] + [
-        f"results/{campaign}/report.html" for campaign in CAMPAIGNS] + ["results/index.html"] + (
-        BLIND_OUTPUTS if config.get("blind") else [])
+BLIND_ROOT = "results/blind"
+BLIND_OUTPUTS = [f"{BLIND_ROOT}/{p}" for p in RULE_OUTPUTS["blind_score"].values()] + [
+    f"{BLIND_ROOT}/{f.path}" for f in figures_of("blind_score")
+]
 
 
 def blind_scenario_names(blind):
-    """Names of the blind scenarios of the config's ``blind`` block (isokinetic.scenarios)."""
-    from isokinetic.scenarios import scenario_names, suite_size
-
+    """Names of the blind scenarios of the config's ``blind`` block (isokinetic.contracts.scenarios)."""
     if not blind:
         return []
-    return scenario_names(suite_size(blind.get("n_per_effect", 0), blind.get("n_pairs", 0),
-                                     blind.get("n_none", 0), blind.get("n_out_of_catalogue", 0)))
+    return scenario_names(
+        suite_size(
+            blind.get("n_per_effect", 0),
+            blind.get("n_pairs", 0),
+            blind.get("n_none", 0),
+            blind.get("n_out_of_catalogue", 0),
+        )
+    )
+
+
+BLIND = config.get("blind") or {}
+BLIND_NAMES = blind_scenario_names(BLIND)
+BLIND_CHUNKS = max(1, min(int(BLIND.get("chunks", 2)), len(BLIND_NAMES)))
+if BLIND and "blind" in CAMPAIGNS:
+    raise WorkflowError("a campaign named 'blind' would share results/blind/ with the blind test; rename it")
+
+
+def blind_chunk(wildcards):
+    """The scenarios of chunk k: a fixed partition of the names (every k-th)."""
+    return BLIND_NAMES[int(wildcards.chunk) :: BLIND_CHUNKS]
+
+
+def provenance_if_made(wildcards):
+    """results/<campaign>/provenance.json when a rule of the workflow makes it. Not when the campaign's
+    outputs (read by the provenance job) include the page itself, which would be a cycle."""
+    path = output_path("provenance", "provenance", wildcards.campaign)
+    page = output_path("campaign_report", "page", wildcards.campaign)
+    if page in campaign_outputs(wildcards.campaign):
+        return []
+    return [path] if any(r.is_producer(path) for r in workflow.rules if r.name != "campaign_report") else []
+
+
+def all_outputs():
+    """Every result of the workflow: each campaign's outputs, provenance and page, the index, the blind suite."""
+    return (
+        ["results/design/plan_check.parquet"]
+        + [path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]
+        + [output_path("provenance", "provenance", campaign) for campaign in CAMPAIGNS]
+        + [output_path("campaign_report", "page", campaign) for campaign in CAMPAIGNS]
+        + ["results/index.html"]
+        + (BLIND_OUTPUTS if BLIND else [])
+    )

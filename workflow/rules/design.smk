@@ -4,12 +4,7 @@ rule design:
         cases="results/{campaign}/cases.parquet",
         ingest="results/{campaign}/ingest",
     output:
-        plan_check="results/{campaign}/design/plan_check.parquet",
-        figures=[
-            report(f"results/{{campaign}}/design/{name}.png", caption=f"../report/{name}.rst",
-                   category="{campaign}", labels={"campaign": "{campaign}", "figure": name})
-            for name in DESIGN_FIGURES
-        ],
+        **rule_outputs("design"),
     log:
         "logs/{campaign}/design.log",
     params:

@@ -6,9 +6,7 @@ rule diagnosis:
         characteristic="results/{campaign}/characteristic.parquet",
         windows="results/{campaign}/windows.parquet",
     output:
-        json="results/{campaign}/diagnosis.json",
-        figure=report("results/{campaign}/diagnosis/fig16_gap.png", caption="../report/fig16_gap.rst",
-                      category="{campaign}", labels={"campaign": "{campaign}", "figure": "fig16_gap"}),
+        **rule_outputs("diagnosis"),
     log:
         "logs/{campaign}/diagnosis.log",
     params:

@@ -6,15 +6,7 @@ rule figures:
         windows="results/{campaign}/windows.parquet",
         characteristic="results/{campaign}/characteristic.parquet",
     output:
-        [
-            report(
-                f"results/{{campaign}}/figures/{name}.png",
-                caption=f"../report/{name}.rst",
-                category="{campaign}",
-                labels={"campaign": "{campaign}", "figure": name},
-            )
-            for name in FIGURES
-        ],
+        **rule_outputs("figures"),
     log:
         "logs/{campaign}/figures.log",
     script:

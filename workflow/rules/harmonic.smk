@@ -4,10 +4,7 @@ rule harmonic:
         cases="results/{campaign}/cases.parquet",
         ingest="results/{campaign}/ingest",
     output:
-        table="results/{campaign}/harmonic/harmonic.parquet",
-        figure=report("results/{campaign}/harmonic/fig15_harmonic_loops.png",
-                      caption="../report/fig15_harmonic_loops.rst", category="{campaign}",
-                      labels={"campaign": "{campaign}", "figure": "fig15_harmonic_loops"}),
+        **rule_outputs("harmonic"),
     log:
         "logs/{campaign}/harmonic.log",
     script:

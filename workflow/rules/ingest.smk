@@ -3,7 +3,7 @@ rule ingest:
     input:
         raw_files,
     output:
-        directory("results/{campaign}/ingest"),
+        **rule_outputs("ingest"),
     log:
         "logs/{campaign}/ingest.log",
     wildcard_constraints:

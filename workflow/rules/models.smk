@@ -6,14 +6,7 @@ rule models:
         harmonic="results/{campaign}/harmonic/harmonic.parquet",
         ingest="results/{campaign}/ingest",
     output:
-        models="results/{campaign}/models/models.parquet",
-        residuals="results/{campaign}/models/model_residuals.parquet",
-        comparison="results/{campaign}/models/comparison.parquet",
-        figures=[
-            report(f"results/{{campaign}}/models/{name}.png", caption=f"../report/{name}.rst",
-                   category="{campaign}", labels={"campaign": "{campaign}", "figure": name})
-            for name in MODEL_FIGURES
-        ],
+        **rule_outputs("models"),
     log:
         "logs/{campaign}/models.log",
     params:

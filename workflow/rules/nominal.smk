@@ -5,7 +5,7 @@ rule nominal:
         ingest="results/{campaign}/ingest",
         windows="results/{campaign}/windows.parquet",
     output:
-        "results/{campaign}/nominal_windows.parquet",
+        **rule_outputs("nominal"),
     log:
         "logs/{campaign}/nominal.log",
     params:

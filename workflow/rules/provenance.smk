@@ -3,7 +3,7 @@ rule provenance:
     input:
         lambda wildcards: campaign_outputs(wildcards.campaign),
     output:
-        "results/{campaign}/provenance.json",
+        **rule_outputs("provenance"),
     log:
         "logs/{campaign}/provenance.log",
     wildcard_constraints:

@@ -1,12 +1,12 @@
 rule raw_check:
     """Every raw file the campaign's ingest read still has the sha256 recorded at ingest
-    (isokinetic.rawcheck; the same comparison as provenance.json's raw section)."""
+    (isokinetic.audit.raw_check; the same comparison as provenance.json's raw section)."""
     input:
         raw=raw_files,
         cases="results/{campaign}/cases.parquet",
         ingest="results/{campaign}/ingest",
     output:
-        "results/{campaign}/raw_check.json",
+        **rule_outputs("raw_check"),
     log:
         "logs/{campaign}/raw_check.log",
     wildcard_constraints:

@@ -3,7 +3,7 @@ rule repeatability:
     input:
         "results/{campaign}/windows.parquet",
     output:
-        "results/{campaign}/repeatability.parquet",
+        **rule_outputs("repeatability"),
     log:
         "logs/{campaign}/repeatability.log",
     params:

@@ -3,8 +3,7 @@ rule validate:
     input:
         "results/{campaign}/ingest",
     output:
-        cases="results/{campaign}/cases.parquet",
-        quarantine="results/{campaign}/quarantine.parquet",
+        **rule_outputs("validate"),
     log:
         "logs/{campaign}/validate.log",
     params:

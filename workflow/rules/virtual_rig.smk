@@ -1,7 +1,7 @@
 rule virtual_rig:
     """Simulate a config-defined campaign into the ingested-campaign layout."""
     output:
-        directory("results/{campaign}/ingest"),
+        **rule_outputs("virtual_rig"),
     log:
         "logs/{campaign}/virtual_rig.log",
     wildcard_constraints:

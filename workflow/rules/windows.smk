@@ -4,7 +4,7 @@ rule windows:
         cases="results/{campaign}/cases.parquet",
         ingest="results/{campaign}/ingest",
     output:
-        "results/{campaign}/windows.parquet",
+        **rule_outputs("windows"),
     log:
         "logs/{campaign}/windows.log",
     params:

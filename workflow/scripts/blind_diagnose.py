@@ -2,20 +2,18 @@
 import time
 from pathlib import Path
 
-from isokinetic.blind import diagnose_suite
-from isokinetic.lineage import finish
-from isokinetic.logs import log_to_file
-from isokinetic.windows import WindowSpec
+from isokinetic.job import job
+from isokinetic.stages.blind_diagnose import diagnose_suite
+from isokinetic.stages.windows import WindowSpec
 
-log = log_to_file(snakemake.log[0])
-p = snakemake.params
-start = time.perf_counter()
-out = Path(snakemake.output[0])
-out.mkdir(parents=True, exist_ok=True)
-results = diagnose_suite(snakemake.input[0], p.names, out, WindowSpec(p.start_fraction, p.end_fraction),
-                         repeatability_tolerance=p.repeatability_tolerance,
-                         sample_rate_tolerance=p.sample_rate_tolerance)
-failed = sorted(n for n, d in results.items() if d is None)
-log.info("%d scenarios diagnosed in %.1f s%s", len(results), time.perf_counter() - start,
-         f"; failed: {', '.join(failed)}" if failed else "")
-finish(snakemake)  # lineage record on every output (isokinetic.lineage)
+with job(snakemake) as j:
+    p = snakemake.params
+    start = time.perf_counter()
+    out = Path(snakemake.output[0])
+    out.mkdir(parents=True, exist_ok=True)
+    results = diagnose_suite(snakemake.input[0], p.names, out, WindowSpec(p.start_fraction, p.end_fraction),
+                             repeatability_tolerance=p.repeatability_tolerance,
+                             sample_rate_tolerance=p.sample_rate_tolerance)
+    failed = sorted(n for n, d in results.items() if d is None)
+    j.log.info("%d scenarios diagnosed in %.1f s%s", len(results), time.perf_counter() - start,
+               f"; failed: {', '.join(failed)}" if failed else "")

@@ -1,14 +1,12 @@
 """Rule blind_score: verdicts against the truth -> scores.parquet, summary.json, Fig. 17; prints the summary."""
 import sys
 
-from isokinetic.blind import summary_text, write_scores
-from isokinetic.lineage import finish
-from isokinetic.logs import log_to_file
+from isokinetic.job import job
+from isokinetic.stages.blind_score import summary_text, write_scores
 
-log = log_to_file(snakemake.log[0])
-scores, summary = write_scores(snakemake.input.truth, snakemake.input.diagnoses, snakemake.output.scores,
-                               snakemake.output.summary, snakemake.output.figure)
-text = summary_text(summary)
-log.info("\n%s", text)
-print(text, file=sys.stderr, flush=True)
-finish(snakemake)  # lineage record on every output (isokinetic.lineage)
+with job(snakemake) as j:
+    scores, summary = write_scores(snakemake.input.truth, snakemake.input.diagnoses, snakemake.output.scores,
+                                   snakemake.output.summary, snakemake.output.figure)
+    text = summary_text(summary)
+    j.log.info("\n%s", text)
+    print(text, file=sys.stderr, flush=True)

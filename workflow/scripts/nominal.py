@@ -2,14 +2,12 @@
 from pathlib import Path
 
 from isokinetic.io import write_parquet
-from isokinetic.lineage import finish
-from isokinetic.logs import log_to_file
-from isokinetic.nominal import nominal_stage
-from isokinetic.windows import WindowSpec
+from isokinetic.job import job
+from isokinetic.stages.nominal import nominal_stage
+from isokinetic.stages.windows import WindowSpec
 
-log = log_to_file(snakemake.log[0])
-spec = WindowSpec(snakemake.params.start_fraction, snakemake.params.end_fraction)
-windows = nominal_stage(Path(snakemake.input.cases).parent, spec)
-write_parquet(windows, snakemake.output[0])
-log.info("%d nominal-model windows", len(windows))
-finish(snakemake)  # lineage record on every output (isokinetic.lineage)
+with job(snakemake) as j:
+    spec = WindowSpec(snakemake.params.start_fraction, snakemake.params.end_fraction)
+    windows = nominal_stage(Path(snakemake.input.cases).parent, spec)
+    write_parquet(windows, snakemake.output[0])
+    j.log.info("%d nominal-model windows", len(windows))

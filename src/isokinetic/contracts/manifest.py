@@ -1,0 +1,544 @@
+"""The campaign manifest, ``campaign.yaml`` (shared/spec/raw-campaign-format.md, version 1).
+
+:func:`load_manifest` separates two kinds of trouble:
+
+* a *broken manifest* (unparseable, wrong shape, bad campaign-level key) raises
+  :class:`ManifestError` naming the file and the key: the campaign fails alone;
+* a problem that concerns one case (a missing period, a missing file key, an unknown
+  unit on a column the case uses, ...) is recorded in that case's ``problems``: ingest
+  quarantines the case and carries on with the others.
+
+Hostile input is refused as a broken manifest, before any case file is opened and before the
+YAML is turned into Python objects (:func:`check_yaml_events` walks the parser's events first):
+
+* a manifest larger than :data:`MAX_MANIFEST_BYTES` (1 MB) or not a regular file;
+* YAML anchors and aliases (``&a`` / ``*a``: the "billion laughs" expansion bomb), merge keys
+  (``<<``), duplicate mapping keys (PyYAML would silently keep the last one), tags other than the
+  plain YAML types (``!!python/object:...``, ``!!binary``, local ``!tags``: nothing constructs
+  objects), complex (non-scalar) mapping keys, nesting deeper than :data:`MAX_DEPTH`, more than
+  :data:`MAX_NODES` values;
+* a case ``file`` that is not a bare name inside the campaign folder (path separator, ``..``,
+  absolute path, drive letter, NUL), or a symlink whose target lies outside the campaign folder;
+* sizes that make no physical sense or would allocate gigabytes (:data:`BOUNDS`, per key, and
+  :data:`MAX_PLANNED_SAMPLES` samples per planned record; at most :data:`MAX_CASES` cases).
+
+Keys the spec does not define are kept in ``metadata``, mirroring the manifest's structure
+(top-level keys, unknown ``columns`` channels, extra ``damper`` keys, per-case keys under
+``metadata["cases"][<id>]``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import yaml
+
+from isokinetic.physics.damper import Damper
+from isokinetic.physics.plan import WAVEFORMS, CasePlan
+from isokinetic.stages.validate import Problem
+
+FORMAT_VERSION = 1
+MANIFEST_NAME = "campaign.yaml"
+CAMPAIGN_RULE = "[a-z0-9][a-z0-9_-]*"
+CAMPAIGN_PATTERN = re.compile(CAMPAIGN_RULE)
+#: Case ids name files (``timeseries/<id>.parquet``), so they are restricted to safe characters.
+CASE_ID_RULE = "[A-Za-z0-9][A-Za-z0-9_.-]*"
+CASE_ID_PATTERN = re.compile(CASE_ID_RULE)
+#: Longest case id: ids name the case's result files, and file names are limited (255 bytes).
+MAX_CASE_ID_LENGTH = 64
+
+#: Channel -> unit -> factor to SI; ``None`` marks ISO 8601 stamps (seconds from the first sample).
+UNITS: dict[str, dict[str, float | None]] = {
+    "time": {"s": 1.0, "ms": 1e-3, "datetime": None},
+    "displacement": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
+    "force": {"N": 1.0, "kN": 1e3},
+    "command": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
+}
+CHANNELS = tuple(UNITS)
+REQUIRED_CHANNELS = ("time", "displacement", "force")
+
+TOP_KEYS = frozenset({"format_version", "campaign", "description", "source", "temperature_C",
+                      "sample_rate_Hz", "columns", "damper", "cases"})
+CASE_KEYS = frozenset({"id", "waveform", "file", "sample_rate_Hz", "columns", "period_s",
+                       "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s"})
+COLUMN_KEYS = ("name", "unit", "invert")
+DEFAULT_TRIANGLE_PHASE_RAD = -math.pi / 2
+
+#: A manifest is a page of YAML; anything larger is refused unread (bytes).
+MAX_MANIFEST_BYTES = 1_000_000
+#: Deepest nesting of mappings/sequences (the spec needs 5: top, cases, case, columns, channel).
+MAX_DEPTH = 32
+#: Most YAML values (scalars and collections) in one manifest (1000 cases use about 20 000).
+MAX_NODES = 200_000
+#: Most cases in one campaign.
+MAX_CASES = 1_000
+#: Upper bounds (inclusive) of positive sizes, campaign-level or per case. A value above its bound
+#: is a unit or typing error, or hostile: the campaign is refused. Lower bounds: > 0 as before.
+BOUNDS = {
+    "sample_rate_Hz": 1.0e6,     # 1 MHz: far above any damper rig's acquisition rate
+    "period_s": 1.0e5,           # about 28 h per triangle period
+    "frequency_Hz": 1.0e4,       # 10 kHz excitation
+    "amplitude_mm": 1.0e3,       # 1 m of piston amplitude
+    "duration_s": 1.0e6,         # about 11.6 days of record
+}
+#: Most samples a planned record may need (sample rate x the longer of the plan's required
+#: duration and ``duration_s``): 1e7 samples = 80 MB per float64 channel. Stages that simulate the
+#: plan (nominal model, diagnosis) allocate this many samples.
+MAX_PLANNED_SAMPLES = 10_000_000
+#: YAML tags a manifest may carry explicitly (the plain types of the YAML core schema).
+SAFE_TAGS = frozenset("tag:yaml.org,2002:" + t for t in
+                      ("null", "bool", "int", "float", "str", "seq", "map", "timestamp"))
+
+
+class ManifestError(ValueError):
+    """A broken manifest: the whole campaign is rejected. The message names file and key."""
+
+    def __init__(self, path: str, key: str | None, problem: str):
+        self.path, self.key, self.problem = path, key, problem
+        super().__init__(f"{path}: key {key!r}: {problem}" if key else f"{path}: {problem}")
+
+
+@dataclass(frozen=True)
+class Column:
+    """Where one channel lives in a case CSV: column name, unit as written, sign flip."""
+
+    name: str
+    unit: str
+    invert: bool = False
+
+
+@dataclass(frozen=True)
+class CaseSpec:
+    """One case of the manifest: its plan in SI, its file and columns, and its own problems."""
+
+    plan: CasePlan
+    file: str | None                 # bare file name; None when missing or invalid (see problems)
+    columns: dict[str, Column]       # effective channels: campaign columns merged with the case's
+    keys: dict                       # the case entry exactly as written
+    metadata: dict                   # the entry's keys the spec does not define
+    problems: tuple[Problem, ...] = ()
+
+    @property
+    def id(self) -> str:
+        return self.plan.case
+
+    @property
+    def waveform(self) -> str:
+        return self.plan.waveform
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """A parsed ``campaign.yaml``."""
+
+    path: str
+    format_version: int
+    campaign: str
+    description: str | None
+    source: str | None
+    temperature_C: float | None
+    sample_rate_Hz: float
+    columns: dict[str, Column]
+    damper: Damper | None
+    cases: tuple[CaseSpec, ...]
+    metadata: dict = field(default_factory=dict)
+    sha256: str = ""
+
+
+def number(value) -> float | None:
+    """``value`` as a finite float, or None. Accepts numeric strings: PyYAML reads ``1e-3``
+    (no decimal point) as a string."""
+    if isinstance(value, bool):
+        return None
+    try:
+        out = float(value)
+    except (TypeError, ValueError, OverflowError):
+        return None
+    return out if math.isfinite(out) else None
+
+
+def bare_file_name(name) -> bool:
+    """True for a plain file name: no path separator, no ``..``, not absolute, not empty."""
+    return (isinstance(name, str) and name.strip() not in ("", ".") and "/" not in name
+            and "\\" not in name and ".." not in name and ":" not in name and "\0" not in name)
+
+
+def column_problems(channel: str, spec) -> list[Problem]:
+    """Problems of one channel's ``{name, unit, invert}`` mapping.
+
+    Structural problems name the manifest key (``kind="key"``); an unknown unit names the
+    CSV column (``kind="column"``).
+    """
+    key = f"columns.{channel}"
+    if not isinstance(spec, Mapping):
+        return [Problem(key, f"expected a mapping with keys {', '.join(COLUMN_KEYS)}, got {spec!r}", kind="key")]
+    name, unit = spec.get("name"), spec.get("unit")
+    if not isinstance(name, str) or not name.strip():
+        return [Problem(f"{key}.name", "missing" if name is None else f"must be a column name, got {name!r}",
+                        kind="key")]
+    problems = []
+    if "unit" not in spec:
+        problems.append(Problem(f"{key}.unit", "missing", kind="key"))
+    elif unit not in UNITS[channel]:
+        problems.append(Problem(name.strip(), f"unknown unit {unit!r} for {channel}; expected one of "
+                                              f"{', '.join(UNITS[channel])}"))
+    if not isinstance(spec.get("invert", False), bool):
+        problems.append(Problem(f"{key}.invert", f"must be true or false, got {spec['invert']!r}", kind="key"))
+    return problems
+
+
+def _column(spec: Mapping) -> Column:
+    return Column(name=spec["name"].strip(), unit=spec.get("unit"), invert=bool(spec.get("invert", False)))
+
+
+def _at(mark) -> str:
+    return f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+
+
+def _short_tag(tag: str) -> str:
+    return "!!" + tag[len("tag:yaml.org,2002:"):] if tag.startswith("tag:yaml.org,2002:") else tag
+
+
+def check_yaml_events(data: bytes, where: str) -> None:
+    """Refuse hostile YAML from the parser's event stream, before any object is built.
+
+    Raises :class:`ManifestError` naming the key path (``cases[2].file``, ``columns.force``; None at
+    the top level) for: an anchor or alias, a merge key ``<<``, a duplicate mapping key, a tag other
+    than :data:`SAFE_TAGS`, a non-scalar mapping key, nesting deeper than :data:`MAX_DEPTH`, more
+    than :data:`MAX_NODES` values. Syntax errors are left to the caller (raised as yaml.YAMLError).
+    Aliases are never expanded here, so the walk costs one pass over at most 1 MB of text.
+    """
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    stack: list[dict] = []   # open collections: kind, path, expect_key, key, index, keys
+    nodes = 0
+
+    def path_of_next() -> str | None:
+        if not stack:
+            return None
+        top = stack[-1]
+        if top["kind"] == "seq":
+            return f"{top['path'] or ''}[{top['index']}]"
+        if top["expect_key"]:
+            return top["path"] or None
+        return f"{top['path']}.{top['key']}" if top["path"] else top["key"]
+
+    def refuse(key, problem, event):
+        raise ManifestError(where, key, f"invalid YAML{_at(event.start_mark)}: {problem}")
+
+    def done_value():
+        if stack:
+            top = stack[-1]
+            if top["kind"] == "seq":
+                top["index"] += 1
+            else:
+                top["expect_key"] = True
+
+    for event in yaml.parse(data, Loader=loader):
+        if isinstance(event, (yaml.StreamStartEvent, yaml.StreamEndEvent, yaml.DocumentStartEvent,
+                              yaml.DocumentEndEvent)):
+            continue
+        if isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+            stack.pop()
+            done_value()
+            continue
+        key = path_of_next()
+        as_key = bool(stack) and stack[-1]["kind"] == "map" and stack[-1]["expect_key"]
+        if isinstance(event, yaml.AliasEvent):
+            refuse(key, f"alias *{event.anchor} is not allowed (anchors and aliases are refused: "
+                        "they can expand to gigabytes)", event)
+        nodes += 1
+        if nodes > MAX_NODES:
+            refuse(key, f"more than {MAX_NODES} values", event)
+        if event.anchor is not None:
+            refuse(key, f"anchor &{event.anchor} is not allowed (anchors and aliases are refused: "
+                        "they can expand to gigabytes)", event)
+        if event.tag not in (None, "!") and event.tag not in SAFE_TAGS:
+            refuse(key, f"tag {_short_tag(event.tag)!r} is not allowed (only plain values: "
+                        "no tag constructs objects)", event)
+        if as_key:
+            top = stack[-1]
+            if not isinstance(event, yaml.ScalarEvent):
+                refuse(key, "mapping keys must be plain values, got a "
+                            + ("sequence" if isinstance(event, yaml.SequenceStartEvent) else "mapping"), event)
+            name = event.value
+            full = f"{top['path']}.{name}" if top["path"] else name
+            if name == "<<" and event.implicit[0]:
+                refuse(full, "merge keys '<<' are not allowed", event)
+            if name in top["keys"]:
+                refuse(full, "duplicate key (YAML would silently keep the last value)", event)
+            top["keys"].add(name)
+            top["key"], top["expect_key"] = name, False
+            continue
+        if isinstance(event, yaml.ScalarEvent):
+            done_value()
+        else:
+            if len(stack) >= MAX_DEPTH:
+                refuse(key, f"nested deeper than {MAX_DEPTH} levels", event)
+            stack.append({"kind": "seq" if isinstance(event, yaml.SequenceStartEvent) else "map",
+                          "path": key or "", "expect_key": True, "key": None, "index": 0, "keys": set()})
+
+
+def _parse_yaml(data: bytes, where: str):
+    """:func:`check_yaml_events`, then yaml.safe_load; syntax errors become a ManifestError giving
+    line and column."""
+    try:
+        check_yaml_events(data, where)
+        return yaml.load(data, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ManifestError(where, None, f"invalid YAML{_at(mark)}: {problem}") from None
+    except (ValueError, OverflowError, RecursionError) as exc:   # e.g. an integer of 5000 digits
+        if isinstance(exc, ManifestError):
+            raise
+        raise ManifestError(where, None, f"invalid YAML: {exc}") from None
+
+
+def read_manifest_bytes(path: str | Path) -> bytes:
+    """The manifest's bytes, refused unread when it is not a regular file, is a symlink leading out
+    of its folder, or holds more than :data:`MAX_MANIFEST_BYTES`."""
+    where, p = str(path), Path(path)
+    if p.is_symlink() and not _inside(p, p.absolute().parent):
+        raise ManifestError(where, None, f"is a symlink to {p.resolve().as_posix()}, outside the campaign folder")
+    if not p.is_file():
+        raise ManifestError(where, None, "not found" if not p.exists() else "not a regular file")
+    size = p.stat().st_size
+    if size > MAX_MANIFEST_BYTES:
+        raise ManifestError(where, None, f"{size} bytes, more than the {MAX_MANIFEST_BYTES} bytes "
+                                         "a manifest may have")
+    with open(p, "rb") as fh:
+        data = fh.read(MAX_MANIFEST_BYTES + 1)
+    if len(data) > MAX_MANIFEST_BYTES:   # grew after the stat
+        raise ManifestError(where, None, f"more than the {MAX_MANIFEST_BYTES} bytes a manifest may have")
+    return data
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    """True when ``path`` (symlinks followed) lies inside ``folder`` (symlinks followed)."""
+    try:
+        path.resolve().relative_to(folder.resolve())
+    except ValueError:
+        return False
+    return True
+
+
+def _bounded(value: float, key: str, where: str, name: str | None = None) -> float:
+    """``value`` unless it exceeds ``BOUNDS[name]`` (name defaults to the key's last part)."""
+    bound = BOUNDS[name or key.rsplit(".", 1)[-1]]
+    if value > bound:
+        raise ManifestError(where, key, f"{value:g} is above the bound {bound:g} (a unit error? "
+                                        "bounds: isokinetic.contracts.manifest.BOUNDS)")
+    return value
+
+
+def _campaign_columns(block, where: str) -> tuple[dict[str, Mapping], dict]:
+    """The campaign-level ``columns`` mappings, structure checked; unknown channels as metadata.
+
+    Unknown units are left for each case to report (every case using the column is quarantined).
+    """
+    if not isinstance(block, Mapping):
+        raise ManifestError(where, "columns", "missing" if block is None else "expected a mapping of channels")
+    for channel in REQUIRED_CHANNELS:
+        if block.get(channel) is None:
+            raise ManifestError(where, f"columns.{channel}", "missing")
+    specs = {ch: block[ch] for ch in CHANNELS if block.get(ch) is not None}
+    for channel, spec in specs.items():
+        structural = [p for p in column_problems(channel, spec) if p.kind == "key"]
+        if structural:
+            raise ManifestError(where, structural[0].column, structural[0].message)
+    return specs, {k: v for k, v in block.items() if k not in UNITS}
+
+
+def _damper(block, where: str) -> tuple[Damper | None, dict]:
+    """The optional ``damper`` block (SI design data) and its extra keys."""
+    if block is None:
+        return None, {}
+    if not isinstance(block, Mapping):
+        raise ManifestError(where, "damper", f"expected a mapping of design data, got {block!r}")
+    values = {}
+    for f in fields(Damper):
+        if f.name not in block:
+            raise ManifestError(where, f"damper.{f.name}", "missing")
+        value = number(block[f.name])
+        if value is None or value <= 0:
+            raise ManifestError(where, f"damper.{f.name}", f"must be a positive number, got {block[f.name]!r}")
+        values[f.name] = value
+    return Damper.from_mapping(values), {k: v for k, v in block.items() if k not in values}
+
+
+def _optional(doc: Mapping, key: str, kind: type, where: str):
+    """An optional campaign-level key of a given type (None when absent)."""
+    value = doc.get(key)
+    if value is None:
+        return None
+    if kind is float:
+        out = number(value)
+        if out is None:
+            raise ManifestError(where, key, f"must be a number, got {value!r}")
+        return out
+    if not isinstance(value, kind):
+        raise ManifestError(where, key, f"must be a {kind.__name__}, got {value!r}")
+    return value
+
+
+def _case_id(entry, index: int, where: str) -> str:
+    if not isinstance(entry, Mapping):
+        raise ManifestError(where, f"cases[{index}]", f"expected a mapping, got {entry!r}")
+    case = entry.get("id")
+    if case is None:
+        raise ManifestError(where, f"cases[{index}].id", "missing")
+    if not isinstance(case, str) or not CASE_ID_PATTERN.fullmatch(case):
+        raise ManifestError(where, f"cases[{index}].id",
+                            f"must be a string matching {CASE_ID_RULE}, got {case!r}")
+    if len(case) > MAX_CASE_ID_LENGTH:
+        raise ManifestError(where, f"cases[{index}].id", f"{len(case)} characters, more than the "
+                            f"{MAX_CASE_ID_LENGTH} a case id may have (it names the case's files)")
+    return case
+
+
+def _positive(entry: Mapping, key: str, problems: list[Problem], required: bool = True) -> float:
+    """A positive number from a case entry; NaN and a problem when missing or invalid."""
+    if entry.get(key) is None:
+        if required:
+            problems.append(Problem(key, "missing", kind="key"))
+        return math.nan
+    value = number(entry[key])
+    if value is None or value <= 0:
+        problems.append(Problem(key, f"must be a positive number, got {entry[key]!r}", kind="key"))
+        return math.nan
+    return value
+
+
+def _case_columns(base: dict[str, Mapping], override) -> tuple[dict[str, Column], list[Problem]]:
+    """Campaign columns merged field by field with a case's ``columns``; ``command: null`` drops it."""
+    if override is not None and not isinstance(override, Mapping):
+        return {}, [Problem("columns", f"expected a mapping of channels, got {override!r}", kind="key")]
+    merged, problems = dict(base), []
+    for channel, spec in (override or {}).items():
+        if channel not in UNITS:
+            continue
+        if spec is None:
+            if channel in REQUIRED_CHANNELS:
+                problems.append(Problem(f"columns.{channel}", "a required channel cannot be removed", kind="key"))
+            merged.pop(channel, None)
+        else:
+            merged[channel] = {**base.get(channel, {}), **spec} if isinstance(spec, Mapping) else spec
+    problems += [p for channel, spec in merged.items() for p in column_problems(channel, spec)]
+    if problems:
+        return {}, problems
+    return {channel: _column(spec) for channel, spec in merged.items()}, []
+
+
+def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[str, Mapping],
+          where: str, folder: Path) -> CaseSpec:
+    """Parse one case entry; problems that concern only this case go to ``problems``."""
+    waveform = entry.get("waveform")
+    if waveform not in WAVEFORMS:
+        said = "missing" if waveform is None else f"must be one of {', '.join(WAVEFORMS)}, got {waveform!r}"
+        raise ManifestError(where, f"cases.{case}.waveform", said)
+    problems: list[Problem] = []
+    rate = _positive(entry, "sample_rate_Hz", problems, required=False)
+    file = entry.get("file")
+    if file is None:
+        problems.append(Problem("file", "missing", kind="key"))
+    elif not bare_file_name(file):
+        raise ManifestError(where, f"cases.{case}.file",
+                            f"must be a bare file name inside the campaign folder, got {file!r}")
+    elif (folder / file).is_symlink() and not _inside(folder / file, folder):
+        raise ManifestError(where, f"cases.{case}.file", f"{file!r} is a symlink to "
+                            f"{(folder / file).resolve().as_posix()}, outside the campaign folder")
+    columns, column_issues = _case_columns(base_columns, entry.get("columns"))
+    problems += column_issues
+    plan = dict(amplitude_m=math.nan, period_s=math.nan, frequency_Hz=math.nan, phase_rad=math.nan)
+    if waveform in ("triangle", "sine"):
+        plan["amplitude_m"] = _positive(entry, "amplitude_mm", problems) * 1e-3
+    if waveform == "triangle":
+        plan["period_s"] = _positive(entry, "period_s", problems)
+        phase = entry.get("phase_rad")
+        plan["phase_rad"] = DEFAULT_TRIANGLE_PHASE_RAD if phase is None else number(phase)
+        if plan["phase_rad"] is None:
+            problems.append(Problem("phase_rad", f"must be a number, got {entry['phase_rad']!r}", kind="key"))
+            plan["phase_rad"] = math.nan
+    elif waveform == "sine":
+        plan["frequency_Hz"] = _positive(entry, "frequency_Hz", problems)
+        plan["phase_rad"] = 0.0
+    duration = _positive(entry, "duration_s", problems, required=False)
+    for key, value in (("sample_rate_Hz", rate), ("period_s", plan["period_s"]),
+                       ("frequency_Hz", plan["frequency_Hz"]), ("amplitude_mm", plan["amplitude_m"] * 1e3),
+                       ("duration_s", duration)):
+        if not math.isnan(value):
+            _bounded(value, f"cases.{case}.{key}", where)
+    plan_ = CasePlan(case=case, waveform=waveform, sample_rate_Hz=sample_rate_Hz if math.isnan(rate) else rate,
+                     duration_s=duration, **plan)
+    for key, seconds in (("duration_s", duration), ("period_s" if waveform == "triangle" else "frequency_Hz",
+                                                     plan_.required_duration_s)):
+        samples = plan_.sample_rate_Hz * seconds
+        if not math.isnan(samples) and samples > MAX_PLANNED_SAMPLES:
+            raise ManifestError(where, f"cases.{case}.{key}",
+                                f"the record would need {samples:.3g} samples ({seconds:g} s at "
+                                f"{plan_.sample_rate_Hz:g} Hz), more than the {MAX_PLANNED_SAMPLES:.0e} "
+                                "a case may have")
+    return CaseSpec(
+        plan=plan_,
+        file=file, columns=columns, keys=dict(entry),
+        metadata={k: v for k, v in entry.items() if k not in CASE_KEYS}, problems=tuple(problems))
+
+
+def load_manifest(path: str | Path) -> Manifest:
+    """Read and check ``campaign.yaml``; raises :class:`ManifestError` for a broken manifest."""
+    where = str(path)
+    data = read_manifest_bytes(path)
+    doc = _parse_yaml(data, where)
+    if not isinstance(doc, Mapping):
+        raise ManifestError(where, None, "expected a mapping at the top level, got "
+                                         + ("an empty file" if doc is None else type(doc).__name__))
+    version = doc.get("format_version")
+    if version is None:
+        raise ManifestError(where, "format_version", "missing")
+    if isinstance(version, bool) or version != FORMAT_VERSION:
+        raise ManifestError(where, "format_version", f"unknown version {version!r}; this reader knows {FORMAT_VERSION}")
+    campaign = doc.get("campaign")
+    folder = Path(path).absolute().parent.name
+    if campaign is None:
+        raise ManifestError(where, "campaign", "missing")
+    if not isinstance(campaign, str) or not CAMPAIGN_PATTERN.fullmatch(campaign):
+        raise ManifestError(where, "campaign", f"must match {CAMPAIGN_RULE}, got {campaign!r}")
+    if campaign != folder:
+        raise ManifestError(where, "campaign", f"{campaign!r} differs from the folder name {folder!r}")
+    rate = number(doc.get("sample_rate_Hz"))
+    if rate is None or rate <= 0:
+        raise ManifestError(where, "sample_rate_Hz", "missing" if doc.get("sample_rate_Hz") is None
+                            else f"must be a positive number, got {doc['sample_rate_Hz']!r}")
+    _bounded(rate, "sample_rate_Hz", where)
+    base_columns, extra_columns = _campaign_columns(doc.get("columns"), where)
+    damper, extra_damper = _damper(doc.get("damper"), where)
+    entries = doc.get("cases")
+    if not isinstance(entries, list) or not entries:
+        raise ManifestError(where, "cases", "missing" if entries is None else "must be a non-empty list of cases")
+    if len(entries) > MAX_CASES:
+        raise ManifestError(where, "cases", f"{len(entries)} cases, more than the {MAX_CASES} a campaign may have")
+    cases, seen = [], set()
+    for index, entry in enumerate(entries):
+        case = _case_id(entry, index, where)
+        if case in seen:
+            raise ManifestError(where, f"cases[{index}].id", f"duplicate case id {case!r}")
+        seen.add(case)
+        cases.append(_case(entry, case, rate, base_columns, where, Path(path).parent))
+    metadata = {k: v for k, v in doc.items() if k not in TOP_KEYS}
+    for key, extra in (("columns", extra_columns), ("damper", extra_damper)):
+        if extra:
+            metadata[key] = extra
+    case_metadata = {c.id: c.metadata for c in cases if c.metadata}
+    if case_metadata:
+        metadata["cases"] = case_metadata
+    return Manifest(
+        path=where, format_version=FORMAT_VERSION, campaign=campaign,
+        description=_optional(doc, "description", str, where), source=_optional(doc, "source", str, where),
+        temperature_C=_optional(doc, "temperature_C", float, where), sample_rate_Hz=rate,
+        columns={ch: _column(spec) for ch, spec in base_columns.items()}, damper=damper,
+        cases=tuple(cases), metadata=metadata, sha256=hashlib.sha256(data).hexdigest())

@@ -1,0 +1,152 @@
+"""What the pipeline writes, where, and which rule writes it.
+
+The one place these facts live: the workflow's rules build their outputs from it, the report
+finds its figures and the rule behind each file in it, and ``trace`` names the rule of a file
+from it. Paths are relative to a campaign's folder ``results/<campaign>/`` (or to
+``results/blind/`` for the blind suite). Standard library only, so that building the
+workflow's DAG stays fast.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+#: A campaign id (raw-campaign format spec): a folder name, a wildcard value, a file-name part.
+CAMPAIGN_ID_PATTERN = "[a-z0-9][a-z0-9_-]*"
+CAMPAIGN_ID = re.compile(CAMPAIGN_ID_PATTERN)
+RESULTS_DIR = "results"
+BLIND_DIR = "blind"
+
+
+@dataclass(frozen=True)
+class Figure:
+    """One figure: its file name, the rule that draws it, where it goes and how it is titled.
+
+    ``folder`` is relative to the campaign's results folder (``results/blind/`` for the blind
+    suite); ``section`` is the report section that shows it; its Snakemake report caption is
+    ``workflow/report/<name>.rst``.
+    """
+
+    name: str
+    rule: str
+    folder: str
+    section: str
+    title: str
+
+    @property
+    def path(self) -> str:
+        """File path relative to the campaign's (or blind suite's) results folder."""
+        return f"{self.folder}/{self.name}.png" if self.folder else f"{self.name}.png"
+
+    @property
+    def caption(self) -> str:
+        """The Snakemake report caption, relative to the repository root."""
+        return f"workflow/report/{self.name}.rst"
+
+
+#: Every figure of the pipeline, in report order.
+FIGURES = (
+    Figure("fig07_time_and_loops", "figures", "figures", "characteristic",
+           "Fig. 7 - time domain and displacement-force loops"),
+    Figure("fig08_window_selection", "figures", "figures", "characteristic", "Fig. 8 - window selection"),
+    Figure("fig09_characteristic", "figures", "figures", "characteristic", "Fig. 9 - steady characteristic"),
+    Figure("fig10_low_velocity", "figures", "figures", "characteristic", "Fig. 10 - low-velocity detail"),
+    Figure("fig11_loglog", "figures", "figures", "characteristic", "Fig. 11 - log-log characteristic"),
+    Figure("fig12_noise", "figures", "figures", "characteristic", "Fig. 12 - force noise per segment"),
+    Figure("fig13_comparison", "models", "models", "models",
+           "Fig. 13 - identified, nominal and fitted characteristics"),
+    Figure("fig14_comparison_loglog", "models", "models", "models", "Fig. 14 - comparison on log-log axes"),
+    Figure("fig15_harmonic_loops", "harmonic", "harmonic", "harmonic", "Fig. 15 - harmonic loops"),
+    Figure("fig05_stroke_to_converge", "design", "design", "design", "Fig. 5 - stroke to converge"),
+    Figure("fig06_at_diagram", "design", "design", "design", "Fig. 6 - A-T diagram of the plan"),
+    Figure("fig16_gap", "diagnosis", "diagnosis", "diagnosis", "Fig. 16 - the sim-to-real gap before and after"),
+    Figure("fig17_blind_confusion", "blind_score", "", "blind", "Fig. 17 - blind test: truth against verdict"),
+)
+BLIND_RULES = ("blind_generate", "blind_diagnose", "blind_score")
+
+
+def figures_of(rule: str) -> tuple[Figure, ...]:
+    """The figures a rule draws, in report order."""
+    return tuple(f for f in FIGURES if f.rule == rule)
+
+
+def figures_in(section: str) -> tuple[Figure, ...]:
+    """The figures a report section shows, in report order."""
+    return tuple(f for f in FIGURES if f.section == section)
+
+
+def figure(name: str) -> Figure:
+    """The figure of that name (``fig09_characteristic``)."""
+    for f in FIGURES:
+        if f.name == name:
+            return f
+    raise KeyError(f"no figure named {name!r}")
+
+
+#: The tables and documents each rule writes (name -> path), figures apart (see FIGURES). A path
+#: ending in "/" is a folder. The rule ``ingest`` and the rule ``virtual_rig`` write the same
+#: folder: a raw campaign is ingested, a config campaign is simulated into it.
+RULE_OUTPUTS = {
+    "ingest": {"ingest": "ingest/"},
+    "virtual_rig": {"ingest": "ingest/"},
+    "validate": {"cases": "cases.parquet", "quarantine": "quarantine.parquet"},
+    "windows": {"windows": "windows.parquet"},
+    "repeatability": {"repeatability": "repeatability.parquet"},
+    "characteristic": {"characteristic": "characteristic.parquet"},
+    "nominal": {"nominal": "nominal_windows.parquet"},
+    "design": {"plan_check": "design/plan_check.parquet"},
+    "harmonic": {"table": "harmonic/harmonic.parquet"},
+    "models": {"models": "models/models.parquet", "residuals": "models/model_residuals.parquet",
+               "comparison": "models/comparison.parquet"},
+    "diagnosis": {"json": "diagnosis.json"},
+    "figures": {},
+    "raw_check": {"raw_check": "raw_check.json"},
+    "provenance": {"provenance": "provenance.json"},
+    "campaign_report": {"page": "report.html"},
+    "blind_score": {"scores": "scores.parquet", "summary": "summary.json"},
+}
+
+
+def is_folder(path: str) -> bool:
+    """Whether an output path of RULE_OUTPUTS names a folder (it ends in a slash)."""
+    return path.endswith("/")
+
+
+def outputs_of(rule: str) -> dict[str, str]:
+    """Name -> path of everything a rule writes (tables, documents and figures)."""
+    out = dict(RULE_OUTPUTS.get(rule, {}))
+    out.update({f.name: f.path for f in figures_of(rule)})
+    return out
+
+
+def rule_of(path: str) -> str | None:
+    """The rule that writes a file, from its path relative to the campaign's results folder.
+
+    ``ingest/...`` is the ingest folder: "ingest or virtual_rig". None for a file no rule writes.
+    """
+    path = path.replace("\\", "/")
+    if path.startswith("ingest/"):
+        return "ingest or virtual_rig"
+    for f in FIGURES:
+        if f.path == path:
+            return f.rule
+    for rule, outputs in RULE_OUTPUTS.items():
+        if rule in ("ingest", "virtual_rig"):
+            continue
+        if path in outputs.values():
+            return rule
+    return None
+
+
+def sibling_table(path: str) -> str | None:
+    """The table or document written by the same job as a figure (it shares that lineage record)."""
+    for f in FIGURES:
+        if f.path == path:
+            return next(iter(RULE_OUTPUTS.get(f.rule, {}).values()), None)
+    return None
+
+
+def campaign_path(campaign: str, path: str) -> str:
+    """``results/<campaign>/<path>`` (``{campaign}`` keeps the Snakemake wildcard)."""
+    return f"{RESULTS_DIR}/{campaign}/{path.rstrip('/')}"

@@ -1,0 +1,104 @@
+"""The damper model over the observations' samples, and what it says about the observations.
+
+Model. The nominal damper of ``campaign.json`` simulated noise-free through each case *driven by its
+measured kinematics* (:class:`isokinetic.physics.responses.Drive`: the measured speed of each
+half-period, on the measured samples' plan times), reduced over the same samples as the measured
+means; a candidate adds damper effects with fitted parameters. Simulation:
+:func:`isokinetic.physics.responses.triangle_responses` (Eq. 13-14 of "A method for the
+identification of hydraulic damper characteristics from steady velocity inputs", Titurus et al.),
+force from Eq. 8.
+
+Before the fits, the nominal model marks the windows that are still relaxing
+(:func:`unsteady_windows`, kept out of the noise fit) and the variance the measured drive speed's
+own error propagates into the model means (:func:`drive_input_variance`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from isokinetic.diagnosis.observations import Observations
+from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
+from isokinetic.physics.hydraulics import Hydraulics
+from isokinetic.physics.responses import drive_times, triangle_responses
+
+#: Panel width of the model's segment tables (isokinetic.physics.hydraulics.DEFAULT_STEP is 0.03): error ~1e-8 of the
+#: pressure scale, far below any window's noise, with about half the nodes.
+MODEL_STEP = 0.06
+#: Relative step of the drive speeds for the model's speed sensitivity (:func:`drive_input_variance`).
+SPEED_STEP = 1e-4
+#: A window whose nominal-model force varies by more than this fraction of the per-sample noise
+#: (standard deviations) is still relaxing and is kept out of the noise fit (:func:`unsteady_windows`).
+UNSTEADY_FRACTION = 0.25
+
+
+class Evaluator:
+    """Noise-free model means over the observations' sample ranges, for any effects."""
+
+    def __init__(self, obs: Observations, damper: Damper):
+        self.obs = obs
+        self.damper = damper
+        drives = obs.drives or (None,) * len(obs.plans)
+        sizes = np.array([drive_times(p, d).size for p, d in zip(obs.plans, drives, strict=True)], dtype=np.int64)
+        offsets = np.concatenate([[0], np.cumsum(sizes + 1)])  # +1: a leading zero per case in the cumsum
+        self._lo = offsets[obs.case_index] + obs.start
+        self._hi = offsets[obs.case_index] + obs.stop
+        self._n = (obs.stop - obs.start).astype(float)
+        self.calls = 0
+
+    def predict(self, effects: Effects = NOMINAL) -> np.ndarray:
+        """Model mean force of every observation [N] (Eq. 8 with Δp from Eq. 13-14)."""
+        return self._moments(effects, 1)[0]
+
+    def spread(self, effects: Effects = NOMINAL) -> np.ndarray:
+        """Standard deviation of the model force over each observation's samples [N]: how far the
+        window is from steady (a window that starts before convergence, Eq. 28-29, is not)."""
+        mean, square = self._moments(effects, 2)
+        return np.sqrt(np.maximum(square - mean * mean, 0.0))
+
+    def _moments(self, effects: Effects, order: int) -> list[np.ndarray]:
+        self.calls += 1
+        hyd = Hydraulics.from_damper(self.damper, effects)
+        parts = [[] for _ in range(order)]
+        drives = self.obs.drives if self.obs.drives else None
+        friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
+        for _t, dp, vel in triangle_responses(self.obs.plans, hyd, 0.0, MODEL_STEP, drives):
+            force = hyd.piston_area_m2 * dp
+            if friction:  # the search profiles friction linearly (LinearTerms): its runs carry none
+                force = force + friction_force(vel, effects)
+            for k in range(order):
+                parts[k].append(np.concatenate([[0.0], np.cumsum(force ** (k + 1))]))
+        out = []
+        for k in range(order):
+            cs = np.concatenate(parts[k])
+            out.append((cs[self._hi] - cs[self._lo]) / self._n)
+        return out
+
+
+def drive_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarray) -> np.ndarray:
+    """Variance [N²] that the error of each measured drive speed propagates into the model means:
+    (∂F/∂ln v · se(v)/v)², ∂F/∂ln v from the nominal model with every speed scaled by 1 + SPEED_STEP."""
+    if obs.speed_rel_se is None or not obs.drives or not any(obs.drives):
+        return np.zeros(len(obs))
+    scaled = tuple(None if d is None else replace(d, speeds_m_s=tuple(v * (1.0 + SPEED_STEP) for v in d.speeds_m_s))
+                   for d in obs.drives)
+    shifted = Evaluator(replace(obs, drives=scaled), damper).predict(NOMINAL)
+    return ((shifted - nominal_N) / SPEED_STEP * obs.speed_rel_se) ** 2
+
+
+def unsteady_windows(obs: Observations, model_spread_N: np.ndarray) -> frozenset:
+    """(case, segment) of the windows whose nominal-model force is not steady: its spread over the
+    window exceeds UNSTEADY_FRACTION of the per-sample noise the first noise fit estimated (at most
+    half of the windows, the least steady first, so that the noise fit keeps data)."""
+    win = np.flatnonzero(obs.is_window)
+    models = obs.noise.get("objects") or {}
+    rates = [obs.plans[obs.case_index[i]].sample_rate_Hz for i in win]
+    per_sample = np.array([math.sqrt(max(models[fs].sample_variance_N2(obs.force_N[i] ** 2), 1e-300))
+                           if fs in models else math.inf for i, fs in zip(win, rates, strict=True)])
+    spread = model_spread_N[win]
+    least_steady = np.argsort(-spread / per_sample)[: len(win) // 2]
+    bad = [win[j] for j in least_steady if spread[j] > UNSTEADY_FRACTION * per_sample[j]]
+    return frozenset((str(obs.case[i]), int(obs.segment[i])) for i in bad)

@@ -1,0 +1,98 @@
+"""The diagnosis.json document: its versions, the document of a campaign not diagnosed, JSON-safe
+values, validation against the schema shipped with the package, and its row-level sources.
+
+Contract version 1.1; schema ``diagnosis.schema.json``, package data of :mod:`isokinetic.contracts`
+(read through ``importlib.resources``, so a regular, non-editable install validates too).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from importlib import resources
+
+import jsonschema
+import numpy as np
+import pandas as pd
+
+from isokinetic.audit.lineage import row_keys
+from isokinetic.contracts.outputs import RULE_OUTPUTS
+from isokinetic.diagnosis.observations import Observations
+
+FORMAT_VERSION = 1
+CONTRACT_VERSION = "1.1"
+METRIC = "rms_z"
+#: The diagnosis.json schema, package data of isokinetic.contracts.
+SCHEMA_PACKAGE = "isokinetic.contracts"
+SCHEMA_RESOURCE = "diagnosis.schema.json"
+#: Inputs of a diagnosis, relative to results/<campaign>/ (named in its ``sources`` key).
+CHARACTERISTIC_FILE = RULE_OUTPUTS["characteristic"]["characteristic"]
+CASES_FILE = RULE_OUTPUTS["validate"]["cases"]
+
+
+def json_number(x: float) -> float | None:
+    """A finite float, else None."""
+    return float(x) if x is not None and math.isfinite(float(x)) else None
+
+
+def json_safe(obj):
+    """JSON-safe: NaN/inf to None, numpy scalars to Python."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return json_number(obj)
+    return obj
+
+
+def no_model(campaign: str, reason: str, status: str = "not_diagnosed") -> dict:
+    """The diagnosis of a campaign that cannot be diagnosed (no damper data, no triangle case), or
+    whose diagnosis failed (``status`` 'failed', with the reason)."""
+    return {"format_version": FORMAT_VERSION, "contract_version": CONTRACT_VERSION, "campaign": campaign,
+            "status": status, "reason": reason, "metric": METRIC, "gap_before": None, "where": [],
+            "candidates": [], "verdict": [], "explained": False,
+            "instrument": {"delay_s": None, "force_offset_N": None, "force_gain": None},
+            "gap_after": None, "holdout_gap_after": None, "shrink": None}
+
+
+def diagnosis_schema() -> dict:
+    """The diagnosis.json schema (package data, so a regular install validates too)."""
+    return json.loads(resources.files(SCHEMA_PACKAGE).joinpath(SCHEMA_RESOURCE).read_text(encoding="utf-8"))
+
+
+def validate_diagnosis(result: Mapping) -> None:
+    """Validate a diagnosis dict against the diagnosis.json schema (raises ValidationError)."""
+    jsonschema.validate(result, diagnosis_schema())
+
+
+def observation_sources(obs: Observations | None, cases: pd.DataFrame | None) -> dict:
+    """Row-level lineage of a diagnosis (its ``sources`` key; paths relative to results/<campaign>/).
+
+    ``windows``: the characteristic rows used as window observations, as (case, segment) keys
+    'T01/1,T01/2,...' (:func:`isokinetic.audit.lineage.row_keys`); ``transient_bins``: 'case/segment:n'
+    per half-period with n transient bins taken from that case's time series; ``timeseries``: for
+    each case used, its time series file and raw file with sha256 (from ``cases.parquet``).
+    """
+    out = {"characteristic_file": CHARACTERISTIC_FILE, "cases_file": CASES_FILE, "windows": "",
+           "transient_bins": "", "timeseries": {}}
+    if obs is None or len(obs) == 0:
+        return out
+    frame = pd.DataFrame({"case": obs.case, "segment": obs.segment, "kind": obs.kind})
+    out["windows"] = row_keys(frame[frame["kind"] == "window"])
+    bins = frame[frame["kind"] == "transient"].groupby(["case", "segment"], sort=False).size()
+    out["transient_bins"] = ",".join(f"{c}/{k}:{n}" for (c, k), n in bins.items())
+    used = list(dict.fromkeys(obs.case.tolist()))
+    if cases is not None and len(cases):
+        by_case = cases.set_index("case")
+        for c in used:
+            if c in by_case.index:
+                row = by_case.loc[c]
+                out["timeseries"][c] = {k: str(row[k]) for k in ("timeseries_file", "raw_file", "raw_sha256")
+                                        if k in row}
+    return out

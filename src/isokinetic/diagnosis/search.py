@@ -1,0 +1,220 @@
+"""Fitting candidate effect sets to a campaign's observations, and the search over the catalogue.
+
+Candidates. Each effect of the catalogue (:data:`isokinetic.contracts.scenarios.EFFECTS`) alone
+(one parameter each), every pair, then, while nothing explains, the :data:`BEAM` best candidates of
+the largest size extended by one more effect; a size is tried only while no smaller set explains
+(none when the nominal model does). Coulomb friction, like the load-cell terms, is linear in the
+means and profiled in closed form (:class:`isokinetic.diagnosis.instrument.LinearTerms`); the other
+effects are fitted with bounded least squares (scipy ``least_squares``, 'trf') on the period-1
+observations (segments 1-2, windows and transient bins) and scored on period 2 (segments 3-4)
+(:mod:`isokinetic.diagnosis.candidate`). A fit that fails is recorded in ``Diagnoser.failed`` with
+its reason.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+from collections.abc import Sequence
+from dataclasses import replace
+
+import numpy as np
+from scipy import optimize
+
+from isokinetic.contracts.scenarios import EFFECTS
+from isokinetic.diagnosis.candidate import ALPHA, Candidate, consistent_with_noise, rms
+from isokinetic.diagnosis.instrument import INSTRUMENT, OFFSET_BOUND_REL, LinearTerms
+from isokinetic.diagnosis.model import Evaluator
+from isokinetic.diagnosis.observations import Observations
+from isokinetic.diagnosis.parametrisation import Parametrisation
+from isokinetic.measurement.noise import scaled_chi2_sf
+from isokinetic.physics.damper import NOMINAL, Damper
+
+log = logging.getLogger(__name__)
+
+#: Relative tolerance on cost and parameters at which a search fit stops: 1e-3 of a χ² or of a
+#: parameter is far below what ranks candidates or matters against the parameter's uncertainty.
+FIT_TOL = 1e-3
+#: Candidates of each size extended by one more effect while nothing explains the gap.
+BEAM = 3
+#: What a fit may raise on a pathological parameter set (overflow, a singular system).
+FIT_ERRORS = (ValueError, FloatingPointError, ArithmeticError, np.linalg.LinAlgError)
+
+
+class Diagnoser:
+    """Fits and scores candidate effect sets on one campaign's observations."""
+
+    def __init__(self, obs: Observations, damper: Damper, alpha: float = ALPHA):
+        self.obs = obs
+        self.evaluator = Evaluator(obs, damper)
+        self.alpha = alpha
+        windows = np.abs(obs.force_N[obs.is_window])
+        self.param = Parametrisation(damper, float(np.median(windows)) if windows.size else 1.0)
+        self.linear = LinearTerms(offset_bound_N=OFFSET_BOUND_REL * float(windows.max()) if windows.size else 0.0,
+                                  friction_bound_N=self.param.bounds("friction")[1] * self.param.force_ref_N)
+        self.weight = 1.0 / obs.sigma_N**2
+        self.fit_mask = obs.period == 1
+        self.hold_mask = obs.period == 2
+        self.fit_obs = obs.subset(self.fit_mask)   # period 1: simulated only up to its last sample
+        self.fit_evaluator = Evaluator(self.fit_obs, damper)
+        self.nominal = self.evaluator.predict(NOMINAL)
+        self.scale_rel_sd = float(obs.noise.get("scale_rel_sd", 0.0))
+        self.failed: list[dict] = []
+
+    def z(self, prediction: np.ndarray) -> np.ndarray:
+        return (self.obs.force_N - prediction) / self.obs.sigma_N
+
+    def terms(self, instrument: Sequence[str]) -> LinearTerms:
+        return replace(self.linear, free=tuple(instrument))
+
+    def _residuals(self, nonlinear: Sequence[str], friction: bool, terms: LinearTerms):
+        obs, w = self.fit_obs, 1.0 / self.fit_obs.sigma_N**2
+
+        def fun(x):
+            m = self.fit_evaluator.predict(self.param.effects(nonlinear, x))
+            g, fc, o = terms.solve(obs.force_N, m, obs.sign, w, friction)
+            return (obs.force_N - g * (m + fc * obs.sign) - o) / obs.sigma_N
+        return fun
+
+    def fit(self, names: Sequence[str], starts: Sequence[Sequence[float]],
+            instrument: Sequence[str] = INSTRUMENT, tol: float = FIT_TOL) -> Candidate | None:
+        """Best of bounded least-squares fits of the nonlinear effects from the given starting points
+        (one value per effect of ``names`` other than friction, which is profiled with the instrument
+        terms); None (and a record in ``failed``) when no fit succeeds."""
+        names = tuple(names)
+        terms = self.terms(instrument)
+        nonlinear = tuple(n for n in names if n != "friction")
+        friction = "friction" in names
+        if not nonlinear:
+            return self._guarded(names, nonlinear, np.empty(0), terms)
+        lower, upper = zip(*(self.param.bounds(n) for n in nonlinear), strict=True)
+        fun = self._residuals(nonlinear, friction, terms)
+        best, errors = None, []
+        for x0 in starts:
+            x0 = np.clip(np.asarray(x0, dtype=float), np.asarray(lower) + 1e-12, np.asarray(upper) - 1e-12)
+            try:
+                with np.errstate(over="raise", invalid="raise", divide="raise"):
+                    res = optimize.least_squares(fun, x0, bounds=(lower, upper), method="trf", x_scale="jac",
+                                                 diff_step=1e-6, ftol=tol, xtol=tol,
+                                                 max_nfev=40 * len(nonlinear))
+            except FIT_ERRORS as exc:
+                errors.append(f"from {np.round(x0, 6).tolist()}: {type(exc).__name__}: {exc}")
+                continue
+            if not np.all(np.isfinite(res.fun)):
+                errors.append(f"from {np.round(x0, 6).tolist()}: non-finite residuals")
+                continue
+            if best is None or res.cost < best.cost:
+                best = res
+        if best is None:
+            log.warning("campaign %s: no fit of %s converged: %s", self.obs.campaign, list(names), "; ".join(errors))
+            self.failed.append({"effects": list(names), "instrument": list(instrument),
+                                "reason": "; ".join(errors) or "no starting point"})
+            return None
+        return self._guarded(names, nonlinear, best.x, terms)
+
+    def _guarded(self, names, nonlinear, x, terms) -> Candidate | None:
+        try:
+            with np.errstate(over="raise", invalid="raise", divide="raise"):
+                return self._score(names, nonlinear, x, terms)
+        except FIT_ERRORS as exc:
+            self.failed.append({"effects": list(names), "instrument": list(terms.free),
+                                "reason": f"scoring failed: {type(exc).__name__}: {exc}"})
+            return None
+
+    def _score(self, names: tuple[str, ...], nonlinear: tuple[str, ...], x: np.ndarray,
+               terms: LinearTerms) -> Candidate:
+        """The candidate of fitted values ``x``: instrument terms and friction profiled on period 1,
+        χ² of fit, holdout and windows, the explained test and the score."""
+        hydraulic = self.evaluator.predict(self.param.effects(nonlinear, x)) if nonlinear else self.nominal
+        fm, sign = self.fit_mask, self.obs.sign
+        g, fc, o = terms.solve(self.obs.force_N[fm], hydraulic[fm], sign[fm], self.weight[fm], "friction" in names)
+        pred = hydraulic + fc * sign
+        z = self.z(g * pred + o)
+        win = self.obs.is_window
+        chi2_fit = float(np.sum(z[fm] ** 2))
+        chi2_hold = float(np.sum(z[self.hold_mask] ** 2))
+        n_fit, n_hold = int(fm.sum()), int(self.hold_mask.sum())
+        k = len(names) + len(terms.free)
+        eps = self.scale_rel_sd
+        chi2_win = float(np.sum(z[win] ** 2))
+        explained = (consistent_with_noise(chi2_fit, n_fit - k, self.alpha, eps)
+                     and consistent_with_noise(chi2_hold, n_hold, self.alpha, eps)
+                     and consistent_with_noise(chi2_win, int(win.sum()) - k, self.alpha, eps))
+        values = dict(zip(nonlinear, np.asarray(x, dtype=float), strict=True))
+        values["friction"] = fc / self.param.force_ref_N
+        full_x = np.array([values[n] for n in names], dtype=float)
+        params = dict(self.param.si(n, v) for n, v in zip(names, full_x, strict=True))
+        return Candidate(effects=names, x=full_x, params=params,
+                         prediction=pred, chi2_fit=chi2_fit, chi2_holdout=chi2_hold, n_fit=n_fit, n_holdout=n_hold,
+                         gap_after=rms(z[win & fm]), holdout_gap_after=rms(z[win & self.hold_mask]),
+                         score=chi2_hold + k * math.log(n_fit), explained=explained,
+                         instrument=tuple(terms.free), gain=g, offset_N=o)
+
+    def refit(self, names: Sequence[str], instrument: Sequence[str], warm: Candidate | None = None,
+              tol: float = FIT_TOL) -> Candidate | None:
+        """Fit ``names`` with the instrument terms ``instrument``, warm-started from ``warm``."""
+        nonlinear = [n for n in names if n != "friction"]
+        x0 = [warm.x[warm.effects.index(n)] if warm is not None and n in warm.effects else self.param.starts(n)[0]
+              for n in nonlinear]
+        return self.fit(tuple(names), [x0], instrument, tol)
+
+    def nominal_p_value(self, instrument: Sequence[str] = INSTRUMENT) -> float:
+        """p-value of the χ² tests of the nominal model with the instrument terms (fitted on all
+        observations), over all observations and over the windows (the characteristic) alone:
+        twice the smaller p-value (Bonferroni), the probability of such a χ² from noise alone."""
+        terms = self.terms(instrument)
+        g, _fc, o = terms.solve(self.obs.force_N, self.nominal, self.obs.sign, self.weight, False)
+        z = self.z(g * self.nominal + o)
+        win = self.obs.is_window
+        k = len(terms.free)
+        tests = [(float(np.sum(z**2)), len(z) - k), (float(np.sum(z[win] ** 2)), int(win.sum()) - k)]
+        if any(dof <= 0 for _, dof in tests):
+            return 0.0
+        # the smaller of the two p-values, Bonferroni-corrected: the test of both at once
+        return min(1.0, 2.0 * min(scaled_chi2_sf(c, dof, self.scale_rel_sd) for c, dof in tests))
+
+    def nominal_explains(self, instrument: Sequence[str] = INSTRUMENT) -> bool:
+        """The nominal model with the instrument terms is within noise at level ``alpha``."""
+        return self.nominal_p_value(instrument) >= self.alpha
+
+    def search(self) -> list[Candidate]:
+        """Singles, then pairs (warm-started from the singles), then greedy extension of the BEAM best
+        of the largest size, each size only while no smaller set explains the gap (the verdict is the
+        smallest explaining set, so larger ones cannot change it)."""
+        singles = {e: self.fit((e,), [[s] for s in self.param.starts(e)] if e != "friction" else [[]])
+                   for e in EFFECTS}
+        found = [c for c in singles.values() if c is not None]
+        start = {e: (c.x[0] if c is not None else self.param.starts(e)[0]) for e, c in singles.items()}
+        if not any(c.explained for c in found):
+            for pair in itertools.combinations(EFFECTS, 2):
+                c = self.fit(pair, _warm_start(pair, start))
+                if c is not None:
+                    found.append(c)
+        size = 2
+        while found and not any(c.explained for c in found) and size < len(EFFECTS):
+            found += self._extend(found, size, start)
+            size += 1
+        return sorted(found, key=lambda c: (not c.explained, len(c.effects) if c.explained else 0, c.score))
+
+    def _extend(self, found: Sequence[Candidate], size: int, start: dict[str, float]) -> list[Candidate]:
+        """The BEAM best candidates of ``size`` effects, each extended by one more effect."""
+        bases = sorted((c for c in found if len(c.effects) == size), key=lambda c: c.score)[:BEAM]
+        tried, out = set(), []
+        for base in bases:
+            for e in EFFECTS:
+                names = tuple(n for n in EFFECTS if n in base.effects or n == e)
+                if e in base.effects or names in tried:
+                    continue
+                tried.add(names)
+                c = self.fit(names, _warm_start(names, start, base))
+                if c is not None:
+                    out.append(c)
+        return out
+
+
+def _warm_start(names: Sequence[str], start: dict[str, float], source: Candidate | None = None) -> list[list[float]]:
+    """One starting point for the nonlinear effects of ``names``: the values of ``source`` where it
+    has them, else each effect's single fit (``start``)."""
+    return [[(source.x[source.effects.index(n)] if source is not None and n in source.effects else start[n])
+             for n in names if n != "friction"]]

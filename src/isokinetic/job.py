@@ -1,0 +1,77 @@
+"""One entry for the pipeline's scripts: a job's log file and lineage record, set up once.
+
+Every script under ``workflow/scripts/`` reads::
+
+    with job(snakemake) as j:
+        table = some_stage(...)
+        write_parquet(table, snakemake.output[0])
+        j.log.info("%d rows", len(table))
+
+Entering the block sends the package's log records to the job's log file ``snakemake.log[0]``
+(warnings to stderr too) and builds the job's lineage record once
+(:func:`isokinetic.audit.lineage.from_snakemake`: rule, params, config hash, git state and the
+sha256 of every input). Inside the block every Parquet, JSON and PNG file the package writes
+carries that record as it is written (:func:`isokinetic.io.lineage_context`), no output is read
+back or rewritten afterwards, and no file is hashed twice (:func:`isokinetic.io.hash_once`: a stage
+that hashes an input again, as ingest does its raw files, reuses the record's hash). Leaving the
+block closes the log file.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from isokinetic.audit.lineage import from_snakemake
+from isokinetic.io import hash_once, lineage_context
+
+LOGGER_NAME = "isokinetic"
+LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
+
+
+@dataclass(frozen=True)
+class Job:
+    """A running pipeline job: its logger and its lineage record."""
+
+    log: logging.Logger
+    lineage: dict
+
+
+def log_to_file(path: str) -> logging.Logger:
+    """Send the package's log records to ``path`` (and warnings to stderr) for one job."""
+    logger = logging.getLogger(LOGGER_NAME)
+    logger.setLevel(logging.INFO)
+    _drop_handlers(logger)
+    fmt = logging.Formatter(LOG_FORMAT)
+    to_file = logging.FileHandler(path, mode="w", encoding="utf-8")
+    to_file.setFormatter(fmt)
+    to_stderr = logging.StreamHandler(sys.stderr)
+    to_stderr.setLevel(logging.WARNING)
+    to_stderr.setFormatter(fmt)
+    logger.addHandler(to_file)
+    logger.addHandler(to_stderr)
+    logging.captureWarnings(True)
+    return logger
+
+
+def _drop_handlers(logger: logging.Logger) -> None:
+    for handler in list(logger.handlers):
+        logger.removeHandler(handler)
+        handler.close()
+
+
+@contextmanager
+def job(smk) -> Iterator[Job]:
+    """The Snakemake job ``smk`` (a script's ``snakemake`` object) as a :class:`Job`; see the module docstring."""
+    log = log_to_file(str(smk.log[0]))
+    try:
+        with hash_once():
+            record = from_snakemake(smk)
+            with lineage_context(record):
+                yield Job(log=log, lineage=record)
+    finally:
+        _drop_handlers(log)
+        logging.captureWarnings(False)

@@ -1,0 +1,767 @@
+"""Independent reference rig: a two-state compressible damper on an imperfect test rig.
+
+This module (with its sibling :mod:`isokinetic.physics.reference_rig_measurement`: sensors and
+raw-campaign export) is the separately written reference against which the project's diagnosis is
+tested. It shares no code with the rest of ``isokinetic``: it imports only numpy, scipy, pandas
+and the standard library, and keeps its own copy of Table 1 (:data:`TABLE1`) on purpose. Equation
+numbers refer to the paper "A method for the identification of hydraulic damper characteristics
+from steady velocity inputs" (Titurus et al.); SI units throughout unless a name says otherwise.
+
+Damper (noise free)
+    The states are the two chamber pressures p1, p2 (absolute; integrated as p_i - p0 so that the
+    error control acts on the pressure rise, not on the charge pressure p0). Mass balance of the
+    oil in each chamber (the per-chamber form of Eq. 1)::
+
+        dp1/dt = (A dy/dt - Q12(p1 - p2)) / C1(p1, y),   C_i = beta_i V_i
+        dp2/dt = (Q12(p1 - p2) - A dy/dt) / C2(p2, y)
+
+    with V1 = V01 - A y, V2 = V02 + A y (Eq. 2), y the piston position (y = 0 at the stroke
+    centre). Q12 = orifice (Eq. 7, asymmetric C_D) + annular leakage + relief valve. The load cell
+    reads F = A (p1 - p2) + F_f(dy/dt) (Eq. 8, massless piston) while the actuator pushes the
+    piston. Integration: ``scipy.integrate.solve_ivp`` with LSODA and an analytic Jacobian, split
+    at every discontinuity of the piston velocity or its derivative (delayed command corners,
+    actuator reversals, backlash contacts), ``t_eval`` at the sample times.
+
+Rig
+    Actuator rod x: dx/dt = (c(t - d) - x) / tau_s, solved in closed form per linear piece of the
+    delayed command (x = c(t - d) when tau_s = 0). The LVDT measures x, not the piston. Backlash b
+    is a play operator between x and y (:func:`piston_pieces`). The sensor noise model is a
+    parameter of the rig (:class:`RigImperfections`); it is applied in the sibling module.
+
+Speed (measured on one core, 2 CPUs shared, Table-1 damper, 2T recorded, velocities
+0.005-1.5 mm/s, with or without air, leakage, friction, delay, lag and noise): simulation plus
+noise 0.015-0.04 s per case for T in {20, 80, 240} s at 50 or 100 Hz (LSODA takes few steps
+on the quasi-steady ramps); writing the CSV adds 0.003-0.06 s (2 000-48 000 rows).
+Agreement with the project's virtual rig on the clean nominal damper: max |dF| ~1e-9 to 6e-9
+of the force scale at the default rtol 1e-10 (tests/physics/test_reference_rig.py).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
+
+# ---------------------------------------------------------------------------------------------
+# Parameters
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class DamperDesign:
+    """Nominal design data of a two-chamber symmetric damper (Table 1), SI units.
+
+    Field names are those of the raw-campaign ``damper`` block, so any object with these
+    attributes (e.g. ``isokinetic.physics.damper.Damper``) is accepted wherever a design is expected.
+    """
+
+    piston_area_m2: float = 4.0e-3
+    chamber_volume_1_m3: float = 3.0e-4
+    chamber_volume_2_m3: float = 3.0e-4
+    orifice_area_m2: float = 6.0e-8
+    orifice_length_m: float = 5.0e-4
+    discharge_coefficient: float = 0.6
+    density_kg_m3: float = 815.0
+    viscosity_Pa_s: float = 0.03
+    oil_compressibility_1_Pa: float = 3.8e-9
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ValueError(f"DamperDesign.{f.name} must be a positive number, got {v!r}")
+
+    @classmethod
+    def from_mapping(cls, values: Mapping[str, float]) -> DamperDesign:
+        """Build from a mapping holding at least the field names (extra keys ignored)."""
+        return cls(**{f.name: float(values[f.name]) for f in dataclasses.fields(cls)})
+
+    def to_dict(self) -> dict[str, float]:
+        return {f.name: float(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+
+#: Table 1 geometry and fluid (this rig's own copy: it imports nothing from ``isokinetic``).
+TABLE1 = DamperDesign()
+
+
+@dataclass(frozen=True)
+class TrueEffects:
+    """Physical deviations of the real damper from its design; all zero/None = nominal damper.
+
+    friction
+        Stribeck form F = tanh(v / v_eps) [F_C + F_S exp(-(|v|/v_S)^2)]; ``coulomb_force_N`` F_C,
+        ``stribeck_force_N`` F_S, ``stribeck_velocity_m_s`` v_S, ``friction_regularisation_m_s``
+        v_eps (a smooth sign).
+    leakage
+        Laminar annular gap across the piston, Q_L = pi D h^3 / (12 mu L) dp with
+        ``leakage_gap_m`` h (radial), ``seal_length_m`` L, D = sqrt(4 A / pi), mu the actual
+        (drifting) viscosity.
+    asymmetry
+        C_D (1 + a) for dp > 0, C_D (1 - a) for dp < 0.
+    discharge_coefficient, viscosity_Pa_s
+        Replace the design values (None: design value).
+    air
+        ``air_fraction_at_charge`` phi0: free-gas volume fraction at the charge pressure
+        ``charge_pressure_Pa`` p0 (absolute; also the initial pressure of both chambers).
+        The gas of each chamber obeys the isothermal law, V_Gi = phi0 V0i p0 / p_i.
+    backlash
+        ``backlash_m`` b: total free play between actuator rod and piston. The piston stands
+        still (held by its seals) while the actuator crosses the gap after each reversal.
+        ``backlash_gap_force`` says what the load cell reads meanwhile: "zero" (nothing
+        connects rod and piston: F = 0, the seals carry A dp) or "hydraulic" (F = A dp).
+    relief valve
+        A spring-loaded valve pair in parallel with the orifice, see :func:`relief_flow`:
+        ``relief_cracking_pressure_Pa`` (None: no valve), ``relief_area_gradient_m2_Pa``,
+        ``relief_discharge_coefficient``.
+    """
+
+    coulomb_force_N: float = 0.0
+    stribeck_force_N: float = 0.0
+    stribeck_velocity_m_s: float = 1.0e-4
+    friction_regularisation_m_s: float = 1.0e-7
+    leakage_gap_m: float = 0.0
+    seal_length_m: float = 0.02
+    asymmetry: float = 0.0
+    discharge_coefficient: float | None = None
+    viscosity_Pa_s: float | None = None
+    air_fraction_at_charge: float = 0.0
+    charge_pressure_Pa: float = 5.0e6
+    backlash_m: float = 0.0
+    backlash_gap_force: str = "zero"
+    relief_cracking_pressure_Pa: float | None = None
+    relief_area_gradient_m2_Pa: float = 0.0
+    relief_discharge_coefficient: float = 0.7
+
+    def __post_init__(self):
+        nonneg = ("coulomb_force_N", "stribeck_force_N", "leakage_gap_m", "air_fraction_at_charge",
+                  "backlash_m", "relief_area_gradient_m2_Pa")
+        for name in nonneg:
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v >= 0):
+                raise ValueError(f"TrueEffects.{name} must be >= 0, got {v!r}")
+        for name in ("stribeck_velocity_m_s", "friction_regularisation_m_s", "seal_length_m",
+                     "charge_pressure_Pa", "relief_discharge_coefficient"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"TrueEffects.{name} must be > 0, got {v!r}")
+        if not -1.0 < self.asymmetry < 1.0:
+            raise ValueError(f"TrueEffects.asymmetry must lie in (-1, 1), got {self.asymmetry!r}")
+        if not self.air_fraction_at_charge < 1.0:
+            raise ValueError("TrueEffects.air_fraction_at_charge must be < 1")
+        for name in ("discharge_coefficient", "viscosity_Pa_s", "relief_cracking_pressure_Pa"):
+            v = getattr(self, name)
+            if v is not None and not (math.isfinite(v) and v > 0):
+                raise ValueError(f"TrueEffects.{name} must be None or > 0, got {v!r}")
+        if self.backlash_gap_force not in ("zero", "hydraulic"):
+            raise ValueError("TrueEffects.backlash_gap_force must be 'zero' or 'hydraulic'")
+
+
+NOMINAL_EFFECTS = TrueEffects()
+
+
+@dataclass(frozen=True)
+class RigImperfections:
+    """Actuator, sensors and environment of the rig; the defaults are an ideal rig.
+
+    ``delay_s`` d and ``servo_lag_s`` tau_s: dx/dt = (c(t - d) - x)/tau_s. Force channel
+    F_meas = ``force_gain`` F_true + ``force_offset_N`` + ``force_noise_N`` w
+    + |F_true| ``force_noise_rel`` c, c an AR(1) sequence of corner ``noise_corner_Hz``.
+    ``displacement_noise_m``: white LVDT noise on x. ``viscosity_drift_rel``: the viscosity of
+    case i of n is mu (1 + drift (i/(n-1) - 1/2)). Resolutions: ADC steps of the channels
+    (> 0; each must be a short decimal in the export unit: N for force, um for displacement).
+    """
+
+    delay_s: float = 0.0
+    servo_lag_s: float = 0.0
+    force_noise_N: float = 0.0
+    force_noise_rel: float = 0.0
+    noise_corner_Hz: float = 1.0
+    force_offset_N: float = 0.0
+    force_gain: float = 1.0
+    displacement_noise_m: float = 0.0
+    viscosity_drift_rel: float = 0.0
+    force_resolution_N: float = 0.01
+    displacement_resolution_m: float = 1.0e-9
+    command_resolution_m: float = 1.0e-9
+
+    def __post_init__(self):
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not math.isfinite(v):
+                raise ValueError(f"RigImperfections.{f.name} must be finite, got {v!r}")
+        for name in ("delay_s", "servo_lag_s", "force_noise_N", "force_noise_rel", "displacement_noise_m"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"RigImperfections.{name} must be >= 0")
+        for name in ("noise_corner_Hz", "force_gain", "force_resolution_N", "displacement_resolution_m",
+                     "command_resolution_m"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"RigImperfections.{name} must be > 0")
+        if abs(self.viscosity_drift_rel) >= 2.0:
+            raise ValueError("RigImperfections.viscosity_drift_rel must lie in (-2, 2)")
+
+    def noise_correlation(self, sample_rate_Hz: float) -> float:
+        """rho = exp(-2 pi f_c / fs) of the coloured force noise."""
+        return math.exp(-2.0 * math.pi * self.noise_corner_Hz / sample_rate_Hz)
+
+    def mean_noise_variance_N2(self, n_samples: int, force_N: float, sample_rate_Hz: float) -> float:
+        """Exact variance of the mean of n consecutive force-noise samples at true force F [N^2].
+
+        sigma_w^2 / n + (sigma_rel F)^2 [n (1+rho)/(1-rho) - 2 rho (1-rho^n)/(1-rho)^2] / n^2,
+        the second term being sum_{j,k} rho^|j-k| / n^2 of the AR(1) part. Excludes quantisation
+        (about step^2/12 per sample when the step is small against the noise).
+        """
+        n = int(n_samples)
+        if n < 1:
+            raise ValueError("n_samples must be >= 1")
+        rho = self.noise_correlation(sample_rate_Hz)
+        s2 = (self.force_noise_rel * abs(force_N)) ** 2
+        if rho >= 1.0:
+            coloured = 1.0
+        else:
+            coloured = (n * (1.0 + rho) / (1.0 - rho) - 2.0 * rho * (1.0 - rho**n) / (1.0 - rho) ** 2) / n**2
+        return self.force_noise_N**2 / n + s2 * coloured
+
+
+IDEAL_RIG = RigImperfections()
+
+
+@dataclass(frozen=True)
+class TriangleCase:
+    """One triangle test: command c(t) = Y tri(2 pi t / T - pi/2), Y = W T / 4, 2T recorded."""
+
+    case_id: str
+    velocity_m_s: float
+    period_s: float
+    sample_rate_Hz: float = 50.0
+
+    def __post_init__(self):
+        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]*", self.case_id):
+            raise ValueError(f"case id {self.case_id!r}: letters, digits, '_' and '-' only")
+        for name in ("velocity_m_s", "period_s", "sample_rate_Hz"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"case {self.case_id}: {name} must be > 0, got {v!r}")
+
+    @property
+    def amplitude_m(self) -> float:
+        """Y = W T / 4 (Eq. 26)."""
+        return self.velocity_m_s * self.period_s / 4.0
+
+    @property
+    def duration_s(self) -> float:
+        return 2.0 * self.period_s
+
+    def sample_times_s(self) -> np.ndarray:
+        """t = k / fs, k = 0 .. round(2 T fs)."""
+        n = int(round(self.duration_s * self.sample_rate_Hz))
+        return np.arange(n + 1, dtype=float) / self.sample_rate_Hz
+
+
+# ---------------------------------------------------------------------------------------------
+# Elementary physics (pure, vectorised)
+# ---------------------------------------------------------------------------------------------
+
+def triangle_command(t_s, amplitude_m: float, period_s: float) -> np.ndarray:
+    """c(t) = Y tri(2 pi t / T - pi/2) for t >= 0 and -Y before (Eq. 26 with phi = -pi/2) [m].
+
+    Written with the fractional phase, not arcsin(sin(.)), so that corners are exact.
+    """
+    t = np.asarray(t_s, dtype=float)
+    s = np.mod(t / period_s, 1.0)                        # phase in periods, 0 at -Y
+    c = amplitude_m * np.where(s < 0.5, 4.0 * s - 1.0, 3.0 - 4.0 * s)
+    return np.where(t < 0.0, -amplitude_m, c)
+
+
+def laminar_coefficient(viscosity_Pa_s: float, length_m: float, area_m2: float) -> float:
+    """c1 = 8 pi mu l_O / A_O^2 (Sec. 2.2, Table 1) [Pa s/m^3]."""
+    return 8.0 * math.pi * viscosity_Pa_s * length_m / area_m2**2
+
+
+def turbulent_coefficient(density_kg_m3: float, discharge_coefficient: float, area_m2: float) -> float:
+    """c2 = rho / (2 C_D^2 A_O^2) (Sec. 2.2, Table 1) [Pa s^2/m^6]."""
+    return density_kg_m3 / (2.0 * discharge_coefficient**2 * area_m2**2)
+
+
+def orifice_flow(dp_Pa, c1: float, c2_pos: float, c2_neg: float):
+    """Q(dp) solving dp = c1 Q + c2 Q|Q| (Eq. 7), c2 = c2_pos for dp > 0, c2_neg for dp < 0 [m^3/s].
+
+    Uses Q = 2 dp / (c1 + sqrt(c1^2 + 4 c2 |dp|)), free of cancellation for small dp (c1 > 0).
+    """
+    dp = np.asarray(dp_Pa, dtype=float)
+    c2 = np.where(dp >= 0.0, c2_pos, c2_neg)
+    return 2.0 * dp / (c1 + np.sqrt(c1 * c1 + 4.0 * c2 * np.abs(dp)))
+
+
+def orifice_pressure(q_m3_s, c1: float, c2_pos: float, c2_neg: float):
+    """dp = c1 Q + c2 Q|Q| (Eq. 7) with the direction's c2 [Pa]."""
+    q = np.asarray(q_m3_s, dtype=float)
+    return c1 * q + np.where(q >= 0.0, c2_pos, c2_neg) * q * np.abs(q)
+
+
+def piston_diameter_m(piston_area_m2: float) -> float:
+    """D = sqrt(4 A / pi)."""
+    return math.sqrt(4.0 * piston_area_m2 / math.pi)
+
+
+def annular_leakage_conductance(piston_area_m2: float, gap_m: float, viscosity_Pa_s: float,
+                                seal_length_m: float) -> float:
+    """Laminar flow through a narrow concentric annulus: pi D h^3 / (12 mu L) [m^3/(s Pa)]."""
+    return math.pi * piston_diameter_m(piston_area_m2) * gap_m**3 / (12.0 * viscosity_Pa_s * seal_length_m)
+
+
+def relief_flow(dp_Pa, cracking_pressure_Pa: float | None, area_gradient_m2_Pa: float,
+                discharge_coefficient: float, density_kg_m3: float):
+    """Flow of a symmetric pair of spring-loaded relief valves in parallel with the orifice [m^3/s].
+
+    Closed for |dp| <= p_crack. Above it the spring lets the poppet lift in proportion to the
+    excess pressure, so the open area is A_v = k_A (|dp| - p_crack); the flow through the
+    opening is turbulent under the full pressure drop:
+    Q_v = sign(dp) C_Dv k_A (|dp| - p_crack) sqrt(2 |dp| / rho). Q_v is continuous at the
+    cracking pressure (zero), its slope jumps there.
+    """
+    dp = np.asarray(dp_Pa, dtype=float)
+    if cracking_pressure_Pa is None or area_gradient_m2_Pa == 0.0:
+        return np.zeros_like(dp)
+    a = np.abs(dp)
+    excess = np.maximum(a - cracking_pressure_Pa, 0.0)
+    return np.sign(dp) * discharge_coefficient * area_gradient_m2_Pa * excess * np.sqrt(2.0 * a / density_kg_m3)
+
+
+def gas_amount_Pa_m3(air_fraction_at_charge: float, chamber_volume_m3: float, charge_pressure_Pa: float) -> float:
+    """G = p V_G = phi0 V0 p0, constant for an isothermal gas pocket [Pa m^3]."""
+    return air_fraction_at_charge * chamber_volume_m3 * charge_pressure_Pa
+
+
+def chamber_capacitance(p_Pa, volume_m3, gas_amount: float, oil_compressibility_1_Pa: float):
+    """C = beta V = beta_oil V_L + V_G / p, the volume taken up per unit pressure rise [m^3/Pa].
+
+    Derivation: the chamber (geometric volume V) holds oil V_L and gas V_G = G/p (isothermal,
+    G fixed). Oil mass balance d(rho_L V_L)/dt = rho_L Q_in with d rho_L/rho_L = beta_oil dp,
+    and V_L = V - G/p, give (beta_oil V_L + V_G/p) dp/dt = Q_in - dV/dt. Hence the mixture's
+    compressibility beta = (beta_oil V_L + V_G/p) / (V_L + V_G) (the gas term of Eq. 3 with
+    the gas bulk modulus B_G = p).
+    """
+    p = np.asarray(p_Pa, dtype=float)
+    v_gas = gas_amount / p
+    return oil_compressibility_1_Pa * (np.asarray(volume_m3, dtype=float) - v_gas) + v_gas / p
+
+
+def mixture_compressibility(p_Pa, volume_m3, gas_amount: float, oil_compressibility_1_Pa: float):
+    """beta_i = (beta_oil V_L + V_G/p) / (V_L + V_G) of an oil-gas chamber [1/Pa]."""
+    return chamber_capacitance(p_Pa, volume_m3, gas_amount, oil_compressibility_1_Pa) / np.asarray(volume_m3)
+
+
+def stribeck_friction(velocity_m_s, coulomb_force_N: float, stribeck_force_N: float = 0.0,
+                      stribeck_velocity_m_s: float = 1.0e-4, regularisation_m_s: float = 1.0e-7):
+    """F_f = tanh(v/v_eps) [F_C + F_S exp(-(|v|/v_S)^2)] (Stribeck with a smooth sign) [N]."""
+    v = np.asarray(velocity_m_s, dtype=float)
+    level = coulomb_force_N + stribeck_force_N * np.exp(-((v / stribeck_velocity_m_s) ** 2))
+    return np.tanh(v / regularisation_m_s) * level
+
+
+# ---------------------------------------------------------------------------------------------
+# Hydraulic model of one case
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ChamberModel:
+    """All coefficients of the two-state model of one case (after viscosity drift), SI."""
+
+    piston_area_m2: float
+    chamber_volume_1_m3: float
+    chamber_volume_2_m3: float
+    oil_compressibility_1_Pa: float
+    charge_pressure_Pa: float
+    gas_1_Pa_m3: float
+    gas_2_Pa_m3: float
+    c1: float
+    c2_pos: float
+    c2_neg: float
+    leakage_m3_s_Pa: float
+    relief_cracking_pressure_Pa: float | None
+    relief_area_gradient_m2_Pa: float
+    relief_discharge_coefficient: float
+    density_kg_m3: float
+
+    def total_flow(self, dp_Pa):
+        """Q12(dp): orifice (Eq. 7) + annular leakage + relief valves [m^3/s]."""
+        dp = np.asarray(dp_Pa, dtype=float)
+        return (orifice_flow(dp, self.c1, self.c2_pos, self.c2_neg) + self.leakage_m3_s_Pa * dp
+                + relief_flow(dp, self.relief_cracking_pressure_Pa, self.relief_area_gradient_m2_Pa,
+                              self.relief_discharge_coefficient, self.density_kg_m3))
+
+    def scalar_flow(self, dp: float) -> tuple[float, float]:
+        """Q12(dp) and dQ12/ddp for a float (fast path of the ODE right-hand side)."""
+        a = abs(dp)
+        c2 = self.c2_pos if dp >= 0.0 else self.c2_neg
+        root = math.sqrt(self.c1 * self.c1 + 4.0 * c2 * a)
+        q = 2.0 * dp / (self.c1 + root) + self.leakage_m3_s_Pa * dp
+        dq = 1.0 / root + self.leakage_m3_s_Pa            # d(dp)/dQ = c1 + 2 c2 |Q| = root
+        pc = self.relief_cracking_pressure_Pa
+        if pc is not None and a > pc and self.relief_area_gradient_m2_Pa > 0.0:
+            k = self.relief_discharge_coefficient * self.relief_area_gradient_m2_Pa
+            s = math.sqrt(2.0 * a / self.density_kg_m3)
+            q += math.copysign(k * (a - pc) * s, dp)
+            dq += k * (s + (a - pc) / (self.density_kg_m3 * s))
+        return q, dq
+
+
+def true_viscosity(damper, effects: TrueEffects) -> float:
+    """Campaign-mean viscosity of the real damper: ``effects.viscosity_Pa_s`` or the design value."""
+    return float(damper.viscosity_Pa_s if effects.viscosity_Pa_s is None else effects.viscosity_Pa_s)
+
+
+def case_viscosity(damper, effects: TrueEffects, rig: RigImperfections, case_index: int = 0,
+                   n_cases: int = 1) -> float:
+    """mu_case = mu_true (1 + drift (i/(n-1) - 1/2)), the temperature drift over a campaign."""
+    frac = case_index / (n_cases - 1) - 0.5 if n_cases > 1 else 0.0
+    return true_viscosity(damper, effects) * (1.0 + rig.viscosity_drift_rel * frac)
+
+
+def chamber_model(damper, effects: TrueEffects = NOMINAL_EFFECTS, viscosity_Pa_s: float | None = None) -> ChamberModel:
+    """Coefficients of the real damper (design + effects) at the viscosity ``viscosity_Pa_s``."""
+    mu = true_viscosity(damper, effects) if viscosity_Pa_s is None else float(viscosity_Pa_s)
+    cd = damper.discharge_coefficient if effects.discharge_coefficient is None else effects.discharge_coefficient
+    a_o = damper.orifice_area_m2
+    p0 = effects.charge_pressure_Pa
+    return ChamberModel(
+        piston_area_m2=float(damper.piston_area_m2),
+        chamber_volume_1_m3=float(damper.chamber_volume_1_m3),
+        chamber_volume_2_m3=float(damper.chamber_volume_2_m3),
+        oil_compressibility_1_Pa=float(damper.oil_compressibility_1_Pa),
+        charge_pressure_Pa=float(p0),
+        gas_1_Pa_m3=gas_amount_Pa_m3(effects.air_fraction_at_charge, damper.chamber_volume_1_m3, p0),
+        gas_2_Pa_m3=gas_amount_Pa_m3(effects.air_fraction_at_charge, damper.chamber_volume_2_m3, p0),
+        c1=laminar_coefficient(mu, damper.orifice_length_m, a_o),
+        c2_pos=turbulent_coefficient(damper.density_kg_m3, cd * (1.0 + effects.asymmetry), a_o),
+        c2_neg=turbulent_coefficient(damper.density_kg_m3, cd * (1.0 - effects.asymmetry), a_o),
+        leakage_m3_s_Pa=annular_leakage_conductance(damper.piston_area_m2, effects.leakage_gap_m, mu,
+                                                    effects.seal_length_m),
+        relief_cracking_pressure_Pa=effects.relief_cracking_pressure_Pa,
+        relief_area_gradient_m2_Pa=float(effects.relief_area_gradient_m2_Pa),
+        relief_discharge_coefficient=float(effects.relief_discharge_coefficient),
+        density_kg_m3=float(damper.density_kg_m3),
+    )
+
+
+def steady_pressure_difference(piston_flow_m3_s: float, model: ChamberModel) -> float:
+    """Incompressible steady dp with Q12(dp) = A W (Eq. 24 with leakage and valves) [Pa].
+
+    Bracketed root of the monotone Q12; used for error scales and tests.
+    """
+    qp = float(piston_flow_m3_s)
+    if qp == 0.0:
+        return 0.0
+    # Q12(dp) >= orifice flow, so the orifice's dp for A W (plus a margin for rounding) brackets the root
+    hi = 1.001 * abs(float(orifice_pressure(qp, model.c1, model.c2_pos, model.c2_neg))) + 1e-300
+    f = lambda dp: model.scalar_flow(dp)[0] - qp  # noqa: E731
+    lo, hi = (0.0, math.copysign(hi, qp)) if qp > 0 else (math.copysign(hi, qp), 0.0)
+    return brentq(f, lo, hi, xtol=1e-300, rtol=8.9e-16, maxiter=500)
+
+
+# ---------------------------------------------------------------------------------------------
+# Kinematics: delayed command, first-order servo, play operator
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ActuatorPiece:
+    """x(t) on [t_start, t_end): x = c_s + v s - v tau + K exp(-s/tau), s = t - t_start.
+
+    The delayed command on the piece is c_s + v s; with tau = 0, x = c_s + v s exactly.
+    """
+
+    t_start_s: float
+    t_end_s: float
+    command_start_m: float
+    velocity_m_s: float
+    lag_s: float
+    transient_m: float
+
+    def position(self, t):
+        s = np.asarray(t, dtype=float) - self.t_start_s
+        x = self.command_start_m + self.velocity_m_s * (s - self.lag_s)
+        if self.lag_s > 0.0:
+            x = x + self.transient_m * np.exp(-s / self.lag_s)
+        return x
+
+    def velocity(self, t):
+        s = np.asarray(t, dtype=float) - self.t_start_s
+        if self.lag_s > 0.0:
+            return self.velocity_m_s - self.transient_m / self.lag_s * np.exp(-s / self.lag_s)
+        return np.full_like(s, self.velocity_m_s)
+
+
+def actuator_pieces(case: TriangleCase, rig: RigImperfections, t_end_s: float) -> list[ActuatorPiece]:
+    """Closed-form servo response to the delayed command, one piece per command segment.
+
+    The command holds -Y before t = 0; delayed by d its corners lie at d + k T/2 (k = 0..3).
+    x(0) = -Y at rest; x and (for tau_s > 0) dx/dt are continuous across pieces.
+    """
+    y_amp, w, half, d, tau = case.amplitude_m, case.velocity_m_s, case.period_s / 2.0, rig.delay_s, rig.servo_lag_s
+    starts = [(0.0, -y_amp, 0.0)] if d > 0.0 else []
+    for k in range(4):
+        t_k = d + k * half
+        if t_k < t_end_s:
+            starts.append((t_k, -y_amp if k % 2 == 0 else y_amp, w if k % 2 == 0 else -w))
+    pieces = []
+    x0 = -y_amp
+    for i, (ts, cs, v) in enumerate(starts):
+        te = starts[i + 1][0] if i + 1 < len(starts) else t_end_s
+        piece = ActuatorPiece(ts, te, cs, v, tau, (x0 - cs + v * tau) if tau > 0.0 else 0.0)
+        pieces.append(piece)
+        x0 = float(piece.position(te)) if tau > 0.0 else cs + v * (te - ts)
+    return pieces
+
+
+def _actuator_turning_times(pieces: Sequence[ActuatorPiece]) -> list[float]:
+    """Times where the actuator starts to move or reverses (dx/dt changes sign), sorted."""
+    out, moving = [], 0.0
+    for p in pieces:
+        v = p.velocity_m_s
+        if v == 0.0:
+            continue
+        v0 = float(p.velocity(p.t_start_s))
+        t_turn = p.t_start_s
+        if v0 * v < 0.0:   # still coasting the old way (tau_s > 0): dx/dt = v - (K/tau) e^(-s/tau) = 0 at s*
+            t_turn = p.t_start_s + p.lag_s * math.log(p.transient_m / (p.lag_s * v))
+        if t_turn < p.t_end_s and math.copysign(1.0, v) != moving:
+            out.append(t_turn)
+            moving = math.copysign(1.0, v)
+    return out
+
+
+@dataclass(frozen=True)
+class PistonPiece:
+    """One interval of smooth piston motion.
+
+    contact: y = x + offset (the actuator pushes, offset = -/+ b/2); else y = rest_m.
+    """
+
+    t_start_s: float
+    t_end_s: float
+    actuator: ActuatorPiece
+    contact: bool
+    offset_m: float
+    rest_m: float
+
+    def position(self, t):
+        if self.contact:
+            return self.actuator.position(t) + self.offset_m
+        return np.full_like(np.asarray(t, dtype=float), self.rest_m)
+
+    def velocity(self, t):
+        if self.contact:
+            return self.actuator.velocity(t)
+        return np.zeros_like(np.asarray(t, dtype=float))
+
+
+def _actuator_at(pieces: Sequence[ActuatorPiece], t: float) -> ActuatorPiece:
+    for p in pieces:
+        if p.t_start_s <= t < p.t_end_s:
+            return p
+    return pieces[-1]
+
+
+def _crossing_time(pieces: Sequence[ActuatorPiece], ta: float, tb: float, target: float) -> float | None:
+    """First t in [ta, tb] with x(t) = target, x monotone there; None if not reached."""
+    for p in pieces:
+        a, b = max(ta, p.t_start_s), min(tb, p.t_end_s)
+        if b <= a:
+            continue
+        fa, fb = float(p.position(a)) - target, float(p.position(b)) - target
+        if fa == 0.0:
+            return a
+        if fa * fb <= 0.0:
+            if p.lag_s == 0.0:
+                return min(max(a - fa / p.velocity_m_s, a), b)
+            return brentq(lambda t, p=p: float(p.position(t)) - target, a, b, xtol=1e-13 * max(1.0, b), rtol=1e-15)
+    return None
+
+
+def piston_pieces(case: TriangleCase, effects: TrueEffects, rig: RigImperfections) -> list[PistonPiece]:
+    """Play operator of total gap b between actuator x and piston y, as smooth pieces.
+
+    Pushing upwards y = x - b/2, downwards y = x + b/2; at every actuator reversal the contact
+    is lost and the piston stands still until x has travelled b. The record starts at rest with
+    the piston at y = -Y + b/2 (as left by the downward stroke that brought it to -Y), so the
+    first upward motion crosses the whole gap too. Pieces break at the delayed command corners,
+    actuator reversals and contacts: the piston velocity is smooth inside each piece.
+    """
+    t_end = float(case.sample_times_s()[-1])
+    acts = actuator_pieces(case, rig, t_end)
+    b = effects.backlash_m
+    turns = [t for t in _actuator_turning_times(acts) if 0.0 <= t < t_end]
+    stretch_edges = sorted({0.0, *turns, t_end})
+    spans = []                                      # (ta, tb, contact, offset, rest)
+    y = -case.amplitude_m + b / 2.0
+    for ta, tb in zip(stretch_edges[:-1], stretch_edges[1:]):
+        mid = 0.5 * (ta + tb)
+        v_mid = float(_actuator_at(acts, mid).velocity(mid))
+        direction = 0.0 if v_mid == 0.0 else math.copysign(1.0, v_mid)
+        if direction == 0.0:
+            spans.append((ta, tb, b == 0.0, 0.0, y))
+            continue
+        tc = ta if b == 0.0 else _crossing_time(acts, ta, tb, y + direction * b / 2.0)
+        if tc is None:
+            tc = tb
+        if tc > ta:
+            spans.append((ta, tc, False, 0.0, y))
+        if tc < tb:
+            spans.append((tc, tb, True, -direction * b / 2.0, y))
+            y = float(_actuator_at(acts, tb).position(tb)) - direction * b / 2.0
+    out = []
+    for ta, tb, contact, offset, rest in spans:
+        for p in acts:
+            a, e = max(ta, p.t_start_s), min(tb, p.t_end_s)
+            if e > a:
+                out.append(PistonPiece(a, e, p, contact, offset, rest))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Noise-free response
+# ---------------------------------------------------------------------------------------------
+
+def _check_stroke(case: TriangleCase, model: ChamberModel) -> None:
+    """The stroke must leave oil in both chambers (Eq. 12: T_max < T_lim)."""
+    a = model.piston_area_m2
+    for v0, gas in ((model.chamber_volume_1_m3, model.gas_1_Pa_m3), (model.chamber_volume_2_m3, model.gas_2_Pa_m3)):
+        if not a * case.amplitude_m < 0.95 * (v0 - gas / model.charge_pressure_Pa):
+            raise ValueError(f"case {case.case_id}: amplitude {case.amplitude_m:g} m empties a chamber")
+
+
+def _capacitance(p: float, vol: float, gas: float, beta: float) -> tuple[float, float]:
+    """C = beta_oil (V - G/p) + G/p^2 and dC/dp of a chamber, for floats (see chamber_capacitance)."""
+    if gas == 0.0:
+        return beta * vol, 0.0
+    return beta * (vol - gas / p) + gas / (p * p), beta * gas / (p * p) - 2.0 * gas / (p * p * p)
+
+
+def _piece_motion(piece: PistonPiece) -> Callable[[float], tuple[float, float]]:
+    """t -> (y, dy/dt) of the piston on one piece, for floats (the ODE's fast path)."""
+    if not piece.contact:
+        rest = piece.rest_m
+        return lambda tt: (rest, 0.0)
+    act = piece.actuator
+    ts, cs, v, tau, k = act.t_start_s, act.command_start_m, act.velocity_m_s, act.lag_s, act.transient_m
+    off = piece.offset_m
+
+    def motion(tt):
+        s = tt - ts
+        if tau > 0.0:
+            e = math.exp(-s / tau)
+            return cs + v * (s - tau) + k * e + off, v - k / tau * e
+        return cs + v * s + off, v
+
+    return motion
+
+
+def _piece_system(model: ChamberModel, motion: Callable[[float], tuple[float, float]]):
+    """rhs and analytic Jacobian of the two pressure rises u = p_i - p0 on one piece."""
+    a, p0 = model.piston_area_m2, model.charge_pressure_Pa
+    v01, v02, beta = model.chamber_volume_1_m3, model.chamber_volume_2_m3, model.oil_compressibility_1_Pa
+    g1, g2 = model.gas_1_Pa_m3, model.gas_2_Pa_m3
+    flow = model.scalar_flow
+
+    def terms(tt, u):
+        """(C1, dC1/dp1, C2, dC2/dp2, net flow A dy/dt - Q12, dQ12/ddp)."""
+        y, ydot = motion(tt)
+        c1_, d1 = _capacitance(p0 + u[0], v01 - a * y, g1, beta)
+        c2_, d2 = _capacitance(p0 + u[1], v02 + a * y, g2, beta)
+        q, dq = flow(u[0] - u[1])
+        return c1_, d1, c2_, d2, a * ydot - q, dq
+
+    def rhs(tt, u):
+        c1_, _, c2_, _, net, _ = terms(tt, u)
+        return [net / c1_, -net / c2_]
+
+    def jac(tt, u):
+        c1_, d1, c2_, d2, net, dq = terms(tt, u)
+        return [[-dq / c1_ - net * d1 / (c1_ * c1_), dq / c1_],
+                [dq / c2_, -dq / c2_ + net * d2 / (c2_ * c2_)]]
+
+    return rhs, jac
+
+
+def integrate_pressures(case: TriangleCase, model: ChamberModel, pieces: Sequence[PistonPiece],
+                        rtol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """p1, p2 (absolute) at the sample times by LSODA piece by piece (analytic Jacobian).
+
+    Returns (t_s, p1_Pa, p2_Pa). Absolute tolerance: ``rtol`` times the steady dp at W (Eq. 24).
+    Cavitation is not modelled: an oil-only chamber's equation is linear in p, so p < 0 (dp
+    above about 2 p0, e.g. ~12 MPa at 1.5 mm/s for the Table-1 damper) is integrated as is;
+    a chamber with gas keeps p > 0 (the expanding gas absorbs the volume), else ValueError.
+    """
+    t = case.sample_times_s()
+    p0 = model.charge_pressure_Pa
+    atol = rtol * max(abs(steady_pressure_difference(model.piston_area_m2 * case.velocity_m_s, model)), 1.0)
+    p1_out = np.empty_like(t)
+    p2_out = np.empty_like(t)
+    state = np.zeros(2)
+    for piece in pieces:
+        ta, tb = piece.t_start_s, piece.t_end_s
+        sel = (t >= ta) & ((t < tb) | ((tb == pieces[-1].t_end_s) & (t <= tb)))
+        t_sel = t[sel]
+        if tb > ta:
+            rhs, jac = _piece_system(model, _piece_motion(piece))
+            closed = t_sel.size > 0 and t_sel[-1] == tb
+            t_eval = t_sel if closed else np.append(t_sel, tb)
+            sol = solve_ivp(rhs, (ta, tb), state, method="LSODA", jac=jac, rtol=rtol, atol=atol, t_eval=t_eval)
+            if not sol.success:
+                raise RuntimeError(f"case {case.case_id}: integration failed on [{ta}, {tb}]: {sol.message}")
+            p1_out[sel] = p0 + sol.y[0, :t_sel.size]
+            p2_out[sel] = p0 + sol.y[1, :t_sel.size]
+            state = sol.y[:, -1].copy()
+    if (model.gas_1_Pa_m3 > 0.0 and np.any(p1_out <= 0.0)) or (model.gas_2_Pa_m3 > 0.0 and np.any(p2_out <= 0.0)):
+        raise ValueError(f"case {case.case_id}: a gas-filled chamber reached zero pressure")
+    return t, p1_out, p2_out
+
+
+def true_series(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
+                rig: RigImperfections = IDEAL_RIG, case_index: int = 0, n_cases: int = 1,
+                rtol: float = 1e-10) -> pd.DataFrame:
+    """Noise-free record of one case at the sample times.
+
+    Columns: time_s, command_m (ideal, undelayed), actuator_m (x, what the LVDT sees), piston_m,
+    piston_velocity_m_s, p1_Pa, p2_Pa (absolute), viscosity_Pa_s (this case, after drift),
+    force_N (true load-cell force, Eq. 8; 0 in a backlash gap unless
+    ``effects.backlash_gap_force == "hydraulic"``).
+    """
+    mu = case_viscosity(damper, effects, rig, case_index, n_cases)
+    model = chamber_model(damper, effects, mu)
+    _check_stroke(case, model)
+    pieces = piston_pieces(case, effects, rig)
+    t, p1, p2 = integrate_pressures(case, model, pieces, rtol)
+    actuator = np.empty_like(t)
+    piston = np.empty_like(t)
+    velocity = np.empty_like(t)
+    contact = np.empty(t.size, dtype=bool)
+    for i, piece in enumerate(pieces):
+        last = i == len(pieces) - 1
+        sel = (t >= piece.t_start_s) & ((t < piece.t_end_s) | (last & (t <= piece.t_end_s)))
+        actuator[sel] = piece.actuator.position(t[sel])
+        piston[sel] = piece.position(t[sel])
+        velocity[sel] = piece.velocity(t[sel])
+        contact[sel] = piece.contact
+    friction = stribeck_friction(velocity, effects.coulomb_force_N, effects.stribeck_force_N,
+                                 effects.stribeck_velocity_m_s, effects.friction_regularisation_m_s)
+    force = model.piston_area_m2 * (p1 - p2) + friction
+    if effects.backlash_gap_force == "zero":
+        force = np.where(contact, force, 0.0)
+    return pd.DataFrame({
+        "time_s": t,
+        "command_m": triangle_command(t, case.amplitude_m, case.period_s),
+        "actuator_m": actuator,
+        "piston_m": piston,
+        "piston_velocity_m_s": velocity,
+        "p1_Pa": p1,
+        "p2_Pa": p2,
+        "viscosity_Pa_s": np.full(t.size, mu),
+        "force_N": force + 0.0,
+    })

@@ -1,0 +1,301 @@
+"""What leaves the independent reference rig (:mod:`isokinetic.physics.reference_rig`): measured
+channels, the raw-campaign export, and the catalogue equivalents of its hidden truth.
+
+Part of the separately written reference against which the project's diagnosis is tested (the
+method of the paper "A method for the identification of hydraulic damper characteristics from
+steady velocity inputs", Titurus et al.; equation and table numbers are the paper's). Like its
+sibling it shares no code with the rest of ``isokinetic``: it imports only numpy, scipy, pandas,
+yaml, the standard library and :mod:`isokinetic.physics.reference_rig`.
+
+Measurement
+    Force channel F_meas = g F_true + F0 + sigma_w w_k + |F_true| sigma_rel c_k, with w white and c
+    a unit-variance AR(1) sequence (rho = exp(-2 pi f_c / fs), stationary start); the LVDT measures
+    the actuator x with white noise; every channel is then quantised. Noise of case i is drawn from
+    ``SeedSequence([seed, i])``.
+
+Catalogue equivalents
+    The parameters the project's diagnosis fits (Coulomb friction, laminar leakage conductance,
+    asymmetry, C_D, viscosity, air fraction of Eq. 3) that the rig's physical effects amount to,
+    for scoring; and the inverse maps used to draw a rig from catalogue values.
+
+Export
+    :func:`write_campaign` writes a raw campaign folder (campaign.yaml plus one CSV per case) in
+    column names and units deliberately unlike the project's (:data:`EXPORT_COLUMNS`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import yaml
+from scipy.signal import lfilter
+
+from isokinetic.physics.reference_rig import (
+    IDEAL_RIG,
+    NOMINAL_EFFECTS,
+    TABLE1,
+    DamperDesign,
+    RigImperfections,
+    TriangleCase,
+    TrueEffects,
+    annular_leakage_conductance,
+    piston_diameter_m,
+    true_series,
+    true_viscosity,
+)
+
+#: Isothermal compressibility of air at atmospheric pressure, Table 1 [1/Pa] (catalogue form).
+AIR_COMPRESSIBILITY_CATALOGUE_1_PA = 9.9e-6
+
+#: Campaign (folder) names allowed by the raw-campaign spec.
+_CAMPAIGN_NAME = re.compile(r"[a-z0-9][a-z0-9_-]*\Z")
+
+
+# ---------------------------------------------------------------------------------------------
+# Measurement
+# ---------------------------------------------------------------------------------------------
+
+def case_rng(seed: int, case_index: int) -> np.random.Generator:
+    """Noise stream of case ``case_index``: Generator(SeedSequence([seed, case_index]))."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(case_index)]))
+
+
+def ar1_sequence(innovations, rho: float) -> np.ndarray:
+    """Unit-variance stationary AR(1): c0 = e0, c_k = rho c_(k-1) + sqrt(1 - rho^2) e_k."""
+    e = np.asarray(innovations, dtype=float)
+    if e.size == 0:
+        return e.copy()
+    out = np.empty_like(e)
+    out[0] = e[0]
+    if e.size > 1:
+        out[1:], _ = lfilter([math.sqrt(1.0 - rho * rho)], [1.0, -rho], e[1:], zi=[rho * e[0]])
+    return out
+
+
+def mean_noise_variance(n_samples: int, force_N: float, rig: RigImperfections, sample_rate_Hz: float) -> float:
+    """Exact variance of the mean of n consecutive force-noise samples at true force F [N^2].
+
+    See :meth:`RigImperfections.mean_noise_variance_N2` (the formula lives with the noise parameters).
+    """
+    return rig.mean_noise_variance_N2(n_samples, force_N, sample_rate_Hz)
+
+
+def quantise(x, step: float) -> np.ndarray:
+    """Nearest integer multiple of ``step`` (never -0.0)."""
+    return np.rint(np.asarray(x, dtype=float) / step) * step + 0.0
+
+
+def measure(truth: pd.DataFrame, case: TriangleCase, rig: RigImperfections, seed: int,
+            case_index: int) -> pd.DataFrame:
+    """Measured channels of a true record: adds force_meas_N, displacement_meas_m, command_meas_m.
+
+    The three noise streams (white force, AR(1) innovations, LVDT) are always drawn, in this
+    order, so that switching one noise source off leaves the others unchanged.
+    """
+    n = len(truth)
+    rng = case_rng(seed, case_index)
+    white = rng.standard_normal(n)
+    coloured = ar1_sequence(rng.standard_normal(n), rig.noise_correlation(case.sample_rate_Hz))
+    lvdt = rng.standard_normal(n)
+    f = truth["force_N"].to_numpy()
+    force = (rig.force_gain * f + rig.force_offset_N + rig.force_noise_N * white
+             + np.abs(f) * rig.force_noise_rel * coloured)
+    out = truth.copy()
+    out["force_meas_N"] = quantise(force, rig.force_resolution_N)
+    out["displacement_meas_m"] = quantise(truth["actuator_m"].to_numpy() + rig.displacement_noise_m * lvdt,
+                                          rig.displacement_resolution_m)
+    out["command_meas_m"] = quantise(truth["command_m"].to_numpy(), rig.command_resolution_m)
+    return out
+
+
+def simulate_case(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
+                  rig: RigImperfections = IDEAL_RIG, seed: int = 0, case_index: int = 0,
+                  n_cases: int = 1, rtol: float = 1e-10) -> pd.DataFrame:
+    """:func:`true_series` followed by :func:`measure` (true and measured columns together)."""
+    return measure(true_series(case, damper, effects, rig, case_index, n_cases, rtol), case, rig, seed, case_index)
+
+
+# ---------------------------------------------------------------------------------------------
+# Catalogue equivalents (scoring)
+# ---------------------------------------------------------------------------------------------
+
+def catalogue_equivalent(damper, effects: TrueEffects) -> dict:
+    """The catalogue-form parameters the project's diagnosis fits, from the physical effects.
+
+    coulomb_force_N = F_C (the Stribeck excess has no catalogue form); leakage conductance
+    pi D h^3 / (12 mu L) at the campaign-mean true viscosity; asymmetry a; discharge coefficient
+    and viscosity (None when not changed); air_volume_fraction phi_cat with
+    phi_cat * 9.9e-6 = phi0 / p0, i.e. the gas term of the mixture compressibility at the
+    charge pressure (:func:`chamber_capacitance`, neglecting its -phi0 beta_oil part) written
+    in the catalogue form beta_eff = beta_oil + phi_cat beta_air (Eq. 3, Table 1).
+    """
+    mu = true_viscosity(damper, effects)
+    return {
+        "coulomb_force_N": float(effects.coulomb_force_N),
+        "leakage_conductance_m3_s_Pa": annular_leakage_conductance(damper.piston_area_m2, effects.leakage_gap_m,
+                                                                   mu, effects.seal_length_m),
+        "asymmetry": float(effects.asymmetry),
+        "discharge_coefficient": (None if effects.discharge_coefficient is None
+                                  else float(effects.discharge_coefficient)),
+        "viscosity_Pa_s": None if effects.viscosity_Pa_s is None else float(effects.viscosity_Pa_s),
+        "air_volume_fraction": effects.air_fraction_at_charge
+        / (effects.charge_pressure_Pa * AIR_COMPRESSIBILITY_CATALOGUE_1_PA),
+    }
+
+
+def out_of_catalogue_effects(effects: TrueEffects, strong_stribeck_ratio: float = 0.5) -> tuple[str, ...]:
+    """Names of the active effects with no catalogue form: 'stribeck' (F_S >= ratio F_C and
+    F_S > 0), 'backlash', 'relief_valve'."""
+    names = []
+    if effects.stribeck_force_N > 0.0 and effects.stribeck_force_N >= strong_stribeck_ratio * effects.coulomb_force_N:
+        names.append("stribeck")
+    if effects.backlash_m > 0.0:
+        names.append("backlash")
+    if effects.relief_cracking_pressure_Pa is not None and effects.relief_area_gradient_m2_Pa > 0.0:
+        names.append("relief_valve")
+    return tuple(names)
+
+
+def air_fraction_from_catalogue(catalogue_fraction: float, charge_pressure_Pa: float = 5.0e6) -> float:
+    """phi0 = phi_cat p0 9.9e-6: the free-gas fraction at p0 with the catalogue's gas term."""
+    return catalogue_fraction * charge_pressure_Pa * AIR_COMPRESSIBILITY_CATALOGUE_1_PA
+
+
+def leakage_gap_from_conductance(conductance_m3_s_Pa: float, damper, viscosity_Pa_s: float | None = None,
+                                 seal_length_m: float = 0.02) -> float:
+    """Radial gap h = (12 mu L g / (pi D))^(1/3) giving the laminar conductance g [m].
+
+    ``viscosity_Pa_s`` defaults to the design viscosity; pass the true one when it differs.
+    """
+    mu = damper.viscosity_Pa_s if viscosity_Pa_s is None else viscosity_Pa_s
+    diameter = piston_diameter_m(damper.piston_area_m2)
+    return (12.0 * mu * seal_length_m * conductance_m3_s_Pa / (math.pi * diameter)) ** (1.0 / 3.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Raw campaign export
+# ---------------------------------------------------------------------------------------------
+
+#: channel -> (column name, unit, SI value of one unit); deliberately not the project's names.
+EXPORT_COLUMNS = {
+    "time": ("t_ms", "ms", 1.0e-3),
+    "displacement": ("lvdt_um", "um", 1.0e-6),
+    "force": ("load_N", "N", 1.0),
+    "command": ("command_um", "um", 1.0e-6),
+}
+
+
+def _decimals(step_in_unit: float) -> int:
+    """Decimal places that print integer multiples of ``step_in_unit`` exactly (ValueError if > 12)."""
+    for n in range(13):
+        scaled = step_in_unit * 10**n
+        if abs(scaled - round(scaled)) <= 1e-9 * max(scaled, 1.0):
+            return n
+    raise ValueError(f"resolution {step_in_unit!r} is not a short decimal")
+
+
+def _format(values_si: np.ndarray, step_si: float, unit_si: float, sign: float = 1.0) -> list[str]:
+    """Quantised values as exact decimal strings in the export unit."""
+    step = step_si / unit_si
+    dec = _decimals(step)
+    counts = np.rint(np.asarray(values_si) / step_si).astype(np.int64) * int(round(sign))
+    step_r = round(step, dec)
+    return [f"{k * step_r + 0.0:.{dec}f}" for k in counts.tolist()]
+
+
+def _time_strings(t_s: np.ndarray, sample_rate_Hz: float, offset_s: float) -> list[str]:
+    def exact(x: float, n: int) -> bool:
+        return abs(x * 10**n - round(x * 10**n)) <= 1e-9
+
+    dec = next((n for n in range(7) if exact(1e3 / sample_rate_Hz, n) and exact(offset_s * 1e3, n)), 6)
+    return [f"{v + 0.0:.{dec}f}" for v in ((t_s + offset_s) * 1e3).tolist()]
+
+
+def case_csv(series: pd.DataFrame, case: TriangleCase, rig: RigImperfections, invert_force: bool = False,
+             time_offset_s: float = 0.0) -> str:
+    """CSV text of one measured case (columns :data:`EXPORT_COLUMNS`, "\\n" line ends)."""
+    cols = EXPORT_COLUMNS
+    time = _time_strings(series["time_s"].to_numpy(), case.sample_rate_Hz, time_offset_s)
+    disp = _format(series["displacement_meas_m"].to_numpy(), rig.displacement_resolution_m, cols["displacement"][2])
+    force = _format(series["force_meas_N"].to_numpy(), rig.force_resolution_N, cols["force"][2],
+                    -1.0 if invert_force else 1.0)
+    cmd = _format(series["command_meas_m"].to_numpy(), rig.command_resolution_m, cols["command"][2])
+    header = ",".join(cols[k][0] for k in ("time", "displacement", "force", "command"))
+    rows = [f"{a},{b},{c},{d}" for a, b, c, d in zip(time, disp, force, cmd)]
+    return header + "\n" + "\n".join(rows) + "\n"
+
+
+def _sig(x: float, digits: int = 4) -> float:
+    """x rounded to ``digits`` significant digits, as a person would write it."""
+    return float(f"{x:.{digits}g}")
+
+
+def campaign_manifest(campaign: str, cases: Sequence[TriangleCase], damper, description: str = "",
+                      temperature_C: float = 40.0, write_phase: bool = True) -> dict:
+    """campaign.yaml content (raw-campaign format v1): nominal damper only, rounded numbers."""
+    rates = [c.sample_rate_Hz for c in cases]
+    default_rate = max(rates, key=lambda r: (rates.count(r), -rates.index(r)))
+    entries = []
+    for c in cases:
+        e = {"id": c.case_id, "waveform": "triangle", "period_s": _sig(c.period_s),
+             "amplitude_mm": _sig(c.amplitude_m * 1e3)}
+        if write_phase:
+            e["phase_rad"] = -1.5708
+        if c.sample_rate_Hz != default_rate:
+            e["sample_rate_Hz"] = float(c.sample_rate_Hz)
+        e["file"] = f"{c.case_id}.csv"
+        entries.append(e)
+    return {
+        "format_version": 1,
+        "campaign": campaign,
+        "description": description,
+        "source": "simulation",
+        "temperature_C": float(temperature_C),
+        "sample_rate_Hz": float(default_rate),
+        "columns": {k: {"name": v[0], "unit": v[1]} for k, v in EXPORT_COLUMNS.items()},
+        "damper": {f: float(getattr(damper, f)) for f in (fl.name for fl in dataclasses.fields(DamperDesign))},
+        "cases": entries,
+    }
+
+
+def write_campaign(folder: str | os.PathLike, cases: Sequence[TriangleCase], damper=TABLE1,
+                   effects: TrueEffects = NOMINAL_EFFECTS, rig: RigImperfections = IDEAL_RIG, seed: int = 0, *,
+                   description: str = "Low-velocity mapping, triangular excitation", temperature_C: float = 40.0,
+                   write_phase: bool = True, invert_force: bool = False, time_offset_s: float = 0.0,
+                   rtol: float = 1e-10) -> dict[str, pd.DataFrame]:
+    """Simulate ``cases`` and write ``<folder>/campaign.yaml`` plus one CSV per case.
+
+    The campaign id is the folder name; the folder must be absent or empty. Only the nominal
+    ``damper`` block is written, nothing about ``effects`` or ``rig``. ``invert_force`` writes
+    the force with the opposite sign without declaring ``invert: true``; ``time_offset_s`` is
+    added to the time column; ``write_phase`` False omits phase_rad. Case i (0-based, in order) uses noise stream
+    [seed, i] and the viscosity drift fraction i/(n-1). Same inputs -> identical bytes.
+    Returns {case id: true and measured series (SI, unshifted, force in this spec's sign)}.
+    """
+    folder = Path(folder)
+    name = folder.name
+    if not _CAMPAIGN_NAME.match(name):
+        raise ValueError(f"campaign folder name {name!r} must match [a-z0-9][a-z0-9_-]*")
+    ids = [c.case_id for c in cases]
+    if not cases or len(set(ids)) != len(ids):
+        raise ValueError("cases must be non-empty with unique ids")
+    if folder.exists() and any(folder.iterdir()):
+        raise FileExistsError(f"{folder}: campaign folder exists and is not empty")
+    folder.mkdir(parents=True, exist_ok=True)
+    series = {}
+    for i, case in enumerate(cases):
+        s = simulate_case(case, damper, effects, rig, seed, i, len(cases), rtol)
+        series[case.case_id] = s
+        with open(folder / f"{case.case_id}.csv", "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(case_csv(s, case, rig, invert_force, time_offset_s))
+    manifest = campaign_manifest(name, cases, damper, description, temperature_C, write_phase)
+    with open(folder / "campaign.yaml", "w", encoding="utf-8", newline="\n") as fh:
+        yaml.safe_dump(manifest, fh, sort_keys=False, default_flow_style=False, allow_unicode=True, width=100)
+    return series

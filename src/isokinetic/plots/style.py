@@ -1,0 +1,82 @@
+"""Shared figure helpers of every plot module: canvas, units, messages, log ticks and the PNG writer.
+
+The figures reproduce those of the paper "A method for the identification of hydraulic damper
+characteristics from steady velocity inputs" (Titurus et al.). They are drawn on a bare
+:class:`matplotlib.figure.Figure` (Agg canvas, no pyplot state, nothing to close) and written by
+:func:`save_figure`: atomically, with no software stamp, so identical figures give identical bytes.
+"""
+
+from __future__ import annotations
+
+import os
+import textwrap
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure  # used directly: no pyplot state, Agg canvas when saving
+from matplotlib.ticker import FuncFormatter, NullFormatter
+
+from isokinetic.io import write_png
+
+#: Resolution of every PNG [dots per inch].
+DPI = 120
+#: PNG metadata: no software/version stamp, so identical inputs give identical bytes.
+PNG_METADATA = {"Software": None}
+#: m -> mm, m/s -> mm/s: SI inside, mm at the plot edge.
+MM = 1e3
+
+_MISSING_STYLE = {"ha": "center", "va": "center", "fontsize": 10, "color": "tab:red", "wrap": True}
+
+
+def new_figure(width_in: float, height_in: float) -> Figure:
+    """An empty figure of that size [inches] with the constrained layout."""
+    return Figure(figsize=(width_in, height_in), layout="constrained")
+
+
+def force_unit(values) -> tuple[float, str]:
+    """(divisor, unit) for a set of forces [N]: kN once the largest finite magnitude reaches 1 kN."""
+    a = np.abs(np.asarray(values, dtype=float).ravel())
+    a = a[np.isfinite(a)]
+    return (1e3, "kN") if a.size and a.max() >= 1e3 else (1.0, "N")
+
+
+def say_missing(ax, text: str) -> None:
+    """Write a 'missing data' message in red in the middle of an axes."""
+    ax.text(0.5, 0.5, text, transform=ax.transAxes, **_MISSING_STYLE)
+
+
+def footnote(fig: Figure, text: str, *, width: int | None = None, fontsize: float = 7.5) -> None:
+    """A small grey note under the axes (the figure's supxlabel, so the layout reserves room).
+
+    Wrapped at ``width`` characters: by default about half the figure width at 7.5 pt, ``0`` for a
+    single line. Nothing is drawn for an empty text.
+    """
+    if not text:
+        return
+    if width is None:
+        width = max(40, int(fig.get_figwidth() * 10))
+    fig.supxlabel(textwrap.fill(text, width) if width else text, x=0.01, ha="left", fontsize=fontsize, color="0.3")
+
+
+def plain_log_ticks(ax) -> None:
+    """Label the log-scaled axes of ``ax`` 0.01, 0.1, 1 rather than 10^-2 ..., without minor labels."""
+    for axis in (ax.xaxis, ax.yaxis):
+        if axis.get_scale() == "log":
+            axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
+            axis.set_minor_formatter(NullFormatter())
+
+
+def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = DPI,
+                metadata: Mapping[str, str] | None = None) -> Path:
+    """Write a PNG atomically; ``metadata`` becomes PNG text chunks (matplotlib's ``savefig``), and
+    so does a pipeline job's lineage record (:func:`isokinetic.io.write_png`).
+
+    The software stamp is left out (:data:`PNG_METADATA`), so identical figures and metadata give
+    identical bytes.
+    """
+    return write_png(fig, path, dpi=dpi, metadata={**PNG_METADATA, **(metadata or {})})
+
+
+__all__ = ["DPI", "MM", "PNG_METADATA", "footnote", "force_unit", "new_figure", "plain_log_ticks", "save_figure",
+           "say_missing"]

@@ -1,0 +1,431 @@
+"""Rule ``campaign_report``: ``results/<campaign>/report.html``, one self-contained page per campaign.
+
+The page shows what the method of "A method for the identification of hydraulic damper
+characteristics from steady velocity inputs" (Titurus et al.) yields for one campaign: the plan
+check, the cases and their measured motion, the steady characteristic, its repeatability, the
+fitted models, the harmonic records, the test design, the sim-to-real gap diagnosis and the
+quarantined cases, with every figure embedded. Each table is followed by a lineage line and
+every number cell's title names its file, row, rule, commit, parameters and audit command
+(:mod:`isokinetic.report.sources`); numbers the report computes itself (counts, rms of a
+column) say so. The data of each section is built here; ``templates/campaign_report.html.j2``
+lays it out.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from markupsafe import Markup
+
+from isokinetic.contracts.outputs import figures_in
+from isokinetic.io import write_text
+from isokinetic.report.cells import Col, Table, badge, kv_table, table_view
+from isokinetic.report.diagnosis_section import diagnosis_section
+from isokinetic.report.embed import FigureView, figure_views, read_captions
+from isokinetic.report.layout import footer, render
+from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, missing, short, text, yes_no
+from isokinetic.report.sources import Sources, lineage_of, lineage_rows, read_json, read_parquet, selector_of
+
+DAMPER_LABELS = {
+    "piston_area_m2": ("piston area A_p", "m^2"), "chamber_volume_1_m3": ("chamber volume V_1", "m^3"),
+    "chamber_volume_2_m3": ("chamber volume V_2", "m^3"), "orifice_area_m2": ("orifice area A_O", "m^2"),
+    "orifice_length_m": ("orifice length l_O", "m"), "discharge_coefficient": ("discharge coefficient C_D", "-"),
+    "density_kg_m3": ("oil density rho", "kg/m^3"), "viscosity_Pa_s": ("oil viscosity mu", "Pa s"),
+    "oil_compressibility_1_Pa": ("oil compressibility beta", "1/Pa"),
+}
+MODEL_NAMES = {"wallaschek": "Wallaschek (symmetric: F = sign(v) F_C + D_L v + D_Q v|v|)",
+               "surace": "Surace (one parameter set per direction)"}
+CAMPAIGN_NAV = [("header", "Campaign"), ("plan", "Plan check"), ("cases", "Cases"),
+                ("characteristic", "Characteristic"),
+                ("repeatability", "Repeatability"), ("models", "Models"), ("harmonic", "Harmonic"),
+                ("design", "Design"), ("diagnosis", "Diagnosis"), ("quarantine", "Quarantine"),
+                ("lineage", "Lineage")]
+COUNTED = ["counted by the report"]
+
+
+@dataclass
+class CampaignData:
+    """Everything a campaign page reads from ``results/<campaign>/`` (None: not produced)."""
+
+    root: Path
+    name: str
+    meta: dict | None
+    cases: pd.DataFrame | None
+    quarantine: pd.DataFrame | None
+    characteristic: pd.DataFrame | None
+    repeatability: pd.DataFrame | None
+    plan_check: pd.DataFrame | None
+    models: pd.DataFrame | None
+    comparison: pd.DataFrame | None
+    harmonic: pd.DataFrame | None
+    diagnosis: dict | None
+    provenance: dict | None
+    sources: Sources
+
+    @classmethod
+    def read(cls, root: str | os.PathLike) -> CampaignData:
+        root = Path(root)
+        meta = read_json(root / "ingest" / "campaign.json")
+        provenance = read_json(root / "provenance.json")
+        return cls(root=root, name=(meta or {}).get("campaign") or root.name, meta=meta,
+                   cases=read_parquet(root / "cases.parquet"),
+                   quarantine=read_parquet(root / "quarantine.parquet"),
+                   characteristic=read_parquet(root / "characteristic.parquet"),
+                   repeatability=read_parquet(root / "repeatability.parquet"),
+                   plan_check=read_parquet(root / "design" / "plan_check.parquet"),
+                   models=read_parquet(root / "models" / "models.parquet"),
+                   comparison=read_parquet(root / "models" / "comparison.parquet"),
+                   harmonic=read_parquet(root / "harmonic" / "harmonic.parquet"),
+                   diagnosis=read_json(root / "diagnosis.json"), provenance=provenance,
+                   sources=Sources(root, provenance))
+
+    def figures(self, section: str, captions: Mapping[str, str]) -> list[FigureView]:
+        """The figures of a report section, embedded."""
+        return figure_views(self.sources, figures_in(section), captions)
+
+
+# ----------------------------------------------------------------------------------------------
+# header: the campaign, its damper data, its provenance checks, summary cards
+# ----------------------------------------------------------------------------------------------
+
+def _campaign_items(d: CampaignData) -> list[tuple[str, str, str]]:
+    meta = d.meta or {}
+    src = d.sources("ingest/campaign.json")
+    items = [("campaign", esc(d.name), src.title("campaign", "campaign")),
+             ("source", text(meta.get("source")), src.title("source", "source")),
+             ("description", text(meta.get("description")), src.title("description", "description")),
+             ("temperature", f"{fmt(meta.get('temperature_C'))} &deg;C", src.title("temperature_C", "temperature_C"))]
+    if meta.get("manifest_file"):
+        items.append(("manifest", f"<code>{esc(meta['manifest_file'])}</code> (sha256 "
+                                  f"<code>{esc(short(meta.get('manifest_sha256'), 16))}</code>)",
+                      src.title("manifest_file", "manifest_file")))
+    gen = (meta.get("metadata") or {}).get("generated_by")
+    if isinstance(gen, Mapping):
+        items.append(("generated by", esc(f"{gen.get('generator', '?')} (config campaign "
+                                          f"{gen.get('config_campaign', '?')}, seed {gen.get('seed', '?')})"),
+                      src.title("metadata.generated_by", "generated_by")))
+    return items
+
+
+def _damper_table(d: CampaignData) -> Table | None:
+    damper = (d.meta or {}).get("damper")
+    if not isinstance(damper, Mapping) or not damper:
+        return None
+    src = d.sources("ingest/campaign.json")
+    rows = []
+    for key, value in damper.items():
+        label, unit = DAMPER_LABELS.get(key, (key, ""))
+        unit_html = "" if unit in ("", "-") else formula(unit)
+        rows.append((formula(label), f"{fmt(value)} {unit_html}", src.title(f"damper.{key}", key)))
+    return kv_table(rows)
+
+
+PROVENANCE_PROBLEMS = (("changed_raw_files", "raw files changed since ingest"),
+                       ("missing_raw_files", "raw files missing"),
+                       ("stale_stages", "stages whose inputs changed since they ran"),
+                       ("inconsistent_stages", "stages whose outputs come from different runs"),
+                       ("files_without_lineage", "files without lineage"))
+
+
+def _provenance(prov: Mapping | None) -> dict | None:
+    """What the campaign's provenance.json checks say: raw files unchanged, stages current."""
+    if prov is None:
+        return None
+    checks = prov.get("checks")
+    if not isinstance(checks, Mapping):
+        return {"checked": False}
+    git = prov.get("git") or {}
+    problems = [{"label": label, "files": (checks.get(key) or [])[:12], "more": max(len(checks.get(key) or []) - 12, 0)}
+                for key, label in PROVENANCE_PROBLEMS if checks.get(key)]
+    return {"checked": True, "ok": bool(checks.get("ok")), "made": prov.get("created_utc", "?"),
+            "commit": short(git.get("commit"), 12) if git.get("commit") else None, "problems": problems}
+
+
+def _summary_cards(d: CampaignData) -> list[dict]:
+    cards = []
+
+    def card(k: str, v: str, title: str) -> None:
+        cards.append({"k": k, "v": Markup(v), "title": title})
+
+    if d.cases is not None:
+        card("cases ok / planned", f"{int((d.cases['status'] == 'ok').sum())} / {len(d.cases)}",
+             d.sources("cases.parquet").title("", "count of rows with status ok", COUNTED))
+    if d.characteristic is not None:
+        card("characteristic points", str(len(d.characteristic)),
+             d.sources("characteristic.parquet").title("", "count of rows", COUNTED))
+    if d.plan_check is not None:
+        card("plan cases flagged", str(int(d.plan_check["flagged"].sum())),
+             d.sources("design/plan_check.parquet").title("", "count of rows with flagged true", COUNTED))
+    if d.repeatability is not None:
+        card("repeatability pairs flagged", f"{int(d.repeatability['flagged'].sum())} / {len(d.repeatability)}",
+             d.sources("repeatability.parquet").title("", "count of rows with flagged true", COUNTED))
+    diag = d.diagnosis
+    if diag and diag.get("status", "ok") == "ok":
+        src = d.sources("diagnosis.json")
+        verdict = ", ".join(diag.get("verdict") or []) or "none (nominal model explains)"
+        explained = diag.get("explained", True)
+        card("diagnosis verdict", esc(verdict) + ("" if explained else " " + badge("not explained", "bad")),
+             src.title("verdict", "verdict"))
+        card(f"gap {diag.get('metric', '')} before -> after",
+             f"{fmt(diag.get('gap_before'), 3)} &rarr; {fmt(diag.get('gap_after'), 3)}",
+             src.title("gap_before", "gap_before (gap_after: key gap_after)"))
+        card("shrink", fmt(diag.get("shrink"), 3), src.title("shrink", "shrink"))
+    if d.quarantine is not None:
+        card("quarantined cases", str(d.quarantine["case"].nunique() if len(d.quarantine) else 0),
+             d.sources("quarantine.parquet").title("", "count of distinct cases", COUNTED))
+    return cards
+
+
+def _header_section(d: CampaignData) -> dict:
+    campaign = kv_table(_campaign_items(d))
+    damper = _damper_table(d)
+    return {"campaign": campaign, "damper": damper, "lineage": lineage_of(d.sources("ingest/campaign.json"), "damper"),
+            "provenance": _provenance(d.provenance), "cards": _summary_cards(d)}
+
+
+# ----------------------------------------------------------------------------------------------
+# plan check and cases
+# ----------------------------------------------------------------------------------------------
+
+PLAN_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text, False),
+             Col("status", "status", text, False),
+             Col("velocity_m_s", "velocity [mm/s]", scale=1e3), Col("period_s", "T [s]"),
+             Col("frequency_Hz", "f [Hz]"), Col("amplitude_m", "amplitude [mm]", scale=1e3),
+             Col("G3", "G3", lambda x: fmt(x, 3)),
+             Col("stroke_to_converge_m", "stroke to converge [mm]", lambda x: fmt(x, 3), scale=1e3),
+             Col("window_start_stroke_m", "window start stroke [mm]", lambda x: fmt(x, 3), scale=1e3),
+             Col("flagged", "flagged", yes_no, False), Col("reasons", "reasons", text, False)]
+CASE_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text, False),
+             Col("status", "status", text, False), Col("n_samples", "samples"),
+             Col("motion_start_s", "motion start [s]", lambda x: fmt(x, 5)),
+             Col("delay_s", "delay [ms]", lambda x: fmt(x, 3), scale=1e3),
+             Col("velocity_ratio", "speed / planned", lambda x: fmt(x, 4)),
+             Col("motion_rms_m", "motion rms [&micro;m]", lambda x: fmt(x, 3), scale=1e6),
+             Col("quality", "quality", text, False)]
+
+
+def _plan_section(d: CampaignData) -> dict:
+    pc = d.plan_check
+    src = d.sources("design/plan_check.parquet")
+    if pc is None:
+        return {"table": None, "lineage": lineage_of(src)}
+    flagged = [{"case": r["case"], "reasons": r["reasons"], "title": src.title(selector_of(r, ["case"]), "reasons")}
+               for r in pc[pc["flagged"].astype(bool)].to_dict("records")]
+    return {"n": len(pc), "flagged": flagged,
+            "table": table_view(pc, PLAN_COLS, src, ["case"], row_class=lambda r: "flagged" if r["flagged"] else "",
+                                 table_id="plan-check")}
+
+
+def _case_row_class(r: Mapping) -> str:
+    if r["status"] != "ok":
+        return "flagged"
+    return "warned" if isinstance(r.get("quality"), str) and r["quality"] != "ok" else ""
+
+
+def _cases_section(d: CampaignData) -> dict:
+    """The cases table: status, quality and the measured motion of each case (validate)."""
+    src = d.sources("cases.parquet")
+    if d.cases is None:
+        return {"table": None, "lineage": lineage_of(src)}
+    cases = d.cases.copy()
+    for column in ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m"):
+        if column not in cases:
+            cases[column] = np.nan      # a cases table written before the motion was measured
+    if "quality" not in cases:
+        cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
+    return {"table": table_view(cases, CASE_COLS, src, ["case"], row_class=_case_row_class, table_id="cases-table")}
+
+
+# ----------------------------------------------------------------------------------------------
+# characteristic and repeatability
+# ----------------------------------------------------------------------------------------------
+
+CHARACTERISTIC_COLS = [
+    Col("case", "case", text, False), Col("direction", "dir", text, False),
+    Col("period", "period"), Col("segment", "segment"),
+    Col("velocity_m_s", "velocity [mm/s]", scale=1e3), Col("force_N", "force [N]"),
+    Col("force_std_N", "force std [N]", lambda x: fmt(x, 3)), Col("n_samples", "samples"),
+    Col("raw_file", "raw file", lambda x: f"<code>{text(x)}</code>", False),
+    Col("row_start", "rows from"), Col("row_stop", "rows to (excl.)"),
+    Col("window_start_s", "window from [s]"), Col("window_end_s", "window to [s]"),
+    Col("repeatability_flagged", "rep. flagged", yes_no, False)]
+REPEATABILITY_COLS = [Col("case", "case", text, False), Col("direction", "dir", text, False),
+                      Col("velocity_m_s", "velocity [mm/s]", scale=1e3), Col("force_period1_N", "F period 1 [N]"),
+                      Col("force_period2_N", "F period 2 [N]"), Col("rel_diff", "(F2-F1)/mean", fmt_pct),
+                      Col("tolerance", "tolerance", fmt_pct), Col("flagged", "flagged", yes_no, False)]
+
+
+def _point_origin(r: Mapping) -> list[str]:
+    """Row-level lineage of a characteristic point: its raw file, rows and window."""
+    return [f"raw {r.get('raw_file')} rows {r.get('row_start')}-{r.get('row_stop')} "
+            f"(window {fmt_text(r.get('window_start_s'))}-{fmt_text(r.get('window_end_s'))} s, "
+            f"raw sha256 {short(r.get('raw_sha256'))})"]
+
+
+def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
+    src = d.sources("characteristic.parquet")
+    figures = d.figures("characteristic", captions)
+    char = d.characteristic
+    if char is None:
+        return {"figures": figures, "table": None, "lineage": lineage_of(src)}
+    speed = char["velocity_m_s"].abs()
+    char = char.assign(_speed=speed).sort_values(["direction", "_speed", "case", "period"]).reset_index(drop=True)
+    return {"figures": figures, "n": len(char),
+            "table": table_view(char, CHARACTERISTIC_COLS, src, ["case", "segment"], row_extra=_point_origin,
+                                row_class=lambda r: "flagged" if r.get("repeatability_flagged") else "",
+                                table_id="characteristic-points")}
+
+
+def _repeatability_section(d: CampaignData) -> dict:
+    rep = d.repeatability
+    src = d.sources("repeatability.parquet")
+    if rep is None:
+        return {"all": None, "lineage": lineage_of(src)}
+    flagged = rep[rep["flagged"].astype(bool)]
+    worst = rep.loc[rep["rel_diff"].abs().idxmax()] if len(rep) else None
+    keys = ["case", "direction"]
+    return {"n": len(rep), "n_flagged": len(flagged),
+            "tolerance": fmt_pct(rep["tolerance"].iloc[0] if len(rep) else float("nan")),
+            "worst": None if worst is None else {"rel_diff": fmt_pct(worst["rel_diff"]), "case": worst["case"],
+                                                 "direction": worst["direction"]},
+            "flagged": table_view(flagged, REPEATABILITY_COLS, src, keys, row_class=lambda r: "flagged",
+                                  table_id="repeatability-flagged") if len(flagged) else None,
+            "all": table_view(rep, REPEATABILITY_COLS, src, keys, row_class=lambda r: "flagged" if r["flagged"] else "",
+                              table_id="repeatability-all")}
+
+
+# ----------------------------------------------------------------------------------------------
+# models and harmonic records
+# ----------------------------------------------------------------------------------------------
+
+MODEL_COLS = [Col("direction", "dir", text, False), Col("parameter", "parameter", text, False),
+              Col("estimate", "estimate"), Col("ci_low", "95 % low"), Col("ci_high", "95 % high"),
+              Col("std_error", "std error", lambda x: fmt(x, 3)), Col("unit", "unit", formula, False),
+              Col("description", "meaning", formula, False), Col("assumption", "assuming", formula, False)]
+MODEL_KEYS = ["model", "direction", "parameter"]
+COMPARISON_ERRORS = (("rel_err_nominal_plan", "nominal model through the plan"),
+                     ("rel_err_nominal_eq31", "incompressible nominal (Eq. 31)"),
+                     ("rel_err_wallaschek", "Wallaschek fit"), ("rel_err_surace", "Surace fit"))
+
+
+def _fit_rows(row: Mapping) -> list[str]:
+    """Row-level lineage of a fitted parameter: the characteristic rows the fit used."""
+    rows = row.get("source_rows")
+    if not isinstance(rows, str) or not rows:
+        return []
+    shown = rows if len(rows) <= 400 else rows[:400] + "..."
+    table = row.get("source_file") or "characteristic.parquet"
+    return [f"fitted on {row.get('n_points')} rows (case/segment) of {table}: {shown}"]
+
+
+def _model_view(d: CampaignData, model: str, group: pd.DataFrame) -> dict:
+    """One fitted model: its fit quality, fitted parameters and physical readings."""
+    src = d.sources("models/models.parquet")
+    first = group.iloc[0]
+    scale = first.get("residual_scale")
+    fit_sel = selector_of(first, MODEL_KEYS)
+    fitted = group[group["kind"] == "fitted"]
+    derived = group[group["kind"] != "fitted"]
+    return {"name": MODEL_NAMES.get(model, model), "n_points": int(first["n_points"]), "dof": int(first["dof"]),
+            "rms": Markup(fmt(first["rms_residual_N"])), "scale": Markup(fmt(scale, 3)),
+            "kind": "warn" if not missing(scale) and float(scale) > 3 else "info",
+            "title": src.title(fit_sel, "n_points,dof,rms_residual_N,residual_scale"),
+            "fitted": table_view(fitted, MODEL_COLS, src, MODEL_KEYS, caption="Fitted parameters, 95 % intervals",
+                                 row_extra=_fit_rows, table_id=f"models-{model}-fitted"),
+            "derived": table_view(derived, MODEL_COLS, src, MODEL_KEYS, row_extra=_fit_rows,
+                                  caption="Physical readings (equivalent values with the nominal geometry)",
+                                  table_id=f"models-{model}-derived") if len(derived) else None}
+
+
+def _comparison(d: CampaignData) -> dict | None:
+    """rms relative error of each model against the measured characteristic (computed here)."""
+    comp = d.comparison
+    csrc = d.sources("models/comparison.parquet")
+    if comp is None or not len(comp):
+        return None
+    items = []
+    for col, label in COMPARISON_ERRORS:
+        if col in comp:
+            v = comp[col].to_numpy(dtype=float)
+            v = v[np.isfinite(v)]
+            if v.size:
+                items.append((esc(label), fmt_pct(math.sqrt(float(np.mean(v ** 2)))), csrc.title(
+                    "", col, [f"computed by the report: rms over {v.size} points of {col}"])))
+    return {"table": kv_table(items), "lineage": lineage_of(csrc)} if items else None
+
+
+def _models_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
+    figures = d.figures("models", captions)
+    models = d.models
+    src = d.sources("models/models.parquet")
+    if models is None or not len(models):
+        return {"figures": figures, "models": None, "produced": models is not None, "lineage": lineage_of(src)}
+    views = [_model_view(d, model, group) for model, group in models.groupby("model", sort=False)]
+    return {"figures": figures, "models": views, "comparison": _comparison(d)}
+
+
+HARMONIC_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text, False),
+                 Col("kind", "kind", text, False), Col("direction", "dir", text, False),
+                 Col("velocity_m_s", "velocity [mm/s]", scale=1e3), Col("force_N", "force [N]"),
+                 Col("frequency_Hz", "f [Hz]"), Col("amplitude_m", "amplitude [mm]", scale=1e3),
+                 Col("lag_s", "force lag [s]", lambda x: fmt(x, 3)), Col("n_points", "points")]
+
+
+def _harmonic_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
+    figures = d.figures("harmonic", captions)
+    h = d.harmonic
+    src = d.sources("harmonic/harmonic.parquet")
+    if h is None or not len(h):
+        return {"figures": figures, "table": None, "empty": h is not None, "lineage": lineage_of(src)}
+    h = h.reset_index(drop=True)
+    keys = ["case", "kind", "direction"]
+    if h.duplicated(keys).any():  # binned points of free records: by position in the file
+        h, keys = h.assign(row=h.index), ["row"]
+    return {"figures": figures, "table": table_view(h, HARMONIC_COLS, src, keys, table_id="harmonic-points")}
+
+
+# ----------------------------------------------------------------------------------------------
+# quarantine, lineage of the page, the page
+# ----------------------------------------------------------------------------------------------
+
+QUARANTINE_COLS = [Col("case", "case", text, False), Col("stage", "stage", text, False),
+                   Col("column", "column", text, False), Col("row", "first bad row"),
+                   Col("reason", "reason", text, False)]
+
+
+def _quarantine_section(d: CampaignData) -> dict:
+    q = d.quarantine
+    src = d.sources("quarantine.parquet")
+    if q is None or not len(q):
+        return {"table": None, "empty": q is not None, "lineage": lineage_of(src)}
+    return {"n": q["case"].nunique(),
+            "table": table_view(q, QUARANTINE_COLS, src, ["case", "stage"], row_class=lambda r: "flagged",
+                                table_id="quarantine")}
+
+
+def render_campaign_report(campaign_root: str | os.PathLike, *, captions_dir: str | os.PathLike | None = None,
+                           lineage_record: Mapping | None = None, index_href: str | None = "../index.html") -> str:
+    """The HTML page of one campaign, read from ``results/<campaign>/`` (missing parts are said)."""
+    d = CampaignData.read(campaign_root)
+    captions = read_captions(captions_dir)
+    meta = d.meta or {}
+    diagnosis = diagnosis_section(d.diagnosis, d.sources("diagnosis.json"), d.figures("diagnosis", captions))
+    sections = {"head": _header_section(d), "plan": _plan_section(d), "cases": _cases_section(d),
+                "characteristic": _characteristic_section(d, captions), "repeatability": _repeatability_section(d),
+                "models": _models_section(d, captions), "harmonic": _harmonic_section(d, captions),
+                "design": d.figures("design", captions), "diagnosis": diagnosis, "quarantine": _quarantine_section(d)}
+    return render("campaign_report.html.j2", title=f"isokinetic - {d.name}", nav=CAMPAIGN_NAV,
+                  lineage_record=lineage_record, name=d.name, description=meta.get("description") or "",
+                  source=meta.get("source") or "-", index_href=index_href, **sections,
+                  lineage_files=lineage_rows(d.sources.all()), footer=footer(lineage_record, d.sources.all()))
+
+
+def write_campaign_report(campaign_root: str | os.PathLike, out_path: str | os.PathLike, **kwargs) -> Path:
+    """Write :func:`render_campaign_report` to ``out_path`` atomically."""
+    return write_text(render_campaign_report(campaign_root, **kwargs), out_path)

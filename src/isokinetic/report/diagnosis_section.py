@@ -1,0 +1,167 @@
+"""The diagnosis section of a campaign page: which effects explain the sim-to-real gap, how far, where.
+
+Read from ``results/<campaign>/diagnosis.json`` (:mod:`isokinetic.stages.diagnosis`): the
+verdict and whether it explains the gap within noise, the gap before and after, the instrument
+terms, the fitted effect parameters with their standard errors and correlations, the speed bands
+where the nominal model misses, the top candidates, confounded effects and the observations
+used. Every value's title names its JSON key path, which ``python -m isokinetic trace`` audits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+import pandas as pd
+from markupsafe import Markup
+
+from isokinetic.report.cells import Cell, Col, Row, Table, json_table_view, kv_table, number_cell
+from isokinetic.report.embed import FigureView
+from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, short, text, yes_no
+from isokinetic.report.sources import Source, lineage_of
+
+EFFECT_PARAM_UNITS = {"coulomb_force_N": "N", "leakage_conductance_m3_s_Pa": "m^3/(s Pa)", "asymmetry": "-",
+                      "discharge_coefficient": "-", "viscosity_Pa_s": "Pa s", "air_volume_fraction": "-"}
+WHERE_COLS = [Col("direction", "dir", text, False), Col("v_min_m_s", "from [mm/s]", scale=1e3),
+              Col("v_max_m_s", "to [mm/s]", scale=1e3), Col("n_cases", "cases"),
+              Col("mean_rel_error", "mean signed rel. error", fmt_pct), Col("mean_z", "mean z", lambda x: fmt(x, 3)),
+              Col("significant", "significant", yes_no, False)]
+CANDIDATE_COLS = [Col("rank", "rank"), Col("effects", "effects", text, False),
+                  Col("explained", "explains", yes_no, False), Col("gap_after", "gap after"),
+                  Col("holdout_gap_after", "holdout gap"), Col("score", "score"),
+                  Col("params", "fitted parameters", text, False)]
+SHOWN_CANDIDATES = 8
+
+
+def _how_far(diag: Mapping, src: Source) -> Table:
+    """The gap before and after the verdict's effects, on the fit and the holdout."""
+    metric = esc(diag.get("metric", "gap"))
+    items = [("verdict", esc(", ".join(diag.get("verdict") or []) or "[] (nominal)"), src.title("verdict", "verdict")),
+             ("explained", yes_no(diag.get("explained", True)), src.title("explained", "explained")),
+             (f"gap before ({metric})", fmt(diag.get("gap_before")), src.title("gap_before", "gap_before")),
+             (f"gap after ({metric})", fmt(diag.get("gap_after")), src.title("gap_after", "gap_after")),
+             (f"holdout gap after ({metric})", fmt(diag.get("holdout_gap_after")),
+              src.title("holdout_gap_after", "holdout_gap_after")),
+             ("shrink (before / after)", fmt(diag.get("shrink")), src.title("shrink", "shrink"))]
+    if "rms_rel_before" in diag:
+        items.append(("rms relative error before -> after",
+                      f"{fmt_pct(diag.get('rms_rel_before'))} &rarr; {fmt_pct(diag.get('rms_rel_after'))}",
+                      src.title("rms_rel_before", "rms_rel_before (rms_rel_after: key rms_rel_after)")))
+    noise = diag.get("noise") or {}
+    if noise:
+        items.append(("data", f"{noise.get('n_windows', '-')} windows + {noise.get('n_transient_bins', '-')} "
+                              f"transient bins; between-period scatter {fmt_pct(noise.get('repeatability_rel'))}",
+                      src.title("noise", "noise")))
+    if "nominal_p_value" in diag:
+        items.append(("nominal test p-value (chi-squared, instrument terms fitted)",
+                      fmt(diag.get("nominal_p_value"), 3), src.title("nominal_p_value", "nominal_p_value")))
+    return kv_table(items)
+
+
+def _instrument(diag: Mapping, src: Source) -> Table | None:
+    """The rig's own errors fitted with the effects: actuator delay, load-cell offset and gain."""
+    inst = diag.get("instrument") or {}
+    if not inst:
+        return None
+
+    def shown(key: str, scale: float = 1.0, unit: str = "") -> str:
+        value = inst.get(key)
+        return "not needed" if value is None else f"{fmt(value * scale)} {unit}".strip()
+
+    return kv_table([
+        ("actuator delay (median over cases)", shown("delay_s", 1e3, "ms"), src.title("instrument.delay_s", "delay_s")),
+        ("load-cell zero offset", shown("force_offset_N", 1.0, "N"),
+         src.title("instrument.force_offset_N", "force_offset_N")),
+        ("load-cell gain", shown("force_gain"), src.title("instrument.force_gain", "force_gain"))])
+
+
+def _params(diag: Mapping, src: Source) -> Table | None:
+    """The verdict's fitted effect parameters with their standard errors."""
+    params = diag.get("params") or {}
+    if not params:
+        return None
+    ident = (diag.get("identifiability") or {}).get("parameters") or {}
+    rows = [Row([Cell(f"<code>{esc(k)}</code>"), number_cell(fmt(v), src.title(f"params.{k}", k)),
+                 number_cell(fmt((ident.get(k) or {}).get("std_error"), 3),
+                             src.title(f"identifiability.parameters.{k}.std_error", "std_error")),
+                 Cell(formula(EFFECT_PARAM_UNITS.get(k, "")))]) for k, v in params.items()]
+    return Table(["parameter", "estimate", "std error", "unit"], rows, id="diagnosis-params")
+
+
+def _correlation(diag: Mapping) -> dict | None:
+    corr = (diag.get("identifiability") or {}).get("correlation") or {}
+    if not corr:
+        return None
+    return {"text": Markup(", ".join(f"{esc(k)} {fmt(v, 2)}" for k, v in corr.items())),
+            "strong": any(abs(v) >= 0.8 for v in corr.values())}
+
+
+def _where(diag: Mapping, src: Source) -> Table | None:
+    """The speed bands where the nominal model misses (|z| > 3)."""
+    where = diag.get("where") or []
+    if not where:
+        return None
+    wdf = pd.DataFrame(where).reset_index(drop=True)
+    wdf["band"] = [f"where.{i}" for i in range(len(wdf))]
+    cols = [c for c in WHERE_COLS if c.key in wdf]
+    return json_table_view(wdf, cols, src, "band", "where-bands", json_keys=set(pd.DataFrame(where).columns))
+
+
+def _candidates(diag: Mapping, src: Source) -> dict | None:
+    """The best-scoring candidates, and the verdict's row wherever it ranks."""
+    cands = diag.get("candidates") or []
+    if not cands:
+        return None
+    verdict = set(diag.get("verdict") or [])
+    shown = list(range(min(SHOWN_CANDIDATES, len(cands))))
+    in_verdict = [i for i, c in enumerate(cands) if set(c.get("effects") or []) == verdict]
+    shown += [i for i in in_verdict[:1] if i not in shown]
+    top = [cands[i] for i in shown]
+    cdf = pd.DataFrame({
+        "rank": [i + 1 for i in shown],
+        "key": [f"candidates.{i}" for i in shown],
+        "effects": [", ".join(c.get("effects") or []) or "(nominal)" for c in top],
+        "explained": [c.get("explained") for c in top],
+        "gap_after": [c.get("gap_after") for c in top],
+        "holdout_gap_after": [c.get("holdout_gap_after") for c in top],
+        "score": [c.get("score") for c in top],
+        "params": ["; ".join(f"{k} = {fmt_text(v)}" for k, v in (c.get("params") or {}).items()) for c in top],
+    })
+    table = json_table_view(cdf, CANDIDATE_COLS, src, "key", "candidates",
+                            json_keys={"gap_after", "holdout_gap_after", "score"},
+                            row_class=lambda r: "verdict" if set(r["effects"].split(", ")) == verdict else "")
+    return {"n_shown": len(top), "n": len(cands), "table": table}
+
+
+def _observations(diag: Mapping) -> dict | None:
+    """The windows and time series the diagnosis used."""
+    sources = diag.get("sources")
+    if not isinstance(sources, Mapping) or not sources:
+        return None
+    series = sources.get("timeseries") or {}
+    return {"windows": [k for k in str(sources.get("windows") or "").split(",") if k],
+            "characteristic_file": sources.get("characteristic_file", "characteristic.parquet"),
+            "n_series": len(series),
+            "series": [{"case": c, "timeseries_file": v.get("timeseries_file", ""), "raw_file": v.get("raw_file", ""),
+                        "raw_sha256": short(v.get("raw_sha256"))} for c, v in series.items() if isinstance(v, Mapping)]}
+
+
+def _confounded(diag: Mapping) -> str | None:
+    confounded = diag.get("confounded") or []
+    if not confounded:
+        return None
+    return "; ".join(", ".join(g) if isinstance(g, (list, tuple)) else str(g) for g in confounded)
+
+
+def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[FigureView]) -> dict:
+    """The data of the diagnosis section (``state``: missing, not_diagnosed or ok)."""
+    if diag is None:
+        return {"state": "missing", "lineage": lineage_of(src), "figures": figures}
+    if diag.get("status", "ok") != "ok":
+        return {"state": "not_diagnosed", "reason": diag.get("reason", diag.get("status")),
+                "lineage": lineage_of(src), "figures": figures}
+    return {"state": "ok", "verdict": ", ".join(diag.get("verdict") or []), "explained": diag.get("explained", True),
+            "unexplained_note": diag.get("unexplained_note", ""), "how_far": _how_far(diag, src),
+            "instrument": _instrument(diag, src), "instrument_note": diag.get("confounded_instrument_note"),
+            "params": _params(diag, src), "correlation": _correlation(diag), "where": _where(diag, src),
+            "candidates": _candidates(diag, src), "confounded": _confounded(diag),
+            "lineage": lineage_of(src, "verdict"), "observations": _observations(diag), "figures": figures}

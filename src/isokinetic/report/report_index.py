@@ -1,0 +1,205 @@
+"""Rule ``report_index``: ``results/index.html``, every campaign's verdict and key numbers, and the blind suite.
+
+One row per campaign (cases, quarantined cases, characteristic points, flagged plan cases and
+repeatability pairs, the Wallaschek fit's residual scale, the diagnosis verdict and gap), linked
+to its page (:mod:`isokinetic.report.campaign_report`); then the blind test of the diagnosis
+(``results/blind/``): its targets, detection by magnitude bin, Fig. 17 and every scenario. Every
+number's title names its file, rule and commit, as on the campaign pages.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+from isokinetic.contracts.outputs import figure
+from isokinetic.io import write_text
+from isokinetic.report.cells import Cell, Col, Row, Table, badge, number_cell, table_view
+from isokinetic.report.embed import figure_view, read_captions
+from isokinetic.report.layout import footer, render
+from isokinetic.report.numbers import esc, fmt, fmt_pct, text, yes_no
+from isokinetic.report.sources import Source, Sources, lineage_of, lineage_rows, read_json, read_parquet, trace_command
+
+COUNTED = ["counted by the index"]
+BLIND_FIGURE = figure("fig17_blind_confusion")
+SCORE_COLS = [Col("scenario", "scenario", text, False), Col("truth", "truth", lambda x: text(x or "(none)"), False),
+              Col("verdict", "verdict", lambda x: text(x or "(none)"), False), Col("exact", "exact", yes_no, False),
+              Col("magnitude_x_detection", "magnitude [x detection]", lambda x: fmt(x, 3)),
+              Col("magnitude_bin", "bin", text, False), Col("gap_before", "gap before", lambda x: fmt(x, 3)),
+              Col("gap_after", "gap after", lambda x: fmt(x, 3)), Col("shrink", "shrink", lambda x: fmt(x, 3)),
+              Col("error", "error", text, False)]
+
+
+# ----------------------------------------------------------------------------------------------
+# one row per campaign
+# ----------------------------------------------------------------------------------------------
+
+def _counts(root: Path, srcs: Sources) -> list[Cell]:
+    """The counts of a campaign's row: cases, quarantined, points, flagged plan cases and pairs."""
+    cases = read_parquet(root / "cases.parquet")
+    q = read_parquet(root / "quarantine.parquet")
+    char = read_parquet(root / "characteristic.parquet")
+    pc = read_parquet(root / "design" / "plan_check.parquet")
+    rep = read_parquet(root / "repeatability.parquet")
+
+    def cell(value: str, rel: str, column: str) -> Cell:
+        return number_cell(value, srcs(rel).title("", column, COUNTED))
+
+    return [cell(f"{int((cases['status'] == 'ok').sum())} / {len(cases)}" if cases is not None else "-",
+                 "cases.parquet", "count of rows with status ok / all rows"),
+            cell(str(q["case"].nunique() if q is not None and len(q) else 0) if q is not None else "-",
+                 "quarantine.parquet", "distinct cases"),
+            cell(str(len(char)) if char is not None else "-", "characteristic.parquet", "rows"),
+            cell(str(int(pc["flagged"].sum())) if pc is not None else "-", "design/plan_check.parquet",
+                 "count of flagged rows"),
+            cell(str(int(rep["flagged"].sum())) if rep is not None else "-", "repeatability.parquet",
+                 "count of flagged rows")]
+
+
+def _residual_scale(root: Path, srcs: Sources) -> Cell:
+    models = read_parquet(root / "models" / "models.parquet")
+    src = srcs("models/models.parquet")
+    scale = None
+    if models is not None and len(models) and "wallaschek" in set(models["model"]):
+        scale = models.loc[models["model"] == "wallaschek", "residual_scale"].iloc[0]
+    return number_cell(fmt(scale, 3), src.title("model=wallaschek,direction=both,parameter=F_C", "residual_scale"))
+
+
+def _verdict(root: Path, srcs: Sources) -> list[Cell]:
+    """The diagnosis cells of a campaign's row: verdict, gaps and shrink, or why there are none."""
+    diag = read_json(root / "diagnosis.json")
+    src = srcs("diagnosis.json")
+    if not diag or diag.get("status", "ok") != "ok":
+        reason = (diag or {}).get("reason") or ("diagnosis.json missing" if diag is None else "not diagnosed")
+        return [Cell(esc(reason), src.title("status", "status"), colspan=5)]
+    verdict = ", ".join(diag.get("verdict") or []) or "[] nominal"
+    explained = diag.get("explained", True)
+    shown = badge("explained", "good") if explained else badge("not explained", "bad")
+    return [Cell(f"{esc(verdict)} {shown}", src.title("verdict", "verdict")),
+            number_cell(fmt(diag.get("gap_before"), 4), src.title("gap_before", "gap_before")),
+            number_cell(fmt(diag.get("gap_after"), 3), src.title("gap_after", "gap_after")),
+            number_cell(fmt(diag.get("holdout_gap_after"), 3), src.title("holdout_gap_after", "holdout_gap_after")),
+            number_cell(fmt(diag.get("shrink"), 3), src.title("shrink", "shrink"))]
+
+
+def _campaign_row(results_root: Path, campaign: str) -> tuple[dict, list[Source]]:
+    """A campaign's row of the index and the files it read."""
+    root = results_root / campaign
+    srcs = Sources(root, read_json(root / "provenance.json"))
+    meta = read_json(root / "ingest" / "campaign.json") or {}
+    cells = _counts(root, srcs) + [_residual_scale(root, srcs)] + _verdict(root, srcs)
+    row = {"name": campaign, "source": meta.get("source") or "-", "cells": cells,
+           "report": (root / "report.html").is_file()}
+    return row, srcs.all()
+
+
+# ----------------------------------------------------------------------------------------------
+# the blind suite
+# ----------------------------------------------------------------------------------------------
+
+def pass_badge(ok: bool | None) -> str:
+    return badge("N/A", "warn") if ok is None else (badge("PASS", "good") if ok else badge("FAIL", "bad"))
+
+
+def _target_result(target: Mapping) -> tuple[str, str, Mapping]:
+    """A blind-suite target's result and threshold as shown, and the target with its misses."""
+    if "claimed" in target:
+        return (f"{target.get('claimed')}/{target.get('n')} claimed",
+                f"&le; alpha = {fmt(target['alpha'])}" if "alpha" in target else "0 claimed", target)
+    if "flagged" in target:
+        return (f"{target.get('flagged')}/{target.get('n')} = {fmt_pct(target.get('rate'))}",
+                f"&ge; {fmt_pct(target.get('threshold'))}", target)
+    if "rate" in target:
+        return (f"{target.get('exact', '?')}/{target.get('n', '?')} = {fmt_pct(target.get('rate'))}",
+                f"&ge; {fmt_pct(target.get('threshold'))}", target)
+    if "param_error_max" in target:
+        misses = sorted({*target.get("param_misses", []), *target.get("delay_misses", []),
+                         *target.get("offset_misses", [])})
+        return (f"effect sizes within {fmt_pct(target.get('param_error_max'))}; delay within "
+                f"{fmt((target.get('delay_error_max_s') or 0) * 1e3, 3)} ms; offset within "
+                f"{fmt(target.get('offset_error_max_N'), 3)} N", "15 %; 2 ms; 2 N", {**target, "misses": misses})
+    return (f"median {fmt(target.get('median'), 3)} over {target.get('n', '?')}",
+            f"&ge; {fmt(target.get('threshold'), 3)}", target)
+
+
+def _targets(summary: Mapping, src: Source) -> Table:
+    rows = []
+    for key, target in (summary.get("targets") or {}).items():
+        result, threshold, target = _target_result(target)
+        misses = ", ".join(map(str, target.get("misses") or [])) or "-"
+        rows.append(Row([Cell(f"<strong>{esc(key)}</strong>"), Cell(esc(target.get("description", ""))),
+                         number_cell(result, src.title(f"targets.{key}", key)), Cell(threshold),
+                         Cell(pass_badge(target.get("pass"))), Cell(esc(misses))]))
+    return Table(["target", "what", "result", "threshold", "", "misses"], rows, id="blind-targets")
+
+
+def _bins(summary: Mapping, src: Source) -> Table | None:
+    bins = summary.get("bins") or {}
+    if not bins:
+        return None
+    rows = []
+    for name, b in bins.items():
+        t = src.title(f"bins.{name}", name)
+        rows.append(Row([Cell(f"{esc(name)} detection"), number_cell(f'{b.get("exact", "-")}/{b.get("n", "-")}', t),
+                         number_cell(fmt_pct(b.get("rate")), t),
+                         number_cell(f'{b.get("exact_single", "-")}/{b.get("n_single", "-")}', t),
+                         number_cell(fmt_pct(b.get("rate_single")), t)]))
+    return Table(["bin", "exact", "rate", "exact (single effect)", "rate (single effect)"], rows, id="blind-bins")
+
+
+def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[dict, list[Source]]:
+    """The blind suite's section and the files it read."""
+    srcs = Sources(blind_dir)
+    summary = read_json(blind_dir / "summary.json")
+    scores = read_parquet(blind_dir / "scores.parquet")
+    ssrc = srcs("summary.json")
+    if summary is None:
+        return {"summary": None}, srcs.all()
+    scores_label = srcs("scores.parquet").label
+    view = {"summary": {k: summary.get(k, "?") for k in ("n_scenarios", "n_single", "n_pairs", "n_none")},
+            "n_errors": summary.get("n_errors", 0), "exact_rate": fmt_pct(summary.get("exact_rate")),
+            "all_pass": bool(summary.get("all_pass")), "targets": _targets(summary, ssrc),
+            "bins": _bins(summary, ssrc), "lineage": lineage_of(ssrc, "targets"), "scores_label": scores_label,
+            "scores_audit": trace_command(scores_label, "scenario=<id>"),
+            "figure": figure_view(srcs(BLIND_FIGURE.path), BLIND_FIGURE, captions.get(BLIND_FIGURE.name, "")),
+            "scores": None}
+    if scores is not None:
+        view["scores"] = table_view(scores, [c for c in SCORE_COLS if c.key in scores], srcs("scores.parquet"),
+                                    ["scenario"], row_class=lambda r: "" if r.get("exact") else "flagged",
+                                    table_id="blind-scores")
+        view["n_scores"] = len(scores)
+    return view, srcs.all()
+
+
+# ----------------------------------------------------------------------------------------------
+# the page
+# ----------------------------------------------------------------------------------------------
+
+def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
+                 blind_dir: str | os.PathLike | None = None, captions_dir: str | os.PathLike | None = None,
+                 lineage_record: Mapping | None = None) -> str:
+    """``results/index.html``: every campaign with its verdict and key numbers, and the blind-suite scores."""
+    results_root = Path(results_root)
+    captions = read_captions(captions_dir)
+    rows, sources = [], []
+    for c in campaigns:
+        row, srcs = _campaign_row(results_root, c)
+        rows.append(row)
+        sources += srcs
+    nav = [("campaigns", "Campaigns")]
+    blind = None
+    if blind_dir is not None:
+        blind, srcs = _blind_section(Path(blind_dir), captions)
+        sources += srcs
+        nav.append(("blind", "Blind test"))
+    nav.append(("lineage", "Lineage"))
+    return render("report_index.html.j2", title="isokinetic - results", nav=nav, lineage_record=lineage_record,
+                  campaigns=rows, blind=blind, lineage_files=lineage_rows(sources),
+                  footer=footer(lineage_record, sources))
+
+
+def write_index(results_root: str | os.PathLike, out_path: str | os.PathLike, campaigns: Sequence[str],
+                **kwargs) -> Path:
+    """Write :func:`render_index` to ``out_path`` atomically."""
+    return write_text(render_index(results_root, campaigns, **kwargs), out_path)

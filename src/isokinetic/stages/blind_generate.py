@@ -1,0 +1,554 @@
+"""Rule blind_generate: the blind suite of the diagnosis, drawn on the reference rig, exported as raw campaigns.
+
+A seeded suite of scenarios (:func:`generate_scenarios`) is exported as ordinary raw campaigns
+(``results/blind/raw/<scenario>/``, ``source: simulation``, nothing in the folder names the truth)
+with the withheld truth beside them (``results/blind/truth/<scenario>.json``, :func:`write_suite`).
+They are diagnosed through exactly the chain a real raw campaign gets
+(:mod:`isokinetic.stages.blind_diagnose`); only the scoring (:mod:`isokinetic.stages.blind_score`)
+reads the truth.
+
+Scenario
+    A campaign simulated by the independent reference rig (:mod:`isokinetic.physics.reference_rig`:
+    two chamber pressures, physical effect forms, an imperfect rig; it shares no code with the
+    diagnosis' model) for a damper drawn around Table 1 of "A method for the identification of
+    hydraulic damper characteristics from steady velocity inputs" (Titurus et al.;
+    :data:`isokinetic.physics.damper.TABLE_1`: piston area, orifice area, orifice length and both
+    chamber volumes each x U[0.7, 1.3]), a triangle plan of 8-12 speeds log-spaced between a low
+    end in [0.005, 0.05] mm/s and a high end in [0.4, 1.5] mm/s (3 significant digits), each with
+    the shortest period of {20, 80, 240} s whose amplitude Y = W T/4 reaches 0.3 mm (and Y <= 8 mm),
+    50 Hz, acquisition 2T, in a random test order. Every scenario draws rig nuisances
+    (:data:`RIG_RANGES`): actuator delay and servo lag, white plus proportional coloured force noise,
+    load-cell offset and gain error, LVDT noise and a slow viscosity drift over the campaign. It has
+    zero, one or two of the catalogue effects :data:`EFFECTS` at 1x-5x their detection level, or one
+    effect outside the catalogue (:data:`OUT_OF_CATALOGUE`: Stribeck friction, backlash, a relief
+    valve; :func:`out_of_catalogue_true_effects`). The rig writes its own column names and units
+    and rounds the manifest as a person would.
+
+Magnitude of an effect (what "1x detection" is measured in)
+    friction: Coulomb force F_C [N]; leakage: conductance g [m3/(s Pa)]; asymmetry: |a| (random
+    sign); discharge, viscosity: the relative deviation |theta/theta_0 - 1| from the nominal
+    (manifest) value (random sign); air: the volume fraction V_G/V_C.
+
+Detection level
+    The smallest magnitude m whose noise-free characteristic differs from the nominal one by
+    rms_z = 3, where rms_z = sqrt(mean_i ((F_i(m) - F_i,nom) / SE_i)^2) over all windows i of the
+    plan, F from :class:`~isokinetic.stages.nominal.ModelPlan` (the model run through the plan's own
+    windows), and SE_i the rig's exact noise of a mean of the window's n_i samples at F_i(m) (white
+    plus proportional coloured noise, :func:`isokinetic.physics.reference_rig_campaign.mean_noise_variance`).
+    Found by a coarse scan of log m upwards from 1e-7 of the effect's bound (first crossing of 3,
+    so the *smallest* root) refined by ``brentq`` on log m. An effect whose 5x detection level
+    exceeds its physical bound (:data:`BOUNDS`; or that never reaches rms_z = 3) makes the
+    scenario re-draw its damper, plan and noise (same random stream, so still deterministic; the
+    number of re-draws is recorded).
+
+Determinism: the suite composition and order come from ``SeedSequence(seed)``, scenario k from
+``SeedSequence([seed, k])``; the same arguments give identical scenarios and identical files.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import logging
+import math
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import brentq
+
+from isokinetic.contracts.scenarios import EFFECTS, OUT_OF_CATALOGUE, scenario_names
+from isokinetic.io import write_json
+from isokinetic.physics import reference_rig as rr
+from isokinetic.physics import reference_rig_campaign as rrc
+from isokinetic.physics.damper import NOMINAL, TABLE_1, Damper, Effects, nominal_force
+from isokinetic.physics.plan import CasePlan, paper_plan
+from isokinetic.stages.nominal import ModelPlan
+from isokinetic.stages.windows import WindowSpec
+
+log = logging.getLogger(__name__)
+
+#: Damper fields perturbed per scenario, each x U[1 - GEOMETRY_SPREAD, 1 + GEOMETRY_SPREAD].
+GEOMETRY_FIELDS = ("piston_area_m2", "orifice_area_m2", "orifice_length_m", "chamber_volume_1_m3",
+                   "chamber_volume_2_m3")
+GEOMETRY_SPREAD = 0.30
+
+#: Largest plausible magnitude of each effect (its unit: see the module doc). 5x the detection
+#: level must stay below it, else the scenario is re-drawn.
+BOUNDS = {"friction": 2000.0, "leakage": 1.0e-10, "asymmetry": 0.5, "discharge": 0.5, "viscosity": 0.8,
+          "air": 0.2}
+#: Unit of each effect's magnitude (truth files).
+UNITS = {"friction": "coulomb_force_N", "leakage": "leakage_conductance_m3_s_Pa", "asymmetry": "abs(asymmetry)",
+         "discharge": "abs(C_D/C_D0 - 1)", "viscosity": "abs(mu/mu0 - 1)", "air": "air_volume_fraction"}
+#: Effects whose magnitude carries a random sign.
+SIGNED = ("asymmetry", "discharge", "viscosity")
+
+TARGET_RMS_Z = 3.0
+MULTIPLE_RANGE = (1.0, 5.0)
+MAGNITUDE_BINS = (("1-2x", 1.0, 2.0), ("2-3x", 2.0, 3.0), ("3-5x", 3.0, math.inf))
+
+PERIODS_S = (20.0, 80.0, 240.0)
+MIN_AMPLITUDE_M = 0.3e-3
+MAX_AMPLITUDE_M = 8.0e-3
+SAMPLE_RATE_HZ = 50.0
+LOW_END_MM_S = (0.005, 0.05)      # log-uniform range of the slowest speed
+HIGH_END_MM_S = (0.4, 1.5)        # log-uniform range of the fastest speed
+N_VELOCITIES = (8, 12)
+MAX_REDRAWS = 50
+
+
+#: Stribeck breakaway peak of the out-of-catalogue scenario, as a fraction of the nominal hydraulic
+#: force at the Stribeck velocity.
+STRIBECK_PEAK = 0.2
+
+#: Ranges of the rig nuisances drawn in every scenario: actuator delay and first-order servo lag
+#: [s]; white force noise [N]; proportional coloured noise (1 sigma, relative) and its corner [Hz];
+#: load-cell offset (fraction of full scale, either sign) and gain error (either sign); LVDT noise
+#: [m]; viscosity drift over the campaign (relative, either sign; temperature within about 0.1 C).
+RIG_RANGES = {"delay_s": (0.0, 0.025), "servo_lag_s": (0.002, 0.010), "force_noise_N": (2.0, 10.0),
+              "force_noise_rel": (0.005, 0.015), "noise_corner_Hz": (0.1, 5.0), "force_offset_fs": 0.02,
+              "force_gain_error": 0.01, "displacement_noise_m": 1.0e-6, "viscosity_drift_rel": 0.003}
+
+
+DESCRIPTION = "Blind-test scenario: simulated damper test campaign; its unmodelled effects are withheld."
+#: Parameter keys of the catalogue effects in truth records and diagnoses (SI, the catalogue's form).
+PARAM_KEYS = {"friction": "coulomb_force_N", "leakage": "leakage_conductance_m3_s_Pa", "asymmetry": "asymmetry",
+              "discharge": "discharge_coefficient", "viscosity": "viscosity_Pa_s", "air": "air_volume_fraction"}
+
+
+def effect_text(effects: Iterable[str]) -> str:
+    """Sorted (EFFECTS order) names joined by '+': 'friction', 'leakage+air', '' for none."""
+    order = {e: i for i, e in enumerate(EFFECTS)}
+    return "+".join(sorted(set(effects), key=lambda e: (order.get(e, len(EFFECTS)), e)))
+
+
+def magnitude_bin(multiple: float) -> str:
+    """'1-2x', '2-3x', '3-5x' of a magnitude in detection levels; '' for NaN (no effect)."""
+    if multiple is None or not math.isfinite(multiple):
+        return ""
+    for name, _lo, hi in MAGNITUDE_BINS:
+        if multiple < hi:
+            return name
+    return MAGNITUDE_BINS[-1][0]
+
+
+# --------------------------------------------------------------------------------------------
+# Effects and the detection level
+# --------------------------------------------------------------------------------------------
+
+def effect_fields(effect: str, magnitude: float, sign: float, damper: Damper) -> dict[str, float]:
+    """Effects keyword arguments of one effect at ``magnitude`` (its unit) and ``sign``."""
+    if effect == "friction":
+        return {"coulomb_force_N": magnitude}
+    if effect == "leakage":
+        return {"leakage_conductance_m3_s_Pa": magnitude}
+    if effect == "asymmetry":
+        return {"asymmetry": sign * magnitude}
+    if effect == "discharge":
+        return {"discharge_coefficient": damper.discharge_coefficient * (1.0 + sign * magnitude)}
+    if effect == "viscosity":
+        return {"viscosity_Pa_s": damper.viscosity_Pa_s * (1.0 + sign * magnitude)}
+    if effect == "air":
+        return {"air_volume_fraction": magnitude}
+    raise KeyError(f"unknown effect {effect!r}; known: {EFFECTS}")
+
+
+def plan_table(name: str, cases: Sequence[CasePlan]) -> pd.DataFrame:
+    """A status-ok cases table (the columns ModelPlan reads) of a plan."""
+    rows = [{"campaign": name, "case": c.case, "waveform": c.waveform, "sample_rate_Hz": c.sample_rate_Hz,
+             "amplitude_m": c.amplitude_m, "period_s": c.period_s, "frequency_Hz": c.frequency_Hz,
+             "phase_rad": c.phase_rad, "duration_s": c.duration_s, "status": "ok"} for c in cases]
+    return pd.DataFrame(rows)
+
+
+@dataclass
+class DetectionProblem:
+    """rms_z(m) of one effect in one scenario, evaluated through a prepared ModelPlan.
+
+    SE of a window mean: the rig's exact noise of a mean of n samples (white plus proportional
+    coloured, :func:`reference_rig_campaign.mean_noise_variance`) at the window's force.
+    """
+
+    plan: ModelPlan
+    damper: Damper
+    rig: rr.RigImperfections
+    nominal_N: np.ndarray
+    calls: int = 0
+
+    @classmethod
+    def of(cls, name: str, cases: Sequence[CasePlan], damper: Damper, rig: rr.RigImperfections,
+           spec: WindowSpec = WindowSpec()) -> DetectionProblem:
+        mp = ModelPlan.from_cases(name, plan_table(name, cases), spec)
+        return cls(mp, damper, rig, mp.forces(damper, NOMINAL)[0])
+
+    def se(self, force_N: np.ndarray) -> np.ndarray:
+        fs = np.array([p.sample_rate_Hz for p in self.plan.plans])[self.plan.case_index]
+        n = self.plan.stop - self.plan.start
+        return np.sqrt([rrc.mean_noise_variance(int(k), float(f), self.rig, float(r))
+                        for k, f, r in zip(n, force_N, fs, strict=True)])
+
+    def rms_z(self, effect: str, magnitude: float, sign: float = 1.0) -> float:
+        self.calls += 1
+        effects = Effects(**effect_fields(effect, magnitude, sign, self.damper))
+        f = self.plan.forces(self.damper, effects)[0]
+        z = (f - self.nominal_N) / self.se(f)
+        return float(np.sqrt(np.mean(z * z)))
+
+
+def detection_level(problem: DetectionProblem, effect: str, sign: float = 1.0, bound: float | None = None,
+                    target: float = TARGET_RMS_Z, scan_decades: float = 7.0, scan_points: int = 15) -> float | None:
+    """Smallest magnitude in (0, bound] with rms_z = ``target``; None when rms_z(bound) < target.
+
+    Scan log m on ``scan_points`` points from bound*10^-scan_decades up to the bound (extended
+    downwards while the lowest point is already above target), then ``brentq`` on log m between
+    the last point below and the first point at/above the target.
+    """
+    bound = BOUNDS[effect] if bound is None else bound
+
+    def f(x: float) -> float:  # log(rms_z / target) at magnitude e^x
+        return math.log(problem.rms_z(effect, math.exp(x), sign) / target)
+
+    grid = np.linspace(math.log(bound) - scan_decades * math.log(10.0), math.log(bound), scan_points)
+    lo_val = f(grid[0])
+    while lo_val >= 0.0:
+        grid = grid - (grid[-1] - grid[0])
+        lo_val = f(grid[0])
+        if grid[0] < math.log(bound) - 40 * math.log(10.0):
+            raise RuntimeError(f"{effect}: rms_z stays above {target} at vanishing magnitude")
+    prev = grid[0]
+    for x in grid[1:]:
+        if f(x) >= 0.0:
+            return math.exp(brentq(f, prev, x, xtol=1e-6, rtol=1e-6, maxiter=200))
+        prev = x
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# Scenario generation (on the independent reference rig)
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Scenario:
+    """One blind scenario: a reference-rig campaign to export and its withheld truth."""
+
+    name: str
+    damper: Damper                            # nominal design (the manifest's damper block)
+    cases: tuple[CasePlan, ...]               # the plan, in test order
+    effects: rr.TrueEffects                   # the damper's true physics (reference-rig form)
+    rig: rr.RigImperfections                  # the rig's nuisances
+    noise_seed: int
+    truth: tuple[str, ...]                    # catalogue effects, EFFECTS order
+    out_of_catalogue: str = ""                # '' or one of OUT_OF_CATALOGUE
+    magnitude: dict[str, float] = field(default_factory=dict)       # per effect, its unit
+    sign: dict[str, float] = field(default_factory=dict)
+    detection_level: dict[str, float] = field(default_factory=dict)
+    multiple: dict[str, float] = field(default_factory=dict)        # magnitude / detection level
+    redraws: int = 0
+
+    @property
+    def truth_text(self) -> str:
+        return effect_text(self.truth)
+
+    @property
+    def magnitude_x_detection(self) -> float:
+        """The weakest truth effect's magnitude in detection levels (NaN without effects)."""
+        return min(self.multiple.values()) if self.multiple else math.nan
+
+    def rig_cases(self) -> list[rr.TriangleCase]:
+        return [rr.TriangleCase(c.case, c.velocity_m_s, c.period_s, c.sample_rate_Hz) for c in self.cases]
+
+    def truth_params(self) -> dict[str, float]:
+        """Catalogue-form SI parameters of the truth effects (what an exact verdict should fit)."""
+        eq = rrc.catalogue_equivalent(self.damper, self.effects)
+        return {PARAM_KEYS[e]: float(eq[PARAM_KEYS[e]]) for e in self.truth}
+
+    def instrument_truth(self) -> dict[str, float]:
+        """The rig's instrument terms as the diagnosis reports them: the delay of the piston behind the
+        command in a steady ramp (delay + servo lag), the load-cell offset and gain."""
+        return {"delay_s": self.rig.delay_s + self.rig.servo_lag_s, "force_offset_N": self.rig.force_offset_N,
+                "force_gain": self.rig.force_gain}
+
+    def truth_record(self) -> dict:
+        """JSON-ready truth (results/blind/truth/<scenario>.json)."""
+        return {
+            "format_version": 2,
+            "scenario": self.name,
+            "generator": "isokinetic.reference_rig",
+            "truth": list(self.truth),
+            "truth_text": self.truth_text,
+            "out_of_catalogue": self.out_of_catalogue,
+            "params": self.truth_params(),
+            "instrument": self.instrument_truth(),
+            "effects": dataclasses.asdict(self.effects),
+            "rig": dataclasses.asdict(self.rig),
+            "magnitude": dict(self.magnitude),
+            "magnitude_unit": {e: UNITS[e] for e in self.truth},
+            "sign": dict(self.sign),
+            "detection_level": dict(self.detection_level),
+            "multiple": dict(self.multiple),
+            "magnitude_x_detection": None if not self.multiple else self.magnitude_x_detection,
+            "magnitude_bin": magnitude_bin(self.magnitude_x_detection),
+            "detection_rms_z": TARGET_RMS_Z,
+            "damper": self.damper.to_dict(),
+            "velocities_mm_s": [round(c.velocity_m_s * 1e3, 12) for c in self.cases],
+            "periods_s": [c.period_s for c in self.cases],
+            "noise_seed": self.noise_seed,
+            "redraws": self.redraws,
+        }
+
+
+def _sig(x: float, digits: int = 4) -> float:
+    return float(f"{x:.{digits}g}")
+
+
+def draw_damper(rng: np.random.Generator) -> Damper:
+    """Table 1 with the geometry fields x U[0.7, 1.3] (4 significant digits)."""
+    values = TABLE_1.to_dict()
+    for name in GEOMETRY_FIELDS:
+        values[name] = _sig(values[name] * rng.uniform(1.0 - GEOMETRY_SPREAD, 1.0 + GEOMETRY_SPREAD))
+    return Damper(**values)
+
+
+def period_for(velocity_m_s: float) -> float:
+    """Shortest period of PERIODS_S whose amplitude W T/4 reaches MIN_AMPLITUDE_M."""
+    for period in PERIODS_S:
+        if velocity_m_s * period / 4.0 >= MIN_AMPLITUDE_M * (1 - 1e-12):
+            return period
+    raise ValueError(f"speed {velocity_m_s * 1e3:.4g} mm/s: amplitude below {MIN_AMPLITUDE_M * 1e3} mm "
+                     f"even at T = {PERIODS_S[-1]} s")
+
+
+def draw_plan(rng: np.random.Generator, n_velocities: tuple[int, int] = N_VELOCITIES,
+              low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
+              high_end_mm_s: tuple[float, float] = HIGH_END_MM_S) -> list[CasePlan]:
+    """Triangle cases T01.. of 3-significant-digit speeds, in a random test order (so that a slow
+    drift over the campaign is not aligned with speed, as good practice has it)."""
+    n = int(rng.integers(n_velocities[0], n_velocities[1] + 1))
+    lo = math.exp(rng.uniform(math.log(low_end_mm_s[0]), math.log(low_end_mm_s[1])))
+    hi = math.exp(rng.uniform(math.log(high_end_mm_s[0]), math.log(high_end_mm_s[1])))
+    speeds = [v * 1e-3 for v in sorted({min(max(_sig(v, 3), 0.005), 1.5) for v in np.geomspace(lo, hi, n)})]
+    cases = paper_plan(speeds, [period_for(v) for v in speeds], [], 1.0, SAMPLE_RATE_HZ, 1.0, 1.0)
+    return [cases[int(i)] for i in rng.permutation(len(cases))]
+
+
+def full_scale_N(damper: Damper, cases: Sequence[CasePlan]) -> float:
+    """The load cell's full scale: the next of 1, 2, 5 x 10^k above 1.25 x the plan's largest force."""
+    peak = 1.25 * float(np.max(np.abs(nominal_force(np.array([c.velocity_m_s for c in cases]), damper))))
+    k = math.floor(math.log10(max(peak, 1e-9)))
+    return next(m * 10.0**k for m in (1.0, 2.0, 5.0, 10.0) if m * 10.0**k >= peak)
+
+
+def draw_rig(rng: np.random.Generator, full_scale: float) -> rr.RigImperfections:
+    """Rig nuisances, drawn in every scenario (RIG_RANGES)."""
+    r = RIG_RANGES
+    return rr.RigImperfections(
+        delay_s=_sig(rng.uniform(*r["delay_s"]), 3), servo_lag_s=_sig(rng.uniform(*r["servo_lag_s"]), 3),
+        force_noise_N=_sig(rng.uniform(*r["force_noise_N"]), 3),
+        force_noise_rel=_sig(rng.uniform(*r["force_noise_rel"]), 3),
+        noise_corner_Hz=_sig(math.exp(rng.uniform(*np.log(r["noise_corner_Hz"]))), 3),
+        force_offset_N=_sig(rng.uniform(-1.0, 1.0) * r["force_offset_fs"] * full_scale, 3),
+        force_gain=1.0 + _sig(rng.uniform(-1.0, 1.0) * r["force_gain_error"], 3),
+        displacement_noise_m=r["displacement_noise_m"],
+        viscosity_drift_rel=_sig(rng.uniform(-1.0, 1.0) * r["viscosity_drift_rel"], 3),
+        force_resolution_N=0.01, displacement_resolution_m=1e-8, command_resolution_m=1e-8)
+
+
+def charge_pressure_Pa(damper: Damper, cases: Sequence[CasePlan]) -> float:
+    """Charge (accumulator) pressure of the drawn damper: twice the plan's largest steady Δp, at least
+    5 MPa (2 significant digits), so that neither chamber comes near zero absolute pressure."""
+    dp_max = float(np.max(np.abs(nominal_force(np.array([c.velocity_m_s for c in cases]), damper))))
+    return _sig(max(5.0e6, 2.0 * dp_max / damper.piston_area_m2), 2)
+
+
+def physical_effects(damper: Damper, magnitudes: Mapping[str, float], signs: Mapping[str, float],
+                     charge_Pa: float = 5.0e6) -> rr.TrueEffects:
+    """The reference rig's physical effects whose catalogue equivalents are ``magnitudes``."""
+    kw: dict[str, float] = {"charge_pressure_Pa": charge_Pa}
+    for e, m in magnitudes.items():
+        s = signs.get(e, 1.0)
+        if e == "friction":
+            kw["coulomb_force_N"] = m
+        elif e == "leakage":
+            kw["leakage_gap_m"] = rrc.leakage_gap_from_conductance(m, damper)
+        elif e == "asymmetry":
+            kw["asymmetry"] = s * m
+        elif e == "discharge":
+            kw["discharge_coefficient"] = damper.discharge_coefficient * (1.0 + s * m)
+        elif e == "viscosity":
+            kw["viscosity_Pa_s"] = damper.viscosity_Pa_s * (1.0 + s * m)
+        elif e == "air":
+            kw["air_fraction_at_charge"] = rrc.air_fraction_from_catalogue(m, charge_Pa)
+        else:
+            raise KeyError(f"unknown effect {e!r}; known: {EFFECTS}")
+    return rr.TrueEffects(**kw)
+
+
+def out_of_catalogue_true_effects(kind: str, damper: Damper, cases: Sequence[CasePlan],
+                                  friction_detection_N: float) -> rr.TrueEffects:
+    """The reference rig's physical effects of an out-of-catalogue scenario of ``kind``
+    (OUT_OF_CATALOGUE), strong enough to be seen.
+
+    stribeck: a Coulomb force of 3x its detection level plus a breakaway peak decaying over v_S at the
+    geometric middle of the plan's speeds (seals: 0.1-1 mm/s), F_S = STRIBECK_PEAK of the nominal
+    hydraulic force at v_S (a weaker hump is absorbed by friction + viscosity: README); backlash:
+    30 um of free play; relief: a relief valve that cracks at half the plan's largest steady
+    pressure and passes 30 % of the piston flow at it.
+    """
+    speeds = np.array([c.velocity_m_s for c in cases])
+    if kind == "stribeck":
+        v_s = float(np.sqrt(speeds.min() * speeds.max()))
+        return rr.TrueEffects(coulomb_force_N=3.0 * friction_detection_N, stribeck_velocity_m_s=v_s,
+                              stribeck_force_N=STRIBECK_PEAK * float(nominal_force(v_s, damper)))
+    if kind == "backlash":
+        return rr.TrueEffects(backlash_m=30e-6)
+    if kind == "relief":
+        dp_max = float(nominal_force(speeds.max(), damper)) / damper.piston_area_m2
+        crack = 0.5 * dp_max
+        unit = float(rr.relief_flow(dp_max, crack, 1.0, 0.7, damper.density_kg_m3))
+        return rr.TrueEffects(relief_cracking_pressure_Pa=crack,
+                              relief_area_gradient_m2_Pa=0.3 * damper.piston_area_m2 * speeds.max() / unit)
+    raise KeyError(f"unknown out-of-catalogue effect {kind!r}; known: {OUT_OF_CATALOGUE}")
+
+
+def detection_levels(name: str, effects: Iterable[str], cases: Sequence[CasePlan], damper: Damper,
+                     rig: rr.RigImperfections, signs: Mapping[str, float],
+                     spec: WindowSpec = WindowSpec()) -> dict[str, float] | None:
+    """Detection level of each of ``effects`` (EFFECTS order) on one drawn damper, plan and rig; None
+    as soon as one is not detectable with MULTIPLE_RANGE[1] x its level within its bound (BOUNDS)."""
+    detection: dict[str, float] = {}
+    if not effects:
+        return detection
+    problem = DetectionProblem.of(name, cases, damper, rig, spec)
+    for e in sorted(effects, key=EFFECTS.index):
+        level = detection_level(problem, e, signs.get(e, 1.0))
+        if level is None or MULTIPLE_RANGE[1] * level > BOUNDS[e]:
+            log.info("%s: %s not detectable within bounds (detection %s, bound %g); re-drawing",
+                     name, e, level, BOUNDS[e])
+            return None
+        detection[e] = level
+    return detection
+
+
+def overlay(effects: rr.TrueEffects, extra: rr.TrueEffects) -> rr.TrueEffects:
+    """``effects`` with every field that ``extra`` sets away from the nominal (no-effect) value."""
+    return dataclasses.replace(effects, **{f.name: getattr(extra, f.name) for f in dataclasses.fields(extra)
+                                           if getattr(extra, f.name) != getattr(rr.NOMINAL_EFFECTS, f.name)})
+
+
+def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSequence,
+                  multiples: Mapping[str, float] | None = None, spec: WindowSpec = WindowSpec(),
+                  n_velocities: tuple[int, int] = N_VELOCITIES,
+                  low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
+                  high_end_mm_s: tuple[float, float] = HIGH_END_MM_S, out_of_catalogue: str = "",
+                  rig: rr.RigImperfections | None = None) -> Scenario:
+    """Draw a scenario with the effects ``truth`` at ``multiples`` x their detection level.
+
+    ``multiples`` missing an effect: drawn U[1, 5]. Damper, plan and rig are re-drawn (up to
+    MAX_REDRAWS times) while an effect's 5x detection level exceeds its bound. ``rig`` overrides
+    the drawn nuisances (tests).
+    """
+    rng = np.random.default_rng(seed_seq)
+    truth = tuple(e for e in EFFECTS if e in set(truth))
+    multiples = dict(multiples or {})
+    for redraw in range(MAX_REDRAWS + 1):
+        damper = draw_damper(rng)
+        cases = tuple(draw_plan(rng, n_velocities, low_end_mm_s, high_end_mm_s))
+        drawn_rig = draw_rig(rng, full_scale_N(damper, cases))
+        the_rig = drawn_rig if rig is None else rig
+        noise_seed = int(rng.integers(0, 2**31 - 1))
+        signs = {e: (float(rng.choice([-1.0, 1.0])) if e in SIGNED else 1.0) for e in truth}
+        drawn = {e: float(rng.uniform(*MULTIPLE_RANGE)) for e in truth}
+        need = set(truth) | ({"friction"} if out_of_catalogue == "stribeck" else set())
+        detection = detection_levels(name, need, cases, damper, the_rig, signs, spec)
+        if detection is None:
+            continue
+        mult = {e: float(multiples.get(e, drawn[e])) for e in truth}
+        magnitude = {e: mult[e] * detection[e] for e in truth}
+        effects = physical_effects(damper, magnitude, signs, charge_pressure_Pa(damper, cases))
+        if out_of_catalogue:
+            effects = overlay(effects, out_of_catalogue_true_effects(out_of_catalogue, damper, cases,
+                                                                     detection.get("friction", 0.0)))
+        return Scenario(name=name, damper=damper, cases=cases, effects=effects, rig=the_rig, noise_seed=noise_seed,
+                        truth=truth, out_of_catalogue=out_of_catalogue, magnitude=magnitude,
+                        sign={e: signs[e] for e in truth}, detection_level={e: detection[e] for e in truth},
+                        multiple=mult, redraws=redraw)
+    raise RuntimeError(f"{name}: no plan within {MAX_REDRAWS} re-draws makes {truth} detectable within bounds")
+
+
+def suite_composition(seed: int, n_per_effect: int, n_pairs: int, n_none: int, n_out: int = 0
+                      ) -> list[tuple[tuple[str, ...], dict[str, float], str]]:
+    """(truth, multiples, out-of-catalogue kind) per scenario, in name order.
+
+    Singles of one effect get stratified multiples (k-th of n in [1 + 4k/n, 1 + 4(k+1)/n], strata
+    in random order); pairs are distinct effect pairs (cycled when more than 15 are asked) with
+    U[1, 5] multiples; ``n_out`` out-of-catalogue scenarios cycle through OUT_OF_CATALOGUE; the
+    whole list is shuffled so a name does not tell its kind.
+    """
+    for key, v in (("n_per_effect", n_per_effect), ("n_pairs", n_pairs), ("n_none", n_none), ("n_out", n_out)):
+        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
+            raise ValueError(f"{key}: must be a non-negative integer, got {v!r}")
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5EED]))
+    lo, hi = MULTIPLE_RANGE
+    kinds: list[tuple[tuple[str, ...], dict[str, float], str]] = []
+    for e in EFFECTS:
+        strata = rng.permutation(n_per_effect)
+        for k in strata:
+            u = rng.uniform(k / n_per_effect, (k + 1) / n_per_effect)
+            kinds.append(((e,), {e: lo + (hi - lo) * float(u)}, ""))
+    all_pairs = list(itertools.combinations(EFFECTS, 2))
+    order = rng.permutation(len(all_pairs))
+    for i in range(n_pairs):
+        pair = all_pairs[int(order[i % len(all_pairs)])]
+        kinds.append((pair, {e: float(rng.uniform(lo, hi)) for e in pair}, ""))
+    kinds += [((), {}, "") for _ in range(n_none)]
+    kinds += [((), {}, OUT_OF_CATALOGUE[i % len(OUT_OF_CATALOGUE)]) for i in range(n_out)]
+    return [kinds[int(i)] for i in rng.permutation(len(kinds))]
+
+
+def generate_scenarios(seed: int, n_per_effect: int, n_pairs: int, n_none: int, n_out: int = 0, *,
+                       multiple: float | None = None, spec: WindowSpec = WindowSpec(),
+                       n_velocities: tuple[int, int] = N_VELOCITIES,
+                       low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
+                       high_end_mm_s: tuple[float, float] = HIGH_END_MM_S) -> list[Scenario]:
+    """The blind suite: ``n_per_effect`` single-effect scenarios per effect, ``n_pairs`` with two
+    effects, ``n_none`` without, ``n_out`` with an effect outside the catalogue; names blind-000...
+    in a seeded random order.
+
+    ``multiple`` fixes every effect's magnitude at that many detection levels (tests); the plan
+    ranges can be narrowed for small suites.
+    """
+    composition = suite_composition(seed, n_per_effect, n_pairs, n_none, n_out)
+    out = []
+    for k, (name, (truth, mult, kind)) in enumerate(zip(scenario_names(len(composition)), composition, strict=True)):
+        if multiple is not None:
+            mult = {e: float(multiple) for e in truth}
+        out.append(make_scenario(name, truth, np.random.SeedSequence([int(seed), k]), mult, spec,
+                                 n_velocities, low_end_mm_s, high_end_mm_s, kind))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Export
+# --------------------------------------------------------------------------------------------
+
+def export_scenario(scenario: Scenario, raw_root: str | os.PathLike, truth_root: str | os.PathLike) -> Path:
+    """Raw campaign folder ``raw_root/<name>/`` written by the reference rig (nominal damper only,
+    its own units and column names, the phase rounded as a person writes it) and the truth
+    ``truth_root/<name>.json``."""
+    out = Path(raw_root) / scenario.name
+    rrc.write_campaign(out, scenario.rig_cases(), rr.DamperDesign.from_mapping(scenario.damper.to_dict()),
+                      scenario.effects, scenario.rig, scenario.noise_seed, description=DESCRIPTION,
+                      write_phase=scenario.noise_seed % 2 == 0)
+    write_json(scenario.truth_record(), Path(truth_root) / f"{scenario.name}.json")
+    return out
+
+
+def write_suite(scenarios: Sequence[Scenario], raw_root: str | os.PathLike, truth_root: str | os.PathLike) -> None:
+    """Export every scenario (raw folder + truth file)."""
+    for s in scenarios:
+        export_scenario(s, raw_root, truth_root)
+        log.info("%s exported: %d cases, %d re-draw(s)", s.name, len(s.cases), s.redraws)
+

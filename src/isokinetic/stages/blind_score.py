@@ -1,0 +1,457 @@
+"""Rule blind_score: the blind suite's verdicts against the withheld truth -> scores, targets, Fig. 17.
+
+The only reader of the truth (``results/blind/truth/<scenario>.json``, written by
+:mod:`isokinetic.stages.blind_generate`). Each scenario is scored (:func:`score`): truth and verdict
+as effect sets, exact or not, the gap before and after, the fitted effect sizes and instrument
+terms against the truth. The suite is summarised (:func:`summarize`) per magnitude bin and against
+five targets, written as scores.parquet, summary.json and the confusion figure
+(:mod:`isokinetic.plots.blind_score`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from isokinetic.contracts.outputs import RULE_OUTPUTS
+from isokinetic.contracts.scenarios import EFFECTS
+from isokinetic.diagnosis.candidate import ALPHA
+from isokinetic.io import write_json, write_parquet
+from isokinetic.plots.blind_score import confusion_figure
+from isokinetic.plots.style import save_figure
+from isokinetic.stages.blind_generate import MAGNITUDE_BINS, PARAM_KEYS, effect_text, magnitude_bin
+
+SCORE_COLUMNS = ("scenario", "truth", "out_of_catalogue", "verdict", "exact", "exact_up_to_confounding",
+                 "explained", "n_truth", "magnitude_x_detection", "magnitude_bin", "gap_before", "gap_after",
+                 "shrink", "confounded", "param_error_max", "delay_error_s", "offset_error_N", "gain_error",
+                 "error")
+#: A scenario's diagnosis, in its work folder (as rule diagnosis names it).
+DIAGNOSIS_FILE = RULE_OUTPUTS["diagnosis"]["json"]
+#: Row-level lineage columns of scores.parquet (:func:`score_sources`), after SCORE_COLUMNS.
+SOURCE_COLUMNS = ("raw_dir", "truth_file", "diagnosis_file")
+_FLOAT_COLUMNS = ("magnitude_x_detection", "gap_before", "gap_after", "shrink", "param_error_max", "delay_error_s",
+                  "offset_error_N", "gain_error")
+
+TARGET_SINGLE_RATE = 0.95
+TARGET_SINGLE_MIN_MULTIPLE = 2.0
+TARGET_MEDIAN_SHRINK = 5.0
+TARGET_OUT_OF_CATALOGUE_RATE = 0.90
+TARGET_PARAM_ERROR = 0.15
+TARGET_DELAY_ERROR_S = 0.002
+TARGET_OFFSET_ERROR_N = 2.0
+#: The targets of the summary, in the order they are reported.
+TARGETS = ("a_single_at_2x", "b_none_clean", "c_out_of_catalogue", "d_median_shrink", "e_parameters")
+
+
+# --------------------------------------------------------------------------------------------
+# One scenario
+# --------------------------------------------------------------------------------------------
+
+def _float(value) -> float:
+    try:
+        out = float(value)
+    except (TypeError, ValueError):
+        return math.nan
+    return out
+
+
+def _confounded_groups(diagnosis: Mapping) -> list[list[str]]:
+    groups = diagnosis.get("confounded") or []
+    return [list(g) for g in groups if isinstance(g, (list, tuple))]
+
+
+def _up_to_confounding(truth: set[str], verdict: set[str], groups: list[list[str]]) -> bool:
+    """Verdict equals the truth after mapping each confounded group to one representative."""
+    rep = {}
+    for g in groups:
+        for e in g:
+            rep[e] = min(g)
+    return {rep.get(e, e) for e in truth} == {rep.get(e, e) for e in verdict}
+
+
+def param_error(truth: Mapping, diagnosis: Mapping) -> float:
+    """Largest relative error of the verdict's fitted effect sizes against the truth's.
+
+    An effect's size is its parameter minus the nominal value (the manifest's C_D or viscosity for
+    discharge and viscosity, zero otherwise): |fitted size - true size| / |true size|.
+    """
+    if "params" not in truth:
+        return math.nan
+    fitted = diagnosis.get("params") or {}
+    nominal = truth.get("damper") or {}
+    worst = 0.0
+    for e in truth.get("truth") or []:
+        key = PARAM_KEYS[e]
+        base = float(nominal.get(key, 0.0)) if e in ("discharge", "viscosity") else 0.0
+        true_size = float(truth["params"][key]) - base
+        got = _float(fitted.get(key))
+        if not math.isfinite(got) or true_size == 0.0:
+            return math.inf
+        worst = max(worst, abs((got - base) - true_size) / abs(true_size))
+    return worst
+
+
+def instrument_errors(truth: Mapping, diagnosis: Mapping) -> tuple[float, float, float]:
+    """(delay, offset, gain) errors of the diagnosis' instrument estimates against the rig's truth.
+
+    The estimate is the reported value, or where the diagnosis reports null (not needed by its
+    test), the verdict fit's own estimate (``instrument_tests``): a null offset still has to be
+    near the true one.
+    """
+    if "instrument" not in truth:
+        return math.nan, math.nan, math.nan
+    inst = diagnosis.get("instrument") or {}
+    tests = diagnosis.get("instrument_tests") or {}
+    true = truth["instrument"]
+
+    def estimate(key: str, test: str, default: float) -> float:
+        v = inst.get(key)
+        if v is None:
+            v = (tests.get(test) or {}).get("estimate", default)
+        return _float(v)
+
+    measured = _float(inst.get("delay_s"))
+    delay = abs(measured - _float(true.get("delay_s"))) if math.isfinite(measured) else math.inf
+    offset = abs(estimate("force_offset_N", "force_offset", 0.0) - _float(true.get("force_offset_N", 0.0)))
+    gain = abs(estimate("force_gain", "force_gain", 1.0) - _float(true.get("force_gain", 1.0)))
+    return delay, offset, gain
+
+
+def score_row(t: Mapping, d: Mapping | None) -> dict:
+    """The score of one scenario: its truth record ``t`` against its diagnosis ``d`` (None: failed)."""
+    name = str(t["scenario"])
+    truth = set(t.get("truth") or [])
+    mult = _float(t.get("magnitude_x_detection"))
+    if not truth:
+        mult = math.nan
+    row = {"scenario": name, "truth": effect_text(truth), "out_of_catalogue": str(t.get("out_of_catalogue") or ""),
+           "n_truth": len(truth), "magnitude_x_detection": mult, "magnitude_bin": magnitude_bin(mult)}
+    if d is None or d.get("status") not in ("ok", None):
+        row.update(verdict="error", exact=False, exact_up_to_confounding=False, explained=False,
+                   gap_before=math.nan, gap_after=math.nan, shrink=math.nan, confounded="",
+                   param_error_max=math.nan, delay_error_s=math.nan, offset_error_N=math.nan,
+                   gain_error=math.nan, error=True)
+        return row
+    verdict = set(d.get("verdict") or [])
+    groups = _confounded_groups(d)
+    exact = verdict == truth and not row["out_of_catalogue"]
+    delay, offset, gain = instrument_errors(t, d)
+    row.update(verdict=effect_text(verdict), exact=exact,
+               exact_up_to_confounding=_up_to_confounding(truth, verdict, groups),
+               explained=bool(d.get("explained", True)),
+               gap_before=_float(d.get("gap_before")), gap_after=_float(d.get("gap_after")),
+               shrink=_float(d.get("shrink")), confounded=";".join("+".join(g) for g in groups),
+               param_error_max=param_error(t, d) if exact and truth else math.nan,
+               delay_error_s=delay, offset_error_N=offset, gain_error=gain, error=False)
+    return row
+
+
+def score(truths: Iterable[Mapping], diagnoses: Mapping[str, Mapping | None]) -> pd.DataFrame:
+    """One row per truth record (sorted by scenario): truth/verdict text, exactness, magnitude, gaps,
+    parameter and instrument errors.
+
+    ``truths``: truth records (:meth:`isokinetic.stages.blind_generate.Scenario.truth_record`);
+    ``diagnoses``: scenario -> diagnosis dict (None or missing: the diagnosis failed; verdict
+    'error', not exact).
+    """
+    rows = [score_row(t, diagnoses.get(str(t["scenario"]))) for t in truths]
+    df = pd.DataFrame(rows, columns=list(SCORE_COLUMNS))
+    types = {"exact": bool, "exact_up_to_confounding": bool, "explained": bool, "error": bool, "n_truth": "int64"}
+    if df.empty:
+        return df.astype(types)
+    df = df.astype({**types, **dict.fromkeys(_FLOAT_COLUMNS, float)})
+    return df.sort_values("scenario", ignore_index=True)
+
+
+# --------------------------------------------------------------------------------------------
+# The suite: magnitude bins and targets
+# --------------------------------------------------------------------------------------------
+
+def _json_float(x) -> float | str | None:
+    """A JSON-safe number: None for NaN, 'inf' for infinity."""
+    x = float(x)
+    return x if math.isfinite(x) else (None if math.isnan(x) else "inf")
+
+
+def pass_text(ok: bool | None) -> str:
+    """'PASS', 'FAIL', or 'N/A' for a target without any scenario to judge."""
+    return "N/A" if ok is None else ("PASS" if ok else "FAIL")
+
+
+def magnitude_bins(eff: pd.DataFrame, singles: pd.DataFrame) -> dict:
+    """Exact attributions per magnitude bin, over all scenarios with effects and over the single ones."""
+    bins = {}
+    for name, _lo, _hi in MAGNITUDE_BINS:
+        b = eff[eff["magnitude_bin"] == name]
+        bs = singles[singles["magnitude_bin"] == name]
+        bins[name] = {"n": int(len(b)), "exact": int(b["exact"].sum()),
+                      "rate": float(b["exact"].mean()) if len(b) else None,
+                      "n_single": int(len(bs)), "exact_single": int(bs["exact"].sum()),
+                      "rate_single": float(bs["exact"].mean()) if len(bs) else None}
+    return bins
+
+
+def target_single(singles: pd.DataFrame) -> dict:
+    """(a) >= TARGET_SINGLE_RATE of single-effect scenarios at >= 2x detection attributed exactly."""
+    rows = singles[singles["magnitude_x_detection"] >= TARGET_SINGLE_MIN_MULTIPLE]
+    rate = float(rows["exact"].mean()) if len(rows) else None
+    return {"description": "single-effect scenarios at >= 2x detection attributed exactly",
+            "n": int(len(rows)), "exact": int(rows["exact"].sum()), "rate": rate,
+            "threshold": TARGET_SINGLE_RATE, "pass": None if rate is None else bool(rate >= TARGET_SINGLE_RATE),
+            "misses": sorted(rows.loc[~rows["exact"], "scenario"])}
+
+
+def target_none_clean(none: pd.DataFrame, alpha: float) -> dict:
+    """(b) effects claimed on scenarios without effects at most at the test's level ``alpha``."""
+    claimed = none[none["verdict"] != ""]
+    return {"description": "effects claimed on scenarios without effects (false alarms)",
+            "n": int(len(none)), "claimed": int(len(claimed)),
+            "rate": float(len(claimed) / len(none)) if len(none) else None, "alpha": alpha,
+            "pass": None if none.empty else bool(len(claimed) <= math.floor(alpha * len(none))),
+            "misses": sorted(claimed["scenario"])}
+
+
+def target_out_of_catalogue(out: pd.DataFrame) -> dict:
+    """(c) >= TARGET_OUT_OF_CATALOGUE_RATE of out-of-catalogue scenarios reported ``explained: false``."""
+    flagged = out[~out["explained"] & ~out["error"]]
+    rate = float(len(flagged) / len(out)) if len(out) else None
+    return {"description": "out-of-catalogue scenarios reported explained: false",
+            "n": int(len(out)), "flagged": int(len(flagged)), "rate": rate,
+            "threshold": TARGET_OUT_OF_CATALOGUE_RATE,
+            "pass": None if rate is None else bool(rate >= TARGET_OUT_OF_CATALOGUE_RATE),
+            "misses": sorted(set(out["scenario"]) - set(flagged["scenario"]))}
+
+
+def target_median_shrink(eff: pd.DataFrame) -> dict:
+    """(d) median shrink >= TARGET_MEDIAN_SHRINK over the scenarios with catalogue effects."""
+    shrink = eff["shrink"].to_numpy(dtype=float)
+    shrink = shrink[~np.isnan(shrink)]
+    median = float(np.median(shrink)) if shrink.size else None
+    median_json = median if median is None or math.isfinite(median) else (None if math.isnan(median) else "inf")
+    return {"description": "median shrink where a catalogue effect was present",
+            "n": int(shrink.size), "median": median_json, "threshold": TARGET_MEDIAN_SHRINK,
+            "pass": None if median is None else bool(median >= TARGET_MEDIAN_SHRINK)}
+
+
+def target_parameters(eff: pd.DataFrame, inside: pd.DataFrame) -> dict:
+    """(e) every exact verdict's effect sizes within TARGET_PARAM_ERROR of the truth; on every
+    in-catalogue scenario the delay within TARGET_DELAY_ERROR_S and the offset within TARGET_OFFSET_ERROR_N."""
+    exact = eff[eff["exact"] & ~eff["param_error_max"].isna()]   # NaN: a truth without parameters
+    p_err = exact["param_error_max"].to_numpy(dtype=float)
+    p_bad = exact.loc[~(exact["param_error_max"] <= TARGET_PARAM_ERROR), "scenario"]
+    judged = inside[~inside["error"] & ~inside["delay_error_s"].isna()]
+    d_bad = judged.loc[~(judged["delay_error_s"] <= TARGET_DELAY_ERROR_S), "scenario"]
+    o_bad = judged.loc[~(judged["offset_error_N"] <= TARGET_OFFSET_ERROR_N), "scenario"]
+    return {"description": "exact verdicts' effect sizes within 15 %; delay within 2 ms and "
+                           "offset within 2 N on every in-catalogue scenario",
+            "n_exact": int(len(exact)),
+            "param_error_max": _json_float(np.max(p_err)) if p_err.size else None,
+            "param_error_median": _json_float(np.median(p_err)) if p_err.size else None,
+            "n_judged": int(len(judged)),
+            "delay_error_max_s": _json_float(judged["delay_error_s"].max()) if len(judged) else None,
+            "offset_error_max_N": _json_float(judged["offset_error_N"].max()) if len(judged) else None,
+            "gain_error_max": _json_float(judged["gain_error"].max()) if len(judged) else None,
+            "pass": None if judged.empty else bool(p_bad.empty and d_bad.empty and o_bad.empty),
+            "param_misses": sorted(p_bad), "delay_misses": sorted(d_bad), "offset_misses": sorted(o_bad)}
+
+
+def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
+    """Per-bin exact-attribution rates and the five targets (JSON-ready).
+
+    (a) >= 95 % of single-effect scenarios at >= 2x detection attributed exactly;
+    (b) effects claimed on scenarios without effects at most at the test's level ``alpha`` (the
+        diagnosis' own by default; and none in a suite too small to measure that: fewer than
+        1/alpha such scenarios);
+    (c) >= 90 % of out-of-catalogue scenarios reported ``explained: false``;
+    (d) median shrink >= 5 over the scenarios with catalogue effects;
+    (e) the fitted effect sizes of every exact verdict within 15 % of the truth, and on every
+        in-catalogue scenario the actuator delay within 2 ms and the load-cell offset within 2 N.
+    A target without any scenario to judge is 'N/A' (pass: null).
+    """
+    alpha = ALPHA if alpha is None else alpha
+    inside = scores[scores["out_of_catalogue"] == ""]
+    eff = inside[inside["n_truth"] > 0]
+    singles = eff[eff["n_truth"] == 1]
+    none = inside[inside["n_truth"] == 0]
+    out = scores[scores["out_of_catalogue"] != ""]
+    targets = {"a_single_at_2x": target_single(singles), "b_none_clean": target_none_clean(none, alpha),
+               "c_out_of_catalogue": target_out_of_catalogue(out), "d_median_shrink": target_median_shrink(eff),
+               "e_parameters": target_parameters(eff, inside)}
+    passes = [targets[k]["pass"] for k in TARGETS]
+    return {
+        "format_version": 2,
+        "n_scenarios": int(len(scores)),
+        "n_single": int(len(singles)),
+        "n_pairs": int((eff["n_truth"] == 2).sum()),
+        "n_none": int(len(none)),
+        "n_out_of_catalogue": int(len(out)),
+        "n_errors": int(scores["error"].sum()),
+        "exact_rate": float(eff["exact"].mean()) if len(eff) else None,
+        "bins": magnitude_bins(eff, singles),
+        "targets": targets,
+        "all_pass": all(t is not False for t in passes) and any(t is True for t in passes),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# Text and figure
+# --------------------------------------------------------------------------------------------
+
+def _percent(x: float | None) -> str:
+    return "-" if x is None else f"{100 * x:.1f} %"
+
+
+def _number(x, scale: float = 1.0, unit: str = "") -> str:
+    return "-" if x is None else (x if isinstance(x, str) else f"{x * scale:.3g}{unit}")
+
+
+def _misses(names: list[str], prefix: str) -> str:
+    return f"; {prefix}{', '.join(names)}" if names else ""
+
+
+def summary_text(summary: Mapping) -> str:
+    """The human summary printed by the scoring job."""
+    t = summary["targets"]
+    lines = [f"blind test: {summary['n_scenarios']} scenarios ({summary['n_single']} single, {summary['n_pairs']} "
+             f"pairs, {summary['n_none']} none, {summary['n_out_of_catalogue']} out of catalogue; "
+             f"{summary['n_errors']} diagnosis errors)",
+             "exact attribution by magnitude (weakest effect, x detection level):"]
+    for name, b in summary["bins"].items():
+        rate = "  -  " if b["rate"] is None else f"{100 * b['rate']:5.1f} %"
+        rs = "  -  " if b["rate_single"] is None else f"{100 * b['rate_single']:5.1f} %"
+        lines.append(f"  {name:>5}: {b['exact']:3d}/{b['n']:<3d} {rate}   (single effect {b['exact_single']}/"
+                     f"{b['n_single']} {rs})")
+    a, bn, c, d, e = (t[k] for k in TARGETS)
+    lines.append(f"(a) {pass_text(a['pass'])}: single effect at >= 2x detection exact {a['exact']}/{a['n']} "
+                 f"= {_percent(a['rate'])} (target >= {100 * a['threshold']:.0f} %)" + _misses(a["misses"], "missed "))
+    lines.append(f"(b) {pass_text(bn['pass'])}: effects claimed on {bn['claimed']}/{bn['n']} scenarios without "
+                 f"effects = {_percent(bn['rate'])} (target <= alpha = {bn['alpha']:g})" + _misses(bn["misses"], ""))
+    lines.append(f"(c) {pass_text(c['pass'])}: out-of-catalogue scenarios reported not explained {c['flagged']}/"
+                 f"{c['n']} = {_percent(c['rate'])} (target >= {100 * c['threshold']:.0f} %)"
+                 + _misses(c["misses"], "missed "))
+    med = "-" if d["median"] is None else (d["median"] if isinstance(d["median"], str) else f"{d['median']:.3g}")
+    lines.append(f"(d) {pass_text(d['pass'])}: median shrink {med} over {d['n']} scenarios with effects "
+                 f"(target >= {d['threshold']:g})")
+    lines.append(f"(e) {pass_text(e['pass'])}: effect sizes of {e['n_exact']} exact verdicts within "
+                 f"{_number(e['param_error_max'], 100, ' %')} (median {_number(e['param_error_median'], 100, ' %')}; "
+                 f"target 15 %); over {e['n_judged']} scenarios delay error <= "
+                 f"{_number(e['delay_error_max_s'], 1e3, ' ms')} (target 2 ms), offset error <= "
+                 f"{_number(e['offset_error_max_N'], 1, ' N')} (target 2 N), "
+                 f"gain error <= {_number(e['gain_error_max'], 100, ' %')}"
+                 + "".join(f"; {k.split('_')[0]} misses {', '.join(e[k])}" for k in
+                           ("param_misses", "delay_misses", "offset_misses") if e[k]))
+    return "\n".join(lines)
+
+
+def confusion_counts(scores: pd.DataFrame) -> pd.DataFrame:
+    """Counts of truth set (rows) x verdict set (columns); '' shown as 'none'."""
+    order = {e: i for i, e in enumerate(EFFECTS)}
+
+    def key(text: str):
+        if text == "":
+            return (0, ())
+        if text == "error":
+            return (9, ())
+        if text.startswith("("):  # an out-of-catalogue truth
+            return (0.5, (text,))
+        parts = text.split("+")
+        return (len(parts), tuple(order.get(p, 99) for p in parts))
+
+    kinds = scores.get("out_of_catalogue", [""] * len(scores))
+    scores = scores.assign(truth=[t if t or not o else f"({o})" for t, o in zip(scores["truth"], kinds, strict=True)])
+    truths = sorted(set(scores["truth"]), key=key)
+    verdicts = sorted(set(scores["verdict"]) | set(truths), key=key)
+    table = pd.crosstab(scores["truth"], scores["verdict"]).reindex(index=truths, columns=verdicts, fill_value=0)
+    label = lambda s: "none" if s == "" else s  # noqa: E731
+    table.index = [label(s) for s in table.index]
+    table.columns = [label(s) for s in table.columns]
+    return table
+
+
+def confusion_title(scores: pd.DataFrame, summary: Mapping | None = None) -> str:
+    """Title of Fig. 17: scenarios, exact attributions and, with the summary, each target's outcome."""
+    title = f"Blind test: {len(scores)} scenarios, {int(scores['exact'].sum())} attributed exactly"
+    if summary is not None:
+        t = summary["targets"]
+        title += "\n" + "  ".join(f"({k[0]}) {pass_text(t[k]['pass'])}" for k in TARGETS)
+    return title
+
+
+# --------------------------------------------------------------------------------------------
+# Reading the suite and writing the scores
+# --------------------------------------------------------------------------------------------
+
+def read_truths(truth_root: str | os.PathLike) -> list[dict]:
+    return [json.loads(p.read_text(encoding="utf-8")) for p in sorted(Path(truth_root).glob("*.json"))]
+
+
+def read_diagnoses(work_roots: Iterable[str | os.PathLike], names: Iterable[str]) -> dict[str, dict | None]:
+    """scenario -> diagnosis.json content found under any of ``work_roots`` (None if absent)."""
+    found: dict[str, dict | None] = {}
+    roots = [Path(r) for r in work_roots]
+    for name in names:
+        found[name] = None
+        for r in roots:
+            p = r / name / DIAGNOSIS_FILE
+            if p.is_file():
+                found[name] = json.loads(p.read_text(encoding="utf-8"))
+                break
+    return found
+
+
+def _raw_dir(meta_path: Path) -> str:
+    """The raw campaign folder a diagnosis ingested: the parent of ``manifest_file`` in its campaign.json."""
+    manifest = json.loads(meta_path.read_text(encoding="utf-8")).get("manifest_file") or ""
+    return Path(manifest).parent.as_posix() if manifest else ""
+
+
+def score_sources(truth_root: str | os.PathLike, work_roots: Iterable[str | os.PathLike],
+                  names: Iterable[str]) -> pd.DataFrame:
+    """Where each scenario's score came from: scenario, raw_dir, truth_file, diagnosis_file.
+
+    truth_file: the truth record read (its 'scenario' key, under ``truth_root``); diagnosis_file: the
+    diagnosis.json found under ``work_roots`` (as :func:`read_diagnoses`); raw_dir: the raw campaign
+    folder that diagnosis ingested (the parent of ``manifest_file`` in its ingest/campaign.json),
+    else ``<truth_root>/../raw/<scenario>`` when that folder exists. '' where there is none.
+    """
+    truth_files = {}
+    for p in sorted(Path(truth_root).glob("*.json")):
+        name = json.loads(p.read_text(encoding="utf-8")).get("scenario")
+        truth_files.setdefault(str(name), p.as_posix())
+    roots = [Path(r) for r in work_roots]
+    rows = []
+    for name in names:
+        diagnosis, raw = "", ""
+        for r in roots:
+            if not diagnosis and (r / name / DIAGNOSIS_FILE).is_file():
+                diagnosis = (r / name / DIAGNOSIS_FILE).as_posix()
+            meta_path = r / name / "ingest" / "campaign.json"
+            if not raw and meta_path.is_file():
+                raw = _raw_dir(meta_path)
+        if not raw and (Path(truth_root).parent / "raw" / name).is_dir():
+            raw = (Path(truth_root).parent / "raw" / name).as_posix()
+        rows.append({"scenario": name, "raw_dir": raw, "truth_file": truth_files.get(name, ""),
+                     "diagnosis_file": diagnosis})
+    return pd.DataFrame(rows, columns=["scenario", *SOURCE_COLUMNS]).astype(str)
+
+
+def write_scores(truth_root, work_roots, scores_path, summary_path, figure_path) -> tuple[pd.DataFrame, dict]:
+    """Score the suite: scores.parquet (SCORE_COLUMNS and the sources, SOURCE_COLUMNS), summary.json and
+    the confusion figure; returns both."""
+    truths = read_truths(truth_root)
+    work_roots = list(work_roots)
+    diagnoses = read_diagnoses(work_roots, [t["scenario"] for t in truths])
+    scores = score(truths, diagnoses)
+    scores = scores.merge(score_sources(truth_root, work_roots, scores["scenario"].tolist()), on="scenario",
+                          how="left", validate="one_to_one")
+    summary = summarize(scores)
+    write_parquet(scores, scores_path)
+    write_json(summary, summary_path)
+    save_figure(confusion_figure(confusion_counts(scores), confusion_title(scores, summary)), figure_path)
+    return scores, summary

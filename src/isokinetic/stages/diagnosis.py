@@ -1,0 +1,120 @@
+"""Rule diagnosis: the sim-to-real gap of a processed campaign -> diagnosis.json and the gap figure.
+
+The gap is the difference between the steady characteristic identified by the method of "A method for
+the identification of hydraulic damper characteristics from steady velocity inputs" (Titurus et al.)
+and the nominal damper model of the campaign's manifest.
+
+Reads ``results/<campaign>/`` (ingest/campaign.json for the nominal damper, cases.parquet,
+characteristic.parquet and the case time series), builds the observations twice (:func:`prepare`),
+diagnoses them (the method: :mod:`isokinetic.diagnosis`), validates the result against the
+diagnosis.json schema and writes it with Fig. 16 (:mod:`isokinetic.plots.diagnosis`). A campaign
+that cannot be diagnosed gets a diagnosis.json with ``status: not_diagnosed`` and the reason; one
+whose diagnosis fails, ``status: failed``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+from pathlib import Path
+
+import pandas as pd
+
+from isokinetic.diagnosis.candidate import ALPHA
+from isokinetic.diagnosis.instrument import INSTRUMENT, case_delays
+from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
+from isokinetic.diagnosis.observations import Observations, build_observations
+from isokinetic.diagnosis.result import (
+    CASES_FILE,
+    CHARACTERISTIC_FILE,
+    no_model,
+    observation_sources,
+    validate_diagnosis,
+)
+from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.diagnosis.verdict import diagnose_observations
+from isokinetic.io import write_json
+from isokinetic.physics.damper import NOMINAL, Damper
+from isokinetic.plots.diagnosis import gap_figure
+from isokinetic.plots.style import save_figure
+from isokinetic.stages.windows import WindowSpec
+
+log = logging.getLogger(__name__)
+
+
+def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame, pd.DataFrame]:
+    """(campaign, nominal damper or None, cases, characteristic) of a processed campaign folder."""
+    root = Path(campaign_root)
+    meta = json.loads((root / "ingest" / "campaign.json").read_text(encoding="utf-8"))
+    damper = None if meta.get("damper") is None else Damper.from_mapping(meta["damper"])
+    return meta["campaign"], damper, pd.read_parquet(root / CASES_FILE), pd.read_parquet(
+        root / CHARACTERISTIC_FILE)
+
+
+def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
+            alpha: float = ALPHA) -> tuple[str, Damper | None, pd.DataFrame, Observations | None, str]:
+    """(campaign, damper, cases, observations, reason) of a processed campaign folder.
+
+    Observations are built twice: first to profile the load-cell offset against the nominal model,
+    then with the noise model fitted to offset-free samples (the proportional noise scales with the
+    true force). Observations is None, with the reason, when the campaign cannot be diagnosed.
+    """
+    root = Path(campaign_root)
+    campaign, damper, cases, char = load_campaign(root)
+    if damper is None:
+        return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model"
+    if char.empty:
+        return campaign, damper, cases, None, "no status-ok triangle case: no characteristic to compare"
+    cache: dict[str, pd.DataFrame] = {}
+
+    def load(row):
+        key = str(row["timeseries_file"])
+        if key not in cache:
+            cache[key] = pd.read_parquet(root / key)
+        return cache[key]
+
+    obs = build_observations(campaign, cases, char, load, spec, n_bins)
+    if len(obs):
+        dg0 = Diagnoser(obs, damper, alpha)
+        first = dg0.refit((), INSTRUMENT)
+        offset = 0.0 if first is None else first.offset_N
+        obs = build_observations(campaign, cases, char, load, spec, n_bins, offset,
+                                 unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
+                                 drive_input_variance(obs, damper, dg0.nominal))
+    if len(obs) == 0:
+        return campaign, damper, cases, None, "no triangle case with four windows: nothing to compare"
+    return campaign, damper, cases, obs, ""
+
+
+def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
+             alpha: float = ALPHA) -> tuple[dict, Observations | None, dict]:
+    """Diagnose a processed campaign folder ``results/<campaign>/``.
+
+    Returns (diagnosis dict, observations, predictions); observations is None when the campaign
+    cannot be diagnosed (no damper block, no triangle case). The dict's ``sources`` key lists the
+    observations used (:func:`isokinetic.diagnosis.result.observation_sources`).
+    """
+    campaign, damper, cases, obs, reason = prepare(campaign_root, spec, n_bins, alpha)
+    if obs is None:
+        return {**no_model(campaign, reason), "sources": observation_sources(None, cases)}, None, {}
+    result, predictions = diagnose_observations(obs, damper, alpha, case_delays(cases))
+    result["sources"] = observation_sources(obs, cases)
+    return result, obs, predictions
+
+
+def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path, spec: WindowSpec = WindowSpec(),
+                    n_bins: int = 4) -> dict:
+    """Diagnose, validate against the schema, write diagnosis.json and the gap figure."""
+    try:
+        result, obs, predictions = diagnose(Path(campaign_root), spec, n_bins)
+    except Exception as exc:  # noqa: BLE001 - an accepted campaign always gets its diagnosis.json
+        log.exception("diagnosis of %s failed", campaign_root)
+        name = Path(campaign_root).name
+        with contextlib.suppress(Exception):  # noqa: BLE001 - the folder's name serves
+            name = load_campaign(Path(campaign_root))[0]
+        result, obs, predictions = no_model(name, f"diagnosis failed: {type(exc).__name__}: {exc}", "failed"), None, {}
+    validate_diagnosis(result)
+    write_json(result, json_path)
+    save_figure(gap_figure(result, obs, predictions), figure_path)
+    return result

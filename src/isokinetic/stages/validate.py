@@ -1,0 +1,514 @@
+"""Input checks: bad cases are quarantined one by one, every other case carries on.
+
+A :class:`Problem` says what is wrong with one case (column or manifest key, first bad data
+row, message); :func:`reason` turns it into the quarantine text, which names campaign, case,
+column and row, e.g. ``campaign demo, case T03, column 'force_kN', row 17: non-numeric value 'abc'``.
+
+:func:`validate_campaign` checks every case an ingest left ``ok`` (raw or simulated alike):
+the canonical time-series schema (NaN/inf, time not strictly increasing), too few samples,
+a record shorter than the plan needs, a sample rate far from the manifest's; then gaps in time,
+saturated (flat-topped) force or displacement, and implausible magnitudes (a unit mix-up, checked
+against the plan and the nominal damper model). Gaps and saturation inside the analysed data (the
+windows of a triangle case; the whole record of a sine or free case) quarantine; a few missing
+samples or a flat top outside the windows are *flagged but usable*: warnings carried into the
+``quality`` column of ``cases.parquet`` ('ok' when there are none).
+
+Timing from the record: the motion of a triangle case is measured from its displacement channel
+(:func:`motion.estimate_motion`) and its windows are placed at the measured motion start, not at
+the plan's t = 0 (``motion_start_s``, ``delay_s``, ``velocity_ratio``, ``motion_rms_m`` in
+``cases.parquet``). A motion that departs from its plan beyond the tolerances below, windows that
+no longer fit the record at the measured start, or a force against the measured velocity in all
+four windows (a forgotten ``invert: true``) quarantine; a time axis offset from the motion start
+or one half-period off its planned speed is flagged.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pandera.pandas as pa
+
+from isokinetic.contracts import tables
+from isokinetic.contracts.campaign import case_plan, read_ingested
+from isokinetic.io import write_parquet
+from isokinetic.measurement.motion import Motion, estimate_motion
+from isokinetic.physics.damper import Damper, nominal_force
+from isokinetic.physics.plan import CasePlan
+from isokinetic.stages.windows import WindowSpec, case_windows, windowed_half_periods
+
+log = logging.getLogger("isokinetic")
+
+#: Fewer samples than this cannot describe a record (and leave no sample interval to check).
+MIN_SAMPLES = 10
+QUARANTINE_COLUMNS = tuple(tables.QUARANTINE.columns)
+#: A sample interval above GAP_FACTOR / sample_rate_Hz is a gap (missing samples).
+GAP_FACTOR = 1.5
+#: A gap outside the windows that misses more samples than this quarantines the case.
+MAX_GAP_SAMPLES = 10
+#: This many consecutive identical samples at a channel's maximum or minimum are a flat top.
+SATURATION_MIN_RUN = 10
+#: Median |force| of a triangle record against the nominal force (Eq. 31) at its planned
+#: velocity: outside [FORCE_RATIO_MIN, FORCE_RATIO_MAX] is implausible. Measured records of the
+#: shipped and simulated campaigns lie within 0.02 .. 11 (friction dominates slow cases).
+FORCE_RATIO_MIN, FORCE_RATIO_MAX = 1e-3, 100.0
+#: Physical limit of the force: piston area times this pressure difference.
+MAX_PRESSURE_PA = 50e6
+#: Measured displacement (or command) amplitude against the planned one: beyond this factor either
+#: way is implausible (shipped and simulated records: 0.91 .. 1.01).
+AMPLITUDE_RATIO = 5.0
+#: Measured piston speed against the planned W = 4Y/T (Eq. 26): the mean |v| of the four half-periods
+#: off by more than this quarantines (the steady points would not lie at the planned speeds: a wrong
+#: period or amplitude in the manifest, or a wrong LVDT scale); one half-period off by more than this
+#: while the mean holds is flagged. Rig and simulated records lie within 0.1 %, a manifest amplitude
+#: rounded to 4 significant digits adds 0.05 %.
+MAX_VELOCITY_ERROR = 0.05
+#: rms departure of the measured displacement from the planned triangle at the measured motion start,
+#: beyond the LVDT noise (sqrt(rms² - noise²)), as a fraction of the planned amplitude: above this the
+#: record does not follow its plan (wrong waveform, period or phase) and is quarantined. A speed 5 %
+#: off gives 2.9 %; servo lag, corner rounding and noise give well under 1 %.
+MAX_MOTION_RMS_FRACTION = 0.05
+#: A motion start further than this from t = 0 of the record's time axis is flagged (and aligned).
+TIME_OFFSET_NOTE_S = 0.1
+#: A window's mean force counts as against the velocity only when this many standard errors from 0.
+FORCE_SIGN_SIGMAS = 3.0
+#: The hint a record with the opposite sign convention gets.
+INVERT_HINT = "the rig's sign convention looks opposite: add `invert: true`"
+#: cases.parquet columns of the measured motion (NaN unless a triangle case reached the motion check).
+MOTION_COLUMNS = ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m")
+
+
+@dataclass(frozen=True)
+class Problem:
+    """What is wrong with one case.
+
+    ``column`` is a data column (``kind="column"``: the CSV's at ingest, the canonical one at
+    validation) or a manifest key of the case (``kind="key"``: ``file``, ``period_s``, ...).
+    ``row`` is the first bad 0-based data row, None when no single row is at fault.
+    """
+
+    column: str
+    message: str
+    row: int | None = None
+    kind: str = "column"
+
+
+def reason(campaign: str, case: str, problem: Problem) -> str:
+    """The quarantine text: ``campaign C, case K, column 'x', row N: message``."""
+    where = [f"campaign {campaign}", f"case {case}", f"{problem.kind} {problem.column!r}"]
+    if problem.row is not None:
+        where.append(f"row {problem.row}")
+    return ", ".join(where) + ": " + problem.message
+
+
+def quarantine_rows(campaign: str, case: str, stage: str, problems: Iterable[Problem]) -> list[dict]:
+    """QUARANTINE rows for one case's problems; each reason is also logged."""
+    rows = []
+    for problem in problems:
+        text = reason(campaign, case, problem)
+        log.warning("quarantined at %s: %s", stage, text)
+        rows.append({"campaign": campaign, "case": case, "stage": stage, "column": problem.column,
+                     "row": problem.row, "reason": text})
+    return rows
+
+
+def quarantine_frame(rows: list[dict]) -> pd.DataFrame:
+    """A QUARANTINE table from rows (empty rows give the empty table)."""
+    if not rows:
+        return tables.empty(tables.QUARANTINE)
+    return pd.DataFrame(rows, columns=list(QUARANTINE_COLUMNS)).astype({"row": "Int64"})
+
+
+def _failure_message(check: str, value, previous) -> str:
+    if check == "not_nullable":
+        return "missing value (NaN)"
+    if check == "finite":
+        return f"non-finite value {value}"
+    if check == "time_increasing":
+        return f"time {value} s is not above the previous row's {previous} s"
+    if check == "column_in_dataframe":
+        return "column missing"
+    return f"failed {check}: {value}"
+
+
+def timeseries_problems(df: pd.DataFrame) -> list[Problem]:
+    """TIMESERIES schema failures, one per column, at the first bad data row (``row`` value)."""
+    try:
+        tables.TIMESERIES.validate(df, lazy=True)
+    except pa.errors.SchemaErrors as exc:
+        failures = exc.failure_cases
+    else:
+        return []
+    data_rows = df["row"] if "row" in df else pd.Series(np.arange(len(df)), index=df.index)
+    found: dict[str, Problem] = {}
+    for f in failures.itertuples(index=False):
+        column = f.failure_case if f.check == "column_in_dataframe" else f.column
+        row, previous = None, None
+        if not pd.isna(f.index):
+            position = df.index.get_loc(f.index)
+            row = int(data_rows.iloc[position])
+            previous = df[column].iloc[position - 1] if position > 0 else None
+        known = found.get(column)
+        if known is None or (row is not None and (known.row is None or row < known.row)):
+            found[column] = Problem(column, _failure_message(str(f.check), f.failure_case, previous), row=row)
+    return list(found.values())
+
+
+def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+                    min_samples: int = MIN_SAMPLES) -> list[Problem]:
+    """Too few samples, shorter than the plan needs (one sample interval of slack), or a median
+    sample interval off 1/sample_rate_Hz by more than the tolerance. Time must be valid already."""
+    n = len(time_s)
+    if n < min_samples:
+        return [Problem("time_s", f"only {n} samples, at least {min_samples} needed")]
+    problems = []
+    dt_s = 1.0 / plan.sample_rate_Hz
+    duration_s = float(time_s[-1] - time_s[0])
+    need_s = plan.required_duration_s
+    if duration_s < (need_s - dt_s) * (1.0 - 1e-9):
+        problems.append(Problem("time_s", f"record lasts {duration_s:.6g} s, the {plan.waveform} plan needs "
+                                          f"{need_s:.6g} s (less one sample interval, {dt_s:.6g} s)"))
+    median_dt_s = float(np.median(np.diff(time_s)))
+    off = median_dt_s / dt_s - 1.0
+    if abs(off) > sample_rate_tolerance:
+        problems.append(Problem("time_s", f"median sample interval {median_dt_s:.6g} s is {off:+.1%} off "
+                                          f"1/sample_rate_Hz = {dt_s:.6g} s (tolerance {sample_rate_tolerance:.1%})"))
+    return problems
+
+
+def analysed_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec = WindowSpec(),
+                   motion_start_s: float = 0.0) -> list[tuple[str, float, float]]:
+    """(label, start, end) of the time spans whose samples the later stages use: the windows of a
+    triangle case at the motion start (windows.window_ranges), the whole record of a sine or free case."""
+    if plan.waveform != "triangle":
+        return [(f"the record (a {plan.waveform} record is used whole)", float(time_s[0]), float(time_s[-1]))]
+    half = plan.period_s / 2.0
+    out = []
+    for k, (t0, _t1, _sign) in enumerate(windowed_half_periods(plan, float(time_s[-1]), spec, motion_start_s), 1):
+        a, b = t0 + spec.start_fraction * half, t0 + spec.end_fraction * half
+        out.append((f"the window of segment {k} (t = {a:.6g} .. {b:.6g} s)", a, b))
+    return out
+
+
+def _inside(spans, a: float, b: float) -> str | None:
+    """The label of the first span that [a, b] overlaps."""
+    return next((label for label, s0, s1 in spans if a <= s1 and b >= s0), None)
+
+
+def gap_problems(df: pd.DataFrame, plan: CasePlan, spans, max_gap_samples: int = MAX_GAP_SAMPLES
+                 ) -> tuple[list[Problem], list[str]]:
+    """Missing samples: a sample interval above GAP_FACTOR/sample_rate_Hz. A gap inside an analysed
+    span, or missing more than ``max_gap_samples``, is a problem (the first one, at the row after
+    the gap); other gaps are warnings."""
+    t = df["time_s"].to_numpy()
+    rows = df["row"].to_numpy()
+    dt_s = 1.0 / plan.sample_rate_Hz
+    warnings = []
+    for j in np.flatnonzero(np.diff(t) > GAP_FACTOR * dt_s):
+        ta, tb = float(t[j]), float(t[j + 1])
+        missing = max(int(round((tb - ta) / dt_s)) - 1, 1)
+        what = (f"gap in time: {missing} sample(s) missing between t = {ta:.6g} s and {tb:.6g} s "
+                f"(interval {tb - ta:.6g} s, 1/sample_rate_Hz = {dt_s:.6g} s)")
+        where = _inside(spans, ta, tb)
+        if where is not None:
+            return [Problem("time_s", f"{what}, inside {where}", row=int(rows[j + 1]))], warnings
+        if missing > max_gap_samples:
+            return [Problem("time_s", f"{what}, more than the {max_gap_samples} tolerated outside the windows",
+                            row=int(rows[j + 1]))], warnings
+        warnings.append(f"{missing} sample(s) missing at t = {ta + dt_s:.6g} s (outside windows)")
+    return [], warnings
+
+
+def saturation_problems(df: pd.DataFrame, spans, min_run: int = SATURATION_MIN_RUN
+                        ) -> tuple[list[Problem], list[str]]:
+    """Flat tops: ``min_run`` or more consecutive identical samples at the maximum or minimum of the
+    force or displacement channel (a load cell or LVDT at the end of its range). Inside an analysed
+    span a problem (first run, its first row), outside a warning."""
+    t = df["time_s"].to_numpy()
+    rows = df["row"].to_numpy()
+    problems, warnings = [], []
+    for column, unit in (("force_N", "N"), ("displacement_m", "m")):
+        x = df[column].to_numpy()
+        runs = []
+        for side, extreme in (("maximum", x.max()), ("minimum", x.min())):
+            at = np.concatenate([[False], x == extreme, [False]])
+            edges = np.flatnonzero(np.diff(at.astype(np.int8)))
+            runs += [(i0, i1, side, extreme) for i0, i1 in zip(edges[::2], edges[1::2]) if i1 - i0 >= min_run]
+        for i0, i1, side, extreme in sorted(runs, key=lambda r: r[0]):
+            ta, tb = float(t[i0]), float(t[i1 - 1])
+            what = (f"saturated: {i1 - i0} consecutive samples at the {side} {extreme:.6g} {unit} "
+                    f"(t = {ta:.6g} .. {tb:.6g} s)")
+            where = _inside(spans, ta, tb)
+            if where is not None:
+                problems.append(Problem(column, f"{what}, inside {where}", row=int(rows[i0])))
+                break
+            warnings.append(f"{column} {what}, outside windows")
+    return problems, warnings
+
+
+def _times(ratio: float) -> str:
+    return f"{ratio:.3g}" if ratio < 100 else f"{ratio:.0f}"
+
+
+def _first_row(df: pd.DataFrame, mask: np.ndarray) -> int | None:
+    return int(df["row"].iloc[int(np.argmax(mask))]) if mask.any() else None
+
+
+def plausibility_problems(df: pd.DataFrame, plan: CasePlan, damper: Damper | None) -> list[Problem]:
+    """Magnitudes that betray a wrong declared unit (values are never rescaled).
+
+    Force: the median |force| against the nominal model (Eq. 31) at the planned velocity of a
+    triangle case (both ways) or the peak velocity of a sine case (too large only: compressibility
+    makes a loop's force small), and against the piston area times MAX_PRESSURE_PA. Displacement
+    and command: the amplitude (max - min)/2 against the planned amplitude. The row is the first
+    sample beyond the plausible bound (None for too small values).
+    """
+    problems = []
+    f = np.abs(df["force_N"].to_numpy())
+    median = float(np.median(f))
+    if damper is not None:
+        limit = damper.piston_area_m2 * MAX_PRESSURE_PA
+        v = {"triangle": plan.velocity_m_s, "sine": 2 * np.pi * plan.frequency_Hz * plan.amplitude_m}.get(
+            plan.waveform, np.nan)
+        nominal = abs(float(nominal_force(v, damper))) if np.isfinite(v) and v != 0 else np.nan
+        ratio = median / nominal if nominal > 0 else np.nan
+        said = (f"median |force| {median:.4g} N is {_times(ratio)} x the nominal model's {nominal:.4g} N at the "
+                f"planned {abs(v) * 1e3:.4g} mm/s (Eq. 31)") if np.isfinite(ratio) else f"median |force| {median:.4g} N"
+        bounds = []
+        if ratio > FORCE_RATIO_MAX:
+            bounds.append(FORCE_RATIO_MAX * nominal)
+        if median > limit:
+            bounds.append(limit)
+            said += f"{' and' if np.isfinite(ratio) else ''} above the physical limit {limit:.4g} N " \
+                    f"(piston area x {MAX_PRESSURE_PA / 1e6:g} MPa)"
+        if bounds:
+            problems.append(Problem("force_N", f"{said}: implausibly large, a unit mix-up "
+                                               "(e.g. values in N declared as kN)?",
+                                    row=_first_row(df, f > min(bounds))))
+        elif plan.waveform == "triangle" and ratio < FORCE_RATIO_MIN:
+            problems.append(Problem("force_N", f"{said}: implausibly small, a unit mix-up "
+                                               "(e.g. values in kN declared as N)?"))
+    amplitude = plan.amplitude_m
+    if np.isfinite(amplitude) and amplitude > 0:
+        for column in ("displacement_m", "command_m"):
+            if column not in df:
+                continue
+            y = df[column].to_numpy()
+            mid, amp = (y.max() + y.min()) / 2.0, (y.max() - y.min()) / 2.0
+            ratio = amp / amplitude
+            said = f"amplitude {amp * 1e3:.4g} mm is {_times(ratio)} x the planned {amplitude * 1e3:.4g} mm"
+            if ratio > AMPLITUDE_RATIO:
+                problems.append(Problem(column, f"{said}: implausibly large, a unit mix-up (e.g. values in um "
+                                                "declared as mm, or in mm declared as m)?",
+                                        row=_first_row(df, np.abs(y - mid) > AMPLITUDE_RATIO * amplitude)))
+            elif ratio < 1.0 / AMPLITUDE_RATIO:
+                problems.append(Problem(column, f"{said}: implausibly small, a unit mix-up (e.g. values in m "
+                                                "declared as mm, or in mm declared as um)?"))
+    return problems
+
+
+def _pct(x: float) -> str:
+    return f"{x:+.1%}"
+
+
+def motion_problems(motion: Motion, plan: CasePlan) -> tuple[list[Problem], list[str]]:
+    """The measured motion against the plan (Eq. 26): (problems, flagged-but-usable warnings).
+
+    Displacement against the plan in every half-period (an inverted LVDT), the mean speed off the
+    plan by more than MAX_VELOCITY_ERROR, or an rms departure beyond MAX_MOTION_RMS_FRACTION of the
+    amplitude (noise removed) quarantine, in that order (one problem for the column). One
+    half-period off its speed while the mean holds, and a motion start more than TIME_OFFSET_NOTE_S
+    from t = 0, are warnings.
+    """
+    problems, warnings = [], []
+    w_mm_s = plan.velocity_m_s * 1e3
+    ratios = motion.velocity_ratios
+    measured = np.isfinite(ratios)
+    speeds = ", ".join(f"{v * 1e3:+.4g}" for v in motion.velocities_m_s)
+    planned = ", ".join(f"{v * 1e3:+.4g}" for v in motion.planned_velocities_m_s)
+    if measured.any() and (ratios[measured] < 0).all():
+        problems.append(Problem("displacement_m", f"the displacement moves against the plan in every half-period "
+                                                  f"(measured {speeds} mm/s, planned {planned} mm/s): {INVERT_HINT} "
+                                                  "to the manifest's `displacement` column"))
+    elif abs(motion.velocity_ratio - 1.0) > MAX_VELOCITY_ERROR:
+        problems.append(Problem("displacement_m", f"measured piston speed {motion.velocity_ratio * w_mm_s:.4g} mm/s "
+                                                  f"(mean |v| of the half-periods: {speeds} mm/s) is "
+                                                  f"{_pct(motion.velocity_ratio - 1.0)} off the planned 4Y/T = "
+                                                  f"{w_mm_s:.4g} mm/s (Eq. 26; tolerance {MAX_VELOCITY_ERROR:.0%}): a "
+                                                  "wrong period_s or amplitude in the manifest, or a wrong LVDT "
+                                                  "scale?"))
+    elif motion.excess_rms_m > MAX_MOTION_RMS_FRACTION * plan.amplitude_m:
+        problems.append(Problem("displacement_m", f"the displacement departs from the planned triangle (Eq. 26, "
+                                                  f"shifted to the measured motion start t = "
+                                                  f"{motion.motion_start_s:.6g} s) by {motion.rms_m * 1e3:.4g} mm "
+                                                  f"rms, {motion.excess_rms_m / plan.amplitude_m:.1%} of the "
+                                                  f"{plan.amplitude_m * 1e3:.4g} mm amplitude beyond the LVDT "
+                                                  f"noise {motion.noise_m * 1e3:.2g} mm (tolerance "
+                                                  f"{MAX_MOTION_RMS_FRACTION:.0%})"))
+    else:
+        for k in np.flatnonzero(measured & (np.abs(np.abs(ratios) - 1.0) > MAX_VELOCITY_ERROR)):
+            warnings.append(f"half-period {k + 1} moves at {motion.velocities_m_s[k] * 1e3:+.4g} mm/s, "
+                            f"{_pct(abs(ratios[k]) - 1.0)} off the planned {w_mm_s:.4g} mm/s")
+    if abs(motion.motion_start_s) > TIME_OFFSET_NOTE_S:
+        first = motion.motion_start_s - motion.delay_s
+        warnings.append(f"time axis offset: the motion starts at t = {motion.motion_start_s:.6g} s of the record "
+                        f"(first sample at t = {first:.6g} s, delay {motion.delay_s * 1e3:.3g} ms); windows "
+                        "aligned to the measured motion")
+    return problems, warnings
+
+
+def window_problems(df: pd.DataFrame, plan: CasePlan, motion: Motion, spec: WindowSpec = WindowSpec()
+                    ) -> list[Problem]:
+    """The four windows at the measured motion start: that they fit the record, and the force's sign.
+
+    A record that does not hold the windows at the motion start (a delay too large, a record cut
+    short) is a ``time_s`` problem; a mean force against the measured velocity in every window,
+    each mean FORCE_SIGN_SIGMAS standard errors from zero, is a ``force_N`` problem with the
+    INVERT_HINT (Force resists positive velocity: raw-campaign spec, "Waveforms and signs").
+    """
+    try:
+        rows = case_windows(plan, df, spec, motion.motion_start_s)
+    except ValueError as exc:
+        said = str(exc).removeprefix(f"case {plan.case}: ")
+        return [Problem("time_s", f"the windows do not fit the record at the measured motion start, "
+                                  f"{motion.delay_s * 1e3:.4g} ms after the first sample: {said}")]
+    forces = np.array([r["force_N"] for r in rows])
+    velocities = np.array([r["velocity_m_s"] for r in rows])
+    se = np.array([r["force_std_N"] / math.sqrt(r["n_samples"]) for r in rows])
+    if np.all(forces * velocities < 0) and np.all(np.abs(forces) > FORCE_SIGN_SIGMAS * se):
+        pairs = ", ".join(f"{f:+.4g} N at {v * 1e3:+.4g} mm/s" for f, v in zip(forces, velocities))
+        row = int(rows[0]["row_start"])
+        return [Problem("force_N", f"the mean force opposes the measured velocity in all four windows ({pairs}): "
+                                   f"{INVERT_HINT} to the manifest's `force` column", row=row)]
+    return []
+
+
+@dataclass(frozen=True)
+class CaseCheck:
+    """What the checks of one case found: problems, flagged-but-usable warnings, the measured motion
+    (None unless a triangle case got as far as the motion check)."""
+
+    problems: list[Problem]
+    warnings: list[str]
+    motion: Motion | None = None
+
+
+def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+               min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
+               window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES) -> CaseCheck:
+    """All checks of one canonical time series.
+
+    The schema first, then the record (length, sample rate); then the measured motion of a triangle
+    case, whose start places the windows; then gaps, saturation, plausibility, the motion against
+    the plan and the windows (fit, force sign); each step only once the previous ones hold (at most
+    one problem per column, the first found).
+    """
+    problems = timeseries_problems(df) or record_problems(df["time_s"].to_numpy(), plan, sample_rate_tolerance,
+                                                          min_samples)
+    if problems:
+        return CaseCheck(problems, [])
+    t = df["time_s"].to_numpy()
+    motion, start_s = None, 0.0
+    if plan.waveform == "triangle":
+        motion = estimate_motion(t, df["displacement_m"].to_numpy(), plan)
+        start_s = motion.motion_start_s
+    spans = analysed_spans(plan, t, window_spec, start_s)
+    gaps, warnings = gap_problems(df, plan, spans, max_gap_samples)
+    flat, flat_warnings = saturation_problems(df, spans)
+    found: dict[str, Problem] = {}
+    later, motion_warnings = [], []
+    if motion is not None:
+        later, motion_warnings = motion_problems(motion, plan)
+        windows = window_problems(df, plan, motion, window_spec)
+        # with the displacement inverted, the force is checked against a velocity of the wrong sign
+        inverted = any(INVERT_HINT in p.message for p in later)
+        later += [p for p in windows if not (inverted and p.column == "force_N")]
+    for problem in gaps + flat + plausibility_problems(df, plan, damper) + later:
+        found.setdefault(problem.column, problem)
+    return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings, motion)
+
+
+def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
+                window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES
+                ) -> tuple[list[Problem], list[str]]:
+    """(problems, flagged-but-usable warnings) of :func:`check_case`."""
+    found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, max_gap_samples)
+    return found.problems, found.warnings
+
+
+def case_problems(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+                  min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
+                  window_spec: WindowSpec = WindowSpec()) -> list[Problem]:
+    """The problems of :func:`check_case` (warnings dropped)."""
+    return check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec).problems
+
+
+def motion_columns(motion: Motion | None, plan: CasePlan) -> dict[str, float]:
+    """The MOTION_COLUMNS of cases.parquet: motion_start_s (record time of the plan's t = 0),
+    delay_s (motion start - first time stamp), velocity_ratio (mean measured |v| / planned 4Y/T),
+    motion_rms_m (rms departure of the displacement from the planned triangle at the motion start,
+    noise included); NaN without a measured motion."""
+    if motion is None:
+        return dict.fromkeys(MOTION_COLUMNS, math.nan)
+    return {"motion_start_s": motion.motion_start_s, "delay_s": motion.delay_s,
+            "velocity_ratio": motion.velocity_ratio, "motion_rms_m": motion.rms_m}
+
+
+def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
+                      min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
+                      max_gap_samples: int = MAX_GAP_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Check every ``ok`` case of ``<campaign_root>/ingest``.
+
+    Returns (cases, quarantine): all cases with their final status and ``quality`` (the ingest's
+    warnings followed by this stage's, 'ok' when none, 'quarantined') and the measured motion of
+    each triangle case (MOTION_COLUMNS, :func:`motion_columns`), and the ingest's
+    quarantine rows followed by this stage's (``stage="validate"``). Each warning is logged.
+    """
+    ingested = read_ingested(campaign_root)
+    campaign = ingested.meta["campaign"]
+    damper = ingested.damper
+    cases = ingested.cases.copy()
+    if "quality" not in cases:
+        cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
+    cases["quality"] = cases["quality"].fillna("ok").astype(str)
+    for column in MOTION_COLUMNS:
+        cases[column] = math.nan
+    rows = []
+    for i, row in cases[cases["status"] == "ok"].iterrows():
+        df = pd.read_parquet(ingested.root / row["timeseries_file"])
+        plan = case_plan(row)
+        found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, max_gap_samples)
+        problems, warnings = found.problems, found.warnings
+        for column, value in motion_columns(found.motion, plan).items():
+            cases.loc[i, column] = value
+        if problems:
+            cases.loc[i, ["status", "quality"]] = ["quarantined", "quarantined"]
+            rows += quarantine_rows(campaign, row["case"], "validate", problems)
+        elif warnings:
+            earlier = [] if row["quality"] == "ok" else [row["quality"]]
+            cases.loc[i, "quality"] = "; ".join(earlier + warnings)
+        if not problems and cases.loc[i, "quality"] != "ok":
+            log.warning("flagged (usable) at validate: campaign %s, case %s: %s", campaign, row["case"],
+                        cases.loc[i, "quality"])
+    quarantine = ingested.quarantine
+    if rows:
+        new = quarantine_frame(rows)
+        quarantine = new if quarantine.empty else pd.concat([quarantine, new], ignore_index=True)
+    return cases, quarantine
+
+
+def write_validated(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
+                    min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
+                    max_gap_samples: int = MAX_GAP_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Validate and write ``<campaign_root>/cases.parquet`` and ``quarantine.parquet``."""
+    root = Path(campaign_root)
+    cases, quarantine = validate_campaign(root, sample_rate_tolerance, min_samples, window_spec, max_gap_samples)
+    write_parquet(tables.validate_table(quarantine, tables.QUARANTINE), root / "quarantine.parquet")
+    write_parquet(tables.validate_table(cases, tables.CASES), root / "cases.parquet")
+    return cases, quarantine

@@ -1,0 +1,171 @@
+"""Window extraction (Sec. 4.4): one steady point per constant-velocity half-period.
+
+For each triangle case the four complete half-periods of its two-period record are found
+from the plan (Eq. 26), placed on the record's own time axis at the measured motion start
+(``motion_start_s`` of cases.parquet, :mod:`isokinetic.measurement.motion`; 0 when absent), and the samples
+in [start_fraction, end_fraction]·T/2 of each are reduced to the mean force, its standard
+deviation, and the velocity of a least-squares line through the displacement.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from isokinetic.contracts import tables
+from isokinetic.contracts.campaign import case_plan
+from isokinetic.physics.plan import CasePlan, half_periods
+
+#: Minimum samples a window must hold for a mean, a standard deviation and a line fit.
+MIN_WINDOW_SAMPLES = 3
+
+
+@dataclass(frozen=True)
+class WindowSpec:
+    """Window as fractions of the half-period T/2 (paper: [0.45, 0.95])."""
+
+    start_fraction: float = 0.45
+    end_fraction: float = 0.95
+
+    def __post_init__(self):
+        if not 0.0 <= self.start_fraction < self.end_fraction <= 1.0:
+            raise ValueError(f"window fractions must satisfy 0 <= start < end <= 1, got "
+                             f"[{self.start_fraction}, {self.end_fraction}]")
+
+
+def line_slope(t, y) -> float:
+    """Least-squares slope of y against t (the window's piston velocity)."""
+    tc = t - t.mean()
+    return float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
+
+
+def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec = WindowSpec(),
+                          motion_start_s: float = 0.0):
+    """The first four half-periods (rows t_start, t_end, sign) whose window ends within the record.
+
+    Times are on the record's axis: the plan's (Eq. 26) plus ``motion_start_s``, the record time at
+    which the plan's t = 0 lies (0: plan time is record time). A turning point within one sample
+    interval of the plan's t = 0 counts (a rounded phase such as -1.5707963 loses no half-period).
+    A half-period counts when its window [start, end]·T/2 lies before the record's last sample
+    ``t_end_s``; the rest of it need not be recorded (a record ending one sample before 2T still
+    holds four windows).
+    """
+    half = plan.period_s / 2.0
+    rows = half_periods(plan.period_s, plan.phase_rad, t_end_s - motion_start_s + (1.0 - spec.end_fraction) * half,
+                        tolerance_s=1.0 / plan.sample_rate_Hz)[:4]
+    rows[:, :2] += motion_start_s
+    return rows
+
+
+def time_tolerance_s(plan: CasePlan) -> float:
+    """A sample this close to a window edge is on it (float rounding of shifted time axes) [s]."""
+    return 1e-6 / plan.sample_rate_Hz
+
+
+def window_ranges(plan: CasePlan, t, spec: WindowSpec = WindowSpec(),
+                  motion_start_s: float = 0.0) -> list[tuple[int, float, int, int]]:
+    """(segment 1-4, sign, i0, i1) of the four windows of a triangle record with sample times ``t``.
+
+    The samples [i0, i1) lie in motion_start_s + [t0 + start_fraction·T/2, t0 + end_fraction·T/2]
+    of each of the first four half-periods (t0 its start in plan time, Eq. 26;
+    :func:`windowed_half_periods`); ``motion_start_s`` is the record time of the plan's t = 0
+    (0, the default: ``t`` is plan time, as on a model grid). Raises ValueError when the record does
+    not hold four windows, a window starts before the first sample, or a window holds fewer than
+    MIN_WINDOW_SAMPLES samples. Shared by the measured windows and the model run through the plan,
+    so both use the same samples.
+    """
+    segments = windowed_half_periods(plan, float(t[-1]), spec, motion_start_s)
+    if len(segments) < 4:
+        aligned = f" (motion start at t = {motion_start_s:.6g} s)" if motion_start_s != 0.0 else ""
+        raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds the windows of {len(segments)} "
+                         f"half-periods of T = {plan.period_s:.6g} s{aligned}, 4 needed")
+    half = plan.period_s / 2.0
+    eps = time_tolerance_s(plan)
+    out = []
+    for k, (t0, _t1, sign) in enumerate(segments, start=1):
+        a, b = t0 + spec.start_fraction * half, t0 + spec.end_fraction * half
+        if a < t[0] - eps:
+            raise ValueError(f"case {plan.case}: window of segment {k} starts at t = {a:.6g} s, before the "
+                             f"record's first sample at {t[0]:.6g} s (motion start at t = {motion_start_s:.6g} s)")
+        i0 = int(np.searchsorted(t, a - eps, side="left"))
+        i1 = int(np.searchsorted(t, b + eps, side="right"))
+        if i1 - i0 < MIN_WINDOW_SAMPLES:
+            raise ValueError(f"case {plan.case}: window of segment {k} holds {i1 - i0} samples, "
+                             f"{MIN_WINDOW_SAMPLES} needed")
+        out.append((k, float(sign), i0, i1))
+    return out
+
+
+def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec(),
+                 motion_start_s: float = 0.0) -> list[dict]:
+    """The four windows of one triangle case as rows (segment, direction, period, statistics).
+
+    Cut at ``motion_start_s`` + the plan's window times (:func:`window_ranges`); window_start_s and
+    window_end_s are on the record's time axis, velocity_m_s is the measured slope in the window.
+    Raises ValueError as :func:`window_ranges` does.
+    """
+    t = series["time_s"].to_numpy()
+    y = series["displacement_m"].to_numpy()
+    f = series["force_N"].to_numpy()
+    rows = series["row"].to_numpy()
+    out = []
+    for k, sign, i0, i1 in window_ranges(plan, t, spec, motion_start_s):
+        tw, fw = t[i0:i1], f[i0:i1]
+        out.append({
+            "case": plan.case,
+            "segment": k,
+            "direction": "+" if sign > 0 else "-",
+            "period": (k + 1) // 2,
+            "planned_velocity_m_s": sign * plan.velocity_m_s,
+            "velocity_m_s": line_slope(tw, y[i0:i1]),
+            "force_N": float(fw.mean()),
+            "force_std_N": float(fw.std(ddof=1)),
+            "n_samples": i1 - i0,
+            "window_start_s": float(tw[0]),
+            "window_end_s": float(tw[-1]),
+            "row_start": int(rows[i0]),
+            "row_stop": int(rows[i1 - 1]) + 1,
+        })
+    return out
+
+
+def motion_start_of(case) -> float:
+    """``motion_start_s`` of a cases-table row: the record time of the plan's t = 0 (0 when the
+    column is absent or NaN, as in tables written before it existed)."""
+    value = case.get("motion_start_s") if hasattr(case, "get") else None
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        return 0.0
+    return value if math.isfinite(value) else 0.0
+
+
+def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
+    """Windows of every status-ok triangle case of a cases table (tables.WINDOWS), cut at each case's
+    ``motion_start_s`` (0 when the table has no such column).
+
+    ``load_series(case_row)`` returns the case's canonical time series.
+    """
+    rows = []
+    ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
+    for _, case in ok.iterrows():
+        for row in case_windows(case_plan(case), load_series(case), spec, motion_start_of(case)):
+            row.update(campaign=case["campaign"], raw_file=case["raw_file"], raw_sha256=case["raw_sha256"],
+                       quality=case.get("quality", "ok") if isinstance(case.get("quality"), str) else "ok")
+            rows.append(row)
+    columns = list(tables.WINDOWS.columns)
+    df = pd.DataFrame(rows, columns=columns) if rows else tables.empty(tables.WINDOWS).reindex(columns=columns)
+    df = df.astype({"segment": "int64", "period": "int64", "n_samples": "int64",
+                    "row_start": "int64", "row_stop": "int64"})
+    return tables.validate_table(df[columns], tables.WINDOWS)
+
+
+def windows_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
+    """Windows of a validated campaign folder ``results/<campaign>/`` (reads cases.parquet)."""
+    root = Path(campaign_root)
+    cases = pd.read_parquet(root / "cases.parquet")
+    return extract_windows(cases, lambda case: pd.read_parquet(root / case["timeseries_file"]), spec)

@@ -1,0 +1,74 @@
+"""raw_check: every raw file a processed campaign read still has the sha256 recorded at ingest."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from conftest import CAMPAIGN
+from isokinetic.__main__ import main
+from isokinetic.audit.raw_check import RawDataChanged, check_raw, raw_changes
+
+
+def test_unchanged_campaign(raw_campaign, capsys):
+    raw_campaign.run()
+    assert raw_changes(raw_campaign.root) == []
+    assert check_raw(raw_campaign.root, raw_campaign.root / "raw_check.json") == []
+    assert json.loads((raw_campaign.root / "raw_check.json").read_text())["ok"] is True
+    assert main(["raw-check", str(raw_campaign.root)]) == 0 and capsys.readouterr().out == ""
+
+
+def test_changed_and_missing_files(raw_campaign, capsys):
+    raw_campaign.run()
+    t01 = raw_campaign.raw_dir / "T01.csv"
+    t01.write_bytes(t01.read_bytes().replace(b"0", b"1", 1))           # one digit
+    (raw_campaign.raw_dir / "H01.csv").unlink()
+    manifest = raw_campaign.raw_dir / "campaign.yaml"
+    manifest.write_bytes(manifest.read_bytes() + b"\n")                 # even a trailing newline
+    changes = raw_changes(raw_campaign.root)
+    assert [(c["path"], c["role"], c["case"], c["problem"]) for c in changes] == [
+        (f"data/raw/{CAMPAIGN}/campaign.yaml", "manifest", None, "changed"),
+        (f"data/raw/{CAMPAIGN}/T01.csv", "case", "T01", "changed"),
+        (f"data/raw/{CAMPAIGN}/H01.csv", "case", "H01", "missing"),
+    ]
+    assert all(len(c["sha256_recorded"]) == 64 for c in changes)
+    with pytest.raises(RawDataChanged, match=r"campaign demo: raw file data/raw/demo/T01.csv has sha256 \w{12}\.\. "
+                                             r"now, \w{12}\.\. recorded at ingest") as info:
+        check_raw(raw_campaign.root, raw_campaign.root / "raw_check.json")
+    assert "raw file data/raw/demo/H01.csv is missing" in str(info.value)
+    record = json.loads((raw_campaign.root / "raw_check.json").read_text())
+    assert record["ok"] is False and len(record["changes"]) == 3
+    assert main(["raw-check", str(raw_campaign.root)]) == 1
+    assert len(capsys.readouterr().out.splitlines()) == 3
+
+
+def test_quarantined_case_without_hash_is_not_checked(raw_campaign):
+    (raw_campaign.raw_dir / "F01.csv").unlink()     # quarantined at ingest: no sha256 recorded
+    raw_campaign.run()
+    assert raw_changes(raw_campaign.root) == []
+
+
+def test_after_validate_only_ingest(raw_campaign):
+    """Works on the ingest folder alone (before validate wrote cases.parquet)."""
+    from isokinetic.stages.ingest import ingest_campaign
+    ingest_campaign(raw_campaign.raw_dir, raw_campaign.root)
+    (raw_campaign.raw_dir / "T02.csv").write_text("tampered\n")
+    assert [c["case"] for c in raw_changes(raw_campaign.root)] == ["T02"]
+
+
+def test_simulated_campaign_has_nothing_on_disk(tmp_path):
+    root = tmp_path / "results" / "sim"
+    (root / "ingest").mkdir(parents=True)
+    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "sim", "lineage": {"rule": "virtual_rig"}}))
+    assert raw_changes(root) == []
+    assert raw_changes(Path(tmp_path / "nothing")) == []
+
+
+def test_help_lists_every_command_on_one_line(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    for name in ("export-virtual", "trace", "raw-check"):
+        assert [line for line in out.splitlines() if line.split()[:1] == [name] and len(line.split()) > 2], out

@@ -1,0 +1,182 @@
+"""Fig. 7-12 (isokinetic.plots.figures): structure and data of each figure."""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from isokinetic.plots import figures
+from plots.synthetic import synthetic_campaign
+
+MM = 1e3
+
+
+@pytest.fixture(scope="module")
+def camp():
+    return synthetic_campaign()
+
+
+def _lines(ax, gid):
+    return [ln for ln in ax.get_lines() if ln.get_gid() == gid]
+
+
+def _n_points(lines):
+    return sum(len(ln.get_xdata()) for ln in lines)
+
+
+def _has_unit(label):
+    return re.search(r"\[[^\]]+\]$", label) is not None
+
+
+# ----------------------------------------------------------------------------------------------
+# Fig. 7 and 8
+# ----------------------------------------------------------------------------------------------
+
+def test_time_and_loops_draws_time_and_loop_panel_per_case(camp):
+    cases, series, _, _ = camp
+    ids = ["T02", "T05", "T09"]
+    fig = figures.time_and_loops(cases, series, ids)
+    main = [ax for ax in fig.axes if _lines(ax, "force") or _lines(ax, "loop")]
+    assert len(main) == 6
+    loops = [ax for ax in main if _lines(ax, "loop")]
+    for ax, case in zip(loops, ids, strict=True):
+        assert len(_lines(ax, "loop")[0].get_xdata()) == len(series[case])
+        assert ax.get_xlabel() == "Displacement y [mm]" and _has_unit(ax.get_ylabel())
+    twins = [ax for ax in fig.axes if _lines(ax, "displacement")]
+    assert len(twins) == 3 and all(ax.get_ylabel() == "Displacement y [mm]" for ax in twins)
+    assert "synthetic-damper" in fig.get_suptitle()
+
+
+def test_time_and_loops_states_missing_series(camp):
+    cases, series, _, _ = camp
+    fig = figures.time_and_loops(cases, {"T02": series["T02"]}, ["T02", "T05"])
+    texts = [t.get_text() for ax in fig.axes for t in ax.texts]
+    assert any("T05: time series missing" in t for t in texts)
+
+
+def test_window_selection_highlights_each_window_and_its_mean(camp):
+    cases, series, windows, _ = camp
+    w = windows[windows["case"] == "T05"]
+    fig = figures.window_selection(cases.set_index("case").loc["T05"].rename("T05").to_dict() | {"case": "T05"},
+                                   series["T05"], w)
+    ax = next(a for a in fig.axes if _lines(a, "window"))
+    win_lines = _lines(ax, "window")
+    assert len(win_lines) == len(w) == 4
+    for ln, (_, row) in zip(win_lines, w.sort_values("window_start_s").iterrows(), strict=True):
+        x = np.asarray(ln.get_xdata())
+        assert len(x) == row["n_samples"]
+        assert row["window_start_s"] <= x.min() and x.max() <= row["window_end_s"]
+    scale = 1e3 if ax.get_ylabel().endswith("[kN]") else 1.0
+    means = [ln.get_ydata()[0] for ln in _lines(ax, "window-mean")]
+    np.testing.assert_allclose(means, w.sort_values("window_start_s")["force_N"] / scale)
+    assert len(_lines(ax, "window-std")) == 8
+    fits = [ln for a in fig.axes for ln in _lines(a, "velocity-fit")]
+    assert len(fits) == 4
+    assert ax.get_xlabel() == "Time t [s]" and ax.get_legend() is not None
+
+
+# ----------------------------------------------------------------------------------------------
+# Fig. 9 and 10
+# ----------------------------------------------------------------------------------------------
+
+def test_characteristic_plots_one_point_per_window(camp):
+    *_, char = camp
+    fig = figures.characteristic(char)
+    ax = fig.axes[0]
+    p1, p2 = _lines(ax, "period1"), _lines(ax, "period2")
+    assert _n_points(p1) + _n_points(p2) == len(char)
+    assert _n_points(p1) == (char["period"] == 1).sum()
+    assert max(ln.get_zorder() for ln in p2) < min(ln.get_zorder() for ln in p1)
+    assert all(ln.get_linewidth() > 3 for ln in p2)
+    x = np.concatenate([ln.get_xdata() for ln in p1])
+    assert x.min() < 0 < x.max()  # both quadrants
+    assert ax.get_xlabel() == "Piston velocity v [mm/s]" and ax.get_ylabel() == "Steady force F [kN]"
+    assert ax.get_legend() is not None and "synthetic-damper" in fig.get_suptitle()
+
+
+def test_characteristic_rings_repeatability_flagged_points(camp):
+    *_, char = camp
+    flagged = char.assign(repeatability_flagged=char["case"] == "T03")
+    ax = figures.characteristic(flagged).axes[0]
+    assert _n_points(_lines(ax, "flagged")) == (flagged["case"] == "T03").sum()
+
+
+def test_low_velocity_detail_default_is_slowest_third_with_intercepts(camp):
+    *_, char = camp
+    ax = figures.low_velocity_detail(char).axes[0]
+    shown = _n_points(_lines(ax, "period1")) + _n_points(_lines(ax, "period2"))
+    assert shown == 3 * 4  # 9 cases -> slowest 3, four windows each
+    x = np.concatenate([ln.get_xdata() for ln in _lines(ax, "period1")])
+    slowest_3 = char.groupby("case")["velocity_m_s"].apply(lambda s: s.abs().max()).sort_values().iloc[2]
+    assert np.abs(x).max() <= slowest_3 * MM
+    f0 = sorted(ln.get_ydata()[0] for ln in _lines(ax, "intercept"))
+    assert f0[0] < 0 < f0[1]  # non-zero force of either sign as v -> 0
+    mirrored = _lines(ax, "mirrored")[0]
+    assert (np.asarray(mirrored.get_xdata()) > 0).all() and (np.asarray(mirrored.get_ydata()) > 0).all()
+    assert ax.get_ylabel() == "Steady force F [N]"
+
+
+def test_low_velocity_detail_v_max_keeps_rows_below(camp):
+    *_, char = camp
+    v_max = 1e-4
+    ax = figures.low_velocity_detail(char, v_max_m_s=v_max).axes[0]
+    shown = _n_points(_lines(ax, "period1")) + _n_points(_lines(ax, "period2"))
+    assert shown == (char["velocity_m_s"].abs() <= v_max).sum()
+
+
+# ----------------------------------------------------------------------------------------------
+# Fig. 11 and 12
+# ----------------------------------------------------------------------------------------------
+
+def test_loglog_folds_quadrant3_into_quadrant1(camp):
+    *_, char = camp
+    ax = figures.loglog_characteristic(char).axes[0]
+    assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
+    q1, q3 = _lines(ax, "q1")[0], _lines(ax, "q3-folded")[0]
+    neg = char[(char["period"] == 1) & (char["direction"] == "-")]
+    assert len(q3.get_xdata()) == len(neg)
+    for ln in (q1, q3):
+        assert (np.asarray(ln.get_xdata()) > 0).all() and (np.asarray(ln.get_ydata()) > 0).all()
+    assert q1.get_marker() == "o" and q1.get_linestyle() == "-"
+    assert q3.get_marker() == "*" and q3.get_linestyle() == "--"
+    scale = 1e3 if ax.get_ylabel().endswith("[kN]") else 1.0
+    np.testing.assert_allclose(sorted(q3.get_ydata()), sorted(neg["force_N"].abs() / scale))
+
+
+def test_loglog_alpha_families_have_slopes_0_1_2(camp):
+    *_, char = camp
+    ax = figures.loglog_characteristic(char).axes[0]
+    for alpha in (0, 1, 2):
+        lines = _lines(ax, f"alpha-{alpha}")
+        assert len(lines) >= 3
+        for ln in lines:
+            x, y = np.log10(ln.get_xdata()), np.log10(ln.get_ydata())
+            assert np.polyfit(x, y, 1)[0] == pytest.approx(alpha, abs=1e-9)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert sum("C\u00b7v" in t for t in labels) == 3
+
+
+def test_noise_has_four_segment_lines_and_relative_std(camp):
+    *_, char = camp
+    fig = figures.noise(char)
+    top, bottom = fig.axes[:2]
+    n_cases = char["case"].nunique()
+    for seg in (1, 2, 3, 4):
+        std = _lines(top, f"std-seg{seg}")[0].get_ydata()
+        rel = _lines(bottom, f"rel-seg{seg}")[0].get_ydata()
+        assert len(std) == len(rel) == n_cases
+        seg_rows = char[char["segment"] == seg].set_index("case")
+        order = char.assign(a=char["velocity_m_s"].abs()).groupby("case")["a"].mean().sort_values().index
+        np.testing.assert_allclose(std, seg_rows.loc[order, "force_std_N"])
+        np.testing.assert_allclose(rel, 100 * seg_rows.loc[order, "force_std_N"] / seg_rows.loc[order, "force_N"].abs())
+    assert top.get_ylabel().endswith("[N]") and bottom.get_ylabel().endswith("[%]")
+    assert len(top.get_legend().get_texts()) == 4
+
+
+def test_char_figures_state_missing_data_on_empty_table():
+    empty = synthetic_campaign(n=1)[3].iloc[0:0]
+    for make in (figures.characteristic, figures.low_velocity_detail, figures.loglog_characteristic, figures.noise):
+        fig = make(empty, campaign="x")
+        assert any("no characteristic points" in t.get_text() for ax in fig.axes for t in ax.texts), make.__name__

@@ -1,0 +1,27 @@
+"""Fig. 15 (isokinetic.plots.harmonic): what the loops figure draws, and what it says when empty."""
+
+from __future__ import annotations
+
+from isokinetic.contracts import tables
+from isokinetic.plots.harmonic import harmonic_figure
+from isokinetic.stages.harmonic import harmonic_stage
+
+
+def _texts(fig) -> list[str]:
+    return [t.get_text() for ax in fig.axes for t in ax.texts]
+
+
+def test_figure_of_a_campaign_without_sine_or_free_cases_says_so():
+    fig = harmonic_figure(tables.empty(tables.HARMONIC), {}, campaign="demo")
+    assert any("no status-ok sine or free case" in s for s in _texts(fig))
+
+
+def test_figure_draws_every_case_with_its_points(raw_campaign):
+    cases, _ = raw_campaign.run()
+    table, loops = harmonic_stage(raw_campaign.root)
+    fig = harmonic_figure(table, loops, cases, campaign="demo", note="a note")
+    gids = {line.get_gid() for ax in fig.axes for line in ax.get_lines()}
+    assert {"loop-H01", "peak-to-peak-curve", "peak-to-peak-H01", "loop-F01", "binned-F01",
+            "peak-velocity-F01"} <= gids
+    assert len([ax for ax in fig.axes if ax.get_lines()]) == 2 * (1 + len(loops))
+    assert any("lags v by" in s for s in _texts(fig)) and fig._supxlabel.get_text() == "a note"

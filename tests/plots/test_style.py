@@ -1,0 +1,50 @@
+"""Shared figure helpers (isokinetic.plots.style): units, byte-stable PNGs and their text chunks."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from PIL import Image
+
+from isokinetic.plots import figures, style
+from plots.synthetic import synthetic_campaign
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def test_save_figure_gives_identical_bytes(tmp_path):
+    *_, char = synthetic_campaign()
+    a = style.save_figure(figures.characteristic(char), tmp_path / "a.png").read_bytes()
+    b = style.save_figure(figures.characteristic(char), tmp_path / "b.png").read_bytes()
+    assert a == b and a.startswith(PNG_MAGIC)
+
+
+def test_save_figure_writes_metadata_as_png_text_without_software_stamp(tmp_path):
+    fig = style.new_figure(2.0, 1.5)
+    fig.add_subplot().plot([0, 1, 2], [0, 1, 0])
+    plain = style.save_figure(fig, tmp_path / "plain.png")
+    stamped = style.save_figure(fig, tmp_path / "stamped.png", metadata={"lineage": '{"rule": "figures"}'})
+    with Image.open(plain) as im_plain, Image.open(stamped) as im_stamped:
+        assert "Software" not in im_plain.text and "Software" not in im_stamped.text
+        assert im_stamped.text["lineage"] == '{"rule": "figures"}'
+        assert np.array_equal(np.asarray(im_plain), np.asarray(im_stamped))
+        assert im_plain.size == (2 * style.DPI, int(1.5 * style.DPI))
+
+
+def test_force_unit_switches_to_kN_at_1_kN_and_ignores_non_finite():
+    assert style.force_unit([999.0, -20.0]) == (1.0, "N")
+    assert style.force_unit(np.array([10.0, -1000.0])) == (1e3, "kN")
+    assert style.force_unit(pd.Series([np.nan, np.inf, 5.0])) == (1.0, "N")
+    assert style.force_unit([]) == (1.0, "N")
+
+
+def test_footnote_wraps_to_the_figure_width_unless_asked_for_one_line():
+    text = "; ".join(f"note {i} about the data" for i in range(12))
+    wrapped, single = style.new_figure(8.0, 6.0), style.new_figure(8.0, 6.0)
+    style.footnote(wrapped, text)
+    style.footnote(single, text, width=0)
+    assert all(len(line) <= 80 for line in wrapped._supxlabel.get_text().split("\n"))
+    assert single._supxlabel.get_text() == text
+    empty = style.new_figure(8.0, 6.0)
+    style.footnote(empty, "")
+    assert empty._supxlabel is None

@@ -1,0 +1,151 @@
+"""The campaign page: its figures, numbers, the lineage of every number, and what it says when parts are missing."""
+
+from __future__ import annotations
+
+import base64
+import re
+from pathlib import Path
+
+import pandas as pd
+
+from isokinetic.io import write_parquet
+from isokinetic.report import browser, numbers, sources
+from isokinetic.report.campaign_report import render_campaign_report
+
+from .fixture_results import (
+    CAMPAIGN,
+    CAMPAIGN_FIGURES,
+    COMMIT,
+    DAMPER,
+    PLAN_REASON,
+    PROV_COMMIT,
+    QUARANTINE_REASON,
+    TIME_NOTE,
+    build_campaign,
+    characteristic,
+    diagnosis,
+    parse,
+    plain,
+    record,
+)
+
+
+def test_campaign_page_embeds_every_figure_and_nothing_external(built):
+    root = built / CAMPAIGN
+    page = (root / "report.html").read_text(encoding="utf-8")
+    assert browser.page_problems(page, browser.campaign_figure_files()) == []
+    images = {Path(a["data-file"]).name: a["src"] for a in parse(page).images}
+    assert sorted(images) == sorted(browser.campaign_figure_files())
+    for fig in CAMPAIGN_FIGURES:  # each figure is the file's own bytes, base64 in the page
+        assert base64.b64decode(images[Path(fig.path).name].split(",", 1)[1]) == (root / fig.path).read_bytes()
+    assert "<link" not in page and "http://" not in page and "https://" not in page
+    assert "<style>" in page and 'data-images-total' in page
+
+
+def test_campaign_page_shows_the_numbers(built):
+    root = built / CAMPAIGN
+    text = plain((root / "report.html").read_text(encoding="utf-8"))
+    models = pd.read_parquet(root / "models" / "models.parquet")
+    fc = models[(models["model"] == "wallaschek") & (models["parameter"] == "F_C")].iloc[0]
+    d = diagnosis()
+    expected = [
+        "Report fixture campaign", "rig", "40.00",                                # header
+        numbers.fmt_text(DAMPER["orifice_area_m2"]).split("e")[0],               # damper data
+        PLAN_REASON, "T03",                                                      # plan check
+        numbers.fmt_text(fc["estimate"]), numbers.fmt_text(fc["ci_low"]), numbers.fmt_text(fc["ci_high"]),
+        numbers.fmt_text(models.loc[models["kind"] == "derived", "estimate"].iloc[0]).split("e")[0],
+        "7.78 %",                                                                # flagged repeatability pair
+        "friction", numbers.fmt_text(d["gap_before"]), numbers.fmt_text(d["gap_after"]),
+        numbers.fmt_text(d["holdout_gap_after"]), numbers.fmt_text(d["shrink"]), "-43.2 %",   # diagnosis
+        "friction, air", "Confounded",                                           # confounded group
+        QUARANTINE_REASON,                                                       # quarantine
+        numbers.fmt_text(5539.8), "0.0953",                                       # harmonic
+        numbers.fmt_text(characteristic()["force_N"].iloc[0]),                    # a characteristic point
+        "delay [ms]", "motion start [s]", "23.4", "7.3234", "0.9987", TIME_NOTE,  # cases: measured motion
+    ]
+    missing = [e for e in expected if e not in text]
+    assert not missing, missing
+    for section in ("header", "plan", "cases", "characteristic", "repeatability", "models", "harmonic", "design",
+                    "diagnosis", "quarantine", "lineage"):
+        assert f'<section id="{section}">' in (root / "report.html").read_text(encoding="utf-8")
+
+
+def test_every_number_cell_names_its_file_rule_and_audit_command(built):
+    page = (built / CAMPAIGN / "report.html").read_text(encoding="utf-8")
+    cells = parse(page).cells
+    assert len(cells) > 100
+    for cell in cells:
+        title = cell["title"] or ""
+        source = re.search(r"results/demo/(\S+\.(?:parquet|json))", title)
+        assert source and "rule " in title, cell
+        # a value of a table trace re-derives carries the command that audits its row / key path
+        if Path(source.group(1)).name in sources.TRACEABLE and "counted by" not in title:
+            assert f"audit: python -m isokinetic trace results/demo/{source.group(1)} " in title, cell
+    # a characteristic point: its raw file and row range, the stamped record's commit and params hash
+    point = next(c for c in cells if "characteristic.parquet [case=T01,segment=1]" in c["title"])
+    params_sha = record("characteristic")["params_sha256"]
+    assert "raw data/raw/demo/T01.csv rows 100-150" in point["title"]
+    assert f"commit {COMMIT[:10]}" in point["title"] and f"params {params_sha[:10]}" in point["title"]
+    assert "rule characteristic" in point["title"]
+    # a fitted parameter: the rows the fit used; an unstamped table: said so, with its rule
+    fc = next(c for c in cells if "model=wallaschek,direction=both,parameter=F_C" in c["title"])
+    assert "fitted on 12 rows (case/segment)" in fc["title"] and "T01/1" in fc["title"]
+    rep = next(c for c in cells if "repeatability.parquet [case=T03,direction=-]" in c["title"])
+    assert "rule repeatability" in rep["title"] and "lineage not recorded" in rep["title"]
+    # the per-table lineage lines carry the audit command for a row
+    assert "python -m isokinetic trace results/demo/characteristic.parquet case=T01,segment=1" in page
+    # JSON values: the key path of the value; a quarantined case: audited through cases.parquet
+    assert any("trace results/demo/diagnosis.json where.0.mean_rel_error" in c["title"] for c in cells)
+    assert any("trace results/demo/diagnosis.json candidates.1.gap_after" in c["title"] for c in cells)
+    assert "python -m isokinetic trace results/demo/cases.parquet case=T04" in page
+
+
+def test_figure_lineage_comes_from_provenance_json_when_the_file_has_none(built):
+    page = (built / CAMPAIGN / "report.html").read_text(encoding="utf-8")
+    fig09 = page[page.index('id="fig09_characteristic"'):]
+    fig09 = fig09[:fig09.index("</figure>")]
+    assert PROV_COMMIT[:12] in fig09 and "record from provenance" in fig09
+    fig16 = page[page.index('id="fig16_gap"'):]
+    fig16 = fig16[:fig16.index("</figure>")]  # same job as diagnosis.json, which is stamped
+    assert COMMIT[:12] in fig16 and "same job as results/demo/diagnosis.json" in fig16
+    assert '<a href="provenance.json">' in page
+    assert "Provenance checks report problems" in page
+    assert "stages whose inputs changed since they ran: <code>models</code>" in page
+
+
+def test_page_without_damper_or_diagnosis_says_so(results):
+    root = build_campaign(results / "nodamper", damper=False, stamped=False)
+    (root / "models" / "comparison.parquet").unlink()
+    (root / "figures" / "fig12_noise.png").write_bytes(b"")
+    page = render_campaign_report(root)
+    assert "No damper block" in page and "Not diagnosed: campaign.yaml has no damper block" in page
+    assert "figure missing or not a PNG" in page and "results/nodamper/figures/fig12_noise.png" in page
+    problems = browser.page_problems(page, browser.campaign_figure_files())
+    assert any("fig12_noise.png not on the page" in p for p in problems)
+    assert "lineage not recorded in the file" in page
+
+
+def test_cases_table_shows_the_delay_of_each_case(built):
+    page = (built / CAMPAIGN / "report.html").read_text(encoding="utf-8")
+    table = page[page.index('<table id="cases-table">'):]
+    table = table[:table.index("</table>")]
+    rows = {}
+    for r in table.split("<tr")[2:]:
+        cells = [plain(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", r)]
+        rows[cells[0]] = cells
+    # case, waveform, status, samples, motion start [s], delay [ms], speed / planned, motion rms [um], quality
+    assert rows["T02"][4:] == ["7.3234", "23.4", "0.9987", "1.20", TIME_NOTE]
+    assert rows["T01"][4:] == ["0", "0", "1.000", "1.00", "ok"]
+    assert rows["T04"][2:] == ["quarantined", "0", "-", "-", "-", "-", "quarantined"]
+    assert 'class="warned"' in table
+    cell = next(c for c in parse(page).cells if "cases.parquet [case=T02]" in c["title"] and "delay_s" in c["title"])
+    assert "audit: python -m isokinetic trace results/demo/cases.parquet case=T02" in cell["title"]
+
+
+def test_cases_table_written_before_the_motion_was_measured(results):
+    root = build_campaign(results / "oldcases", stamped=False)
+    cases = pd.read_parquet(root / "cases.parquet").drop(columns=["motion_start_s", "delay_s", "velocity_ratio",
+                                                                  "motion_rms_m", "quality"])
+    write_parquet(cases, root / "cases.parquet")
+    page = render_campaign_report(root)
+    assert '<section id="cases">' in page and "delay [ms]" in page

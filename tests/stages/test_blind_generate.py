@@ -1,0 +1,156 @@
+"""Rule blind_generate: scenario generation on the reference rig, detection levels, truth-free export."""
+
+import hashlib
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from isokinetic.contracts.scenarios import EFFECTS
+from isokinetic.physics import reference_rig_campaign as rrc
+from isokinetic.physics.damper import TABLE_1, Effects
+from isokinetic.stages import blind_generate as gen
+from isokinetic.stages.blind_generate import BOUNDS, effect_fields, generate_scenarios, magnitude_bin, write_suite
+from isokinetic.stages.virtual_rig import Measurement, simulate_cases
+from isokinetic.stages.windows import case_windows
+
+SEED = 11
+SUITE = {"n_per_effect": 1, "n_pairs": 2, "n_none": 1, "n_out": 3}
+
+
+@pytest.fixture(scope="module")
+def suite():
+    return generate_scenarios(SEED, **SUITE)
+
+
+def tree_hashes(folder: Path) -> dict[str, str]:
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+# --------------------------------------------------------------------------------------------
+# generation
+# --------------------------------------------------------------------------------------------
+
+def test_generation_is_deterministic_and_composed_as_asked(suite):
+    assert generate_scenarios(SEED, **SUITE) == suite
+    assert generate_scenarios(SEED + 1, **SUITE) != suite
+    assert [s.name for s in suite] == [f"blind-{k:03d}" for k in range(12)]
+    sizes = sorted(len(s.truth) for s in suite)
+    assert sizes == [0] * 4 + [1] * 6 + [2] * 2
+    assert sorted(s.out_of_catalogue for s in suite if s.out_of_catalogue) == sorted(gen.OUT_OF_CATALOGUE)
+    assert all(not s.truth for s in suite if s.out_of_catalogue)
+    assert sorted(s.truth[0] for s in suite if len(s.truth) == 1) == sorted(EFFECTS)
+    assert len({s.truth for s in suite if len(s.truth) == 2}) == 2  # distinct pairs
+    for s in suite:
+        assert s.truth == tuple(e for e in EFFECTS if e in s.truth)
+        for name in gen.GEOMETRY_FIELDS:
+            assert 0.7 <= getattr(s.damper, name) / getattr(TABLE_1, name) <= 1.3
+        speeds = [c.velocity_m_s * 1e3 for c in s.cases]
+        assert 8 <= len(speeds) <= 12 and min(speeds) >= 0.005 and max(speeds) <= 1.5
+        assert speeds != sorted(speeds)  # tested in a random order, not by speed
+        for c in s.cases:
+            assert 0.3e-3 * (1 - 1e-9) <= c.amplitude_m <= 8e-3 and c.period_s in (20.0, 80.0, 240.0)
+            shorter = [t for t in (20.0, 80.0, 240.0) if t < c.period_s]
+            assert all(c.velocity_m_s * t / 4 < 0.3e-3 for t in shorter)  # shortest period above the floor
+            assert c.sample_rate_Hz == 50.0 and c.duration_s == 2 * c.period_s
+        r, ranges = s.rig, gen.RIG_RANGES  # nuisances in every scenario
+        assert ranges["delay_s"][0] <= r.delay_s <= ranges["delay_s"][1] and r.servo_lag_s > 0
+        assert 2 <= r.force_noise_N <= 10 and 0.005 <= r.force_noise_rel <= 0.015
+        assert 0.1 <= r.noise_corner_Hz <= 5.0 and abs(r.force_gain - 1) <= 0.01 and r.force_offset_N != 0
+        assert abs(r.force_offset_N) <= 0.02 * gen.full_scale_N(s.damper, s.cases)
+
+
+def test_magnitudes_lie_between_1_and_5_detection_levels(suite):
+    for s in suite:
+        assert set(s.multiple) == set(s.detection_level) == set(s.magnitude) == set(s.truth)
+        for e in s.truth:
+            assert 1.0 <= s.multiple[e] <= 5.0
+            assert s.magnitude[e] == pytest.approx(s.multiple[e] * s.detection_level[e], rel=1e-12)
+            assert 5.0 * s.detection_level[e] <= BOUNDS[e]
+        if s.truth:
+            assert s.magnitude_x_detection == min(s.multiple.values())
+        else:
+            assert math.isnan(s.magnitude_x_detection)
+
+
+def test_physical_effects_have_the_drawn_catalogue_magnitudes(suite):
+    for s in suite:
+        params = s.truth_params()
+        for e in s.truth:
+            key = gen.PARAM_KEYS[e]
+            want = effect_fields(e, s.magnitude[e], s.sign[e], s.damper)
+            expected = next(iter(want.values()))
+            assert params[key] == pytest.approx(expected, rel=1e-6), (s.name, e)
+
+
+def _independent_rms_z(scenario, effects: Effects) -> float:
+    """rms_z of the noise-free effect against the nominal, from the virtual rig's time series, the
+    window extraction and the rig's exact noise of a window mean."""
+    ideal = Measurement.ideal()
+    with_effect = simulate_cases(scenario.cases, scenario.damper, effects, ideal, 0)
+    nominal = simulate_cases(scenario.cases, scenario.damper, Effects(), ideal, 0)
+    z = []
+    for c in scenario.cases:
+        for we, w0 in zip(case_windows(c, with_effect[c.case]), case_windows(c, nominal[c.case]), strict=True):
+            f = we["force_N"]
+            se = math.sqrt(rrc.mean_noise_variance(we["n_samples"], f, scenario.rig, c.sample_rate_Hz))
+            z.append((f - w0["force_N"]) / se)
+    return float(np.sqrt(np.mean(np.square(z))))
+
+
+def test_detection_level_gives_rms_z_3_checked_independently(suite):
+    seen = set()
+    for s in suite:
+        for e in s.truth:
+            if e in seen:
+                continue
+            seen.add(e)
+            def at(k, s=s, e=e):
+                return Effects(**effect_fields(e, k * s.detection_level[e], s.sign[e], s.damper))
+            assert _independent_rms_z(s, at(1.0)) == pytest.approx(3.0, rel=1e-4), (s.name, e)
+            assert _independent_rms_z(s, at(0.5)) < 3.0  # the smallest magnitude reaching 3
+    assert seen == set(EFFECTS)
+
+
+def test_undetectable_effect_gives_no_detection_level(suite):
+    s = next(s for s in suite if not s.truth)
+    problem = gen.DetectionProblem.of(s.name, s.cases, s.damper, s.rig)
+    assert gen.detection_level(problem, "friction", bound=1e-3) is None
+    assert gen.detection_level(problem, "friction") == pytest.approx(
+        gen.detection_level(problem, "friction", bound=10 * BOUNDS["friction"]), rel=1e-5)
+
+
+# --------------------------------------------------------------------------------------------
+# export
+# --------------------------------------------------------------------------------------------
+
+def test_export_holds_no_truth_and_is_byte_reproducible(suite, tmp_path):
+    write_suite(suite, tmp_path / "a" / "raw", tmp_path / "a" / "truth")
+    write_suite(generate_scenarios(SEED, **SUITE), tmp_path / "b" / "raw", tmp_path / "b" / "truth")
+    assert tree_hashes(tmp_path / "a") == tree_hashes(tmp_path / "b")
+    raw = tmp_path / "a" / "raw"
+    assert sorted(p.name for p in raw.iterdir()) == [s.name for s in suite]
+    for s in suite:
+        folder = raw / s.name
+        assert sorted(p.name for p in folder.iterdir()) == sorted(["campaign.yaml"] + [f"{c.case}.csv"
+                                                                                      for c in s.cases])
+        text = (folder / "campaign.yaml").read_text(encoding="utf-8")
+        manifest = yaml.safe_load(text)
+        # the damper block is the nominal design data (checked below); everything else names no effect
+        lowered = yaml.safe_dump({k: v for k, v in manifest.items() if k != "damper"}).lower()
+        for word in EFFECTS + gen.OUT_OF_CATALOGUE + ("effects:", "seed", "truth", "coulomb", "conductance",
+                                                         "volume_fraction", "multiple", "detection", "offset", "gain"):
+            assert word not in lowered, (s.name, word)
+        for value in s.magnitude.values():
+            assert repr(value) not in text and f"{value:.6g}" not in text
+        assert manifest["source"] == "simulation" and manifest["campaign"] == s.name
+        assert manifest["description"] == gen.DESCRIPTION
+        assert manifest["damper"] == s.damper.to_dict()  # nominal: no off-nominal C_D or viscosity
+        truth = json.loads((tmp_path / "a" / "truth" / f"{s.name}.json").read_text(encoding="utf-8"))
+        assert truth["truth"] == list(s.truth) and truth["multiple"] == s.multiple
+        assert truth["out_of_catalogue"] == s.out_of_catalogue
+        assert truth["magnitude_bin"] == magnitude_bin(s.magnitude_x_detection)

@@ -1,0 +1,106 @@
+"""Rule blind_score: verdicts against the withheld truth, the targets, and Fig. 17's counts."""
+
+import json
+
+import numpy as np
+
+from isokinetic.plots.blind_score import confusion_figure
+from isokinetic.plots.style import save_figure
+from isokinetic.stages.blind_score import (
+    SCORE_COLUMNS,
+    confusion_counts,
+    confusion_title,
+    score,
+    summarize,
+    summary_text,
+)
+
+
+def _truth(name, effects, multiple, out=""):
+    return {"scenario": name, "truth": list(effects), "magnitude_x_detection": multiple, "out_of_catalogue": out}
+
+
+def _diag(verdict, gap_before=10.0, gap_after=1.0, confounded=None, explained=True):
+    d = {"status": "ok", "verdict": list(verdict), "gap_before": gap_before, "gap_after": gap_after,
+         "shrink": None if gap_after is None else gap_before / gap_after, "explained": explained}
+    if confounded:
+        d["confounded"] = confounded
+    return d
+
+
+HAND = [
+    (_truth("s00", ["friction"], 1.5), _diag(["friction"])),                       # 1-2x, exact
+    (_truth("s01", ["leakage"], 2.0), _diag(["discharge"], confounded=[["leakage", "discharge"]])),  # 2-3x miss
+    (_truth("s02", ["air"], 2.5), _diag(["air"], 8.0, 2.0)),                        # 2-3x exact, shrink 4
+    (_truth("s03", ["viscosity"], 4.9), _diag(["viscosity"], 30.0, 1.0)),           # 3-5x exact
+    (_truth("s04", ["air", "leakage"], 1.2), _diag(["leakage"], 20.0, 2.0)),        # pair, 1-2x, miss
+    (_truth("s05", [], None), _diag([], 1.0, 1.0)),                                 # none, clean
+    (_truth("s06", [], None), _diag(["friction"], 1.1, 1.0)),                       # none, claimed
+    (_truth("s07", ["asymmetry"], 3.0), None),                                      # diagnosis failed
+    (_truth("s08", [], None, "backlash"), _diag(["air"], 9.0, 3.0, explained=False)),  # out of catalogue, flagged
+    (_truth("s09", [], None, "relief"), _diag(["discharge"], 9.0, 1.0)),            # out of catalogue, missed
+]
+
+
+def test_score_rows_bins_and_exactness():
+    truths = [t for t, _ in HAND]
+    diagnoses = {t["scenario"]: d for t, d in HAND if d is not None}
+    scores = score(reversed(truths), diagnoses)
+    assert list(scores.columns) == list(SCORE_COLUMNS)
+    assert scores["scenario"].tolist() == [f"s{k:02d}" for k in range(10)]
+    s = scores.set_index("scenario")
+    assert s["truth"].tolist() == ["friction", "leakage", "air", "viscosity", "leakage+air", "", "", "asymmetry",
+                                   "", ""]
+    assert s["verdict"].tolist() == ["friction", "discharge", "air", "viscosity", "leakage", "", "friction", "error",
+                                     "air", "discharge"]
+    assert s["exact"].tolist() == [True, False, True, True, False, True, False, False, False, False]
+    assert s.loc["s01", "exact_up_to_confounding"] and not s.loc["s04", "exact_up_to_confounding"]
+    assert s.loc["s01", "confounded"] == "leakage+discharge"
+    assert s["magnitude_bin"].tolist() == ["1-2x", "2-3x", "2-3x", "3-5x", "1-2x", "", "", "3-5x", "", ""]
+    assert np.isnan(s.loc["s05", "magnitude_x_detection"]) and np.isnan(s.loc["s07", "shrink"])
+    assert s["error"].tolist() == [False] * 7 + [True, False, False]
+    assert s.loc["s03", "shrink"] == 30.0 and s.loc["s02", "gap_after"] == 2.0
+
+    summary = summarize(scores)
+    json.dumps(summary, allow_nan=False)
+    assert summary["bins"]["1-2x"] == {"n": 2, "exact": 1, "rate": 0.5, "n_single": 1, "exact_single": 1,
+                                       "rate_single": 1.0}
+    assert summary["bins"]["2-3x"]["n"] == 2 and summary["bins"]["2-3x"]["exact"] == 1
+    assert summary["bins"]["3-5x"]["n"] == 2 and summary["bins"]["3-5x"]["exact"] == 1
+    a, b, c, d = (summary["targets"][k] for k in ("a_single_at_2x", "b_none_clean", "c_out_of_catalogue",
+                                                  "d_median_shrink"))
+    assert (a["n"], a["exact"], a["pass"], a["misses"]) == (4, 2, False, ["s01", "s07"])
+    assert (b["n"], b["claimed"], b["pass"], b["misses"]) == (2, 1, False, ["s06"])
+    assert (c["n"], c["flagged"], c["rate"], c["pass"], c["misses"]) == (2, 1, 0.5, False, ["s09"])
+    # shrink over s00-s04 (s07 failed): 10, 10, 4, 30, 10 -> median 10
+    assert (d["n"], d["median"], d["pass"]) == (5, 10.0, True)
+    assert summary["n_errors"] == 1 and summary["all_pass"] is False
+    text = summary_text(summary)
+    assert "(a) FAIL" in text and "(b) FAIL" in text and "(c) FAIL" in text and "(d) PASS" in text
+    assert "1-2x" in text
+
+
+def test_targets_pass_and_not_applicable():
+    clean = [(_truth("s00", ["friction"], 2.0), _diag(["friction"], 10.0, 1.0)),
+             (_truth("s01", [], None), _diag([], 1.0, 1.0))]
+    summary = summarize(score([t for t, _ in clean], {t["scenario"]: d for t, d in clean}))
+    assert [summary["targets"][k]["pass"] for k in ("a_single_at_2x", "b_none_clean", "d_median_shrink")] == [True] * 3
+    assert summary["targets"]["c_out_of_catalogue"]["pass"] is None  # no scenario to judge
+    assert summary["all_pass"] is True
+    empty = summarize(score([_truth("s00", ["friction"], 1.5)], {"s00": _diag(["friction"])}))
+    assert empty["targets"]["a_single_at_2x"]["pass"] is None and empty["targets"]["b_none_clean"]["pass"] is None
+    assert "(a) N/A" in summary_text(empty)
+
+
+def test_confusion_counts_and_figure(tmp_path):
+    scores = score([t for t, _ in HAND], {t["scenario"]: d for t, d in HAND if d is not None})
+    table = confusion_counts(scores)
+    assert table.index.tolist() == ["none", "(backlash)", "(relief)", "friction", "leakage", "asymmetry", "viscosity",
+                                    "air", "leakage+air"]
+    assert table.to_numpy().sum() == len(HAND)
+    assert table.loc["none", "none"] == 1 and table.loc["none", "friction"] == 1
+    assert table.loc["leakage", "discharge"] == 1 and table.loc["asymmetry", "error"] == 1
+    title = confusion_title(scores, summarize(scores))
+    assert title.startswith("Blind test: 10 scenarios, 4 attributed exactly\n(a) FAIL")
+    path = save_figure(confusion_figure(table, title), tmp_path / "fig.png")
+    assert path.stat().st_size > 0

@@ -1,0 +1,75 @@
+"""Rule diagnosis, checked on virtual campaigns whose truth the diagnosis never sees."""
+
+import json
+
+import pytest
+
+from isokinetic.diagnosis.result import validate_diagnosis
+from isokinetic.io import write_parquet
+from isokinetic.physics.damper import TABLE_1, Effects
+from isokinetic.physics.plan import CasePlan
+from isokinetic.stages import diagnosis as dg
+from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.repeatability import repeatability
+from isokinetic.stages.validate import write_validated
+from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, write_campaign
+from isokinetic.stages.windows import windows_stage
+
+# speeds [mm/s] and periods [s]: across the laminar-turbulent transition, the fast ones short
+PLAN = [(0.01, 80.0), (0.05, 80.0), (0.2, 20.0), (0.5, 20.0), (1.0, 20.0), (1.5, 20.0)]
+
+
+def process(tmp_path, effects: Effects, seed: int = 3):
+    """Simulate a small campaign and run the real stage chain up to the characteristic."""
+    cases = tuple(CasePlan(case=f"T{i:02d}", waveform="triangle", sample_rate_Hz=20.0, amplitude_m=w * 1e-3 * t / 4,
+                           period_s=t, duration_s=2 * t) for i, (w, t) in enumerate(PLAN, start=1))
+    vc = VirtualCampaign(name="virt", description="", seed=seed, temperature_C=40.0, damper=TABLE_1, effects=effects,
+                         measurement=Measurement(force_noise_N=5.0, force_noise_rel=0.01, displacement_noise_m=1e-6),
+                         cases=cases)
+    root = tmp_path / "virt"
+    write_campaign(vc, root)
+    write_validated(root)
+    win = windows_stage(root)
+    rep = repeatability(win, 0.05)
+    write_parquet(assemble(win, rep), root / "characteristic.parquet")
+    return root
+
+
+def test_nominal_damper_gets_an_empty_verdict(tmp_path):
+    result, _obs, _pred = dg.diagnose(process(tmp_path, Effects()))
+    assert result["verdict"] == [] and result["nominal_explains"]
+    assert 0.5 < result["gap_before"] < 2.0  # noise only: rms_z about 1
+    assert result["where"] == []
+
+
+def test_leakage_is_attributed_and_its_conductance_recovered(tmp_path):
+    truth = 1.5e-12
+    result, _obs, _pred = dg.diagnose(process(tmp_path, Effects(leakage_conductance_m3_s_Pa=truth)))
+    assert result["verdict"] == ["leakage"] and result["explained"]
+    assert result["params"]["leakage_conductance_m3_s_Pa"] == pytest.approx(truth, rel=0.02)
+    assert result["gap_after"] < 2.0 and result["holdout_gap_after"] < 2.0
+    assert result["shrink"] == pytest.approx(result["gap_before"] / result["gap_after"])
+    # leakage weakens the damper everywhere: every significant band has a negative relative error
+    assert result["where"] and all(b["mean_rel_error"] < 0 for b in result["where"])
+
+
+def test_air_is_told_apart_from_leakage_by_the_transients(tmp_path):
+    result, _obs, _pred = dg.diagnose(process(tmp_path, Effects(air_volume_fraction=0.002)))
+    assert result["verdict"] == ["air"]
+    assert result["params"]["air_volume_fraction"] == pytest.approx(0.002, rel=0.05)
+    leak = next(c for c in result["candidates"] if c["effects"] == ["leakage"])
+    assert not leak["explained"]
+
+
+def test_diagnosis_json_validates_against_the_repository_schema(tmp_path):
+    root = process(tmp_path, Effects(coulomb_force_N=20.0))
+    out = dg.write_diagnosis(root, tmp_path / "diagnosis.json", tmp_path / "gap.png")
+    written = json.loads((tmp_path / "diagnosis.json").read_text())
+    assert written["verdict"] == ["friction"] == out["verdict"]
+    assert (tmp_path / "gap.png").stat().st_size > 0
+    validate_diagnosis(written)
+    for key in ("format_version", "campaign", "metric", "gap_before", "where", "candidates", "verdict",
+                "gap_after", "holdout_gap_after", "shrink"):
+        assert key in written
+    scores = [c["score"] for c in written["candidates"] if c["explained"] and len(c["effects"]) == 1]
+    assert scores == sorted(scores)

@@ -1,0 +1,271 @@
+"""Input checks: NaN/inf, time order, record length, sample rate, sample count."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import CAMPAIGN, assert_quarantine, set_cell
+from isokinetic.contracts import tables
+from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
+from isokinetic.measurement.motion import Motion
+from isokinetic.physics.plan import CasePlan, triangle_displacement
+from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.ingest import ingest_campaign
+from isokinetic.stages.repeatability import repeatability
+from isokinetic.stages.validate import (
+    INVERT_HINT,
+    MAX_MOTION_RMS_FRACTION,
+    Problem,
+    motion_problems,
+    quarantine_frame,
+    quarantine_rows,
+    validate_campaign,
+    write_validated,
+)
+from isokinetic.stages.windows import windows_stage
+
+
+def _swap_rows(column, a, b):
+    def edit(t):
+        t.loc[[a, b], column] = t.loc[[b, a], column].to_numpy()
+        return t
+    return edit
+
+
+def _scale_time(factor):
+    def edit(t):
+        t["time_s"] = (t["time_s"].astype(float) * factor).map("{:.10g}".format)
+        return t
+    return edit
+
+
+@pytest.mark.parametrize("case, edit, column, row, message", [
+    ("T02", set_cell(23, "force_kN", ""), "force_kN", 23, "missing value (NaN)"),
+    ("T02", set_cell(23, "force_kN", "NaN"), "force_kN", 23, "missing value (NaN)"),
+    ("T03", set_cell(40, "force_inv_kN", "-inf"), "force_inv_kN", 40, "non-finite value inf"),  # inverted
+    ("T01", _swap_rows("time_s", 50, 51), "time_s", 51, "time 1.0 s is not above the previous row's 1.02 s"),
+    ("H01", set_cell(9, "time_s", "0.04"), "time_s", 9, "time 0.04 s is not above the previous row's 0.04 s"),
+], ids=["nan-empty-cell", "nan-literal", "inf", "time-swapped", "time-repeated"])
+def test_schema_failures_name_the_first_bad_row(raw_campaign, case, edit, column, row, message):
+    raw_campaign.edit_table(case, edit)
+    cases, quarantine = raw_campaign.run()
+    # campaign.write_ingested only takes schema-valid series, so ingest quarantines these.
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, case, "ingest", column, row)])
+    assert quarantine["reason"].tolist() == [f"campaign demo, case {case}, column {column!r}, row {row}: {message}"]
+
+
+def test_validate_rechecks_the_schema_of_ingested_series(raw_campaign):
+    ingest_campaign(raw_campaign.raw_dir, raw_campaign.root)
+    path = raw_campaign.root / timeseries_relpath("T02")
+    df = pd.read_parquet(path)
+    df.loc[23:30, "force_N"] = math.nan
+    df.to_parquet(path, index=False)            # written by something that did not check it
+    cases, quarantine = write_validated(raw_campaign.root)
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T02", "validate", "force_N", 23)])
+
+
+@pytest.mark.parametrize("keep", [300, 399])
+def test_record_shorter_than_the_plan(raw_campaign, keep):
+    raw_campaign.edit_table("T02", lambda t: t.iloc[:keep])
+    cases, quarantine = raw_campaign.run()
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T02", "validate", "time_s", None)])
+    assert f"record lasts {(keep - 1) / 100:.6g} s, the triangle plan needs 4 s" in quarantine["reason"].iloc[0]
+
+
+def test_sine_needs_one_period(raw_campaign):
+    raw_campaign.edit_table("H01", lambda t: t.iloc[:100])    # 0.5 s < 1/1.75 Hz
+    cases, quarantine = raw_campaign.run()
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "H01", "validate", "time_s", None)])
+
+
+def test_sample_rate_far_from_the_manifest(raw_campaign):
+    raw_campaign.edit_table("T01", _scale_time(1.25))
+    cases, quarantine = raw_campaign.run()
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T01", "validate", "time_s", None)])
+    assert quarantine["reason"].iloc[0] == ("campaign demo, case T01, column 'time_s': median sample interval "
+                                           "0.025 s is +25.0% off 1/sample_rate_Hz = 0.02 s (tolerance 5.0%)")
+    # a looser tolerance passes the rate, but on the stretched time axis the piston is slower than planned
+    cases, quarantine = write_validated(raw_campaign.root, sample_rate_tolerance=0.3)
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T01", "validate", "displacement_m", None)])
+    assert "off the planned 4Y/T = 0.3 mm/s (Eq. 26; tolerance 5%)" in quarantine["reason"].iloc[0]
+
+
+def test_sample_rate_tolerance_is_a_parameter(raw_campaign):
+    raw_campaign.edit_manifest(lambda m: raw_campaign.case_entry(m, "T01").update(sample_rate_Hz=40.0))
+    cases, quarantine = raw_campaign.run()     # the data are sampled at 50 Hz
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T01", "validate", "time_s", None)])
+    assert quarantine["reason"].iloc[0] == ("campaign demo, case T01, column 'time_s': median sample interval "
+                                           "0.02 s is -20.0% off 1/sample_rate_Hz = 0.025 s (tolerance 5.0%)")
+    cases, quarantine = write_validated(raw_campaign.root, sample_rate_tolerance=0.3)
+    assert quarantine.empty and (cases["status"] == "ok").all()
+
+
+def test_too_few_samples(raw_campaign):
+    raw_campaign.edit_table("F01", lambda t: t.iloc[:5])
+    cases, quarantine = raw_campaign.run()
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "F01", "validate", "time_s", None)])
+    assert quarantine["reason"].iloc[0].endswith("only 5 samples, at least 10 needed")
+
+
+def test_ingest_and_validation_rows_together(raw_campaign):
+    raw_campaign.edit_table("T01", set_cell(17, "force_kN", "abc"))
+    raw_campaign.edit_table("F01", lambda t: t.iloc[:5])
+    cases, quarantine = raw_campaign.run()
+    assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T01", "ingest", "force_kN", 17),
+                                                        (CAMPAIGN, "F01", "validate", "time_s", None)])
+    on_disk = pd.read_parquet(raw_campaign.root / "quarantine.parquet")
+    pd.testing.assert_frame_equal(on_disk, quarantine)
+    tables.validate_table(pd.read_parquet(raw_campaign.root / "cases.parquet"), tables.CASES)
+
+
+def _simulated_case(plan: CasePlan, n: int) -> tuple[dict, pd.DataFrame]:
+    t = np.arange(n) / plan.sample_rate_Hz
+    y = triangle_displacement(t, plan.amplitude_m, plan.period_s)
+    df = pd.DataFrame({"row": np.arange(n), "time_s": t, "displacement_m": y, "force_N": np.gradient(y, t) * 1e6,
+                       "command_m": y})
+    row = {"campaign": "sim", **dataclasses.asdict(plan), "raw_file": "", "raw_sha256": "",
+           "timeseries_file": timeseries_relpath(plan.case), "n_samples": n, "status": "ok"}
+    return row, df
+
+
+def test_simulated_campaign_is_validated_the_same_way(tmp_path):
+    plans = [CasePlan("T01", "triangle", 100.0, amplitude_m=1e-4, period_s=2.0, duration_s=4.0),
+             CasePlan("T02", "triangle", 100.0, amplitude_m=1e-4, period_s=2.0, duration_s=4.0)]
+    built = [_simulated_case(plans[0], 400), _simulated_case(plans[1], 250)]   # T02 cut short
+    meta = {"format_version": 1, "campaign": "sim", "source": "simulation", "description": None,
+            "temperature_C": 40.0, "damper": None, "manifest_file": "", "manifest_sha256": "", "metadata": {}}
+    earlier = quarantine_rows("sim", "T00", "ingest", [Problem("file", "missing", kind="key")])
+    write_ingested(tmp_path / "ingest", meta, pd.DataFrame([row for row, _ in built]), quarantine_frame(earlier),
+                   {p.case: df for p, (_, df) in zip(plans, built)})
+    cases, quarantine = validate_campaign(tmp_path)
+    assert cases.set_index("case")["status"].to_dict() == {"T01": "ok", "T02": "quarantined"}
+    assert list(zip(quarantine["case"], quarantine["stage"], quarantine["column"])) == [
+        ("T00", "ingest", "file"), ("T02", "validate", "time_s")]
+    tables.validate_table(quarantine, tables.QUARANTINE)
+
+
+# --- timing from the record ------------------------------------------------------------------------
+
+def _windows(campaign) -> pd.DataFrame:
+    return windows_stage(campaign.root).set_index(["case", "segment"])
+
+
+def _characteristic(campaign) -> pd.DataFrame:
+    win = windows_stage(campaign.root)
+    return assemble(win, repeatability(win, 0.05))
+
+
+def _shift_time(seconds):
+    def edit(t):
+        t["time_s"] = (t["time_s"].astype(float) + seconds).map("{:.10g}".format)
+        return t
+    return edit
+
+
+def _delay_rows(rows):
+    """Displacement and force ``rows`` samples later (piston held at its start before); command unchanged."""
+    def edit(t):
+        for column in ("disp_mm", "force_kN"):
+            values = t[column].tolist()
+            t[column] = values[:1] * rows + values[:-rows]
+        return t
+    return edit
+
+
+def _triangles(manifest):
+    return [c for c in manifest["cases"] if c["waveform"] == "triangle"]
+
+
+@pytest.mark.parametrize("phase_rad", [-1.5707963, -1.5708])
+def test_rounded_phase_gives_the_same_windows_and_characteristic(raw_campaign, phase_rad):
+    raw_campaign.run()
+    windows, char = _windows(raw_campaign), _characteristic(raw_campaign)
+    raw_campaign.edit_manifest(lambda m: [c.update(phase_rad=phase_rad) for c in _triangles(m)])
+    cases, quarantine = raw_campaign.run()
+    assert quarantine.empty and (cases["quality"] == "ok").all()
+    assert (cases.loc[cases["waveform"] == "triangle", "phase_rad"] == phase_rad).all()
+    pd.testing.assert_frame_equal(_windows(raw_campaign), windows)
+    pd.testing.assert_frame_equal(_characteristic(raw_campaign), char)
+
+
+def test_time_column_offset_is_aligned_to_the_motion_and_noted(raw_campaign):
+    raw_campaign.run()
+    before = _windows(raw_campaign)
+    raw_campaign.edit_table("T01", _shift_time(7.3))
+    cases, quarantine = raw_campaign.run()
+    assert quarantine.empty
+    t01 = cases.set_index("case").loc["T01"]
+    assert (t01["status"], t01["motion_start_s"], t01["delay_s"]) == ("ok", 7.3, 0.0)
+    assert t01["quality"] == ("time axis offset: the motion starts at t = 7.3 s of the record (first sample at "
+                              "t = 7.3 s, delay 0 ms); windows aligned to the measured motion")
+    after = _windows(raw_campaign)
+    for column in ("force_N", "force_std_N", "n_samples", "row_start", "row_stop"):
+        np.testing.assert_array_equal(after.loc["T01", column], before.loc["T01", column])
+    np.testing.assert_allclose(after.loc["T01", "window_start_s"], before.loc["T01", "window_start_s"] + 7.3)
+    np.testing.assert_allclose(after.loc["T01", "velocity_m_s"], before.loc["T01", "velocity_m_s"], rtol=1e-9)
+    assert (after.loc["T01", "quality"] == t01["quality"]).all()
+    pd.testing.assert_frame_equal(after.drop(index="T01"), before.drop(index="T01"))
+
+
+def test_actuator_delay_is_measured_and_the_windows_follow_the_motion(raw_campaign):
+    raw_campaign.run()
+    before = _windows(raw_campaign)
+    raw_campaign.edit_table("T01", _delay_rows(2))           # 40 ms at 50 Hz
+    cases, quarantine = raw_campaign.run()
+    assert quarantine.empty
+    t01 = cases.set_index("case").loc["T01"]
+    assert t01["quality"] == "ok" and t01["delay_s"] == pytest.approx(0.040, abs=0.002)
+    after = _windows(raw_campaign)
+    # the windows moved with the motion, to within a sample at their edges (measured, not whole-sample, start)
+    for edge in ("row_start", "row_stop"):
+        assert (np.abs(after.loc["T01", edge] - (before.loc["T01", edge] + 2)) <= 1).all()
+    np.testing.assert_allclose(after.loc["T01", "force_N"], before.loc["T01", "force_N"], rtol=1e-3)
+    np.testing.assert_allclose(after.loc["T01", "window_start_s"], before.loc["T01", "window_start_s"] + 0.04,
+                               atol=0.02)
+    pd.testing.assert_frame_equal(after.drop(index="T01"), before.drop(index="T01"))
+
+
+def test_motion_columns_of_the_cases_table(raw_campaign):
+    cases, _ = raw_campaign.run()
+    table = cases.set_index("case")
+    tri = table.loc[["T01", "T02", "T03"]]
+    assert (tri["motion_start_s"] == 0.0).all() and (tri["delay_s"] == 0.0).all()
+    np.testing.assert_allclose(tri["velocity_ratio"], 1.0, atol=1e-3)
+    np.testing.assert_allclose(tri["motion_rms_m"], 1e-6, rtol=0.1)     # the fixture's LVDT noise
+    assert table.loc[["H01", "F01"], ["motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m"]].isna().all().all()
+    tables.validate_table(pd.read_parquet(raw_campaign.root / "cases.parquet"), tables.CASES)
+
+
+def _motion(plan: CasePlan, ratios=(1.0, 1.0, 1.0, 1.0), rms_m=1e-6, start_s=0.0) -> Motion:
+    w = plan.velocity_m_s
+    planned = (w, -w, w, -w)
+    return Motion(motion_start_s=start_s, delay_s=0.01, delay_std_s=1e-4,
+                  velocities_m_s=tuple(r * v for r, v in zip(ratios, planned)), planned_velocities_m_s=planned,
+                  amplitude_m=plan.amplitude_m, mid_stroke_m=0.0, rms_m=rms_m, noise_m=1e-6)
+
+
+PLAN = CasePlan("T01", "triangle", 100.0, amplitude_m=1e-3, period_s=20.0, duration_s=40.0)
+
+
+def test_displacement_departing_from_the_planned_triangle_is_a_problem():
+    problems, _ = motion_problems(_motion(PLAN, rms_m=2 * MAX_MOTION_RMS_FRACTION * 1e-3), PLAN)
+    assert [p.column for p in problems] == ["displacement_m"]
+    assert problems[0].message.startswith("the displacement departs from the planned triangle (Eq. 26, shifted "
+                                          "to the measured motion start t = 0 s) by 0.1 mm rms, 10.0% of the 1 mm "
+                                          "amplitude beyond the LVDT noise")
+
+
+def test_one_half_period_off_its_speed_is_flagged_but_usable():
+    problems, warnings = motion_problems(_motion(PLAN, ratios=(1.07, 1.0, 1.0, 1.0)), PLAN)
+    assert problems == []
+    assert warnings == ["half-period 1 moves at +0.214 mm/s, +7.0% off the planned 0.2 mm/s"]
+
+
+def test_small_motion_start_is_not_noted():
+    assert motion_problems(_motion(PLAN, start_s=0.09), PLAN) == ([], [])
+    assert INVERT_HINT == "the rig's sign convention looks opposite: add `invert: true`"

@@ -1,0 +1,185 @@
+import math
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from isokinetic.physics.plan import CasePlan, triangle_displacement
+from isokinetic.stages.windows import (
+    WindowSpec,
+    case_windows,
+    extract_windows,
+    line_slope,
+    window_ranges,
+    windowed_half_periods,
+)
+
+LEVELS_N = [100.0, -80.0, 101.0, -81.0]
+
+
+def make_series(period_s=20.0, amplitude_m=1e-3, rate_Hz=10.0, transient_s=3.0):
+    """Two periods with a steady level per half-period and a large transient that the window skips."""
+    t = np.arange(0, round(2 * period_s * rate_Hz) + 1) / rate_Hz
+    seg = np.minimum((t // (period_s / 2)).astype(int), 3)
+    since = t - seg * period_s / 2
+    force = np.take(LEVELS_N, seg) + np.where(since < transient_s, 5000.0, 0.0)
+    return pd.DataFrame({"row": np.arange(t.size), "time_s": t,
+                         "displacement_m": triangle_displacement(t, amplitude_m, period_s), "force_N": force})
+
+
+def plan(period_s=20.0, amplitude_m=1e-3, phase_rad=-math.pi / 2):
+    return CasePlan(case="T01", waveform="triangle", sample_rate_Hz=10.0, amplitude_m=amplitude_m,
+                    period_s=period_s, phase_rad=phase_rad, duration_s=2 * period_s)
+
+
+def shifted(series: pd.DataFrame, time_s: float) -> pd.DataFrame:
+    """The same samples on a time axis moved by ``time_s`` (as a rig's CSV would give them)."""
+    out = series.copy()
+    out["time_s"] = [float(f"{x:.10g}") for x in series["time_s"] + time_s]
+    return out
+
+
+def delayed(series: pd.DataFrame, samples: int) -> pd.DataFrame:
+    """The motion and force ``samples`` later on the same time axis (held at the start value before)."""
+    out = series.copy()
+    for column in ("displacement_m", "force_N"):
+        values = series[column].to_numpy()
+        out[column] = np.concatenate([np.full(samples, values[0]), values[:-samples]])
+    return out
+
+
+def test_window_covers_045_to_095_of_each_half_period():
+    rows = case_windows(plan(), make_series())
+    # T/2 = 10 s at 10 Hz: window [4.5, 9.5] s of segment k holds rows 45..95 (+100 k)
+    assert [(r["row_start"], r["row_stop"]) for r in rows] == [(45, 96), (145, 196), (245, 296), (345, 396)]
+    assert all(r["n_samples"] == 51 for r in rows)
+    assert rows[0]["window_start_s"] == pytest.approx(4.5) and rows[0]["window_end_s"] == pytest.approx(9.5)
+
+
+def test_window_mean_excludes_transient():
+    rows = case_windows(plan(), make_series())
+    assert [r["force_N"] for r in rows] == pytest.approx(LEVELS_N, abs=1e-12)
+    assert all(r["force_std_N"] == pytest.approx(0.0, abs=1e-9) for r in rows)
+
+
+def test_segments_alternate_direction_and_period():
+    rows = case_windows(plan(), make_series())
+    assert [r["direction"] for r in rows] == ["+", "-", "+", "-"]
+    assert [r["period"] for r in rows] == [1, 1, 2, 2]
+    assert [r["segment"] for r in rows] == [1, 2, 3, 4]
+
+
+def test_window_velocity_is_least_squares_slope_of_displacement():
+    rows = case_windows(plan(amplitude_m=1e-3), make_series(amplitude_m=1e-3))
+    expected = 4 * 1e-3 / 20.0  # W = 4Y/T, Eq. (26)
+    assert [r["velocity_m_s"] for r in rows] == pytest.approx([expected, -expected] * 2, rel=1e-9)
+    assert rows[1]["planned_velocity_m_s"] == pytest.approx(-expected)
+
+
+def test_line_slope_matches_numpy_polyfit():
+    rng = np.random.default_rng(1)
+    t = np.linspace(0, 5, 40)
+    y = 0.3 * t + rng.normal(size=t.size)
+    assert line_slope(t, y) == pytest.approx(np.polyfit(t, y, 1)[0], rel=1e-12)
+
+
+def test_configurable_window_fractions():
+    rows = case_windows(plan(), make_series(), WindowSpec(0.2, 0.5))
+    assert (rows[0]["row_start"], rows[0]["row_stop"]) == (20, 51)
+    # the transient (first 3 s) is inside [2, 5] s now and raises the mean
+    assert rows[0]["force_N"] > LEVELS_N[0] + 1000
+
+
+def test_short_record_is_refused():
+    series = make_series()
+    with pytest.raises(ValueError, match="holds the windows of 3 half-periods"):
+        case_windows(plan(), series[series.time_s <= 35.0])
+
+
+def test_invalid_window_fractions_are_refused():
+    with pytest.raises(ValueError, match="window fractions"):
+        WindowSpec(0.9, 0.4)
+
+
+def test_extract_windows_skips_quarantined_and_non_triangle_cases():
+    base = dict(campaign="c", sample_rate_Hz=10.0, amplitude_m=1e-3, period_s=20.0, frequency_Hz=math.nan,
+                phase_rad=-math.pi / 2, duration_s=40.0, raw_file="f.csv", raw_sha256="ab",
+                timeseries_file="x", n_samples=401)
+    cases = pd.DataFrame([
+        {**base, "case": "T01", "waveform": "triangle", "status": "ok"},
+        {**base, "case": "T02", "waveform": "triangle", "status": "quarantined"},
+        {**base, "case": "H01", "waveform": "sine", "status": "ok", "frequency_Hz": 1.75},
+    ])
+    out = extract_windows(cases, lambda row: make_series())
+    assert out["case"].unique().tolist() == ["T01"]
+    assert len(out) == 4 and (out["raw_file"] == "f.csv").all() and (out["campaign"] == "c").all()
+
+
+@pytest.mark.parametrize("phase_rad", [-1.5707963, -1.5708])
+def test_rounded_phase_gives_the_same_windows_as_the_default_phase(phase_rad):
+    assert case_windows(plan(phase_rad=phase_rad), make_series()) == case_windows(plan(), make_series())
+
+
+def test_rounded_phase_of_a_300_s_period_keeps_four_windows():
+    # the reported crash: "record of 600 s holds the windows of 3 half-periods of T = 300 s, 4 needed"
+    t = np.arange(0, 60001) / 100.0
+    rounded = CasePlan(case="T01", waveform="triangle", sample_rate_Hz=100.0, amplitude_m=1e-3, period_s=300.0,
+                       phase_rad=-1.5707963, duration_s=600.0)
+    exact = CasePlan(case="T01", waveform="triangle", sample_rate_Hz=100.0, amplitude_m=1e-3, period_s=300.0,
+                     duration_s=600.0)
+    assert window_ranges(rounded, t) == window_ranges(exact, t)
+    assert [k for k, *_ in window_ranges(rounded, t)] == [1, 2, 3, 4]
+
+
+def test_windows_are_cut_at_the_motion_start_on_a_shifted_time_axis():
+    base = case_windows(plan(), make_series())
+    moved = case_windows(plan(), shifted(make_series(), 7.3), motion_start_s=7.3)
+    assert [(r["row_start"], r["row_stop"], r["force_N"]) for r in moved] == \
+        [(r["row_start"], r["row_stop"], r["force_N"]) for r in base]
+    assert [r["velocity_m_s"] for r in moved] == pytest.approx([r["velocity_m_s"] for r in base], rel=1e-9)
+    assert moved[0]["window_start_s"] == pytest.approx(7.3 + 4.5)     # on the record's own time axis
+
+
+def test_windows_follow_a_delayed_motion():
+    base = case_windows(plan(), make_series())
+    late = case_windows(plan(), delayed(make_series(), 2), motion_start_s=0.2)
+    assert [(r["row_start"], r["row_stop"]) for r in late] == [(r["row_start"] + 2, r["row_stop"] + 2) for r in base]
+    assert [r["force_N"] for r in late] == [r["force_N"] for r in base]
+
+
+def test_a_shifted_time_axis_without_its_motion_start_is_refused():
+    with pytest.raises(ValueError, match=r"window of segment 1 starts at t = 4.5 s, before the record's first "
+                                         r"sample at 7.3 s"):
+        case_windows(plan(), shifted(make_series(), 7.3))
+
+
+def test_window_ranges_default_is_plan_time():
+    t = make_series()["time_s"].to_numpy()
+    assert window_ranges(plan(), t) == window_ranges(plan(), t, WindowSpec(), 0.0)
+    assert window_ranges(plan(), t)[0] == (1, 1.0, 45, 96)
+
+
+def test_windowed_half_periods_are_on_the_record_time_axis():
+    rows = windowed_half_periods(plan(), 47.3, WindowSpec(), motion_start_s=7.3)
+    np.testing.assert_allclose(rows[:, :2], [[7.3, 17.3], [17.3, 27.3], [27.3, 37.3], [37.3, 47.3]])
+
+
+def test_delay_too_large_for_the_record_leaves_too_few_windows():
+    with pytest.raises(ValueError, match=r"holds the windows of 3 half-periods of T = 20 s \(motion start at "
+                                         r"t = 0.6 s\), 4 needed"):
+        case_windows(plan(), make_series(), motion_start_s=0.6)
+
+
+def test_extract_windows_cuts_each_case_at_its_motion_start():
+    base = dict(campaign="c", sample_rate_Hz=10.0, amplitude_m=1e-3, period_s=20.0, frequency_Hz=math.nan,
+                phase_rad=-math.pi / 2, duration_s=40.0, raw_file="f.csv", raw_sha256="ab",
+                timeseries_file="x", n_samples=401, waveform="triangle", status="ok")
+    cases = pd.DataFrame([{**base, "case": "T01", "motion_start_s": 0.0},
+                          {**base, "case": "T02", "motion_start_s": 7.3},
+                          {**base, "case": "T03", "motion_start_s": math.nan}])
+    series = {"T01": make_series(), "T02": shifted(make_series(), 7.3), "T03": make_series()}
+    out = extract_windows(cases, lambda row: series[row["case"]]).set_index(["case", "segment"])
+    for case in ("T02", "T03"):
+        np.testing.assert_array_equal(out.loc[case, "force_N"], out.loc["T01", "force_N"])
+    assert out.loc[("T02", 1), "window_start_s"] == pytest.approx(11.8)
+    assert out.loc[("T03", 1), "window_start_s"] == pytest.approx(4.5)   # NaN: plan time, as without the column

@@ -1,0 +1,45 @@
+"""Concurrent runs are safe: a second build on the same tree is refused by Snakemake's directory lock.
+
+A scratch project with one tiny simulated campaign; the first build is killed once the second one
+has been refused, and the tree is unlocked as after any crash.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import time
+
+from scratch_project import SNAKEMAKE, kill_build, make_project
+
+
+def test_second_build_on_the_same_tree_is_refused(tmp_path):
+    work = make_project(tmp_path / "project")
+    locks = work / ".snakemake" / "locks"
+
+    log = tmp_path / "first.log"
+    with open(log, "w") as out:
+        first = subprocess.Popen([SNAKEMAKE, "--cores", "2"], cwd=work, stdout=out, stderr=subprocess.STDOUT,
+                                 start_new_session=True)
+    try:
+        deadline = time.monotonic() + 60
+        while not (locks.is_dir() and any(locks.iterdir())):
+            assert first.poll() is None, f"first build ended before locking:\n{log.read_text()[-3000:]}"
+            assert time.monotonic() < deadline, "first build never locked the directory"
+            time.sleep(0.05)
+
+        second = subprocess.run([SNAKEMAKE, "--cores", "2"], cwd=work, capture_output=True, text=True, timeout=60)
+        assert first.poll() is None, "the first build finished too early for the test to mean anything"
+        message = second.stdout + second.stderr
+        assert second.returncode != 0
+        assert "Directory cannot be locked" in message, message[-3000:]
+        assert "--unlock" in message  # the message says what to do after a crash
+        assert "rule " not in message.split("Directory cannot be locked")[0].split("Building DAG")[-1], \
+            "the refused build started a job"
+    finally:
+        kill_build(first)
+
+    # A killed build leaves its lock behind; --unlock clears it.
+    assert any(locks.iterdir())
+    unlock = subprocess.run([SNAKEMAKE, "--unlock"], cwd=work, capture_output=True, text=True, timeout=60)
+    assert unlock.returncode == 0, unlock.stderr[-3000:]
+    assert not locks.exists() or not any(locks.iterdir())
