@@ -49,7 +49,7 @@ rule blind_score:
         truth=f"{BLIND_ROOT}/truth",
         diagnoses=expand(f"{BLIND_ROOT}/diagnosis/chunk{{chunk}}", chunk=range(BLIND_CHUNKS)),
     output:
-        **rule_outputs("blind_score", root=BLIND_ROOT, campaign="blind"),
+        **rule_outputs("blind_score", campaign=BLIND_DIR),
     log:
         "logs/blind/score.log",
     script:

@@ -10,7 +10,18 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
-from isokinetic.contracts.outputs import CAMPAIGN_ID, CAMPAIGN_ID_PATTERN, FIGURES, RULE_OUTPUTS, figures_of, is_folder
+from isokinetic.contracts.outputs import (
+    BLIND_DIR,
+    CAMPAIGN_ID,
+    CAMPAIGN_ID_PATTERN,
+    FIGURES,
+    RESULTS_DIR,
+    RULE_OUTPUTS,
+    campaign_path,
+    figures_of,
+    is_folder,
+    outputs_of,
+)
 from isokinetic.contracts.scenarios import scenario_names, suite_size
 
 validate(config, schema="../schemas/config.schema.yaml")
@@ -83,19 +94,14 @@ def raw_files(wildcards):
     return sorted(str(p) for p in folder.iterdir() if p.is_file())
 
 
-def campaign_path(root, path):
-    """<root>/<path> of an output path of isokinetic.contracts.outputs (a folder without its slash)."""
-    return str(Path(root, path))
-
-
-def rule_outputs(rule, root="results/{campaign}", campaign="{campaign}"):
+def rule_outputs(rule, campaign="{campaign}"):
     """Name -> output of a rule, from isokinetic.contracts.outputs: a folder as directory(), figures
     as report items with their caption (one figure is named 'figure', several are the list 'figures')."""
     out = {}
     for name, path in RULE_OUTPUTS[rule].items():
-        out[name] = directory(campaign_path(root, path)) if is_folder(path) else campaign_path(root, path)
+        out[name] = directory(campaign_path(campaign, path)) if is_folder(path) else campaign_path(campaign, path)
     labels = {"campaign": campaign}
-    figures = [report_item(f"{root}/{f.path}", f.name, campaign, labels) for f in figures_of(rule)]
+    figures = [report_item(campaign_path(campaign, f.path), f.name, campaign, labels) for f in figures_of(rule)]
     if len(figures) == 1:
         out["figure"] = figures[0]
     elif figures:
@@ -110,12 +116,12 @@ def report_item(path, name, category, labels):
 
 def output_path(rule, name, campaign="{campaign}"):
     """results/<campaign>/<path> of one named output of a rule."""
-    return campaign_path(f"results/{campaign}", RULE_OUTPUTS[rule][name])
+    return campaign_path(campaign, RULE_OUTPUTS[rule][name])
 
 
 def figure_paths(rule, campaign="{campaign}"):
     """results/<campaign>/<folder>/<figure>.png of every figure a rule draws."""
-    return [f"results/{campaign}/{f.path}" for f in figures_of(rule)]
+    return [campaign_path(campaign, f.path) for f in figures_of(rule)]
 
 
 def campaign_outputs(campaign):
@@ -154,10 +160,8 @@ def check_raw_after_run():
     return bad
 
 
-BLIND_ROOT = "results/blind"
-BLIND_OUTPUTS = [f"{BLIND_ROOT}/{p}" for p in RULE_OUTPUTS["blind_score"].values()] + [
-    f"{BLIND_ROOT}/{f.path}" for f in figures_of("blind_score")
-]
+BLIND_ROOT = f"{RESULTS_DIR}/{BLIND_DIR}"
+BLIND_OUTPUTS = [campaign_path(BLIND_DIR, p) for p in outputs_of("blind_score").values()]
 
 
 def blind_scenario_names(blind):

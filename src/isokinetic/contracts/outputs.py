@@ -63,7 +63,6 @@ FIGURES = (
     Figure("fig16_gap", "diagnosis", "diagnosis", "diagnosis", "Fig. 16 - the sim-to-real gap before and after"),
     Figure("fig17_blind_confusion", "blind_score", "", "blind", "Fig. 17 - blind test: truth against verdict"),
 )
-BLIND_RULES = ("blind_generate", "blind_diagnose", "blind_score")
 
 
 def figures_of(rule: str) -> tuple[Figure, ...]:
