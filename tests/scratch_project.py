@@ -37,13 +37,14 @@ TINY = {
 
 
 def make_project(work: Path, config: dict = TINY) -> Path:
-    """The Snakefile, workflow/ and profiles/ of this project with ``config`` in ``work``."""
+    """The Snakefile, workflow/, profiles/ and resources table of this project with ``config`` in ``work``."""
     work.mkdir(parents=True, exist_ok=True)
     shutil.copy(ROOT / "Snakefile", work / "Snakefile")
     shutil.copytree(ROOT / "workflow", work / "workflow", ignore=shutil.ignore_patterns("__pycache__"))
     shutil.copytree(ROOT / "profiles", work / "profiles")
     (work / "config").mkdir()
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config), encoding="utf-8")
+    shutil.copy(ROOT / "config" / "resources.yaml", work / "config" / "resources.yaml")
     return work
 
 

@@ -36,7 +36,6 @@ from pathlib import Path
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
-from PIL import Image
 
 #: Key of the record: Parquet schema metadata, PNG text keyword.
 LINEAGE_KEY = "isokinetic.lineage"
@@ -185,14 +184,21 @@ def write_json(obj, path: str | os.PathLike) -> Path:
     return write_atomic(path, write)
 
 
+#: zlib level of the PNGs written (Pillow's default is 6): level 1 compresses a figure about twice as
+#: fast (20-50 ms less for a large one) for files ~5 % larger; the pixels are the same.
+PNG_COMPRESS_LEVEL = 1
+
+
 def write_png(fig, path: str | os.PathLike, *, dpi: float, metadata: Mapping[str, str | None] | None = None) -> Path:
-    """Write a matplotlib figure as a PNG atomically; ``metadata`` becomes text chunks
-    (``savefig(metadata=...)``), the current lineage record one more (keyword ``isokinetic.lineage``)."""
+    """Write a matplotlib figure as a PNG atomically (zlib level :data:`PNG_COMPRESS_LEVEL`);
+    ``metadata`` becomes text chunks (``savefig(metadata=...)``), the current lineage record one more
+    (keyword ``isokinetic.lineage``)."""
     meta = dict(metadata or {})
     record = current_lineage()
     if record is not None:
         meta[LINEAGE_KEY] = canonical_json(record)
-    return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi, metadata=meta))
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi, metadata=meta,
+                                                      pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}))
 
 
 def write_text(text: str, path: str | os.PathLike) -> Path:
@@ -208,6 +214,8 @@ def write_text(text: str, path: str | os.PathLike) -> Path:
 # ----------------------------------------------------------------------------------------------
 
 def _png_text(path: Path) -> str | None:
+    from PIL import Image  # only where a PNG is read back (a job that draws has Pillow through matplotlib)
+
     with Image.open(path) as image:
         if image.format != "PNG":
             raise ValueError(f"{path}: not a PNG file")

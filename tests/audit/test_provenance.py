@@ -11,18 +11,13 @@ import pytest
 
 import isokinetic.io
 from isokinetic.audit import lineage, provenance
-from isokinetic.io import canonical_json, hash_once, lineage_context, write_json, write_parquet
+from isokinetic.io import canonical_json, hash_once, lineage_context, write_json
 from isokinetic.stages import blind_score
-from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.analysis import write_analysis
+from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.diagnosis import write_diagnosis
-from isokinetic.stages.harmonic import write_harmonic
 from isokinetic.stages.ingest import ingest_campaign
-from isokinetic.stages.models import write_models
-from isokinetic.stages.nominal import nominal_stage
-from isokinetic.stages.repeatability import repeatability
-from isokinetic.stages.validate import write_validated
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign, write_campaign
-from isokinetic.stages.windows import windows_stage
 
 #: A raw campaign exported by the virtual rig: three short triangle cases and one sine case.
 CAMPAIGN = "tiny"
@@ -42,7 +37,7 @@ ROOT = Path("results", CAMPAIGN)
 
 
 def run_chain(root: Path = ROOT, raw: Path = RAW) -> None:
-    """The per-campaign rules on the fixture campaign, each output written with its job's record, as the scripts do."""
+    """The per-campaign jobs on the fixture campaign, each output written with its job's record, as the scripts do."""
     def stage(rule, inputs, params=None):
         return lineage_context(lineage.stage_lineage(rule, params or {}, inputs, campaign=CAMPAIGN,
                                                      config_sha256="cfg"))
@@ -50,22 +45,11 @@ def run_chain(root: Path = ROOT, raw: Path = RAW) -> None:
     raw_files = sorted(str(p) for p in raw.iterdir())
     with stage("ingest", raw_files, {"campaign_dir": str(raw)}):
         ingest_campaign(raw, root)
-    with stage("validate", [root / "ingest"]):
-        write_validated(root)
-    with stage("windows", [root / "cases.parquet", root / "ingest"]):
-        write_parquet(windows_stage(root), root / "windows.parquet")
-    with stage("repeatability", [root / "windows.parquet"], {"tolerance": 0.05}):
-        rep = repeatability(pd.read_parquet(root / "windows.parquet"), 0.05)
-        write_parquet(rep, root / "repeatability.parquet")
-    with stage("characteristic", [root / "windows.parquet", root / "repeatability.parquet"]):
-        write_parquet(assemble(pd.read_parquet(root / "windows.parquet"), rep), root / "characteristic.parquet")
-    with stage("nominal", [root / "cases.parquet", root / "ingest"]):
-        write_parquet(nominal_stage(root), root / "nominal_windows.parquet")
-    with stage("harmonic", [root / "cases.parquet", root / "ingest"]):
-        write_harmonic(root, root / "harmonic")
-    with stage("models", [root / "characteristic.parquet", root / "nominal_windows.parquet",
-                          root / "harmonic" / "harmonic.parquet", root / "ingest"]):
-        write_models(root, root / "models")
+    with stage("characteristic", [root / "ingest"], {"repeatability_tolerance": 0.05}):
+        write_characteristic(root)
+    with stage("analysis", [root / "ingest", root / "cases.parquet", root / "windows.parquet",
+                            root / "characteristic.parquet"]):
+        write_analysis(root)
     with stage("diagnosis", [root / "cases.parquet", root / "ingest", root / "characteristic.parquet"]):
         write_diagnosis(root, root / "diagnosis.json", root / "diagnosis" / "fig16_gap.png")
 
@@ -109,14 +93,14 @@ def test_provenance_lists_every_raw_file_with_its_hash(project):
     assert set(provenance.PACKAGES) <= set(env["packages"]) and all(env["packages"].values())
     stages = {s["rule"]: s for s in prov["stages"]}
     assert list(stages) == [r for r in provenance.STAGE_ORDER if r in stages]       # pipeline order
-    assert set(stages) == {"ingest", "validate", "windows", "repeatability", "characteristic", "nominal",
-                           "harmonic", "models", "diagnosis"}
-    rep = stages["repeatability"]
-    assert rep["params"] == {"tolerance": 0.05} and rep["inputs_current"] and rep["consistent"]
-    assert rep["params_sha256"] == lineage.sha256_text(canonical_json({"tolerance": 0.05}))
-    assert rep["outputs"] == {(project / ROOT / "repeatability.parquet").as_posix():
-                              sha256(project / ROOT / "repeatability.parquet")}
-    assert rep["last_run_utc"].endswith("Z")
+    assert set(stages) == {"ingest", "characteristic", "analysis", "diagnosis"}
+    char = stages["characteristic"]
+    params = {"repeatability_tolerance": 0.05}
+    assert char["params"] == params and char["inputs_current"] and char["consistent"]
+    assert char["params_sha256"] == lineage.sha256_text(canonical_json(params))
+    made = ("cases.parquet", "quarantine.parquet", "windows.parquet", "repeatability.parquet", "characteristic.parquet")
+    assert char["outputs"] == {(project / ROOT / f).as_posix(): sha256(project / ROOT / f) for f in made}
+    assert char["last_run_utc"].endswith("Z")
     index = prov["outputs"]
     assert set(index) == {f for s in prov["stages"] for f in s["outputs"]}
     assert index[(project / ROOT / "characteristic.parquet").as_posix()]["rule"] == "characteristic"

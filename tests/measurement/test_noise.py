@@ -22,6 +22,9 @@ from isokinetic.measurement.noise import (
     _white_design,
     ar1_mean_factor,
     between_period_scatter,
+    chi2_isf,
+    chi2_ppf,
+    chi2_sf,
     fit_noise_model,
     scaled_chi2_isf,
     variogram_lags,
@@ -318,3 +321,13 @@ def test_scaled_chi2_threshold():
     p = np.trapezoid(stats.norm.pdf(x) * stats.chi2.sf(q / np.exp(0.15 * x), 100), x)
     assert p == pytest.approx(1e-3, rel=1e-4)
     assert q > stats.chi2.isf(1e-3, 100)
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 7, 40, 2.5])
+def test_chi2_helpers_give_scipy_stats_numbers_exactly(dof):
+    x = np.concatenate([[-np.inf, -1.0, -0.0, 0.0, 5e-324, np.inf, np.nan], np.logspace(-300, 4, 500)])
+    np.testing.assert_array_equal(chi2_sf(x, dof), stats.chi2.sf(x, dof))
+    assert chi2_sf(3.0, dof) == stats.chi2.sf(3.0, dof) and np.ndim(chi2_sf(3.0, dof)) == 0
+    q = np.concatenate([[0.0, 1.0, -0.1, 1.1, np.nan, 5e-324], np.logspace(-300, -1e-16, 500)])
+    np.testing.assert_array_equal(chi2_isf(q, dof), stats.chi2.isf(q, dof))
+    np.testing.assert_array_equal(chi2_ppf(q, dof), stats.chi2.ppf(q, dof))

@@ -2,11 +2,25 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
+import pytest
 
 from isokinetic.physics import damper as dm
+from isokinetic.physics import hydraulics as hyd_module
 from isokinetic.physics.damper import TABLE_1
-from isokinetic.physics.hydraulics import Hydraulics, relaxations
+from isokinetic.physics.hydraulics import (
+    Hydraulics,
+    compressibility_time,
+    compressibility_times,
+    relaxation,
+    relaxation_batch,
+    relaxations,
+    start_volumes,
+    steady_pressure,
+)
 
 
 def test_segment_table_does_not_depend_on_the_other_problems_of_its_batch():
@@ -20,3 +34,111 @@ def test_segment_table_does_not_depend_on_the_other_problems_of_its_batch():
     assert relaxations([large[0]], [large[1]], hyd)[0].tau[-1] > 10 * alone.tau[-1]
     np.testing.assert_array_equal(batched.tau, alone.tau)
     np.testing.assert_array_equal(batched.coef, alone.coef)
+
+
+# ------------------------------------------------------------------------------ batched tables
+
+def _problem_set(hyd, rng, n=40):
+    """Start pressures and piston flows of every kind the chain meets: from rest, across q = 0 (a
+    reversal), from the same side, exactly at the steady state, the piston at rest (W = 0)."""
+    a = TABLE_1.piston_area_m2
+    qp = a * 10 ** rng.uniform(-6.5, -2.5, n) * rng.choice([-1.0, 1.0], n)
+    qp[-3:] = 0.0
+    steady = np.array([steady_pressure(q, hyd) for q in qp])
+    other = np.array([steady_pressure(-a * 10 ** rng.uniform(-6.5, -2.5), hyd) for _ in range(n)])
+    dp0 = np.where(rng.uniform(size=n) < 0.5, other, steady * rng.uniform(0.05, 0.95, n))
+    dp0[::7] = 0.0
+    dp0[3::9] = steady[3::9]                        # at (or an ulp from) the steady state
+    dp0[-3] = 0.0                                   # at rest, no pressure: a constant table
+    dp0[-2:] = other[-2:]                           # relaxing with the piston at rest
+    return dp0, qp
+
+
+HYDRAULICS = [Hydraulics.from_damper(TABLE_1, dm.Effects()),
+              Hydraulics.from_damper(TABLE_1, dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)),
+              dataclasses.replace(Hydraulics.from_damper(TABLE_1, dm.Effects(asymmetry=-0.2)), laminar_coefficient=0.0)]
+
+
+@pytest.mark.parametrize("hyd", HYDRAULICS, ids=["nominal", "leakage+asymmetry", "turbulent only"])
+def test_batched_tables_evaluate_every_sample_as_its_own_table(hyd):
+    """relaxation_batch(): the tables of a batch are the tables built alone, and evaluating many tables' samples
+    at once (in any order, or in runs) gives exactly what each table gives its own sorted samples."""
+    rng = np.random.default_rng(11)
+    dp0, qp = _problem_set(hyd, rng)
+    batch = relaxation_batch(dp0, qp, hyd, 0.06)
+    which, taus, expected = [], [], []
+    for k, (p, q) in enumerate(zip(dp0, qp)):
+        alone = relaxation(p, q, hyd, 0.06)
+        np.testing.assert_array_equal(batch.relaxation(k).tau, alone.tau)
+        np.testing.assert_array_equal(batch.relaxation(k).coef, alone.coef)
+        end = alone.tau[-1] if alone.tau.size > 1 else 1.0
+        tau = np.sort(np.concatenate([rng.uniform(0.0, 1.3 * end, 30), alone.tau[::5]]))
+        which.append(np.full(tau.size, k))
+        taus.append(tau)
+        expected.append(alone.pressure(tau))
+    assert 1 <= np.count_nonzero(batch.sizes == 1) < len(batch)   # constants among the tables
+    which, taus, expected = np.concatenate(which), np.concatenate(taus), np.concatenate(expected)
+    order = rng.permutation(taus.size)
+    got = np.empty(taus.size)
+    got[order] = batch.pressure(which[order], taus[order])
+    np.testing.assert_array_equal(got, expected)
+    live = taus < batch.end_tau[which]
+    runs = np.flatnonzero(np.diff(which[live], prepend=-1))
+    counts = np.diff(np.append(runs, live.sum()))
+    np.testing.assert_array_equal(batch.pressure_runs(which[live][runs], counts, taus[live]), expected[live])
+
+
+def _reference_nodes(u0, u_end, u_ref, step, special, graded_min):
+    """The node construction of :func:`relaxations` for one problem, written out with np.linspace."""
+    parts = []
+    if u0 > u_ref:
+        parts.append(np.linspace(u_ref, u0, math.ceil((u0 - u_ref) / step) + 1))
+    top = min(u0, u_ref)
+    zeta_top, zeta_cap = math.exp((top - u_ref) / 4.0), step / 0.5
+    u_cap = max(u_end, u_ref + 4.0 * math.log(zeta_cap))
+    if top > u_cap:
+        zeta_lo = math.exp((u_cap - u_ref) / 4.0)
+        zeta = np.linspace(zeta_lo, zeta_top, math.ceil((zeta_top - zeta_lo) / (step / 4.0)) + 1)
+        parts.append(u_ref + 4.0 * np.log(zeta))
+    lo_top = min(top, u_cap)
+    parts.append(np.linspace(u_end, lo_top, max(2, math.ceil((lo_top - u_end) / 0.5) + 1)))
+    if graded_min < 10.0 * step:
+        off = 10.0 * step * 0.8 ** np.arange(0, math.ceil(math.log(graded_min / (10.0 * step)) / math.log(0.8)) + 1)
+        for c in special:
+            parts.append(np.concatenate([c - off, c + off, [c]]))
+    u = np.unique(np.concatenate(parts))
+    return np.concatenate([[u0], u[(u >= u_end) & (u < u0)][::-1]])
+
+
+@pytest.mark.parametrize("hyd", HYDRAULICS, ids=["nominal", "leakage+asymmetry", "turbulent only"])
+def test_nodes_of_a_batch_are_the_per_problem_construction(hyd):
+    """The vectorised node generation reproduces, bit for bit, the construction problem by problem:
+    u from ln|q* - q0| down, the crossing piece, the ζ-graded piece, the 0.5 panels, the cluster at q = 0."""
+    rng = np.random.default_rng(12)
+    dp0, qp = _problem_set(hyd, rng)
+    q_star, _, _, q0, dist = hyd_module._problems(dp0, qp, hyd)
+    moving = dist > 0
+    nodes, sizes = hyd_module._node_sets(q_star[moving], q0[moving], dist[moving], hyd, 0.06)
+    c2_max = max(hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg)
+    expected = []
+    for qs, q, d in zip(q_star[moving], q0[moving], dist[moving]):
+        scale = max(abs(qs), d) if qs * q >= 0 else abs(qs)
+        special = [math.log(d)] if q == 0 else ([math.log(abs(qs))] if qs * q < 0 else [])
+        width = hyd.laminar_coefficient / (2 * c2_max * abs(qs)) if qs != 0 else math.inf
+        expected.append(_reference_nodes(math.log(d), math.log(max(abs(qs), d) * 1e-17), math.log(scale), 0.06,
+                                         special, max(1e-12, 1e-2 * width)))
+    np.testing.assert_array_equal(sizes, [e.size for e in expected])
+    np.testing.assert_array_equal(nodes, np.concatenate(expected))
+    assert all(np.all(np.diff(e) < 0) for e in expected)
+
+
+def test_compressibility_times_is_compressibility_time_per_element():
+    hyd = HYDRAULICS[1]
+    rng = np.random.default_rng(13)
+    y0 = rng.uniform(-5e-3, 5e-3, 6)
+    w = np.array([1e-3, -2e-4, 0.0, 5e-6, -1e-2, 0.0])
+    dt = [np.sort(rng.uniform(0, 2, 50)) for _ in w]
+    v1, v2 = start_volumes(np.repeat(y0, 50), hyd)
+    got = compressibility_times(np.concatenate(dt), v1, v2, hyd.piston_area_m2 * np.repeat(w, 50), hyd)
+    expected = np.concatenate([compressibility_time(t, y, v, hyd) for t, y, v in zip(dt, y0, w)])
+    np.testing.assert_array_equal(got, expected)

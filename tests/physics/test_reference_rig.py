@@ -347,6 +347,31 @@ def test_same_seed_gives_identical_bytes(exported):
     assert (other / "T01.csv").read_bytes() != (folder / "T01.csv").read_bytes()
 
 
+def _value_by_value(header: str, columns) -> str:
+    rows = zip(*([f"{v:.{dec}f}" for v in values.tolist()] for values, dec in columns))
+    return header + "\n" + "\n".join(map(",".join, rows)) + "\n"
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_csv_text_is_the_value_by_value_text(seed):
+    """The byte-matrix CSV writer prints exactly what f"{v:.{dec}f}" prints, value by value: quantised
+    counts of either sign, times with an offset, values that round to a signed zero, or no rows."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(0, 3000)) if seed else 0
+    columns = [(np.arange(n) * (1e3 / 50.0) + 1.5e3 + 0.0, 0),
+               (rng.integers(-10**9, 10**9, n) * 0.001 + 0.0, 3),
+               (rng.integers(-10**4, 10**4, n) * round(0.125 * 10.0**-seed, 3 + seed) + 0.0, 3 + seed),
+               (np.round(rng.normal(0.0, 10.0**(seed - 3), n), 2) + 0.0, 2)]
+    assert all(rrc._fixed_ascii(values, dec) is not None for values, dec in columns)   # not the fallback
+    text = rrc._csv_text("a,b,c,d", columns)
+    assert text == _value_by_value("a,b,c,d", columns)
+    signed_zero = [(np.array([-1e-9, 1e-9, -0.0, 0.0, -5.0]), 2)]
+    assert rrc._fixed_ascii(*signed_zero[0]) is not None
+    text = rrc._csv_text("a", signed_zero)
+    assert text == _value_by_value("a", signed_zero) == "a\n-0.00\n0.00\n-0.00\n0.00\n-5.00\n"
+    assert rrc._fixed_ascii(np.array([0.005]), 2) is None         # a half-way value is left to Python
+
+
 def test_export_folder_contains_no_truth(exported):
     folder, _, _ = exported
     assert sorted(p.name for p in folder.iterdir()) == ["T01.csv", "T02.csv", "T03.csv", "campaign.yaml"]

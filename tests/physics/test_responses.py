@@ -18,9 +18,10 @@ from scipy.optimize import brentq
 
 from isokinetic.physics import damper as dm
 from isokinetic.physics.damper import TABLE_1
-from isokinetic.physics.hydraulics import Hydraulics
+from isokinetic.physics.excitation import piston_segments, segment_index
+from isokinetic.physics.hydraulics import Hydraulics, compressibility_time, relaxation
 from isokinetic.physics.plan import CasePlan
-from isokinetic.physics.responses import true_response
+from isokinetic.physics.responses import Drive, drive_times, driven_segments, triangle_responses, true_response
 from isokinetic.physics.servo import servo_response
 from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, simulate_case
 
@@ -226,6 +227,67 @@ def test_stroke_that_empties_a_chamber_is_refused():
     limit = TABLE_1.chamber_volume_1_m3 / TABLE_1.piston_area_m2
     with pytest.raises(ValueError, match="end of the cylinder"):
         true_response(triangle(w_m_s=1e-3, period_s=4 * limit / 1e-3), TABLE_1)
+
+
+# ---------------------------------------------------------------------------------- batched quadrature
+
+def chained_segments(case: CasePlan, hyd: Hydraulics, backlash_m: float, drive: Drive | None, step: float):
+    """The quadrature one segment after the other through the single-table API: Eq. (14) for the
+    samples and the segment's end, the table from the previous segment's end Δp."""
+    t = drive_times(case, drive)
+    a = hyd.piston_area_m2
+    if drive is None:
+        segs = piston_segments(case, backlash_m)
+        flows = [a * seg.direction * 4.0 * case.amplitude_m / case.period_s if seg.contact else 0.0 for seg in segs]
+    else:
+        segs = driven_segments(case, drive)
+        flows = [a * seg.direction * drive.speed(j) for j, seg in enumerate(segs)]
+    dp, vel, p = np.empty(t.size), np.zeros(t.size), 0.0
+    for seg, qp, idx in zip(segs, flows, segment_index(t, segs)):
+        tau = compressibility_time(np.append(t[idx], seg.t_end_s) - seg.t_start_s, seg.piston_start_m, qp / a, hyd)
+        values = relaxation(p, qp, hyd, step).pressure(tau)
+        dp[idx], vel[idx], p = values[:-1], qp / a, float(values[-1])
+    return t, dp, vel
+
+
+BATCH = [triangle(w_m_s=1.0e-3, period_s=4.0, rate_Hz=200.0, case="T1"),
+         triangle(w_m_s=5.0e-6, period_s=40.0, rate_Hz=20.0, periods=1.3, case="T2"),
+         triangle(w_m_s=2.0e-4, period_s=2.0, rate_Hz=500.0, periods=2.6, case="T3"),
+         triangle(w_m_s=1.0e-3, period_s=4.0, rate_Hz=200.0, case="T4")]   # T1 again: tables shared
+
+
+@pytest.mark.parametrize("effects, backlash_m", [(dm.Effects(), 0.0), (TRUTH, 0.0),
+                                                 (dm.Effects(air_volume_fraction=0.01, asymmetry=-0.1), 0.0),
+                                                 (TRUTH, 4.0e-5)], ids=["nominal", "truth", "air", "backlash"])
+def test_batched_triangles_equal_the_segment_by_segment_chain(effects, backlash_m):
+    """triangle_responses advances all cases in lockstep, evaluates only the segments' ends in the chain,
+    then every sample at once and Δp* without τ after a table's end: the same numbers, bit for bit, as
+    chaining single tables segment by segment; with measured drives (speeds per half-period, an offset
+    sample grid) too."""
+    hyd = Hydraulics.from_damper(TABLE_1, effects)
+    drives = [None] * len(BATCH)
+    if not backlash_m:
+        drives[1] = Drive((5.1e-6, 4.9e-6, 5.2e-6), grid_offset_s=0.0137)
+        drives[2] = Drive((2.1e-4, 1.9e-4), grid_offset_s=0.0004)
+    got = triangle_responses(BATCH, hyd, backlash_m, 0.06, drives)
+    for case, drive, out in zip(BATCH, drives, got):
+        for x, y in zip(out, chained_segments(case, hyd, backlash_m, drive, 0.06)):
+            np.testing.assert_array_equal(x, y)
+    np.testing.assert_array_equal(got[3][1], got[0][1])
+
+
+def test_repeated_batches_do_not_share_their_arrays():
+    """The sample grids of a batch are remembered between calls; what a call returns is its own."""
+    hyd = Hydraulics.from_damper(TABLE_1, TRUTH)
+    first = triangle_responses(BATCH, hyd, 0.0, 0.06)
+    expected = [tuple(x.copy() for x in out) for out in first]
+    for out in first:
+        for x in out:
+            x[:] = -1.0
+    again = triangle_responses(BATCH, hyd, 0.0, 0.06)
+    for x, y in zip(again, expected):
+        for a, b in zip(x, y):
+            np.testing.assert_array_equal(a, b)
 
 
 # ---------------------------------------------------------------------------------- servo stiffness

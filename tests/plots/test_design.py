@@ -1,4 +1,4 @@
-"""Figures of the rule design (plots.design): Fig. 5 (stroke to converge) and Fig. 6 (A-T diagram)."""
+"""Figures of the stage design (plots.design): Fig. 5 (stroke to converge) and Fig. 6 (A-T diagram)."""
 
 from __future__ import annotations
 

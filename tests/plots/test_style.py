@@ -31,6 +31,23 @@ def test_save_figure_writes_metadata_as_png_text_without_software_stamp(tmp_path
         assert im_plain.size == (2 * style.DPI, int(1.5 * style.DPI))
 
 
+def test_save_figure_draws_the_pixels_savefig_draws(tmp_path):
+    """Laid out once before saving (style.lay_out), a figure has the very pixels of a plain savefig:
+    several axes, a shared axis, mathtext, an outside legend and a footnote."""
+    cases, series, _, char = synthetic_campaign()
+    picked = list(cases["case"])[:3]
+    for k, make in enumerate((lambda: figures.time_and_loops(cases, series, picked),
+                              lambda: figures.noise(char))):
+        fig_a, fig_b = make(), make()
+        for fig in (fig_a, fig_b):
+            style.footnote(fig, "a note under the axes, long enough to be wrapped onto a second line " * 2)
+        a = style.save_figure(fig_a, tmp_path / f"a{k}.png")
+        assert fig_a.get_layout_engine() is None                      # laid out, then saved without the engine
+        fig_b.savefig(tmp_path / f"b{k}.png", format="png", dpi=style.DPI)
+        with Image.open(a) as im_a, Image.open(tmp_path / f"b{k}.png") as im_b:
+            assert im_a.size == im_b.size and np.array_equal(np.asarray(im_a), np.asarray(im_b))
+
+
 def test_force_unit_switches_to_kN_at_1_kN_and_ignores_non_finite():
     assert style.force_unit([999.0, -20.0]) == (1.0, "N")
     assert style.force_unit(np.array([10.0, -1000.0])) == (1e3, "kN")

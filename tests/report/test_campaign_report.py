@@ -91,7 +91,7 @@ def test_every_number_cell_names_its_file_rule_and_audit_command(built):
     fc = next(c for c in cells if "model=wallaschek,direction=both,parameter=F_C" in c["title"])
     assert "fitted on 12 rows (case/segment)" in fc["title"] and "T01/1" in fc["title"]
     rep = next(c for c in cells if "repeatability.parquet [case=T03,direction=-]" in c["title"])
-    assert "rule repeatability" in rep["title"] and "lineage not recorded" in rep["title"]
+    assert "rule characteristic" in rep["title"] and "lineage not recorded" in rep["title"]
     # the per-table lineage lines carry the audit command for a row
     assert "python -m isokinetic trace results/demo/characteristic.parquet case=T01,segment=1" in page
     # JSON values: the key path of the value; a quarantined case: audited through cases.parquet

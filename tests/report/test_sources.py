@@ -5,29 +5,32 @@ from __future__ import annotations
 from pathlib import Path, PurePosixPath
 
 from isokinetic.audit.trace import KINDS
-from isokinetic.contracts.outputs import FIGURES, rule_of, sibling_table
+from isokinetic.contracts.outputs import FIGURES, rule_of, sibling_table, stage_of, stage_rule
 from isokinetic.report import browser, sources
 
 from .fixture_results import CAMPAIGN_FIGURES
 
-#: The rule the pages name for every file they read, and the table whose record a figure shares
-#: (the report's own tables before the registry in isokinetic.contracts.outputs replaced them).
-RULES = {"ingest/campaign.json": "ingest or virtual_rig", "cases.parquet": "validate", "quarantine.parquet": "validate",
-         "characteristic.parquet": "characteristic", "repeatability.parquet": "repeatability",
-         "design/plan_check.parquet": "design", "models/models.parquet": "models",
-         "models/comparison.parquet": "models", "harmonic/harmonic.parquet": "harmonic",
-         "diagnosis.json": "diagnosis", "scores.parquet": "blind_score", "summary.json": "blind_score",
-         "provenance.json": "provenance"}
-SIBLINGS = {"figures": None, "models": "models/models.parquet", "harmonic": "harmonic/harmonic.parquet",
-            "design": "design/plan_check.parquet", "diagnosis": "diagnosis.json", "blind_score": "scores.parquet"}
+#: The stage and rule (job) the pages name for every file they read, and the table whose record a
+#: figure shares (its stage's table, else the first its job writes).
+STAGES = {"ingest/campaign.json": ("ingest or virtual_rig", "ingest or virtual_rig"),
+          "cases.parquet": ("validate", "characteristic"), "quarantine.parquet": ("validate", "characteristic"),
+          "characteristic.parquet": ("characteristic", "characteristic"),
+          "repeatability.parquet": ("repeatability", "characteristic"),
+          "design/plan_check.parquet": ("design", "analysis"), "models/models.parquet": ("models", "analysis"),
+          "models/comparison.parquet": ("models", "analysis"), "harmonic/harmonic.parquet": ("harmonic", "analysis"),
+          "diagnosis.json": ("diagnosis", "diagnosis"), "scores.parquet": ("blind_score", "blind_score"),
+          "summary.json": ("blind_score", "blind_score"), "provenance.json": ("provenance", "campaign_report")}
+SIBLINGS = {"figures": "design/plan_check.parquet", "models": "models/models.parquet",
+            "harmonic": "harmonic/harmonic.parquet", "design": "design/plan_check.parquet",
+            "diagnosis": "diagnosis.json", "blind_score": "scores.parquet"}
 
 
 def test_rule_and_sibling_of_every_file_the_pages_read():
-    for rel, rule in RULES.items():
-        assert rule_of(rel) == rule, rel
+    for rel, (stage, rule) in STAGES.items():
+        assert (stage_of(rel), rule_of(rel)) == (stage, rule), rel
     for fig in FIGURES:
-        assert rule_of(fig.path) == fig.rule, fig
-        assert sibling_table(fig.path) == SIBLINGS[fig.rule], fig
+        assert (stage_of(fig.path), rule_of(fig.path)) == (fig.stage, stage_rule(fig.stage)), fig
+        assert sibling_table(fig.path) == SIBLINGS[fig.stage], fig
     assert [Path(f.path).name for f in CAMPAIGN_FIGURES] == browser.campaign_figure_files()
     assert len(CAMPAIGN_FIGURES) == 12 and [f.section for f in FIGURES if f not in CAMPAIGN_FIGURES] == ["blind"]
 

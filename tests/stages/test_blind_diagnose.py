@@ -9,7 +9,7 @@ from pathlib import Path
 import yaml
 
 from isokinetic.contracts.scenarios import EFFECTS
-from isokinetic.stages.blind_diagnose import DIAGNOSIS_FIGURE, diagnose_suite
+from isokinetic.stages.blind_diagnose import diagnose_suite
 from isokinetic.stages.blind_generate import generate_scenarios, write_suite
 from isokinetic.stages.blind_score import read_truths, score, summarize, summary_text
 
@@ -36,7 +36,7 @@ def test_small_blind_suite_attributes_every_effect(tmp_path):
     assert tree_hashes(tmp_path / "raw") == tree_hashes(tmp_path / "raw-before")  # raw data untouched
     for s in scenarios:
         folder = tmp_path / "work" / s.name
-        for name in ("cases.parquet", "characteristic.parquet", "diagnosis.json", DIAGNOSIS_FIGURE):
+        for name in ("cases.parquet", "windows.parquet", "characteristic.parquet", "diagnosis.json"):
             assert (folder / name).is_file(), (s.name, name)
     scores = score(read_truths(tmp_path / "truth"), diagnoses)
     assert scores["verdict"].tolist() == scores["truth"].tolist(), scores[["scenario", "truth", "verdict"]]

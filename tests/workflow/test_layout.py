@@ -1,6 +1,6 @@
-"""The house rules a newcomer relies on: a rule, its script and its module share one name; every
-module is listed in the README; every figure has its caption; facts have one source; no function
-or module outgrows what a reader can hold."""
+"""The house rules a newcomer relies on: a rule, its script and its module share one name, and so do
+a stage and its module; every module is listed in the README; every figure has its caption; facts
+have one source; no function or module outgrows what a reader can hold."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from isokinetic.contracts.outputs import CAMPAIGN_ID_PATTERN, FIGURES, RULE_OUTPUTS
+from isokinetic.contracts.outputs import CAMPAIGN_ID_PATTERN, FIGURES, RULE_STAGES, STAGE_OUTPUTS, stage_rule
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "src" / "isokinetic"
@@ -32,13 +32,25 @@ def modules() -> list[Path]:
     return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
 
 
+def module_named(name: str) -> list[Path]:
+    return [p for kind in RULE_MODULE_KINDS for p in (PACKAGE / kind).rglob(f"{name}.py")]
+
+
 def test_every_rule_has_a_script_and_one_module_of_its_name():
     rules = [r for r in rule_names() if r != "all"]
-    assert len(rules) >= 18
+    assert set(RULE_STAGES) <= set(rules)
     for rule in rules:
         assert (ROOT / "workflow" / "scripts" / f"{rule}.py").is_file(), f"rule {rule}: no workflow/scripts/{rule}.py"
-        found = [p for kind in RULE_MODULE_KINDS for p in (PACKAGE / kind).rglob(f"{rule}.py")]
+        found = module_named(rule)
         assert len(found) == 1, f"rule {rule}: modules {found}"
+
+
+def test_every_stage_has_one_module_of_its_name_and_one_rule_that_runs_it():
+    stages = [s for run in RULE_STAGES.values() for s in run]
+    assert len(stages) == len(set(stages)), "a stage run by two rules"
+    for stage in stages:
+        assert len(module_named(stage)) == 1, f"stage {stage}: modules {module_named(stage)}"
+    assert set(STAGE_OUTPUTS) <= set(stages)
 
 
 def test_every_script_belongs_to_a_rule():
@@ -63,10 +75,9 @@ def test_every_figure_has_a_caption_and_every_caption_a_figure():
     assert all((ROOT / f.caption).is_file() for f in FIGURES)
 
 
-def test_figures_are_drawn_by_rules_that_exist():
+def test_figures_are_drawn_by_stages_of_rules_that_exist():
     rules = set(rule_names())
-    assert {f.rule for f in FIGURES} <= rules
-    assert set(RULE_OUTPUTS) <= rules
+    assert {stage_rule(f.stage) for f in FIGURES} <= rules
 
 
 def test_schemas_use_the_one_campaign_id_pattern():

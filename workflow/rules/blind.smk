@@ -10,6 +10,10 @@ rule blind_generate:
         truth=directory(f"{BLIND_ROOT}/truth"),
     log:
         "logs/blind/generate.log",
+    benchmark:
+        benchmark_path("blind_generate", BLIND_DIR)
+    resources:
+        **rule_resources("blind_generate"),
     params:
         seed=BLIND.get("seed", 0),
         n_per_effect=BLIND.get("n_per_effect", 0),
@@ -31,8 +35,12 @@ rule blind_diagnose:
         directory(f"{BLIND_ROOT}/diagnosis/chunk{{chunk}}"),
     log:
         "logs/blind/diagnose-chunk{chunk}.log",
+    benchmark:
+        benchmark_path("blind_diagnose-chunk{chunk}", BLIND_DIR)
     wildcard_constraints:
         chunk=r"\d+",
+    resources:
+        **rule_resources("blind_diagnose"),
     params:
         names=blind_chunk,
         start_fraction=config["windows"]["start_fraction"],
@@ -52,5 +60,9 @@ rule blind_score:
         **rule_outputs("blind_score", campaign=BLIND_DIR),
     log:
         "logs/blind/score.log",
+    benchmark:
+        benchmark_path("blind_score", BLIND_DIR)
+    resources:
+        **rule_resources("blind_score"),
     script:
         "../scripts/blind_score.py"

@@ -1,11 +1,24 @@
+# The steady characteristic of a campaign in one job (one Python start-up): validate -> windows ->
+# repeatability -> characteristic (isokinetic.stages.characteristic.write_characteristic).
+
+
 rule characteristic:
-    """The steady force-velocity characteristic of the campaign."""
+    """Per case checks (failing cases quarantined with their reason), the mean force and velocity of
+    every constant-velocity window, period 1 against period 2, and the steady force-velocity points."""
     input:
-        windows="results/{campaign}/windows.parquet",
-        repeatability="results/{campaign}/repeatability.parquet",
+        "results/{campaign}/ingest",
     output:
         **rule_outputs("characteristic"),
     log:
         "logs/{campaign}/characteristic.log",
+    benchmark:
+        benchmark_path("characteristic")
+    resources:
+        **rule_resources("characteristic"),
+    params:
+        sample_rate_tolerance=config["validation"]["sample_rate_tolerance"],
+        start_fraction=config["windows"]["start_fraction"],
+        end_fraction=config["windows"]["end_fraction"],
+        repeatability_tolerance=config["repeatability"]["tolerance"],
     script:
         "../scripts/characteristic.py"

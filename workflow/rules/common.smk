@@ -16,11 +16,10 @@ from isokinetic.contracts.outputs import (
     CAMPAIGN_ID_PATTERN,
     FIGURES,
     RESULTS_DIR,
-    RULE_OUTPUTS,
     campaign_path,
-    figures_of,
     is_folder,
-    outputs_of,
+    rule_figures,
+    rule_outputs_of,
 )
 from isokinetic.contracts.scenarios import scenario_names, suite_size
 
@@ -95,13 +94,14 @@ def raw_files(wildcards):
 
 
 def rule_outputs(rule, campaign="{campaign}"):
-    """Name -> output of a rule, from isokinetic.contracts.outputs: a folder as directory(), figures
-    as report items with their caption (one figure is named 'figure', several are the list 'figures')."""
+    """Name -> output of a rule's job (all its stages'), from isokinetic.contracts.outputs: a folder as
+    directory(), figures as report items with their caption (one figure is named 'figure', several are
+    the list 'figures')."""
     out = {}
-    for name, path in RULE_OUTPUTS[rule].items():
+    for name, path in rule_outputs_of(rule).items():
         out[name] = directory(campaign_path(campaign, path)) if is_folder(path) else campaign_path(campaign, path)
     labels = {"campaign": campaign}
-    figures = [report_item(campaign_path(campaign, f.path), f.name, campaign, labels) for f in figures_of(rule)]
+    figures = [report_item(campaign_path(campaign, f.path), f.name, campaign, labels) for f in rule_figures(rule)]
     if len(figures) == 1:
         out["figure"] = figures[0]
     elif figures:
@@ -115,13 +115,18 @@ def report_item(path, name, category, labels):
 
 
 def output_path(rule, name, campaign="{campaign}"):
-    """results/<campaign>/<path> of one named output of a rule."""
-    return campaign_path(campaign, RULE_OUTPUTS[rule][name])
+    """results/<campaign>/<path> of one named table or document of a rule's job."""
+    return campaign_path(campaign, rule_outputs_of(rule)[name])
 
 
 def figure_paths(rule, campaign="{campaign}"):
-    """results/<campaign>/<folder>/<figure>.png of every figure a rule draws."""
-    return [campaign_path(campaign, f.path) for f in figures_of(rule)]
+    """results/<campaign>/<folder>/<figure>.png of every figure a rule's job draws."""
+    return [campaign_path(campaign, f.path) for f in rule_figures(rule)]
+
+
+def benchmark_path(rule, campaign="{campaign}"):
+    """Snakemake's benchmark record of a job (wall time, memory): logs/<campaign>/<rule>.benchmark.tsv."""
+    return f"logs/{campaign}/{rule}.benchmark.tsv"
 
 
 def campaign_outputs(campaign):
@@ -131,15 +136,15 @@ def campaign_outputs(campaign):
             output_path(rule, name, campaign)
             for rule, name in (
                 ("characteristic", "characteristic"),
-                ("repeatability", "repeatability"),
-                ("validate", "quarantine"),
-                ("models", "models"),
-                ("harmonic", "table"),
+                ("characteristic", "repeatability"),
+                ("characteristic", "quarantine"),
+                ("analysis", "models"),
+                ("analysis", "table"),
                 ("diagnosis", "json"),
             )
         ]
-        + figure_paths("figures", campaign)
-        + figure_paths("design", campaign)
+        + figure_paths("analysis", campaign)
+        + figure_paths("diagnosis", campaign)
         + ([output_path("raw_check", "raw_check", campaign)] if campaign in RAW_CAMPAIGNS else [])
     )
 
@@ -161,7 +166,11 @@ def check_raw_after_run():
 
 
 BLIND_ROOT = f"{RESULTS_DIR}/{BLIND_DIR}"
-BLIND_OUTPUTS = [campaign_path(BLIND_DIR, p) for p in outputs_of("blind_score").values()]
+BLIND_OUTPUTS = [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_score").values()] + [
+    campaign_path(BLIND_DIR, f.path) for f in rule_figures("blind_score")
+]
+#: Every campaign's plan check in one table, written by the index job.
+DESIGN_SUMMARY = f"{RESULTS_DIR}/design/plan_check.parquet"
 
 
 def blind_scenario_names(blind):
@@ -190,23 +199,12 @@ def blind_chunk(wildcards):
     return BLIND_NAMES[int(wildcards.chunk) :: BLIND_CHUNKS]
 
 
-def provenance_if_made(wildcards):
-    """results/<campaign>/provenance.json when a rule of the workflow makes it. Not when the campaign's
-    outputs (read by the provenance job) include the page itself, which would be a cycle."""
-    path = output_path("provenance", "provenance", wildcards.campaign)
-    page = output_path("campaign_report", "page", wildcards.campaign)
-    if page in campaign_outputs(wildcards.campaign):
-        return []
-    return [path] if any(r.is_producer(path) for r in workflow.rules if r.name != "campaign_report") else []
-
-
 def all_outputs():
-    """Every result of the workflow: each campaign's outputs, provenance and page, the index, the blind suite."""
+    """Every result of the workflow: each campaign's outputs, provenance and page, the index and the
+    plan-check summary, the blind suite."""
     return (
-        ["results/design/plan_check.parquet"]
+        [DESIGN_SUMMARY, "results/index.html"]
         + [path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]
-        + [output_path("provenance", "provenance", campaign) for campaign in CAMPAIGNS]
-        + [output_path("campaign_report", "page", campaign) for campaign in CAMPAIGNS]
-        + ["results/index.html"]
+        + [output_path("campaign_report", name, campaign) for campaign in CAMPAIGNS for name in ("provenance", "page")]
         + (BLIND_OUTPUTS if BLIND else [])
     )

@@ -9,6 +9,10 @@ rule diagnosis:
         **rule_outputs("diagnosis"),
     log:
         "logs/{campaign}/diagnosis.log",
+    benchmark:
+        benchmark_path("diagnosis")
+    resources:
+        **rule_resources("diagnosis"),
     params:
         start_fraction=config["windows"]["start_fraction"],
         end_fraction=config["windows"]["end_fraction"],

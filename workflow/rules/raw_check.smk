@@ -9,7 +9,11 @@ rule raw_check:
         **rule_outputs("raw_check"),
     log:
         "logs/{campaign}/raw_check.log",
+    benchmark:
+        benchmark_path("raw_check")
     wildcard_constraints:
         campaign=one_of(RAW_CAMPAIGNS),
+    resources:
+        **rule_resources("raw_check"),
     script:
         "../scripts/raw_check.py"

@@ -1,46 +1,53 @@
 # Reports for people: one self-contained HTML page per campaign (figures embedded, no server, no
-# network) and results/index.html over all campaigns and the blind suite. Every number on the pages
-# names its source file, rule, commit and parameters (isokinetic.report).
+# network), with the campaign's provenance record written first in the same job, and
+# results/index.html over all campaigns and the blind suite, with every campaign's plan check in one
+# table. Every number on the pages names its source file, rule, commit and parameters
+# (isokinetic.report).
 
 
 rule campaign_report:
-    """The campaign's report page: plan check, characteristic, repeatability, models, harmonic,
-    design, diagnosis and quarantine, every figure embedded, every number with its lineage."""
+    """provenance.json (raw files and hashes, environment, code, stages of every output), then the
+    campaign's report page: plan check, characteristic, repeatability, models, harmonic, design,
+    diagnosis and quarantine, every figure embedded, every number with its lineage."""
     input:
+        outputs=lambda wildcards: campaign_outputs(wildcards.campaign),
         ingest="results/{campaign}/ingest",
         cases="results/{campaign}/cases.parquet",
-        quarantine="results/{campaign}/quarantine.parquet",
-        characteristic="results/{campaign}/characteristic.parquet",
-        repeatability="results/{campaign}/repeatability.parquet",
-        plan_check="results/{campaign}/design/plan_check.parquet",
-        models="results/{campaign}/models/models.parquet",
-        comparison="results/{campaign}/models/comparison.parquet",
-        harmonic="results/{campaign}/harmonic/harmonic.parquet",
-        diagnosis="results/{campaign}/diagnosis.json",
-        figures=[f"results/{{campaign}}/{f.path}" for f in FIGURES if f.rule != "blind_score"],
-        captions=[f.caption for f in FIGURES if f.rule != "blind_score"],
-        provenance=provenance_if_made,
+        comparison=output_path("analysis", "comparison"),
+        plan_check=output_path("analysis", "plan_check"),
+        captions=[f.caption for f in FIGURES if f.stage != "blind_score"],
     output:
         **rule_outputs("campaign_report"),
     log:
         "logs/{campaign}/campaign_report.log",
+    benchmark:
+        benchmark_path("campaign_report")
     wildcard_constraints:
         campaign=one_of(CAMPAIGNS),
+    resources:
+        **rule_resources("campaign_report"),
     script:
         "../scripts/campaign_report.py"
 
 
 rule report_index:
-    """results/index.html: every campaign's verdict and key numbers, linked to its page; the blind suite."""
+    """results/index.html: every campaign's verdict and key numbers, linked to its page; the blind
+    suite; and results/design/plan_check.parquet, every campaign's plan check in one table."""
     input:
         reports=expand("results/{campaign}/report.html", campaign=CAMPAIGNS),
         diagnoses=expand("results/{campaign}/diagnosis.json", campaign=CAMPAIGNS),
+        plan_checks=expand(output_path("analysis", "plan_check"), campaign=CAMPAIGNS),
         blind=BLIND_OUTPUTS if config.get("blind") else [],
-        captions=[f.caption for f in figures_of("blind_score")],
+        captions=[f.caption for f in rule_figures("blind_score")],
     output:
-        "results/index.html",
+        index="results/index.html",
+        design_summary=DESIGN_SUMMARY,
     log:
         "logs/report_index.log",
+    benchmark:
+        "logs/report_index.benchmark.tsv"
+    resources:
+        **rule_resources("report_index"),
     params:
         campaigns=CAMPAIGNS,
         blind_dir=lambda wildcards, input: str(Path(input.blind[0]).parent) if input.blind else None,

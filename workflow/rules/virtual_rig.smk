@@ -4,8 +4,12 @@ rule virtual_rig:
         **rule_outputs("virtual_rig"),
     log:
         "logs/{campaign}/virtual_rig.log",
+    benchmark:
+        benchmark_path("virtual_rig")
     wildcard_constraints:
         campaign=one_of(VIRTUAL_CAMPAIGNS),
+    resources:
+        **rule_resources("virtual_rig"),
     params:
         spec=lambda wildcards: config["virtual_campaigns"][wildcards.campaign],
     script:

@@ -1,11 +1,12 @@
-"""Rule characteristic: windows + repeatability -> characteristic.parquet."""
-import pandas as pd
+"""Rule characteristic: validate -> windows -> repeatability -> characteristic of one campaign."""
+from pathlib import Path
 
-from isokinetic.io import write_parquet
 from isokinetic.job import job
-from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.characteristic import write_characteristic
+from isokinetic.stages.windows import WindowSpec
 
 with job(snakemake) as j:
-    char = assemble(pd.read_parquet(snakemake.input.windows), pd.read_parquet(snakemake.input.repeatability))
-    write_parquet(char, snakemake.output[0])
-    j.log.info("%d characteristic points", len(char))
+    p = snakemake.params
+    write_characteristic(Path(snakemake.output.cases).parent, WindowSpec(p.start_fraction, p.end_fraction),
+                         repeatability_tolerance=p.repeatability_tolerance,
+                         sample_rate_tolerance=p.sample_rate_tolerance)

@@ -1,11 +1,16 @@
-"""Rule report_index: results/index.html over every campaign and the blind suite."""
+"""Rule report_index: results/index.html over every campaign and the blind suite, and every campaign's
+plan check in one table (results/design/plan_check.parquet)."""
 from pathlib import Path
 
 from isokinetic.job import job
 from isokinetic.report.report_index import write_index
+from isokinetic.stages.design_summary import write_design_summary
 
 with job(snakemake) as j:
-    out = Path(snakemake.output[0])
+    summary = write_design_summary(list(snakemake.input.plan_checks), snakemake.output.design_summary)
+    j.log.info("plan checks: %d cases from %d campaigns, %d flagged", len(summary), len(snakemake.input.plan_checks),
+               int(summary["flagged"].sum()))
+    out = Path(snakemake.output.index)
     write_index(out.parent, out, list(snakemake.params.campaigns), blind_dir=snakemake.params.blind_dir,
                 captions_dir=Path(snakemake.input.captions[0]).parent, lineage_record=j.lineage)
     j.log.info("wrote %s (%d bytes) over %d campaigns", out, out.stat().st_size, len(snakemake.params.campaigns))

@@ -49,8 +49,7 @@ FILE_NAME = "provenance.json"
 #: Packages whose versions are recorded (the scientific stack, the workflow engine, the plots).
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "pandera", "snakemake", "matplotlib")
 #: Pipeline order of the per-campaign rules; any other rule follows, sorted by name.
-STAGE_ORDER = ("virtual_rig", "ingest", "validate", "windows", "repeatability", "characteristic", "figures",
-               "design", "nominal", "harmonic", "models", "diagnosis")
+STAGE_ORDER = ("virtual_rig", "ingest", "characteristic", "analysis", "diagnosis", "raw_check")
 #: Prefix of a simulated case's raw_file (virtual_rig._cases_table).
 VIRTUAL_PREFIX = "virtual_rig:"
 

@@ -346,7 +346,8 @@ def locate_plan_check(ctx: Context, path: Path, row: pd.Series) -> Path:
     if not (root / "ingest").is_dir():  # the all-campaigns summary results/design/plan_check.parquet
         root = path.parent.parent / str(row["campaign"])
         own = root / "design" / "plan_check.parquet"
-        ctx.report.step(f"Summary row: copied by rule design_summary from {ctx.rel(own)} (campaign {row['campaign']})")
+        ctx.report.step(f"Summary row: copied by rule report_index (stage design_summary) from {ctx.rel(own)} "
+                        f"(campaign {row['campaign']})")
         if not root.is_dir():
             raise MissingFile(f"campaign folder {ctx.rel(root)} of this summary row not found")
     return root

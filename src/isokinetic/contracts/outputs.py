@@ -1,10 +1,14 @@
-"""What the pipeline writes, where, and which rule writes it.
+"""What the pipeline writes, where, and which stage and rule write it.
 
-The one place these facts live: the workflow's rules build their outputs from it, the report
-finds its figures and the rule behind each file in it, and ``trace`` names the rule of a file
-from it. Paths are relative to a campaign's folder ``results/<campaign>/`` (or to
-``results/blind/`` for the blind suite). Standard library only, so that building the
-workflow's DAG stays fast.
+A *stage* is one step of the method (validate, windows, ...), a module of
+:mod:`isokinetic.stages` (or :mod:`isokinetic.audit`, :mod:`isokinetic.report`) that writes its
+own files; a *rule* is one Snakemake job, which runs one or more stages in one Python process
+(:data:`RULE_STAGES`): each job pays 1-2 s of interpreter start-up and imports, so cheap stages
+that always run together share a job. The one place these facts live: the workflow's rules build
+their outputs from it, the report finds its figures and the rule behind each file in it, and
+``trace`` names the stage and rule of a file from it. Paths are relative to a campaign's folder
+``results/<campaign>/`` (or to ``results/blind/`` for the blind suite). Standard library only, so
+that building the workflow's DAG stays fast.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ BLIND_DIR = "blind"
 
 @dataclass(frozen=True)
 class Figure:
-    """One figure: its file name, the rule that draws it, where it goes and how it is titled.
+    """One figure: its file name, the stage that draws it, where it goes and how it is titled.
 
     ``folder`` is relative to the campaign's results folder (``results/blind/`` for the blind
     suite); ``section`` is the report section that shows it; its Snakemake report caption is
@@ -29,7 +33,7 @@ class Figure:
     """
 
     name: str
-    rule: str
+    stage: str
     folder: str
     section: str
     title: str
@@ -65,9 +69,9 @@ FIGURES = (
 )
 
 
-def figures_of(rule: str) -> tuple[Figure, ...]:
-    """The figures a rule draws, in report order."""
-    return tuple(f for f in FIGURES if f.rule == rule)
+def figures_of(stage: str) -> tuple[Figure, ...]:
+    """The figures a stage draws, in report order."""
+    return tuple(f for f in FIGURES if f.stage == stage)
 
 
 def figures_in(section: str) -> tuple[Figure, ...]:
@@ -83,10 +87,10 @@ def figure(name: str) -> Figure:
     raise KeyError(f"no figure named {name!r}")
 
 
-#: The tables and documents each rule writes (name -> path), figures apart (see FIGURES). A path
-#: ending in "/" is a folder. The rule ``ingest`` and the rule ``virtual_rig`` write the same
+#: The tables and documents each stage writes (name -> path), figures apart (see FIGURES). A path
+#: ending in "/" is a folder. The stage ``ingest`` and the stage ``virtual_rig`` write the same
 #: folder: a raw campaign is ingested, a config campaign is simulated into it.
-RULE_OUTPUTS = {
+STAGE_OUTPUTS = {
     "ingest": {"ingest": "ingest/"},
     "virtual_rig": {"ingest": "ingest/"},
     "validate": {"cases": "cases.parquet", "quarantine": "quarantine.parquet"},
@@ -106,43 +110,84 @@ RULE_OUTPUTS = {
     "blind_score": {"scores": "scores.parquet", "summary": "summary.json"},
 }
 
+#: The stages each per-campaign (or blind-suite) rule runs, in order, in one process. A rule's
+#: module (``stages/<rule>.py``, ``audit/<rule>.py`` or ``report/<rule>.py``) runs them.
+RULE_STAGES = {
+    "virtual_rig": ("virtual_rig",),
+    "ingest": ("ingest",),
+    "characteristic": ("validate", "windows", "repeatability", "characteristic"),
+    "analysis": ("design", "nominal", "harmonic", "models", "figures"),
+    "diagnosis": ("diagnosis",),
+    "raw_check": ("raw_check",),
+    "campaign_report": ("provenance", "campaign_report"),
+    "blind_score": ("blind_score",),
+}
 
-def is_folder(path: str) -> bool:
-    """Whether an output path of RULE_OUTPUTS names a folder (it ends in a slash)."""
-    return path.endswith("/")
+
+def stage_rule(stage: str) -> str | None:
+    """The rule whose job runs a stage (``windows`` -> ``characteristic``); None if none does."""
+    return next((rule for rule, stages in RULE_STAGES.items() if stage in stages), None)
 
 
-def outputs_of(rule: str) -> dict[str, str]:
-    """Name -> path of everything a rule writes (tables, documents and figures)."""
-    out = dict(RULE_OUTPUTS.get(rule, {}))
-    out.update({f.name: f.path for f in figures_of(rule)})
+def rule_outputs_of(rule: str) -> dict[str, str]:
+    """Name -> path of the tables and documents a rule's job writes (all its stages'), figures apart."""
+    out: dict[str, str] = {}
+    for stage in RULE_STAGES[rule]:
+        out.update(STAGE_OUTPUTS.get(stage, {}))
     return out
 
 
-def rule_of(path: str) -> str | None:
-    """The rule that writes a file, from its path relative to the campaign's results folder.
+def rule_figures(rule: str) -> tuple[Figure, ...]:
+    """The figures a rule's job draws (all its stages'), in report order."""
+    stages = RULE_STAGES[rule]
+    return tuple(f for f in FIGURES if f.stage in stages)
 
-    ``ingest/...`` is the ingest folder: "ingest or virtual_rig". None for a file no rule writes.
+
+def is_folder(path: str) -> bool:
+    """Whether an output path of STAGE_OUTPUTS names a folder (it ends in a slash)."""
+    return path.endswith("/")
+
+
+def outputs_of(stage: str) -> dict[str, str]:
+    """Name -> path of everything a stage writes (tables, documents and figures)."""
+    out = dict(STAGE_OUTPUTS.get(stage, {}))
+    out.update({f.name: f.path for f in figures_of(stage)})
+    return out
+
+
+def stage_of(path: str) -> str | None:
+    """The stage that writes a file, from its path relative to the campaign's results folder.
+
+    ``ingest/...`` is the ingest folder: "ingest or virtual_rig". None for a file no stage writes.
     """
     path = path.replace("\\", "/")
     if path.startswith("ingest/"):
         return "ingest or virtual_rig"
     for f in FIGURES:
         if f.path == path:
-            return f.rule
-    for rule, outputs in RULE_OUTPUTS.items():
-        if rule in ("ingest", "virtual_rig"):
+            return f.stage
+    for stage, outputs in STAGE_OUTPUTS.items():
+        if stage in ("ingest", "virtual_rig"):
             continue
         if path in outputs.values():
-            return rule
+            return stage
     return None
 
 
+def rule_of(path: str) -> str | None:
+    """The rule whose job writes a file (path relative to the campaign's results folder); see :func:`stage_of`."""
+    stage = stage_of(path)
+    return stage if stage is None or stage == "ingest or virtual_rig" else stage_rule(stage)
+
+
 def sibling_table(path: str) -> str | None:
-    """The table or document written by the same job as a figure (it shares that lineage record)."""
+    """A table or document written by the same job as a figure (it shares that lineage record): its
+    stage's first, else its rule's first."""
     for f in FIGURES:
         if f.path == path:
-            return next(iter(RULE_OUTPUTS.get(f.rule, {}).values()), None)
+            own = STAGE_OUTPUTS.get(f.stage) or {}
+            rule = stage_rule(f.stage)
+            return next(iter((own or (rule_outputs_of(rule) if rule else {})).values()), None)
     return None
 
 

@@ -1,24 +1,101 @@
-"""Column contracts of every table the pipeline writes, as pandera schemas.
+"""Column contracts of every table the pipeline writes, checked as pandera schemas.
 
 Each stage validates what it writes (``validate_table``); a schema failure there is a bug in
 the pipeline, not bad input. Bad *input* is caught by :mod:`isokinetic.stages.validate` and
 quarantined case by case.
+
+The contracts are declared here as plain data (:class:`Schema` of :class:`Column` and
+:class:`Check`), from which :func:`pandera_schema` builds the pandera schema. Importing pandera
+costs a pipeline job about 0.3 s and its validation ~10 ms a table, so :func:`validate_table`
+first runs the same contract as a strict numpy/pandas check (:func:`passes`: exact dtypes, no
+nulls in a non-nullable column, every check true; a few ms a table); a table that passes it passes
+pandera too, and pandera is imported and asked only for a table that does not (its errors are
+then pandera's own, all failures reported at once).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from functools import cache
+
+import numpy as np
 import pandas as pd
-import pandera.pandas as pa
-from pandera import Check
 
 from isokinetic.physics.plan import WAVEFORMS
 
 STATUS = ("ok", "quarantined")
 DIRECTIONS = ("+", "-")
 
-_finite = Check(lambda s: pd.Series(pd.to_numeric(s, errors="coerce")).abs() < float("inf"), name="finite")
+#: Column dtypes of the contracts: pandera's dtype for each and the pandas dtype a column must have
+#: exactly to pass :func:`passes` ("str": object holding Python str, as pandera's ``str``).
+DTYPES = {"int64": "int64", "float64": "float64", "Int64": "Int64", "bool": bool, "str": str}
+
+
+@dataclass(frozen=True)
+class Check:
+    """A check of a column (element-wise) or of a whole table: pandera's built-in ``ge``, ``gt`` or
+    ``isin`` of ``value``, or ``fn`` under the name ``name`` (pandera's ``Check(fn, name=name)``)."""
+
+    name: str
+    value: object = None
+    fn: Callable | None = field(default=None, compare=False)
+
+    @staticmethod
+    def ge(value) -> Check:
+        """Every value >= ``value``."""
+        return Check("greater_than_or_equal_to", value)
+
+    @staticmethod
+    def gt(value) -> Check:
+        """Every value > ``value``."""
+        return Check("greater_than", value)
+
+    @staticmethod
+    def isin(values) -> Check:
+        """Every value one of ``values``."""
+        return Check("isin", tuple(values))
+
+    def __call__(self, data):
+        """The check's boolean result on a column (element-wise) or a table."""
+        if self.fn is not None:
+            return self.fn(data)
+        if self.name == "greater_than_or_equal_to":
+            return data >= self.value
+        if self.name == "greater_than":
+            return data > self.value
+        return data.isin(list(self.value))
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column of a contract (pandera's ``Column``: dtype, checks, nullable, required, unique)."""
+
+    dtype: str
+    checks: tuple[Check, ...] | Check = ()
+    nullable: bool = False
+    required: bool = True
+    unique: bool = False
+
+    def __post_init__(self):
+        if self.dtype not in DTYPES:
+            raise ValueError(f"unknown column dtype {self.dtype!r}, one of {sorted(DTYPES)}")
+        object.__setattr__(self, "checks", (self.checks,) if isinstance(self.checks, Check) else tuple(self.checks))
+
+
+@dataclass(frozen=True, eq=False)
+class Schema:
+    """A table contract: named columns (in table order), table-level checks, strict: no other columns."""
+
+    columns: Mapping[str, Column]
+    checks: tuple[Check, ...] = ()
+    strict: bool = False
+    name: str | None = None
+
+
+_finite = Check("finite", fn=lambda s: pd.Series(pd.to_numeric(s, errors="coerce")).abs() < float("inf"))
 #: Finite or NaN (a nullable column's missing value), never ±inf.
-_not_inf = Check(lambda s: ~pd.Series(pd.to_numeric(s, errors="coerce")).abs().eq(float("inf")), name="not_inf")
+_not_inf = Check("not_inf", fn=lambda s: ~pd.Series(pd.to_numeric(s, errors="coerce")).abs().eq(float("inf")))
 
 
 def _increasing(s: pd.Series) -> pd.Series:
@@ -27,181 +104,259 @@ def _increasing(s: pd.Series) -> pd.Series:
 
 
 #: Canonical time series of one case: one Parquet file per case, rows as in the raw file.
-TIMESERIES = pa.DataFrameSchema(
+TIMESERIES = Schema(
     {
-        "row": pa.Column("int64", Check.ge(0)),
-        "time_s": pa.Column("float64", [_finite, Check(_increasing, name="time_increasing")]),
-        "displacement_m": pa.Column("float64", _finite),
-        "force_N": pa.Column("float64", _finite),
-        "command_m": pa.Column("float64", _finite, required=False),
+        "row": Column("int64", Check.ge(0)),
+        "time_s": Column("float64", [_finite, Check("time_increasing", fn=_increasing)]),
+        "displacement_m": Column("float64", _finite),
+        "force_N": Column("float64", _finite),
+        "command_m": Column("float64", _finite, required=False),
     },
     strict=False,
     name="timeseries",
 )
 
 #: One row per planned case of a campaign, with its source and status.
-CASES = pa.DataFrameSchema(
+CASES = Schema(
     {
-        "campaign": pa.Column(str),
-        "case": pa.Column(str, unique=True),
-        "waveform": pa.Column(str, Check.isin(WAVEFORMS)),
-        "sample_rate_Hz": pa.Column("float64", Check.gt(0)),
-        "amplitude_m": pa.Column("float64", nullable=True),
-        "period_s": pa.Column("float64", nullable=True),
-        "frequency_Hz": pa.Column("float64", nullable=True),
-        "phase_rad": pa.Column("float64", nullable=True),
-        "duration_s": pa.Column("float64", nullable=True),
-        "raw_file": pa.Column(str),
-        "raw_sha256": pa.Column(str),
-        "timeseries_file": pa.Column(str),
-        "n_samples": pa.Column("int64", Check.ge(0)),
-        "status": pa.Column(str, Check.isin(STATUS)),
+        "campaign": Column("str"),
+        "case": Column("str", unique=True),
+        "waveform": Column("str", Check.isin(WAVEFORMS)),
+        "sample_rate_Hz": Column("float64", Check.gt(0)),
+        "amplitude_m": Column("float64", nullable=True),
+        "period_s": Column("float64", nullable=True),
+        "frequency_Hz": Column("float64", nullable=True),
+        "phase_rad": Column("float64", nullable=True),
+        "duration_s": Column("float64", nullable=True),
+        "raw_file": Column("str"),
+        "raw_sha256": Column("str"),
+        "timeseries_file": Column("str"),
+        "n_samples": Column("int64", Check.ge(0)),
+        "status": Column("str", Check.isin(STATUS)),
         # 'ok', 'quarantined', or the flagged-but-usable warnings ('; '-joined); absent in
         # ingest tables written before the column existed (validation then fills 'ok')
-        "quality": pa.Column(str, nullable=True, required=False),
+        "quality": Column("str", nullable=True, required=False),
         # measured motion of a triangle case (validate, motion.estimate_motion); NaN for sine and
         # free cases and cases set aside before the motion check; absent in ingest tables:
         # record time [s] at which the plan's t = 0 lies (windows: motion start + plan times)
-        "motion_start_s": pa.Column("float64", _not_inf, nullable=True, required=False),
+        "motion_start_s": Column("float64", _not_inf, nullable=True, required=False),
         # motion_start_s - the first time stamp: command-to-piston delay (actuator delay + servo lag) [s]
-        "delay_s": pa.Column("float64", _not_inf, nullable=True, required=False),
+        "delay_s": Column("float64", _not_inf, nullable=True, required=False),
         # mean measured |v| of the four half-periods / planned W = 4Y/T (Eq. 26)
-        "velocity_ratio": pa.Column("float64", Check.ge(0), nullable=True, required=False),
+        "velocity_ratio": Column("float64", Check.ge(0), nullable=True, required=False),
         # rms departure of the measured displacement from the planned triangle at the motion start [m]
-        "motion_rms_m": pa.Column("float64", Check.ge(0), nullable=True, required=False),
+        "motion_rms_m": Column("float64", Check.ge(0), nullable=True, required=False),
     },
     strict=False,
     name="cases",
 )
 
 #: Cases set aside, each with the reason naming campaign, case, column and first bad row.
-QUARANTINE = pa.DataFrameSchema(
+QUARANTINE = Schema(
     {
-        "campaign": pa.Column(str),
-        "case": pa.Column(str),
-        "stage": pa.Column(str),
-        "column": pa.Column(str),
-        "row": pa.Column("Int64", nullable=True),
-        "reason": pa.Column(str),
+        "campaign": Column("str"),
+        "case": Column("str"),
+        "stage": Column("str"),
+        "column": Column("str"),
+        "row": Column("Int64", nullable=True),
+        "reason": Column("str"),
     },
     strict=True,
     name="quarantine",
 )
 
 _WINDOW_COLUMNS = {
-    "campaign": pa.Column(str),
-    "case": pa.Column(str),
-    "segment": pa.Column("int64", Check.isin([1, 2, 3, 4])),
-    "direction": pa.Column(str, Check.isin(DIRECTIONS)),
-    "period": pa.Column("int64", Check.isin([1, 2])),
-    "planned_velocity_m_s": pa.Column("float64"),
-    "velocity_m_s": pa.Column("float64", _finite),
-    "force_N": pa.Column("float64", _finite),
-    "force_std_N": pa.Column("float64", Check.ge(0)),
-    "n_samples": pa.Column("int64", Check.ge(2)),
-    "window_start_s": pa.Column("float64"),
-    "window_end_s": pa.Column("float64"),
-    "row_start": pa.Column("int64", Check.ge(0)),
-    "row_stop": pa.Column("int64", Check.ge(0)),
-    "raw_file": pa.Column(str),
-    "raw_sha256": pa.Column(str),
+    "campaign": Column("str"),
+    "case": Column("str"),
+    "segment": Column("int64", Check.isin([1, 2, 3, 4])),
+    "direction": Column("str", Check.isin(DIRECTIONS)),
+    "period": Column("int64", Check.isin([1, 2])),
+    "planned_velocity_m_s": Column("float64"),
+    "velocity_m_s": Column("float64", _finite),
+    "force_N": Column("float64", _finite),
+    "force_std_N": Column("float64", Check.ge(0)),
+    "n_samples": Column("int64", Check.ge(2)),
+    "window_start_s": Column("float64"),
+    "window_end_s": Column("float64"),
+    "row_start": Column("int64", Check.ge(0)),
+    "row_stop": Column("int64", Check.ge(0)),
+    "raw_file": Column("str"),
+    "raw_sha256": Column("str"),
     # 'ok' or the case's flagged-but-usable warnings (e.g. samples missing outside the windows)
-    "quality": pa.Column(str, nullable=True, required=False),
+    "quality": Column("str", nullable=True, required=False),
 }
 
 #: One row per constant-velocity window (item 7): four per triangle case.
-WINDOWS = pa.DataFrameSchema(
+WINDOWS = Schema(
     _WINDOW_COLUMNS,
-    checks=[Check(lambda df: df["row_stop"] > df["row_start"], name="row_range")],
+    checks=(Check("row_range", fn=lambda df: df["row_stop"] > df["row_start"]),),
     strict=False,
     name="windows",
 )
 
 #: Period 1 against period 2 for each case and direction (item 8).
-REPEATABILITY = pa.DataFrameSchema(
+REPEATABILITY = Schema(
     {
-        "campaign": pa.Column(str),
-        "case": pa.Column(str),
-        "direction": pa.Column(str, Check.isin(DIRECTIONS)),
-        "velocity_m_s": pa.Column("float64"),
-        "force_period1_N": pa.Column("float64"),
-        "force_period2_N": pa.Column("float64"),
-        "rel_diff": pa.Column("float64"),
-        "tolerance": pa.Column("float64", Check.gt(0)),
-        "flagged": pa.Column(bool),
+        "campaign": Column("str"),
+        "case": Column("str"),
+        "direction": Column("str", Check.isin(DIRECTIONS)),
+        "velocity_m_s": Column("float64"),
+        "force_period1_N": Column("float64"),
+        "force_period2_N": Column("float64"),
+        "rel_diff": Column("float64"),
+        "tolerance": Column("float64", Check.gt(0)),
+        "flagged": Column("bool"),
     },
     strict=False,
     name="repeatability",
 )
 
 #: The steady characteristic (item 9): the windows with their repeatability flag.
-CHARACTERISTIC = pa.DataFrameSchema(
-    {**_WINDOW_COLUMNS, "repeatability_flagged": pa.Column(bool)},
+CHARACTERISTIC = Schema(
+    {**_WINDOW_COLUMNS, "repeatability_flagged": Column("bool")},
     strict=False,
     name="characteristic",
 )
 
 
-def validate_table(df: pd.DataFrame, schema: pa.DataFrameSchema) -> pd.DataFrame:
-    """Validate a table the pipeline is about to write (all failures reported at once)."""
-    return schema.validate(df, lazy=True)
-
-
-def empty(schema: pa.DataFrameSchema) -> pd.DataFrame:
-    """An empty frame with the schema's required columns and dtypes."""
-    cols = {name: pd.Series(dtype=("object" if col.dtype is None or str(col.dtype) == "str" else str(col.dtype)))
-            for name, col in schema.columns.items() if col.required}
-    return pd.DataFrame(cols)
-
-
 #: Test design per planned case (issue: G-numbers Eq. 19-22, stroke to converge Eq. 28-29).
-PLAN_CHECK = pa.DataFrameSchema(
+PLAN_CHECK = Schema(
     {
-        "campaign": pa.Column(str),
-        "case": pa.Column(str),
-        "waveform": pa.Column(str, Check.isin(WAVEFORMS)),
-        "velocity_m_s": pa.Column("float64", nullable=True),
-        "period_s": pa.Column("float64", nullable=True),
-        "amplitude_m": pa.Column("float64", nullable=True),
-        "G1": pa.Column("float64", nullable=True),
-        "G2": pa.Column("float64", nullable=True),
-        "G3": pa.Column("float64", nullable=True),
-        "stroke_to_converge_m": pa.Column("float64", nullable=True),
-        "window_start_stroke_m": pa.Column("float64", nullable=True),
-        "flagged": pa.Column(bool),
-        "reasons": pa.Column(str),
+        "campaign": Column("str"),
+        "case": Column("str"),
+        "waveform": Column("str", Check.isin(WAVEFORMS)),
+        "velocity_m_s": Column("float64", nullable=True),
+        "period_s": Column("float64", nullable=True),
+        "amplitude_m": Column("float64", nullable=True),
+        "G1": Column("float64", nullable=True),
+        "G2": Column("float64", nullable=True),
+        "G3": Column("float64", nullable=True),
+        "stroke_to_converge_m": Column("float64", nullable=True),
+        "window_start_stroke_m": Column("float64", nullable=True),
+        "flagged": Column("bool"),
+        "reasons": Column("str"),
     },
     strict=False,
     name="plan_check",
 )
 
 #: Fitted model parameters (Wallaschek symmetric, Surace asymmetric) with 95 % intervals.
-MODELS = pa.DataFrameSchema(
+MODELS = Schema(
     {
-        "campaign": pa.Column(str),
-        "model": pa.Column(str, Check.isin(["wallaschek", "surace"])),
-        "direction": pa.Column(str, Check.isin(["both", "+", "-"])),
-        "parameter": pa.Column(str),
+        "campaign": Column("str"),
+        "model": Column("str", Check.isin(["wallaschek", "surace"])),
+        "direction": Column("str", Check.isin(["both", "+", "-"])),
+        "parameter": Column("str"),
         # NaN: not fitted (e.g. fewer characteristic points than parameters)
-        "estimate": pa.Column("float64", nullable=True),
-        "ci_low": pa.Column("float64", nullable=True),
-        "ci_high": pa.Column("float64", nullable=True),
+        "estimate": Column("float64", nullable=True),
+        "ci_low": Column("float64", nullable=True),
+        "ci_high": Column("float64", nullable=True),
     },
     strict=False,
     name="models",
 )
 
 #: Harmonic and free-waveform summary points (peak-to-peak, peak-velocity, velocity-binned).
-HARMONIC = pa.DataFrameSchema(
+HARMONIC = Schema(
     {
-        "campaign": pa.Column(str),
-        "case": pa.Column(str),
-        "waveform": pa.Column(str, Check.isin(["sine", "free"])),
-        "kind": pa.Column(str, Check.isin(["peak_to_peak", "peak_velocity", "binned"])),
-        "direction": pa.Column(str, Check.isin(DIRECTIONS)),
-        "velocity_m_s": pa.Column("float64"),
-        "force_N": pa.Column("float64"),
+        "campaign": Column("str"),
+        "case": Column("str"),
+        "waveform": Column("str", Check.isin(["sine", "free"])),
+        "kind": Column("str", Check.isin(["peak_to_peak", "peak_velocity", "binned"])),
+        "direction": Column("str", Check.isin(DIRECTIONS)),
+        "velocity_m_s": Column("float64"),
+        "force_N": Column("float64"),
     },
     strict=False,
     name="harmonic",
 )
+
+
+def _column_passes(s: pd.Series, col: Column) -> bool:
+    """The column has exactly the contract's dtype, no null unless nullable, no duplicate if unique,
+    and every check true (on the non-null values, as pandera applies a check)."""
+    if col.dtype == "str":
+        if s.dtype != object or pd.api.types.infer_dtype(s, skipna=True) not in ("string", "empty"):
+            return False
+    elif col.dtype == "Int64":
+        if not isinstance(s.dtype, pd.Int64Dtype):
+            return False
+    elif s.dtype != np.dtype(col.dtype):
+        return False
+    if col.unique and s.duplicated().any():
+        return False
+    nulls = s.isna()
+    if nulls.any():
+        if not col.nullable:
+            return False
+        s = s[~nulls]
+    return all(bool(np.all(check(s))) for check in col.checks)
+
+
+def passes(df: pd.DataFrame, schema: Schema) -> bool:
+    """True when ``df`` meets the contract by a strict check of its own (no pandera): then pandera's
+    schema passes too. False means "not decided here": ask :func:`pandera_schema`."""
+    if not isinstance(df, pd.DataFrame) or not df.columns.is_unique:
+        return False
+    names = set(df.columns)
+    if schema.strict and not names <= set(schema.columns):
+        return False
+    for name, col in schema.columns.items():
+        if name not in names:
+            if col.required:
+                return False
+            continue
+        if not _column_passes(df[name], col):
+            return False
+    return all(bool(np.all(check(df))) for check in schema.checks)
+
+
+def _pandera_check(check: Check):
+    from pandera import Check as PanderaCheck
+
+    if check.fn is not None:
+        return PanderaCheck(check.fn, name=check.name)
+    builtin = {"greater_than_or_equal_to": PanderaCheck.ge, "greater_than": PanderaCheck.gt,
+               "isin": lambda v: PanderaCheck.isin(list(v))}
+    return builtin[check.name](check.value)
+
+
+@cache
+def pandera_schema(schema: Schema):
+    """The pandera ``DataFrameSchema`` of a contract (pandera imported here, on first use)."""
+    import pandera.pandas as pa
+
+    columns = {name: pa.Column(DTYPES[col.dtype], [_pandera_check(c) for c in col.checks], nullable=col.nullable,
+                               required=col.required, unique=col.unique)
+               for name, col in schema.columns.items()}
+    return pa.DataFrameSchema(columns, checks=[_pandera_check(c) for c in schema.checks], strict=schema.strict,
+                              name=schema.name)
+
+
+def validate_table(df: pd.DataFrame, schema: Schema) -> pd.DataFrame:
+    """Validate a table the pipeline is about to write (all failures reported at once): a copy of
+    ``df`` when it passes, as pandera returns it; pandera's ``SchemaErrors`` when it does not."""
+    if passes(df, schema):
+        return df.copy()
+    return pandera_schema(schema).validate(df, lazy=True)
+
+
+def failure_cases(df: pd.DataFrame, schema: Schema) -> pd.DataFrame | None:
+    """None when ``df`` passes the contract, else pandera's failure cases (one row per failure:
+    ``check``, ``column``, ``index``, ``failure_case``, ...)."""
+    if passes(df, schema):
+        return None
+    import pandera.pandas as pa
+
+    try:
+        pandera_schema(schema).validate(df, lazy=True)
+    except pa.errors.SchemaErrors as exc:
+        return exc.failure_cases
+    return None
+
+
+def empty(schema: Schema) -> pd.DataFrame:
+    """An empty frame with the schema's required columns and dtypes."""
+    cols = {name: pd.Series(dtype="object" if col.dtype == "str" else col.dtype)
+            for name, col in schema.columns.items() if col.required}
+    return pd.DataFrame(cols)

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy import optimize
 
 #: Instrument terms profiled out of every fit (load cell): F_meas = gain·F + offset.
 INSTRUMENT = ("force_offset", "force_gain")
@@ -62,7 +61,9 @@ class LinearTerms:
         if not cols:
             return 1.0, 0.0, 0.0
         a = np.column_stack(cols) * root_w[:, None]
-        sol = optimize.lsq_linear(a, y * root_w, bounds=(lo, hi), method="bvls").x
+        from scipy.optimize import lsq_linear  # scipy.optimize: only where the instrument is fitted
+
+        sol = lsq_linear(a, y * root_w, bounds=(lo, hi), method="bvls").x
         v = dict(zip(names, sol, strict=True))
         g = float(v.get("g", 1.0))
         return g, float(v.get("c", 0.0)) / g, float(v.get("o", 0.0))

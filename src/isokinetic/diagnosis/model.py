@@ -47,6 +47,7 @@ class Evaluator:
         self._lo = offsets[obs.case_index] + obs.start
         self._hi = offsets[obs.case_index] + obs.stop
         self._n = (obs.stop - obs.start).astype(float)
+        self._sums = np.empty(int(offsets[-1]))  # per case: 0, then the running sum of its samples
         self.calls = 0
 
     def predict(self, effects: Effects = NOMINAL) -> np.ndarray:
@@ -62,18 +63,22 @@ class Evaluator:
     def _moments(self, effects: Effects, order: int) -> list[np.ndarray]:
         self.calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
-        parts = [[] for _ in range(order)]
         drives = self.obs.drives if self.obs.drives else None
         friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
+        forces = []
         for _t, dp, vel in triangle_responses(self.obs.plans, hyd, 0.0, MODEL_STEP, drives):
             force = hyd.piston_area_m2 * dp
             if friction:  # the search profiles friction linearly (LinearTerms): its runs carry none
                 force = force + friction_force(vel, effects)
-            for k in range(order):
-                parts[k].append(np.concatenate([[0.0], np.cumsum(force ** (k + 1))]))
+            forces.append(force)
         out = []
+        cs = self._sums
         for k in range(order):
-            cs = np.concatenate(parts[k])
+            at = 0
+            for force in forces:
+                cs[at] = 0.0
+                np.cumsum(force if k == 0 else force ** (k + 1), out=cs[at + 1:at + 1 + force.size])
+                at += force.size + 1
             out.append((cs[self._hi] - cs[self._lo]) / self._n)
         return out
 

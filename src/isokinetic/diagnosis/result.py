@@ -12,12 +12,11 @@ import math
 from collections.abc import Mapping
 from importlib import resources
 
-import jsonschema
 import numpy as np
 import pandas as pd
 
 from isokinetic.audit.lineage import row_keys
-from isokinetic.contracts.outputs import RULE_OUTPUTS
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.diagnosis.observations import Observations
 
 FORMAT_VERSION = 1
@@ -27,8 +26,8 @@ METRIC = "rms_z"
 SCHEMA_PACKAGE = "isokinetic.contracts"
 SCHEMA_RESOURCE = "diagnosis.schema.json"
 #: Inputs of a diagnosis, relative to results/<campaign>/ (named in its ``sources`` key).
-CHARACTERISTIC_FILE = RULE_OUTPUTS["characteristic"]["characteristic"]
-CASES_FILE = RULE_OUTPUTS["validate"]["cases"]
+CHARACTERISTIC_FILE = STAGE_OUTPUTS["characteristic"]["characteristic"]
+CASES_FILE = STAGE_OUTPUTS["validate"]["cases"]
 
 
 def json_number(x: float) -> float | None:
@@ -68,6 +67,8 @@ def diagnosis_schema() -> dict:
 
 def validate_diagnosis(result: Mapping) -> None:
     """Validate a diagnosis dict against the diagnosis.json schema (raises ValidationError)."""
+    import jsonschema  # ~0.1 s: only where a diagnosis is validated
+
     jsonschema.validate(result, diagnosis_schema())
 
 

@@ -18,7 +18,6 @@ import time
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from scipy import stats
 
 from isokinetic.contracts.scenarios import EFFECTS
 from isokinetic.diagnosis.candidate import ALPHA, Candidate, overdispersed_score, rms
@@ -28,6 +27,7 @@ from isokinetic.diagnosis.instrument import GAIN_BOUND, INSTRUMENT
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import CONTRACT_VERSION, FORMAT_VERSION, METRIC, json_safe
 from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.measurement.noise import chi2_isf
 from isokinetic.physics.damper import Damper
 
 #: Score difference (χ² units) within which two explaining candidates count as confounded.
@@ -151,7 +151,7 @@ def instrument_report(dg: Diagnoser, best: Candidate, delay_s: float | None) -> 
     offset 0) and kept where the fit χ² rises beyond the χ²₁ quantile at 1 - alpha."""
     needed = {}
     tests = {}
-    threshold = float(stats.chi2.isf(dg.alpha, 1))
+    threshold = float(chi2_isf(dg.alpha, 1))
     for term in INSTRUMENT:
         reduced = tuple(t for t in best.instrument if t != term)
         if term not in best.instrument:

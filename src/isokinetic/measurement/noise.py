@@ -57,11 +57,29 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, stats
-from scipy.signal import lfilter
+from scipy import special
+
+
+def chi2_sf(x, dof):
+    """``scipy.stats.chi2.sf(x, dof)``, the same numbers from ``scipy.special`` alone (importing
+    scipy.stats costs a job ~0.4 s): ``chdtrc``, and 1 at x <= 0 where ``chdtrc`` gives NaN."""
+    x = np.asarray(x, dtype=float)
+    out = np.where(x <= 0.0, 1.0, special.chdtrc(dof, x))
+    return out[()] if out.ndim == 0 else out
+
+
+def chi2_isf(q, dof):
+    """``scipy.stats.chi2.isf(q, dof)``: its very function, ``scipy.special.chdtri``."""
+    return special.chdtri(dof, q)
+
+
+def chi2_ppf(p, dof):
+    """``scipy.stats.chi2.ppf(p, dof)``: its very function, 2 ``gammaincinv(dof / 2, p)``."""
+    return 2 * special.gammaincinv(dof / 2, p)
+
 
 #: Median of the chi-square distribution with one degree of freedom (0.454936...).
-MEDIAN_CHI2_1 = float(stats.chi2.ppf(0.5, 1))
+MEDIAN_CHI2_1 = float(chi2_ppf(0.5, 1))
 
 #: Windows shorter than this are ignored by :func:`fit_noise_model`.
 MIN_FIT_SAMPLES = 6
@@ -278,6 +296,8 @@ def _coloured_design(n: int, lags: np.ndarray, a: np.ndarray, detrend: bool) -> 
     if not np.all(closed):
         u = np.arange(n, dtype=float) - m
         idx = lags.astype(np.int64)
+        from scipy.signal import lfilter  # scipy.signal costs ~0.5 s: only for this rare branch
+
         for j in np.flatnonzero(~closed):
             rho = math.exp(-float(a[j, 0]))
             w = (lfilter([1.0], [1.0, -rho], u) + lfilter([1.0], [1.0, -rho], u[::-1])[::-1] - u)
@@ -547,7 +567,7 @@ def _param_cov(weighted, beta: np.ndarray, lt: float, fs: float, detrend: bool) 
 
 #: Increase of the generalised SSE (a chi-square under the model) below which a component is
 #: dropped as not supported by the data: the chi2(1 dof) 0.95 quantile per parameter.
-_DROP_THRESHOLD = float(stats.chi2.ppf(0.95, 1))
+_DROP_THRESHOLD = float(chi2_ppf(0.95, 1))
 
 
 def _select(weighted, log_tau, fs, detrend, grid_columns):
@@ -658,7 +678,7 @@ def scaled_chi2_isf(alpha: float, dof: int, scale_rel_sd: float) -> float:
     alpha, eps = float(alpha), float(scale_rel_sd)
     if not 0.0 < alpha < 1.0 or dof < 1 or not (math.isfinite(eps) and eps >= 0.0):
         raise ValueError(f"need 0 < alpha < 1, dof >= 1, scale_rel_sd >= 0; got {alpha}, {dof}, {eps}")
-    q0 = float(stats.chi2.isf(alpha, dof))
+    q0 = float(chi2_isf(alpha, dof))
     if eps == 0.0:
         return q0
     x, w = np.polynomial.hermite_e.hermegauss(40)
@@ -666,12 +686,14 @@ def scaled_chi2_isf(alpha: float, dof: int, scale_rel_sd: float) -> float:
     scale = np.exp(eps * x)
 
     def excess(log_q: float) -> float:
-        return float(np.sum(w * stats.chi2.sf(math.exp(log_q) / scale, dof))) - alpha
+        return float(np.sum(w * chi2_sf(math.exp(log_q) / scale, dof))) - alpha
 
     hi = math.log(q0) + 10.0 * eps
     while excess(hi) > 0.0:
         hi += 10.0 * eps
-    return float(math.exp(optimize.brentq(excess, math.log(q0), hi, xtol=1e-10)))
+    from scipy.optimize import brentq
+
+    return float(math.exp(brentq(excess, math.log(q0), hi, xtol=1e-10)))
 
 
 def scaled_chi2_sf(x: float, dof: int, scale_rel_sd: float) -> float:
@@ -681,9 +703,9 @@ def scaled_chi2_sf(x: float, dof: int, scale_rel_sd: float) -> float:
     if dof < 1 or not (math.isfinite(eps) and eps >= 0.0):
         raise ValueError(f"need dof >= 1, scale_rel_sd >= 0; got {dof}, {eps}")
     if eps == 0.0:
-        return float(stats.chi2.sf(x, dof))
+        return float(chi2_sf(x, dof))
     z, w = np.polynomial.hermite_e.hermegauss(40)
-    return float(np.sum(w / w.sum() * stats.chi2.sf(x / np.exp(eps * z), dof)))
+    return float(np.sum(w / w.sum() * chi2_sf(x / np.exp(eps * z), dof)))
 
 
 def between_period_scatter(d_N, base_var_N2, mean_force_N) -> float:
@@ -735,5 +757,7 @@ def between_period_scatter(d_N, base_var_N2, mean_force_N) -> float:
     hi = float(s_i.max()) if s_i.size else 0.0
     if hi <= 0.0 or median_q(hi) > MEDIAN_CHI2_1:
         return math.inf
-    s = optimize.brentq(lambda s: median_q(s) - MEDIAN_CHI2_1, 0.0, hi, xtol=1e-14 * hi, rtol=1e-12)
+    from scipy.optimize import brentq
+
+    s = brentq(lambda s: median_q(s) - MEDIAN_CHI2_1, 0.0, hi, xtol=1e-14 * hi, rtol=1e-12)
     return float(math.sqrt(s))

@@ -21,16 +21,22 @@ Segment solution: quadrature, not a time stepper
     τ at nodes in u (nodes graded towards q = 0, where c2 switches and the flow regime changes within
     |q| ~ c1/2c2), and Δp(τ) is evaluated for all samples at once by quintic Hermite interpolation
     with the exact derivatives dΔp/dτ = A_p W - Q_N and d²Δp/dτ² (:class:`Relaxation`). Beyond the
-    last node (|q - q*| < 1e-17 of the scale) Δp = Δp* exactly. The tables of many segments are
-    built in one vectorised pass (:func:`relaxations`). Max error ~4e-11 of the force scale against
-    a DOP853 rtol 1e-13 solution (benchmark/virtual_rig_throughput.py).
+    last node (|q - q*| < 1e-17 of the scale) Δp = Δp* exactly. Max error ~4e-11 of the force scale
+    against a DOP853 rtol 1e-13 solution (benchmark/virtual_rig_throughput.py).
+
+Batches
+    The tables of many segments are built in one vectorised pass, node generation included
+    (:func:`relaxation_batch`, :func:`relaxations`), and a :class:`RelaxationBatch` evaluates samples
+    of many tables at once. Each table is, bit for bit, the one its problem has alone: the per-problem
+    scalars use the same (``math``) functions and ``np.linspace``'s arithmetic, the τ of a table is
+    summed within that table only, and every other step is elementwise.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -172,27 +178,30 @@ _GL_X, _GL_W = np.polynomial.legendre.leggauss(3)
 
 
 def _panel_coefficients(h, y0, y1, d0, d1, dd0, dd1) -> np.ndarray:
-    """Quintic Hermite polynomial on each panel in s ∈ [0, 1] (ascending powers, shape (n, 6)).
+    """Quintic Hermite polynomial on each panel in s ∈ [0, 1] (ascending powers: row j is the
+    coefficient of s^j of every panel, shape (6, n)).
 
     Values y, first derivatives d and second derivatives dd (in τ) at both ends, panel width h;
     cubic Hermite where a second derivative is not finite.
     """
     m0, m1 = h * d0, h * d1
+    hh = h * h
     with np.errstate(invalid="ignore"):
-        a0, a1 = h * h * dd0, h * h * dd1
+        a0, a1 = hh * dd0, hh * dd1
     quintic = np.isfinite(a0) & np.isfinite(a1)
-    a0, a1 = np.where(quintic, a0, 0.0), np.where(quintic, a1, 0.0)
-    dy = y1 - y0
-    coef = np.empty((h.size, 6))
-    coef[:, 0], coef[:, 1], coef[:, 2] = y0, m0, 0.5 * a0
-    coef[:, 3] = 10 * dy - 6 * m0 - 4 * m1 - 1.5 * a0 + 0.5 * a1
-    coef[:, 4] = -15 * dy + 8 * m0 + 7 * m1 + 1.5 * a0 - a1
-    coef[:, 5] = 6 * dy - 3 * m0 - 3 * m1 - 0.5 * a0 + 0.5 * a1
     cubic = ~quintic
     if cubic.any():
-        coef[cubic, 2] = 3 * dy[cubic] - 2 * m0[cubic] - m1[cubic]
-        coef[cubic, 3] = -2 * dy[cubic] + m0[cubic] + m1[cubic]
-        coef[cubic, 4:] = 0.0
+        a0, a1 = np.where(quintic, a0, 0.0), np.where(quintic, a1, 0.0)
+    dy = y1 - y0
+    coef = np.empty((6, h.size))
+    coef[0], coef[1], coef[2] = y0, m0, 0.5 * a0
+    coef[3] = 10 * dy - 6 * m0 - 4 * m1 - 1.5 * a0 + 0.5 * a1
+    coef[4] = -15 * dy + 8 * m0 + 7 * m1 + 1.5 * a0 - a1
+    coef[5] = 6 * dy - 3 * m0 - 3 * m1 - 0.5 * a0 + 0.5 * a1
+    if cubic.any():
+        coef[2, cubic] = 3 * dy[cubic] - 2 * m0[cubic] - m1[cubic]
+        coef[3, cubic] = -2 * dy[cubic] + m0[cubic] + m1[cubic]
+        coef[4:, cubic] = 0.0
     return coef
 
 
@@ -216,7 +225,7 @@ class Relaxation:
         """Panel polynomials from node values δ, dδ/dτ and d²δ/dτ² (inf: unknown)."""
         tau = np.asarray(tau, dtype=float)
         coef = _panel_coefficients(np.diff(tau), delta[:-1], delta[1:], slope[:-1], slope[1:],
-                                   curvature[:-1], curvature[1:])
+                                   curvature[:-1], curvature[1:]).T
         return cls(tau, coef, float(steady_Pa))
 
     @classmethod
@@ -241,89 +250,173 @@ class Relaxation:
         return out
 
 
-def _nodes(u0: float, u_end: float, u_ref: float, step: float, special: list[float], graded_min: float):
-    """Descending nodes in u on [u_end, u0] (see :func:`relaxations`)."""
-    parts = []
-    if u0 > u_ref:                                   # beyond the scale (crossing piece): uniform step
-        parts.append(np.linspace(u_ref, u0, math.ceil((u0 - u_ref) / step) + 1))
-    top = min(u0, u_ref)
-    # interpolation error ∝ h^6 |δ(u)| (quintic) with |δ| ∝ e^u: widths h = step·e^{(u_ref - u)/4}
-    # (conservative), i.e. uniform in ζ = e^{(u - u_ref)/4}, up to a widest panel of 0.5 (reached
-    # where |δ| < 2e-7 of the scale)
-    zeta_top, zeta_cap = math.exp((top - u_ref) / 4.0), step / 0.5
-    u_cap = max(u_end, u_ref + 4.0 * math.log(zeta_cap))
-    if top > u_cap:
-        zeta_lo = math.exp((u_cap - u_ref) / 4.0)
-        zeta = np.linspace(zeta_lo, zeta_top, math.ceil((zeta_top - zeta_lo) / (step / 4.0)) + 1)
-        parts.append(u_ref + 4.0 * np.log(zeta))
-    lo_top = min(top, u_cap)
-    parts.append(np.linspace(u_end, lo_top, max(2, math.ceil((lo_top - u_end) / 0.5) + 1)))
-    if graded_min < 10.0 * step:
-        off = 10.0 * step * 0.8 ** np.arange(0, math.ceil(math.log(graded_min / (10.0 * step)) / math.log(0.8)) + 1)
-        for c in special:
-            parts.append(np.concatenate([c - off, c + off, [c]]))
-    u = np.concatenate(parts)
-    u = np.unique(u[(u >= u_end) & (u <= u0)])
-    return np.concatenate([[u0], u[u < u0]][::-1]) if u[-1] != u0 else u[::-1]
+def _linspaces(start: np.ndarray, stop: np.ndarray, num: np.ndarray) -> np.ndarray:
+    """``np.linspace(start[k], stop[k], num[k])`` of every k, concatenated, with its arithmetic exactly.
 
-
-def relaxation(dp0_Pa: float, piston_flow_m3_s: float, hyd: Hydraulics, step: float = DEFAULT_STEP) -> Relaxation:
-    """Tabulate the segment solution from Δp(0) = ``dp0_Pa`` under piston flow A_p W, Eq. (13)-(14).
-
-    See :func:`relaxations` (this is the single-problem form).
+    y_i = i·step + start with step = (stop - start)/(num - 1) (i·(stop - start)/(num - 1) where that
+    step underflows to 0; a single point is 0·(stop - start) + start), the last point set to stop.
     """
-    return relaxations([dp0_Pa], [piston_flow_m3_s], hyd, step)[0]
+    ends = num.cumsum()
+    per = np.arange(num.size).repeat(num)
+    i = (np.arange(per.size) - (ends - num).take(per)).astype(float)
+    div = num - 1
+    delta = stop - start
+    step = np.divide(delta, div, out=delta.copy(), where=div > 0)   # one point: 0·delta + start
+    y = i * step.take(per)
+    tiny = (div > 0) & (step == 0.0)
+    if tiny.any():                                         # linspace's denormal branch, gh-5437
+        t = tiny[per]
+        y[t] = i[t] / div[per[t]] * delta[per[t]]
+    y += start.take(per)
+    last = num > 1
+    y[ends[last] - 1] = stop[last]
+    return y
 
 
-def _segment_nodes(dp0: float, qp: float, hyd: Hydraulics, step: float):
-    """Nodes in u and (q*, s, A_p W, Δp*, Δp0) of one problem; None if it starts at its steady state."""
+def _math(fun, x: np.ndarray) -> np.ndarray:
+    """``fun`` (a scalar ``math`` function) of every element: the old scalar code's exact values."""
+    return np.array(list(map(fun, x.tolist())), dtype=float)
+
+
+def _problems(dp0: np.ndarray, qp: np.ndarray, hyd: Hydraulics):
+    """The scalars of every segment problem, vectorised: (q*, s, Δp*, q0, dist), q0 the start's orifice flow.
+
+    dist = |q* - q0|; a problem with dist 0 (or not finite) starts at its steady state.
+    """
+    c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
+    c2 = _c2_table(hyd)
+    aqp = np.abs(qp)
+    b = 1.0 + g * c1                                # steady_orifice_flow, element by element
+    q_star = np.copysign(2.0 * aqp / (b + np.sqrt(b * b + 4.0 * g * c2.take((qp >= 0).view(np.int8)) * aqp)), qp)
+    q_star[qp == 0.0] = 0.0
+    p_star = c1 * q_star + c2.take((q_star >= 0).view(np.int8)) * q_star * np.abs(q_star)   # Eq. (7)
+    a = np.abs(dp0)                                 # orifice_flow_of_pressure, element by element
+    q0 = np.divide(2.0 * a, c1 + np.sqrt(c1 * c1 + 4.0 * c2.take((dp0 >= 0).view(np.int8)) * a),
+                   out=np.zeros(a.size), where=a > 0)
+    q0 *= np.sign(dp0)
+    dist = np.abs(q_star - q0)
+    return q_star, np.copysign(1.0, q_star - q0), p_star, q0, dist
+
+
+def _node_sets(q_star: np.ndarray, q0: np.ndarray, dist: np.ndarray, hyd: Hydraulics, step: float):
+    """Descending nodes in u of every problem, concatenated, and their counts (see :func:`relaxations`).
+
+    u0 = ln|q* - q0| down to u_end = ln(1e-17 max(|q*|, |q* - q0|)), around u_ref = ln(scale): a
+    uniform crossing piece of width ``step`` above u_ref, widths growing as e^{(u_ref - u)/4} below it
+    up to a widest panel of 0.5, and a graded cluster (ratio 0.8) around q = 0 (start from rest, or
+    the sign change where c2 switches). All problems at once; per-problem transcendental scalars with
+    ``math`` and the ``np.linspace`` arithmetic (:func:`_linspaces`), so that each problem's nodes
+    are those it has alone.
+    """
     c1 = hyd.laminar_coefficient
     c2_max = max(hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg)
-    q_star = steady_orifice_flow(qp, hyd)
-    p_star = float(orifice_pressure_of_flow(q_star, hyd))
-    q0 = float(orifice_flow_of_pressure(dp0, hyd))
-    dist = abs(q_star - q0)
-    if dist == 0.0 or not math.isfinite(dist):
-        return None
-    s = math.copysign(1.0, q_star - q0)
-    scale = max(abs(q_star), dist) if q_star * q0 >= 0 else abs(q_star)
-    u0 = math.log(dist)
-    special = []
-    if q0 == 0.0:
-        special.append(u0)
-    elif q_star != 0.0 and q0 * q_star < 0.0:
-        special.append(math.log(abs(q_star)))
-    width = c1 / (2.0 * c2_max * abs(q_star)) if (c2_max > 0 and q_star != 0) else math.inf
-    nodes = _nodes(u0, math.log(max(abs(q_star), dist) * 1e-17), math.log(scale), step, special,
-                   max(1e-12, 1e-2 * width))
-    return nodes, (q_star, s, qp, p_star, dp0)
+    n = q_star.size
+    aqs = np.abs(q_star)
+    big = np.maximum(aqs, dist)
+    cross = q0 * q_star < 0.0                              # q = 0 is crossed (else: start from rest)
+    # the laminar-turbulent transition width c1/(2 c2 |q*|) (infinite for q* = 0 or c2 = 0)
+    width = np.divide(c1, 2.0 * c2_max * aqs, out=np.full(n, math.inf), where=(aqs != 0) & (c2_max > 0))
+    graded_min = np.maximum(1e-12, 1e-2 * width)
+    graded = ((q0 == 0.0) | cross) & (graded_min < 10.0 * step)
+    n_cross, n_graded = int(np.count_nonzero(cross)), int(np.count_nonzero(graded))
+    logs = _math(math.log, np.concatenate([dist, big * 1e-17, np.where(q_star * q0 >= 0, big, aqs), aqs[cross],
+                                           graded_min[graded] / (10.0 * step)]))
+    u0, u_end, u_ref = logs[:n], logs[n:2 * n], logs[2 * n:3 * n]
+    centre = u0.copy()                                     # q = 0: the start (from rest) or the crossing
+    centre[cross] = logs[3 * n:3 * n + n_cross]
+    # A: uniform crossing piece above the scale
+    n_a = np.ceil((u0 - u_ref) / step) + 1
+    n_a[u0 <= u_ref] = 0
+    # B: interpolation error ∝ h^6 |δ(u)| (quintic) with |δ| ∝ e^u: widths h = step·e^{(u_ref - u)/4}
+    # (conservative), i.e. uniform in ζ = e^{(u - u_ref)/4}, up to a widest panel of 0.5 (reached
+    # where |δ| < 2e-7 of the scale); C: panels of 0.5 below that
+    top = np.minimum(u0, u_ref)
+    u_cap = np.maximum(u_end, u_ref + 4.0 * math.log(step / 0.5))
+    zeta = _math(math.exp, np.concatenate([(top - u_ref) / 4.0, (u_cap - u_ref) / 4.0]))
+    zeta_top, zeta_lo = zeta[:n], zeta[n:]
+    n_b = np.ceil((zeta_top - zeta_lo) / (step / 4.0)) + 1
+    n_b[top <= u_cap] = 0
+    lo_top = np.minimum(top, u_cap)
+    n_c = np.maximum(2, np.ceil((lo_top - u_end) / 0.5) + 1)
+    num = np.concatenate([n_a, n_b, n_c]).astype(np.int64)
+    lin = _linspaces(np.concatenate([u_ref, zeta_lo, u_end]), np.concatenate([u0, zeta_top, lo_top]), num)
+    a, b = int(_sum(num[:n])), int(_sum(num[:2 * n]))
+    lin[a:b] = u_ref.repeat(num[n:2 * n]) + 4.0 * np.log(lin[a:b])
+    # the graded cluster c ∓ 10·step·0.8^k, c, around q = 0
+    n_off = np.zeros(n, dtype=np.int64)
+    n_off[graded] = np.ceil(logs[3 * n + n_cross:] / math.log(0.8)).astype(np.int64) + 1
+    k = _ranks(n_off)
+    off = (10.0 * step * 0.8 ** np.arange(0, int(n_off.max())))[k] if n_graded else np.zeros(0)
+    c = centre.repeat(n_off)
+    # every candidate in one row per problem (pieces A | B | C | c - off | c + off | c | u0), sorted
+    counts = np.concatenate([num.reshape(3, n), [n_off, n_off, graded, np.ones(n, dtype=np.int64)]])
+    cols = _sum(counts, axis=0)
+    width = int(cols.max())
+    start = counts.cumsum(axis=0) - counts + np.arange(n) * width
+    counts = counts.reshape(-1)
+    at = (start.reshape(-1) - counts.cumsum() + counts).repeat(counts) + np.arange(int(_sum(cols)))
+    grid = np.full((n, width), -np.inf)
+    grid.reshape(-1)[at] = np.concatenate([lin, c - off, c + off, centre[graded], u0])
+    grid[(grid < u_end[:, None]) | (grid > u0[:, None])] = -np.inf
+    grid.sort(axis=1)
+    grid = grid[:, ::-1]                                   # descending; u0 (the largest) first
+    keep = grid > -np.inf
+    keep[:, 1:] &= grid[:, 1:] != grid[:, :-1]             # distinct values, as np.unique
+    return grid[keep], _sum(keep, axis=1)
 
 
-def _integrand(uu: np.ndarray, params: np.ndarray, hyd: Hydraulics):
-    """dτ/du, dΔp/dτ, δ = Δp - Δp* and dΔp/dq at points u of their problems (rows of ``params``).
+def _ranks(counts: np.ndarray) -> np.ndarray:
+    """0..counts[k]-1 for every k, concatenated."""
+    return np.arange(int(_sum(counts))) - (counts.cumsum() - counts).repeat(counts)
+
+
+def _sum(x: np.ndarray, axis: int | None = None):
+    """Sum of an array, booleans counted (the ufunc reduction, without ndarray.sum's Python wrapper)."""
+    return np.add.reduce(x, axis=axis, dtype=np.int64 if x.dtype == bool else None)
+
+
+def _integrand(uu: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray, p_star: np.ndarray,
+               hyd: Hydraulics):
+    """dτ/du, dΔp/dτ, δ = Δp - Δp* and dΔp/dq at points u of their problems (q*, s, A_p W, Δp* per point).
 
     On the side of q*: A_pW - Q_N = (q* - q)(1 + g c1 + g c2 (|q*| + |q|)), exactly; across q = 0
     from the other side the direct form.
     """
     c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
-    q_star, s, qp, p_star, _ = params.T
     e = np.exp(uu)
-    q = q_star - s * e
+    q = s * e
+    np.subtract(q_star, q, out=q)                   # q = q* - s e^u
     aq = np.abs(q)
     aqs = np.abs(q_star)
-    c2 = np.where(q >= 0, hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg)
-    dpdq = c1 + 2.0 * c2 * aq                       # dΔp/dq, Eq. (7)
+    c2 = _c2_table(hyd).take((q >= 0).view(np.int8))
+    dpdq = 2.0 * c2
+    dpdq *= aq
+    dpdq += c1                                      # dΔp/dq = c1 + 2 c2 |q|, Eq. (7)
     same = (q * q_star > 0.0) | ((q_star == 0.0) & (q != 0.0))
-    k_same = 1.0 + g * c1 + g * c2 * (aqs + aq)
+    both = aqs + aq
+    k_same = g * c2
+    k_same *= both
+    k_same += 1.0 + g * c1                          # 1 + g c1 + g c2 (|q*| + |q|)
     dtau = dpdq / k_same                            # dτ/du magnitude (τ grows as u falls)
-    f = s * e * k_same                              # dΔp/dτ = A_p W - Q_N
-    delta = -s * e * (c1 + c2 * (aq + aqs))         # Δp - Δp*
+    f = s * e
+    f *= k_same                                     # dΔp/dτ = A_p W - Q_N
+    delta = -s
+    delta *= e
+    both *= c2
+    both += c1
+    delta *= both                                   # Δp - Δp* = -s e^u (c1 + c2 (|q| + |q*|))
     if not same.all():
-        o = ~same
-        f[o] = qp[o] - q[o] - g * (c1 * q[o] + c2[o] * q[o] * aq[o])
-        dtau[o] = dpdq[o] * e[o] / np.abs(f[o])
-        delta[o] = c1 * q[o] + c2[o] * q[o] * aq[o] - p_star[o]
+        o = (~same).nonzero()[0]
+        qo, c2o, eo = q[o], c2[o], e[o]
+        f[o] = fo = qp[o] - qo - g * (c1 * qo + c2o * qo * aq[o])
+        dtau[o] = dpdq[o] * eo / np.abs(fo)
+        delta[o] = c1 * qo + c2o * qo * aq[o] - p_star[o]
     return dtau, f, delta, dpdq
+
+
+def _c2_table(hyd: Hydraulics) -> np.ndarray:
+    """[c2 for Δp < 0, c2 for Δp >= 0], to pick with a boolean index."""
+    return np.array([hyd.turbulent_coefficient_neg, hyd.turbulent_coefficient_pos])
 
 
 def _node_tau(panel_integrals: np.ndarray, hi: np.ndarray, sizes: np.ndarray, first: np.ndarray,
@@ -333,43 +426,164 @@ def _node_tau(panel_integrals: np.ndarray, hi: np.ndarray, sizes: np.ndarray, fi
     A running sum over the whole batch, less its value at the problem's first node, would carry the
     rounding of the earlier problems' τ (often far larger) into this one's.
     """
-    n = prob.size
-    z = np.zeros(n)
-    z[hi + 1] = panel_integrals
-    col = np.arange(n) - np.repeat(first, sizes)
-    rows = np.zeros((sizes.size, int(sizes.max())))
-    rows[prob, col] = z
-    return np.cumsum(rows, axis=1)[prob, col]
+    width = int(sizes.max())
+    at = np.arange(prob.size) + (np.arange(sizes.size) * width - first).repeat(sizes)   # (problem, node) cell
+    rows = np.zeros(sizes.size * width)
+    rows[at.take(hi + 1)] = panel_integrals
+    return rows.reshape(sizes.size, width).cumsum(axis=1).reshape(-1).take(at)
 
 
-def _tables(node_sets: list[np.ndarray], params: list[tuple], hyd: Hydraulics) -> list[Relaxation]:
-    """The Relaxation of every problem from its nodes (descending in u), in one vectorised pass."""
+@dataclass(frozen=True)
+class RelaxationBatch:
+    """The segment tables Δp(τ) of a batch of problems, concatenated (see :class:`Relaxation`).
+
+    Table k has nodes ``tau[first[k]:first[k] + sizes[k]]`` (ascending from 0) and panels
+    ``coef[:, first[k] - k:first[k] - k + sizes[k] - 1]``; a table of one node is a constant Δp =
+    ``steady_Pa[k]`` (the problem started at its steady state). Build with :func:`relaxation_batch`.
+    """
+
+    tau: np.ndarray           # nodes of all tables [Pa s/m³]
+    coef: np.ndarray          # (6, nodes - tables): row j the s^j coefficient of every panel [Pa]
+    first: np.ndarray         # index in ``tau`` of each table's first node
+    sizes: np.ndarray         # nodes of each table
+    steady_Pa: np.ndarray     # Δp* of each table
+    end_tau: np.ndarray = field(init=False)   # τ of each table's last node; -inf for a constant
+
+    def __post_init__(self):
+        end = self.tau[self.first + self.sizes - 1] if self.sizes.size else np.zeros(0)
+        object.__setattr__(self, "end_tau", np.where(self.sizes > 1, end, -np.inf))
+
+    def __len__(self) -> int:
+        return self.sizes.size
+
+    def relaxation(self, k: int) -> Relaxation:
+        """Table k alone."""
+        a, n = int(self.first[k]), int(self.sizes[k])
+        if n < 2:
+            return Relaxation.constant(float(self.steady_Pa[k]))
+        return Relaxation(self.tau[a:a + n], self.coef[:, a - k:a - k + n - 1].T, float(self.steady_Pa[k]))
+
+    @classmethod
+    def concatenate(cls, parts: Sequence[RelaxationBatch]) -> RelaxationBatch:
+        """The tables of all ``parts``, in order (table k of part p is number sum(len(parts[:p])) + k)."""
+        nodes = np.cumsum([0] + [p.tau.size for p in parts[:-1]])
+        return cls(np.concatenate([p.tau for p in parts]), np.concatenate([p.coef for p in parts], axis=1),
+                   np.concatenate([p.first + n for p, n in zip(parts, nodes.tolist())]),
+                   np.concatenate([p.sizes for p in parts]), np.concatenate([p.steady_Pa for p in parts]))
+
+    def pressure(self, table: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Δp of table ``table[i]`` at τ ``tau[i]`` for every i, each exactly as :meth:`Relaxation.pressure`.
+
+        For samples of one table in ascending τ (as there), the ones before the table's end are
+        interpolated, the others are Δp* (the per-sample test τ < τ_end is the same split).
+        """
+        table = np.asarray(table, dtype=np.int64)
+        tau = np.asarray(tau, dtype=float)
+        out = self.steady_Pa.take(table)
+        live = (tau < self.end_tau.take(table)).nonzero()[0]
+        if live.size:
+            k, t = table.take(live), tau.take(live)
+            # last node <= t within the sample's own table: a search in (table, τ) order
+            keys = _pairs(np.arange(len(self)).repeat(self.sizes), self.tau)
+            node = keys.searchsorted(_pairs(k, t), side="right") - 1
+            out[live] += self._interpolate(k, node, t)
+        return out
+
+    def pressure_runs(self, table: np.ndarray, counts: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """:meth:`pressure` of runs of samples: ``counts[r]`` ascending τ of table ``table[r]``, one run
+        after the other, all before their table's end (one sorted search per run)."""
+        node = np.empty(tau.size, dtype=np.int64)
+        at = 0
+        for k, n in zip(table.tolist(), counts.tolist()):
+            if n:
+                a = self.first[k]
+                node[at:at + n] = self.tau[a:a + self.sizes[k]].searchsorted(tau[at:at + n], side="right") + (a - 1)
+                at += n
+        k = table.repeat(counts)
+        # τ >= 0 = the first node and τ < the table's end: within the panels
+        return self.steady_Pa.take(k) + self._interpolate(k, node, tau, clip=bool(tau.size) and tau.min() < 0.0)
+
+    def _interpolate(self, k: np.ndarray, node: np.ndarray, t: np.ndarray, clip: bool = True) -> np.ndarray:
+        """δ = Δp - Δp* at τ ``t`` of table ``k`` from the last node <= t (``node``, global index; kept
+        within the table's panels unless ``clip`` is False)."""
+        if clip:
+            first = self.first.take(k)
+            node = node.clip(first, first + self.sizes.take(k) - 2)
+        x0 = self.tau.take(node)
+        s = (t - x0) / (self.tau.take(node + 1) - x0)
+        panel = node - k
+        c = self.coef
+        out = c[5].take(panel)
+        for j in (4, 3, 2, 1):
+            out *= s
+            out += c[j].take(panel)
+        out *= s
+        out += c[0].take(panel)
+        return out
+
+
+def _pairs(k: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """k + i·x, exactly (complex; sorted by k, then x)."""
+    out = np.empty(x.size, dtype=complex)
+    out.real = k
+    out.imag = x
+    return out
+
+
+def _tables(u: np.ndarray, sizes: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray,
+            p_star: np.ndarray, dp0: np.ndarray, hyd: Hydraulics) -> tuple[np.ndarray, np.ndarray]:
+    """(τ at the nodes, panel polynomials) of every problem from its nodes u (descending, concatenated)."""
     g = hyd.leakage_conductance_m3_s_Pa
-    sizes = np.array([u.size for u in node_sets])
-    first = np.concatenate([[0], np.cumsum(sizes)[:-1]])
-    u = np.concatenate(node_sets)
-    prob = np.repeat(np.arange(sizes.size), sizes)
-    is_last = np.zeros(u.size, dtype=bool)
-    is_last[first + sizes - 1] = True
-    hi = np.flatnonzero(~is_last)                   # panel [u[hi + 1], u[hi]]
-    half = 0.5 * (u[hi] - u[hi + 1])
-    pts = (0.5 * (u[hi] + u[hi + 1]))[:, None] + half[:, None] * _GL_X[None, :]
+    first = sizes.cumsum() - sizes
+    prob = np.arange(sizes.size).repeat(sizes)
+    hi = np.arange(u.size - sizes.size) + np.arange(sizes.size).repeat(sizes - 1)   # panel [u[hi + 1], u[hi]]
+    u_hi, u_lo = u.take(hi), u.take(hi + 1)
+    half = 0.5 * (u_hi - u_lo)
+    mid = 0.5 * (u_hi + u_lo)
     n = u.size
-    uu = np.concatenate([u, pts.ravel()])
-    pp = np.concatenate([prob, np.repeat(prob[hi], _GL_X.size)])
-    rows = np.array(params)[pp]
-    dtau, f, delta, dpdq = _integrand(uu, rows, hyd)
+    uu = np.empty(n + _GL_X.size * hi.size)
+    uu[:n] = u
+    pts = uu[n:].reshape(hi.size, _GL_X.size)       # Gauss points of every panel: mid + half x_k
+    for k, x in enumerate(_GL_X.tolist()):
+        np.multiply(half, x, out=pts[:, k])
+        pts[:, k] += mid
+    pp = np.concatenate([prob, prob.take(hi).repeat(_GL_X.size)])
+    dtau, f, delta, dpdq = _integrand(uu, q_star.take(pp), s.take(pp), qp.take(pp), p_star.take(pp), hyd)
     tau = _node_tau(half * (dtau[n:].reshape(pts.shape) @ _GL_W), hi, sizes, first, prob)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # d²Δp/dτ² = f'(q) dq/dτ = -(1 + g dΔp/dq) f / (dΔp/dq); infinite where dΔp/dq = 0
-        curv = np.where(dpdq[:n] > 0, -(1.0 + g * dpdq[:n]) * f[:n] / dpdq[:n], np.inf)
+    dpdq, f = dpdq[:n], f[:n]
+    # d²Δp/dτ² = f'(q) dq/dτ = -(1 + g dΔp/dq) f / (dΔp/dq); infinite where dΔp/dq = 0
+    curv = np.divide(-(1.0 + g * dpdq) * f, dpdq, out=np.full(n, np.inf), where=dpdq > 0)
     delta = delta[:n]
-    delta[first] = rows[first, 4] - rows[first, 3]  # exact start: Δp continuous across segments
-    coef = _panel_coefficients(tau[hi + 1] - tau[hi], delta[hi], delta[hi + 1], f[hi], f[hi + 1],
-                               curv[hi], curv[hi + 1])
-    taus = np.split(tau, first[1:])
-    coefs = np.split(coef, (first - np.arange(sizes.size))[1:])
-    return [Relaxation(t, c, float(p[3])) for t, c, p in zip(taus, coefs, params)]
+    delta[first] = dp0 - p_star                      # exact start: Δp continuous across segments
+    coef = _panel_coefficients(tau.take(hi + 1) - tau.take(hi), delta.take(hi), delta.take(hi + 1), f.take(hi),
+                               f.take(hi + 1), curv.take(hi), curv.take(hi + 1))
+    return tau, coef
+
+
+def relaxation_batch(dp0_Pa, piston_flows_m3_s, hyd: Hydraulics, step: float = DEFAULT_STEP) -> RelaxationBatch:
+    """:func:`relaxations` as one :class:`RelaxationBatch` (no per-problem objects): the batched form."""
+    dp0 = np.asarray(dp0_Pa, dtype=float).reshape(-1)
+    qp = np.asarray(piston_flows_m3_s, dtype=float).reshape(-1)
+    if dp0.size != qp.size:
+        raise ValueError(f"{dp0.size} start pressures for {qp.size} piston flows")
+    q_star, s, p_star, q0, dist = _problems(dp0, qp, hyd)
+    moving = (dist != 0.0) & np.isfinite(dist)
+    if moving.all():
+        u, sizes = _node_sets(q_star, q0, dist, hyd, step)
+        tau, coef = _tables(u, sizes, q_star, s, qp, p_star, dp0, hyd)
+        return RelaxationBatch(tau, coef, sizes.cumsum() - sizes, sizes, p_star)
+    sizes = np.ones(dp0.size, dtype=np.int64)
+    steady = np.where(moving, p_star, dp0)
+    if not moving.any():
+        return RelaxationBatch(np.zeros(dp0.size), np.zeros((6, 0)), np.arange(dp0.size), sizes, steady)
+    m = np.flatnonzero(moving)
+    u, node_sizes = _node_sets(q_star[m], q0[m], dist[m], hyd, step)
+    tau_m, coef = _tables(u, node_sizes, q_star[m], s[m], qp[m], p_star[m], dp0[m], hyd)
+    sizes[m] = node_sizes
+    first = np.cumsum(sizes) - sizes
+    tau = np.zeros(int(sizes.sum()))                 # a constant's single node is τ = 0
+    tau[np.repeat(first[m], node_sizes) + _ranks(node_sizes)] = tau_m
+    return RelaxationBatch(tau, coef, first, sizes, steady)
 
 
 def relaxations(dp0_Pa: Sequence[float], piston_flows_m3_s: Sequence[float], hyd: Hydraulics,
@@ -384,18 +598,43 @@ def relaxations(dp0_Pa: Sequence[float], piston_flows_m3_s: Sequence[float], hyd
     1e-2 of the laminar-turbulent transition width c1/(2 c2 |q*|) (1e-12 for c1 = 0). A table ends
     where |q - q*| = 1e-17 of the scale; beyond it Δp = Δp*. The integrand is evaluated in factored,
     cancellation-free form on the side of q*: A_pW - Q_N = (q* - q)(1 + g c1 + g c2 (|q*| + |q|)).
+    Every problem's table is the one it has alone (:func:`relaxation_batch` is the concatenated form).
     """
-    out: list[Relaxation | None] = []
-    params, node_sets = [], []
-    for dp0, qp in zip(dp0_Pa, piston_flows_m3_s, strict=True):
-        problem = _segment_nodes(float(dp0), float(qp), hyd, step)
-        if problem is None:
-            out.append(Relaxation.constant(float(dp0)))
-            continue
-        node_sets.append(problem[0])
-        params.append(problem[1])
-        out.append(None)
-    if not node_sets:
+    dp0, qp = list(dp0_Pa), list(piston_flows_m3_s)
+    if len(dp0) != len(qp):
+        raise ValueError(f"{len(dp0)} start pressures for {len(qp)} piston flows")
+    if not dp0:
+        return []
+    batch = relaxation_batch(dp0, qp, hyd, step)
+    return [batch.relaxation(k) for k in range(len(batch))]
+
+
+def relaxation(dp0_Pa: float, piston_flow_m3_s: float, hyd: Hydraulics, step: float = DEFAULT_STEP) -> Relaxation:
+    """Tabulate the segment solution from Δp(0) = ``dp0_Pa`` under piston flow A_p W, Eq. (13)-(14).
+
+    See :func:`relaxations` (this is the single-problem form).
+    """
+    return relaxations([dp0_Pa], [piston_flow_m3_s], hyd, step)[0]
+
+
+def start_volumes(y_start_m, hyd: Hydraulics):
+    """Chamber volumes (V1, V2) at piston positions y, Eq. (2) [m³]."""
+    a = hyd.piston_area_m2
+    return hyd.chamber_volume_1_m3 - a * y_start_m, hyd.chamber_volume_2_m3 + a * y_start_m
+
+
+def compressibility_times(dt_s: np.ndarray, volume_1_m3: np.ndarray, volume_2_m3: np.ndarray,
+                          piston_flow_m3_s: np.ndarray, hyd: Hydraulics) -> np.ndarray:
+    """:func:`compressibility_time` element by element: each with its segment's start volumes
+    (:func:`start_volumes`) and piston flow A_p W (A_p times the velocity), the same arithmetic."""
+    dt, v1, v2, qp = dt_s, volume_1_m3, volume_2_m3, piston_flow_m3_s
+    beta = hyd.compressibility_1_Pa
+    out = np.log1p(qp * dt / v2)
+    out -= np.log1p(-qp * dt / v1)
+    rest = qp == 0.0
+    if not rest.any():
+        out /= beta * qp
         return out
-    built = iter(_tables(node_sets, params, hyd))
-    return [r if r is not None else next(built) for r in out]
+    np.divide(out, beta * qp, out=out, where=~rest)
+    out[rest] = dt[rest] * (1.0 / v1[rest] + 1.0 / v2[rest]) / beta
+    return out

@@ -41,13 +41,11 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 
 # ---------------------------------------------------------------------------------------------
 # Parameters
@@ -462,6 +460,8 @@ def steady_pressure_difference(piston_flow_m3_s: float, model: ChamberModel) -> 
     hi = 1.001 * abs(float(orifice_pressure(qp, model.c1, model.c2_pos, model.c2_neg))) + 1e-300
     f = lambda dp: model.scalar_flow(dp)[0] - qp  # noqa: E731
     lo, hi = (0.0, math.copysign(hi, qp)) if qp > 0 else (math.copysign(hi, qp), 0.0)
+    from scipy.optimize import brentq  # scipy (~0.5 s) only where the rig runs: importers of this module need not
+
     return brentq(f, lo, hi, xtol=1e-300, rtol=8.9e-16, maxiter=500)
 
 
@@ -580,6 +580,8 @@ def _crossing_time(pieces: Sequence[ActuatorPiece], ta: float, tb: float, target
         if fa * fb <= 0.0:
             if p.lag_s == 0.0:
                 return min(max(a - fa / p.velocity_m_s, a), b)
+            from scipy.optimize import brentq
+
             return brentq(lambda t, p=p: float(p.position(t)) - target, a, b, xtol=1e-13 * max(1.0, b), rtol=1e-15)
     return None
 
@@ -636,45 +638,58 @@ def _check_stroke(case: TriangleCase, model: ChamberModel) -> None:
             raise ValueError(f"case {case.case_id}: amplitude {case.amplitude_m:g} m empties a chamber")
 
 
-def _capacitance(p: float, vol: float, gas: float, beta: float) -> tuple[float, float]:
-    """C = beta_oil (V - G/p) + G/p^2 and dC/dp of a chamber, for floats (see chamber_capacitance)."""
-    if gas == 0.0:
-        return beta * vol, 0.0
-    return beta * (vol - gas / p) + gas / (p * p), beta * gas / (p * p) - 2.0 * gas / (p * p * p)
+def _piece_system(model: ChamberModel, piece: PistonPiece):
+    """rhs and analytic Jacobian of the two pressure rises u = p_i - p0 on one piece.
 
-
-def _piece_motion(piece: PistonPiece) -> Callable[[float], tuple[float, float]]:
-    """t -> (y, dy/dt) of the piston on one piece, for floats (the ODE's fast path)."""
-    if not piece.contact:
-        rest = piece.rest_m
-        return lambda tt: (rest, 0.0)
-    act = piece.actuator
-    ts, cs, v, tau, k = act.t_start_s, act.command_start_m, act.velocity_m_s, act.lag_s, act.transient_m
-    off = piece.offset_m
-
-    def motion(tt):
-        s = tt - ts
-        if tau > 0.0:
-            e = math.exp(-s / tau)
-            return cs + v * (s - tau) + k * e + off, v - k / tau * e
-        return cs + v * s + off, v
-
-    return motion
-
-
-def _piece_system(model: ChamberModel, motion: Callable[[float], tuple[float, float]]):
-    """rhs and analytic Jacobian of the two pressure rises u = p_i - p0 on one piece."""
+    The ODE's fast path, one function of floats: the piston motion of :class:`PistonPiece`, the
+    capacitances of :func:`chamber_capacitance` with their derivatives, and
+    :meth:`ChamberModel.scalar_flow` written out (LSODA calls it ~5e5 times per blind suite, and
+    function calls would cost more than the arithmetic).
+    """
     a, p0 = model.piston_area_m2, model.charge_pressure_Pa
     v01, v02, beta = model.chamber_volume_1_m3, model.chamber_volume_2_m3, model.oil_compressibility_1_Pa
     g1, g2 = model.gas_1_Pa_m3, model.gas_2_Pa_m3
-    flow = model.scalar_flow
+    c1, leak = model.c1, model.leakage_m3_s_Pa
+    c1_c1, four_c2_pos, four_c2_neg = c1 * c1, 4.0 * model.c2_pos, 4.0 * model.c2_neg
+    pc, rho = model.relief_cracking_pressure_Pa, model.density_kg_m3
+    relief = pc is not None and model.relief_area_gradient_m2_Pa > 0.0
+    k_relief = model.relief_discharge_coefficient * model.relief_area_gradient_m2_Pa
+    contact, rest = piece.contact, piece.rest_m
+    act = piece.actuator
+    ts, cs, v, tau, k = act.t_start_s, act.command_start_m, act.velocity_m_s, act.lag_s, act.transient_m
+    off = piece.offset_m
+    lag = tau > 0.0
 
     def terms(tt, u):
         """(C1, dC1/dp1, C2, dC2/dp2, net flow A dy/dt - Q12, dQ12/ddp)."""
-        y, ydot = motion(tt)
-        c1_, d1 = _capacitance(p0 + u[0], v01 - a * y, g1, beta)
-        c2_, d2 = _capacitance(p0 + u[1], v02 + a * y, g2, beta)
-        q, dq = flow(u[0] - u[1])
+        u0, u1 = u.tolist()
+        if not contact:
+            y, ydot = rest, 0.0
+        elif lag:
+            s = tt - ts
+            e = math.exp(-s / tau)
+            y, ydot = cs + v * (s - tau) + k * e + off, v - k / tau * e
+        else:
+            y, ydot = cs + v * (tt - ts) + off, v
+        p, vol = p0 + u0, v01 - a * y
+        if g1 == 0.0:
+            c1_, d1 = beta * vol, 0.0
+        else:
+            c1_, d1 = beta * (vol - g1 / p) + g1 / (p * p), beta * g1 / (p * p) - 2.0 * g1 / (p * p * p)
+        p, vol = p0 + u1, v02 + a * y
+        if g2 == 0.0:
+            c2_, d2 = beta * vol, 0.0
+        else:
+            c2_, d2 = beta * (vol - g2 / p) + g2 / (p * p), beta * g2 / (p * p) - 2.0 * g2 / (p * p * p)
+        dp = u0 - u1
+        ad = abs(dp)
+        root = math.sqrt(c1_c1 + (four_c2_pos if dp >= 0.0 else four_c2_neg) * ad)
+        q = 2.0 * dp / (c1 + root) + leak * dp
+        dq = 1.0 / root + leak
+        if relief and ad > pc:
+            sq = math.sqrt(2.0 * ad / rho)
+            q += math.copysign(k_relief * (ad - pc) * sq, dp)
+            dq += k_relief * (sq + (ad - pc) / (rho * sq))
         return c1_, d1, c2_, d2, a * ydot - q, dq
 
     def rhs(tt, u):
@@ -698,6 +713,8 @@ def integrate_pressures(case: TriangleCase, model: ChamberModel, pieces: Sequenc
     above about 2 p0, e.g. ~12 MPa at 1.5 mm/s for the Table-1 damper) is integrated as is;
     a chamber with gas keeps p > 0 (the expanding gas absorbs the volume), else ValueError.
     """
+    from scipy.integrate import solve_ivp  # scipy.integrate (~0.4 s): only where the rig runs
+
     t = case.sample_times_s()
     p0 = model.charge_pressure_Pa
     atol = rtol * max(abs(steady_pressure_difference(model.piston_area_m2 * case.velocity_m_s, model)), 1.0)
@@ -709,7 +726,7 @@ def integrate_pressures(case: TriangleCase, model: ChamberModel, pieces: Sequenc
         sel = (t >= ta) & ((t < tb) | ((tb == pieces[-1].t_end_s) & (t <= tb)))
         t_sel = t[sel]
         if tb > ta:
-            rhs, jac = _piece_system(model, _piece_motion(piece))
+            rhs, jac = _piece_system(model, piece)
             closed = t_sel.size > 0 and t_sel[-1] == tb
             t_eval = t_sel if closed else np.append(t_sel, tb)
             sol = solve_ivp(rhs, (ta, tb), state, method="LSODA", jac=jac, rtol=rtol, atol=atol, t_eval=t_eval)

@@ -7,8 +7,8 @@ The force is Eq. (8) with a massless piston: F = A_p Δp + F_f(dy/dt) (Coulomb +
 Triangle excitation
     Segment quadrature (:mod:`isokinetic.physics.hydraulics`, Eq. 13-14): segments of constant
     piston velocity from the play operator (:func:`excitation.piston_segments`), chained with Δp
-    continuous; the tables of all segments of all cases are built in one vectorised pass
-    (:func:`triangle_responses`).
+    continuous; the cases advance in lockstep, the tables of the j-th segments of all cases built in
+    one vectorised pass, then all samples evaluated at once (:func:`triangle_responses`).
 
 Sine excitation
     Stiff integration with ``scipy.integrate.solve_ivp`` (LSODA, analytic Jacobian, rtol 1e-12:
@@ -23,12 +23,13 @@ actuator-gap-damper model of :mod:`isokinetic.physics.servo`.
 from __future__ import annotations
 
 import math
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
-from scipy.integrate import solve_ivp
 
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.excitation import (
@@ -45,9 +46,10 @@ from isokinetic.physics.excitation import (
 from isokinetic.physics.hydraulics import (
     DEFAULT_STEP,
     Hydraulics,
-    compressibility_time,
-    relaxation,
-    relaxations,
+    RelaxationBatch,
+    compressibility_times,
+    relaxation_batch,
+    start_volumes,
     steady_pressure,
 )
 from isokinetic.physics.plan import CasePlan
@@ -99,13 +101,15 @@ def drive_times(case: CasePlan, drive: Drive | None = None) -> np.ndarray:
     return drive.grid_offset_s + np.arange(max(n, 0) + 1, dtype=float) / case.sample_rate_Hz
 
 
-def driven_segments(case: CasePlan, drive: Drive) -> list[Segment]:
+def driven_segments(case: CasePlan, drive: Drive, times: np.ndarray | None = None) -> list[Segment]:
     """Contact segments between the plan's turning points at the drive's measured speeds.
 
     The piston starts at the command's start -Y (Eq. 26) and its position is chained through the
-    segments, so amplitude follows from the measured speeds.
+    segments, so amplitude follows from the measured speeds. ``times``: the case's
+    :func:`drive_times`, if already at hand.
     """
-    edges = [0.0, *turning_times(case), max(record_end(case), float(drive_times(case, drive)[-1]))]
+    last = float((drive_times(case, drive) if times is None else times)[-1])
+    edges = [0.0, *turning_times(case), max(record_end(case), last)]
     omega, phase = 2.0 * math.pi / case.period_s, case.phase_rad
     y = float(command_displacement(case, 0.0))
     segs = []
@@ -126,8 +130,10 @@ def _check_positions(case: CasePlan, segs: Sequence[Segment], flows: Sequence[fl
                              f"(V0/A_p = {limit:g} m)")
 
 
-def _triangle_plan(case: CasePlan, drive: Drive | None, hyd: Hydraulics, backlash_m: float):
-    """(segments, piston flows A_p W of each) of a triangle case, from its plan or its drive."""
+def _triangle_plan(case: CasePlan, drive: Drive | None, hyd: Hydraulics, backlash_m: float,
+                   times: np.ndarray | None = None):
+    """(segments, piston flows A_p W of each) of a triangle case, from its plan or its drive
+    (``times``: its :func:`drive_times`, if at hand)."""
     if case.waveform != "triangle":
         raise ValueError(f"case {case.case}: not a triangle")
     a = hyd.piston_area_m2
@@ -138,61 +144,219 @@ def _triangle_plan(case: CasePlan, drive: Drive | None, hyd: Hydraulics, backlas
         return segs, [a * seg.direction * w if seg.contact else 0.0 for seg in segs]
     if backlash_m:
         raise ValueError(f"case {case.case}: a measured drive has no backlash model")
-    segs = driven_segments(case, drive)
+    segs = driven_segments(case, drive, times)
     flows = [a * seg.direction * drive.speed(j) for j, seg in enumerate(segs)]
     _check_positions(case, segs, flows, hyd)
     return segs, flows
 
 
-def _chain(t: np.ndarray, segs: Sequence[Segment], flows: Sequence[float], hyd: Hydraulics, tables_: dict,
-           step: float) -> tuple[np.ndarray, np.ndarray]:
-    """Δp and piston velocity at ``t``, segment after segment from Δp(0) = 0 (tables reused by start)."""
-    a = hyd.piston_area_m2
-    dp = np.empty(t.size)
-    vel = np.zeros(t.size)
-    p = 0.0
-    for seg, idx, qp in zip(segs, segment_index(t, segs), flows):
-        key = (p, qp)
-        if key not in tables_:
-            tables_[key] = relaxation(p, qp, hyd, step)
-        v = qp / a
-        dt = np.append(t[idx], seg.t_end_s) - seg.t_start_s
-        values = tables_[key].pressure(compressibility_time(dt, seg.piston_start_m, v, hyd))
-        dp[idx] = values[:-1]
-        vel[idx] = v
-        p = float(values[-1])
-    return dp, vel
+@dataclass(frozen=True)
+class _Layout:
+    """What a batch of triangle cases needs besides the damper coefficients: their sample grids
+    and their segments (arrays, case after case, all read-only)."""
+
+    times: tuple[np.ndarray, ...]   # sample times of each case [s]
+    times_all: np.ndarray           # all of them, concatenated
+    case: np.ndarray                # segment -> case
+    j: np.ndarray                   # segment -> its number within its case
+    t0: np.ndarray                  # start [s]
+    t1: np.ndarray                  # end [s]
+    flow: np.ndarray                # piston flow A_p W of the plan [m³/s]
+    w: np.ndarray                   # velocity W = flow / A_p [m/s]
+    qp: np.ndarray                  # A_p W as Eq. (14) computes it from W [m³/s]
+    v1: np.ndarray                  # chamber volumes at the start (Eq. 2) [m³]
+    v2: np.ndarray
+    lo: np.ndarray                  # first sample (index in times_all)
+    count: np.ndarray               # samples
+    rate_Hz: np.ndarray             # sample rate of the segment's case [Hz]
+    steps: tuple[np.ndarray, ...]   # the segments of step j (the j-th of each case), case after case
+
+
+def _build_layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd: Hydraulics,
+                  backlash_m: float) -> _Layout:
+    """The :class:`_Layout` of cases (uses only the geometry of ``hyd``: A_p, V0,1, V0,2)."""
+    times = [drive_times(case, drive) for case, drive in zip(cases, drives)]
+    plans = [_triangle_plan(case, drive, hyd, backlash_m, t) for case, drive, t in zip(cases, drives, times)]
+    segs = [seg for case_segs, _ in plans for seg in case_segs]
+    n_seg = np.array([len(case_segs) for case_segs, _ in plans], dtype=np.int64)
+    sizes = np.array([t.size for t in times], dtype=np.int64)
+    lo, count = [], []
+    for (case_segs, _), t, first in zip(plans, times, (np.cumsum(sizes) - sizes).tolist()):
+        index = segment_index(t, case_segs)
+        if index and index[0].start != 0 or any(sl.stop < sl.start for sl in index):
+            raise ValueError("triangle segments must cover the samples in order")
+        lo += [first + sl.start for sl in index]
+        count += [sl.stop - sl.start for sl in index]
+    flow = np.array([q for _, flows in plans for q in flows], dtype=float)
+    w = flow / hyd.piston_area_m2
+    v1, v2 = start_volumes(np.array([x.piston_start_m for x in segs], dtype=float), hyd)
+    case = np.repeat(np.arange(n_seg.size), n_seg)
+    j = np.arange(case.size) - np.repeat(np.cumsum(n_seg) - n_seg, n_seg)
+    by_step = np.argsort(j, kind="stable")
+    bounds = np.searchsorted(j[by_step], np.arange(int(j.max(initial=-1)) + 2)).tolist()
+    out = _Layout(times=tuple(times), times_all=np.concatenate(times) if times else np.zeros(0), case=case,
+                  j=j,
+                  t0=np.array([x.t_start_s for x in segs], dtype=float),
+                  t1=np.array([x.t_end_s for x in segs], dtype=float), flow=flow, w=w,
+                  qp=hyd.piston_area_m2 * w, v1=v1, v2=v2, lo=np.array(lo, dtype=np.int64),
+                  count=np.array(count, dtype=np.int64),
+                  rate_Hz=np.array([c.sample_rate_Hz for c in cases], dtype=float)[case],
+                  steps=tuple(by_step[a:b] for a, b in zip(bounds[:-1], bounds[1:])))
+    for array in (*out.times, *out.steps,
+                  *(getattr(out, f) for f in out.__dataclass_fields__ if f not in ("times", "steps"))):
+        array.flags.writeable = False
+    return out
+
+
+_LAYOUTS: OrderedDict = OrderedDict()
+_LAYOUTS_LOCK = threading.Lock()
+#: Layouts kept (a fit calls :func:`triangle_responses` hundreds of times on the same cases).
+LAYOUT_CACHE = 8
+
+
+def _layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd: Hydraulics, backlash_m: float) -> _Layout:
+    """:func:`_build_layout`, remembered for the last few (cases, drives, backlash, geometry)."""
+    key = (tuple(cases), tuple(drives), float(backlash_m), hyd.piston_area_m2, hyd.chamber_volume_1_m3,
+           hyd.chamber_volume_2_m3)
+    with _LAYOUTS_LOCK:
+        hit = _LAYOUTS.get(key)
+        if hit is not None:
+            _LAYOUTS.move_to_end(key)
+            return hit
+    out = _build_layout(cases, drives, hyd, backlash_m)
+    with _LAYOUTS_LOCK:
+        _LAYOUTS[key] = out
+        while len(_LAYOUTS) > LAYOUT_CACHE:
+            _LAYOUTS.popitem(last=False)
+    return out
+
+
+def _sample_tau(lay: _Layout, seg: np.ndarray, counts: np.ndarray | None, at: np.ndarray,
+                hyd: Hydraulics) -> np.ndarray:
+    """τ (Eq. 14, as :func:`compressibility_time`) of the samples ``times_all[at]``: ``counts[r]`` of
+    them in segment ``seg[r]``, one segment after the other (None: one each)."""
+    def per_sample(x):
+        return x.take(seg) if counts is None else x.take(seg).repeat(counts)
+    return compressibility_times(lay.times_all.take(at) - per_sample(lay.t0), per_sample(lay.v1), per_sample(lay.v2),
+                                 per_sample(lay.qp), hyd)
+
+
+def _live_counts(lay: _Layout, tau_end: np.ndarray, table_end: np.ndarray, hyd: Hydraulics) -> np.ndarray:
+    """Samples of each segment before its table's end (τ < τ_end), i.e. not yet at Δp* exactly.
+
+    τ grows with time, so this is the first sample with τ >= τ_end: guessed from the inverse of
+    Eq. (14) and settled by evaluating τ exactly as for the samples themselves (then bisection).
+    """
+    lo = np.zeros(lay.count.size, dtype=np.int64)
+    hi = lay.count.copy()
+    done = tau_end < table_end                      # the whole segment is before its table's end
+    lo[done] = hi[done]
+    hi[table_end == -np.inf] = 0                    # a constant table: Δp* throughout
+    act = (lo < hi).nonzero()[0]
+    if act.size == 0:
+        return lo
+    beta, v1, v2, qp, x = hyd.compressibility_1_Pa, lay.v1[act], lay.v2[act], lay.qp[act], table_end[act]
+    with np.errstate(all="ignore"):
+        dt = np.where(qp == 0.0, beta * x / (1.0 / v1 + 1.0 / v2),
+                      np.expm1(beta * qp * x) / (qp * (1.0 / v2 + np.exp(beta * qp * x) / v1)))
+        guess = np.ceil((lay.t0[act] + dt - lay.times_all[lay.lo[act]]) * lay.rate_Hz[act])
+    mid = np.clip(np.where(np.isfinite(guess), guess, hi[act]), lo[act], hi[act]).astype(np.int64)
+    probe, who = np.concatenate([mid - 1, mid]), np.concatenate([act, act])   # the guess and the sample before
+    while act.size:
+        inside = (probe >= lo[who]) & (probe < hi[who])
+        probe, who = probe[inside], who[inside]
+        below = _sample_tau(lay, who, None, lay.lo[who] + probe, hyd) < table_end[who]
+        np.maximum.at(lo, who[below], probe[below] + 1)
+        np.minimum.at(hi, who[~below], probe[~below])
+        act = act[lo[act] < hi[act]]
+        probe, who = (lo[act] + hi[act]) // 2, act
+    return lo
+
+
+def _chain(lay: _Layout, tau_end: np.ndarray, hyd: Hydraulics, step: float) -> tuple[RelaxationBatch, np.ndarray]:
+    """Tables of all segments, chained from Δp(0) = 0 with Δp continuous: (the tables, index of each
+    segment's table). Step j of all cases at once; one table per distinct (start Δp, flow)."""
+    start = np.zeros(len(lay.times))
+    batches: list[RelaxationBatch] = []
+    known: dict[tuple[float, float], int] = {}
+    table = np.empty(lay.j.size, dtype=np.int64)
+    built = 0
+    for live in lay.steps:
+        cases = lay.case.take(live)
+        keys = list(zip(start.take(cases).tolist(), lay.flow.take(live).tolist()))
+        new = list(dict.fromkeys(key for key in keys if key not in known))
+        if new:
+            known.update(zip(new, range(built, built + len(new))))
+            batches.append(relaxation_batch([p for p, _ in new], [q for _, q in new], hyd, step))
+            built += len(new)
+        ref = np.array([known[key] for key in keys], dtype=np.int64)
+        table[live] = ref
+        first_new = built - len(new)
+        if ref.min() >= first_new:                  # all from this step's batch (the usual case)
+            start[cases] = batches[-1].pressure(ref - first_new, tau_end.take(live))
+        else:
+            start[cases] = RelaxationBatch.concatenate(batches).pressure(ref, tau_end.take(live))
+    return RelaxationBatch.concatenate(batches), table
+
+
+#: Samples evaluated together (numpy passes over arrays that stay in cache).
+CHUNK_SAMPLES = 8192
+
+
+def _sample_pressures(tabs: RelaxationBatch, table: np.ndarray, lay: _Layout, n_live: np.ndarray, hyd: Hydraulics,
+                      dp: np.ndarray) -> None:
+    """Δp of the first ``n_live`` samples of every segment into ``dp``, in runs of ascending samples
+    of one table, grouped into cache-sized chunks (Eq. 14 then the table)."""
+    owners = n_live.nonzero()[0]
+    runs = -(-n_live[owners] // CHUNK_SAMPLES)
+    run_seg = np.repeat(owners, runs)
+    offset = _ranks(runs) * CHUNK_SAMPLES
+    run_len = np.minimum(n_live[run_seg] - offset, CHUNK_SAMPLES)
+    run_lo = lay.lo[run_seg] + offset
+    chunk = (np.cumsum(run_len) - 1) // CHUNK_SAMPLES
+    cuts = [0, *((chunk[1:] != chunk[:-1]).nonzero()[0] + 1).tolist(), run_seg.size]
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        rs, rl = run_seg[a:b], run_len[a:b]
+        at = run_lo[a:b].repeat(rl) + _ranks(rl)
+        dp[at] = tabs.pressure_runs(table[rs], rl, _sample_tau(lay, rs, rl, at, hyd))
+
+
+def _ranks(counts: np.ndarray) -> np.ndarray:
+    """0..counts[k]-1 for every k, concatenated."""
+    return np.arange(int(counts.sum())) - (counts.cumsum() - counts).repeat(counts)
 
 
 def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: float = 0.0,
                        step: float = DEFAULT_STEP, drives: Sequence[Drive | None] | None = None
                        ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """:func:`triangle_response` of many cases, their segment tables built in one batch.
+    """:func:`triangle_response` of many cases, their segment tables built in batches.
 
-    Each segment is assumed to start from the previous one's steady Δp* (true once a segment has
-    settled, when the chained Δp equals Δp* exactly); the tables for those starts are built in one
-    vectorised :func:`relaxations` call and reused when the chain confirms them, otherwise (a
-    segment cut short, e.g. a gap crossing) the table is built from the actual start.
-    ``drives`` (one per case, None: the plan) runs a case with its measured half-period speeds on
-    its measured sample grid (:class:`Drive`; no backlash).
+    Every case is chained segment after segment from Δp(0) = 0, Δp continuous; the cases advance in
+    lockstep, so that the tables of the j-th segments of all cases (from their actual start Δp) are
+    built in one vectorised :func:`relaxation_batch` call, shared by cases with the same start and flow. The
+    chain evaluates the segments' ends only; then the samples of all segments at once, where those
+    after their table's end are Δp* without evaluating their τ. ``drives`` (one per case, None: the
+    plan) runs a case with its measured half-period speeds on its measured sample grid
+    (:class:`Drive`; no backlash). The sample grids and segments of the last few case sets are
+    remembered (fits call this hundreds of times on the same cases).
     """
     drives = [None] * len(cases) if drives is None else list(drives)
     if len(drives) != len(cases):
         raise ValueError(f"{len(drives)} drives for {len(cases)} cases")
-    plans = [(case, drive, *_triangle_plan(case, drive, hyd, backlash_m)) for case, drive in zip(cases, drives)]
-    guesses = {}
-    for *_, flows in plans:
-        prev = 0.0
-        for qp in flows:
-            guesses.setdefault((prev, qp), None)
-            prev = steady_pressure(qp, hyd)
-    keys = list(guesses)
-    tables_ = dict(zip(keys, relaxations([k[0] for k in keys], [k[1] for k in keys], hyd, step)))
-    out = []
-    for case, drive, segs, flows in plans:
-        t = drive_times(case, drive)
-        out.append((t, *_chain(t, segs, flows, hyd, tables_, step)))
-    return out
+    try:
+        lay = _layout(cases, drives, hyd, backlash_m)
+    except TypeError:                               # unhashable cases or drives: not remembered
+        lay = _build_layout(cases, drives, hyd, backlash_m)
+    if not cases:
+        return []
+    tau_end = compressibility_times(lay.t1 - lay.t0, lay.v1, lay.v2, lay.qp, hyd)
+    tabs, table = _chain(lay, tau_end, hyd, step)
+    n_live = _live_counts(lay, tau_end, tabs.end_tau[table], hyd)
+    dp = np.repeat(tabs.steady_Pa[table], lay.count)
+    _sample_pressures(tabs, table, lay, n_live, hyd, dp)
+    vel = np.repeat(lay.w, lay.count)
+    ends = np.cumsum([t.size for t in lay.times]).tolist()
+    return [(t.copy(), dp[e - t.size:e], vel[e - t.size:e]) for t, e in zip(lay.times, ends)]
 
 
 def _sine_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):
@@ -228,6 +392,8 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
     Split at turning points and gap contacts; atol = rtol × the steady Δp at peak velocity.
     Returns (t_s, dp_Pa, piston_velocity_m_s); Δp(0) = 0.
     """
+    from scipy.integrate import solve_ivp  # ~0.4 s of imports: only sine cases are integrated
+
     if case.waveform != "sine":
         raise ValueError(f"case {case.case}: not a sine")
     check_stroke(case, hyd)

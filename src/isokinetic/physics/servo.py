@@ -25,7 +25,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from isokinetic.physics.damper import NOMINAL, Effects
 from isokinetic.physics.excitation import (
@@ -322,6 +321,8 @@ class ServoRig:
     def _solve(self, m: Mode, d: float, tt: float, tb: float, p: float, ts: np.ndarray):
         """solve_ivp of mode m from (tt, p) to tb or its first event, evaluated at ts (and tb)."""
         t_eval = ts if ts.size and ts[-1] == tb else np.append(ts, tb)
+        from scipy.integrate import solve_ivp  # scipy.integrate (~0.4 s): only where a servo is integrated
+
         rhs, jac, events = self.system(m, d)
         sol = solve_ivp(rhs, (tt, tb), [p], method=self.method, jac=jac, rtol=self.rtol, atol=self.atol,
                         t_eval=t_eval, events=events or None)

@@ -14,24 +14,17 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-from isokinetic.contracts.outputs import RULE_OUTPUTS, figure
-from isokinetic.io import write_parquet
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.stages.blind_generate import effect_text
-from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.diagnosis import write_diagnosis
 from isokinetic.stages.ingest import ingest_campaign
-from isokinetic.stages.repeatability import repeatability
-from isokinetic.stages.validate import write_validated
-from isokinetic.stages.windows import WindowSpec, windows_stage
+from isokinetic.stages.windows import WindowSpec
 
 log = logging.getLogger(__name__)
 
-#: What the chain writes into a scenario's work folder, as the per-campaign rules name them.
-WINDOWS_FILE = RULE_OUTPUTS["windows"]["windows"]
-REPEATABILITY_FILE = RULE_OUTPUTS["repeatability"]["repeatability"]
-CHARACTERISTIC_FILE = RULE_OUTPUTS["characteristic"]["characteristic"]
-DIAGNOSIS_FILE = RULE_OUTPUTS["diagnosis"]["json"]
-DIAGNOSIS_FIGURE = figure("fig16_gap").path   # as rule diagnosis writes it
+#: Where the diagnosis goes in a scenario's work folder, as rule diagnosis names it.
+DIAGNOSIS_FILE = STAGE_OUTPUTS["diagnosis"]["json"]
 
 
 def diagnose_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLike,
@@ -39,13 +32,15 @@ def diagnose_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLi
                           sample_rate_tolerance: float = 0.05) -> dict:
     """The per-campaign chain of a real raw campaign, into ``work_root/<campaign>/``; the diagnosis.
 
-    ingest -> validate (cases/quarantine.parquet) -> windows -> repeatability -> characteristic ->
-    :func:`isokinetic.stages.diagnosis.write_diagnosis` (diagnosis.json and diagnosis/fig16_gap.png,
-    as rule diagnosis). Reads only ``raw_dir``. An existing ``work_root/<campaign>/`` is replaced.
+    ingest -> :func:`isokinetic.stages.characteristic.write_characteristic` (validate, windows,
+    repeatability, characteristic: the job of rule characteristic) ->
+    :func:`isokinetic.stages.diagnosis.write_diagnosis` (diagnosis.json as rule diagnosis writes it;
+    no gap figure, which nothing scores). Reads only ``raw_dir``. An existing
+    ``work_root/<campaign>/`` is replaced.
     """
     root = process_raw_campaign(raw_dir, work_root, spec, repeatability_tolerance=repeatability_tolerance,
                                 sample_rate_tolerance=sample_rate_tolerance)
-    return write_diagnosis(root, root / DIAGNOSIS_FILE, root / DIAGNOSIS_FIGURE, spec)
+    return write_diagnosis(root, root / DIAGNOSIS_FILE, None, spec)
 
 
 def process_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLike,
@@ -58,12 +53,8 @@ def process_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLik
     if root.exists():
         shutil.rmtree(root)
     ingest_campaign(raw_dir, root)
-    write_validated(root, sample_rate_tolerance=sample_rate_tolerance)
-    windows = windows_stage(root, spec)
-    write_parquet(windows, root / WINDOWS_FILE)
-    rep = repeatability(windows, repeatability_tolerance)
-    write_parquet(rep, root / REPEATABILITY_FILE)
-    write_parquet(assemble(windows, rep), root / CHARACTERISTIC_FILE)
+    write_characteristic(root, spec, repeatability_tolerance=repeatability_tolerance,
+                         sample_rate_tolerance=sample_rate_tolerance)
     return root
 
 

@@ -58,7 +58,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.optimize import brentq
 
 from isokinetic.contracts.scenarios import EFFECTS, OUT_OF_CATALOGUE, scenario_names
 from isokinetic.io import write_json
@@ -221,6 +220,8 @@ def detection_level(problem: DetectionProblem, effect: str, sign: float = 1.0, b
     prev = grid[0]
     for x in grid[1:]:
         if f(x) >= 0.0:
+            from scipy.optimize import brentq  # scipy.optimize (~0.5 s): only while the suite is generated
+
             return math.exp(brentq(f, prev, x, xtol=1e-6, rtol=1e-6, maxiter=200))
         prev = x
     return None

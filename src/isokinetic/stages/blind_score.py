@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from isokinetic.contracts.outputs import RULE_OUTPUTS
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.contracts.scenarios import EFFECTS
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.io import write_json, write_parquet
@@ -32,7 +32,7 @@ SCORE_COLUMNS = ("scenario", "truth", "out_of_catalogue", "verdict", "exact", "e
                  "shrink", "confounded", "param_error_max", "delay_error_s", "offset_error_N", "gain_error",
                  "error")
 #: A scenario's diagnosis, in its work folder (as rule diagnosis names it).
-DIAGNOSIS_FILE = RULE_OUTPUTS["diagnosis"]["json"]
+DIAGNOSIS_FILE = STAGE_OUTPUTS["diagnosis"]["json"]
 #: Row-level lineage columns of scores.parquet (:func:`score_sources`), after SCORE_COLUMNS.
 SOURCE_COLUMNS = ("raw_dir", "truth_file", "diagnosis_file")
 _FLOAT_COLUMNS = ("magnitude_x_detection", "gap_before", "gap_after", "shrink", "param_error_max", "delay_error_s",

@@ -21,7 +21,7 @@ from pathlib import Path
 import pandas as pd
 
 from isokinetic.contracts import tables
-from isokinetic.contracts.outputs import RULE_OUTPUTS
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.io import write_parquet
 from isokinetic.physics.convergence import check_phi, g1, g2, g3, stroke_to_converge
 from isokinetic.physics.damper import NOMINAL, Damper, Effects
@@ -30,7 +30,7 @@ from isokinetic.plots.design import mm_label, percent_label, write_design_figure
 from isokinetic.plots.style import MM
 
 #: Table written by :func:`write_design` (figures: ``figures_of("design")``).
-PLAN_CHECK_FILE = Path(RULE_OUTPUTS["design"]["plan_check"]).name
+PLAN_CHECK_FILE = Path(STAGE_OUTPUTS["design"]["plan_check"]).name
 
 
 def _as_damper(damper) -> Damper | None:

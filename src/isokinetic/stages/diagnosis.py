@@ -36,8 +36,6 @@ from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.diagnosis.verdict import diagnose_observations
 from isokinetic.io import write_json
 from isokinetic.physics.damper import NOMINAL, Damper
-from isokinetic.plots.diagnosis import gap_figure
-from isokinetic.plots.style import save_figure
 from isokinetic.stages.windows import WindowSpec
 
 log = logging.getLogger(__name__)
@@ -103,9 +101,10 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     return result, obs, predictions
 
 
-def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path, spec: WindowSpec = WindowSpec(),
+def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | None, spec: WindowSpec = WindowSpec(),
                     n_bins: int = 4) -> dict:
-    """Diagnose, validate against the schema, write diagnosis.json and the gap figure."""
+    """Diagnose, validate against the schema, write diagnosis.json and the gap figure (none without
+    ``figure_path``: the blind suite draws none, and then needs no plotting library)."""
     try:
         result, obs, predictions = diagnose(Path(campaign_root), spec, n_bins)
     except Exception as exc:  # noqa: BLE001 - an accepted campaign always gets its diagnosis.json
@@ -116,5 +115,9 @@ def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path, spe
         result, obs, predictions = no_model(name, f"diagnosis failed: {type(exc).__name__}: {exc}", "failed"), None, {}
     validate_diagnosis(result)
     write_json(result, json_path)
-    save_figure(gap_figure(result, obs, predictions), figure_path)
+    if figure_path is not None:
+        from isokinetic.plots.diagnosis import gap_figure  # matplotlib only where a figure is drawn
+        from isokinetic.plots.style import save_figure
+
+        save_figure(gap_figure(result, obs, predictions), figure_path)
     return result

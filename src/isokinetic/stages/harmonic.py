@@ -56,10 +56,9 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.signal import savgol_coeffs, savgol_filter
 
 from isokinetic.contracts import tables
-from isokinetic.contracts.outputs import RULE_OUTPUTS, figures_of
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
 from isokinetic.plots.harmonic import harmonic_figure
 from isokinetic.plots.style import save_figure
@@ -67,7 +66,7 @@ from isokinetic.plots.style import save_figure
 log = logging.getLogger("isokinetic")
 
 #: Output file names of :func:`write_harmonic`.
-TABLE_FILE = Path(RULE_OUTPUTS["harmonic"]["table"]).name
+TABLE_FILE = Path(STAGE_OUTPUTS["harmonic"]["table"]).name
 FIGURE_FILE = Path(figures_of("harmonic")[0].path).name
 
 #: Default smoothing: velocity noise at most this fraction of the velocity scale ...
@@ -182,6 +181,8 @@ def default_window_s(time_s, displacement_m, polyorder: int = 3, period_s: float
     sigma = _noise_sigma(x)
     if sigma == 0.0:
         return n_min * dt
+    from scipy.signal import savgol_coeffs, savgol_filter  # scipy.signal (~0.5 s): only for sine and free cases
+
     v = savgol_filter(x, n_cap, polyorder, deriv=1, delta=dt)
     scale = float(np.percentile(np.abs(v), 99))
     if scale == 0.0:
@@ -217,6 +218,8 @@ def smooth_velocity(time_s, displacement_m, window_s: float | None = None, polyo
     if not (window_s > 0):
         raise ValueError(f"window_s must be > 0, got {window_s!r}")
     n = _odd_window(int(round(window_s / dt)), polyorder, xg.size)
+    from scipy.signal import savgol_filter  # scipy.signal (~0.5 s): only for sine and free cases
+
     v = savgol_filter(xg, n, polyorder, deriv=1, delta=dt, mode="interp")
     return v if same else np.interp(t, grid, v)
 

@@ -41,11 +41,11 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy import stats
+from scipy import special
 
 from isokinetic.audit.lineage import row_keys
 from isokinetic.contracts import tables
-from isokinetic.contracts.outputs import RULE_OUTPUTS, figures_of
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
 from isokinetic.physics.damper import Damper, nominal_force
 from isokinetic.plots.models import comparison_figure, comparison_loglog_figure
@@ -64,7 +64,7 @@ FAMILIES = ("T", "L-T")
 WEIGHTINGS = ("standard_error", "force_std", "none")
 
 #: Files written by :func:`write_models`, in order: the tables, then Fig. 13-14.
-TABLE_FILES = tuple(Path(p).name for p in RULE_OUTPUTS["models"].values())
+TABLE_FILES = tuple(Path(p).name for p in STAGE_OUTPUTS["models"].values())
 FIGURE_FILES = tuple(Path(f.path).name for f in figures_of("models"))
 
 _PARAM_INFO = {
@@ -159,7 +159,7 @@ def wls(x: np.ndarray, y: np.ndarray, sigma: np.ndarray, confidence: float = CON
         rinv = np.linalg.inv(r)
         cov = s2 * (rinv @ rinv.T) / np.outer(scale, scale)
         se = np.sqrt(np.diag(cov))
-        tq = float(stats.t.ppf(0.5 + confidence / 2.0, dof))
+        tq = float(special.stdtrit(dof, 0.5 + confidence / 2.0))  # scipy.stats.t.ppf's own function
         lo, hi = est - tq * se, est + tq * se
         rs = math.sqrt(s2)
     else:

@@ -32,7 +32,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pandera.pandas as pa
 
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan, read_ingested
@@ -138,11 +137,8 @@ def _failure_message(check: str, value, previous) -> str:
 
 def timeseries_problems(df: pd.DataFrame) -> list[Problem]:
     """TIMESERIES schema failures, one per column, at the first bad data row (``row`` value)."""
-    try:
-        tables.TIMESERIES.validate(df, lazy=True)
-    except pa.errors.SchemaErrors as exc:
-        failures = exc.failure_cases
-    else:
+    failures = tables.failure_cases(df, tables.TIMESERIES)
+    if failures is None:
         return []
     data_rows = df["row"] if "row" in df else pd.Series(np.arange(len(df)), index=df.index)
     found: dict[str, Problem] = {}

@@ -1,0 +1,75 @@
+"""Rules characteristic and analysis: one job runs its stages in order, and writes what each stage would."""
+
+from __future__ import annotations
+
+import shutil
+
+import pandas as pd
+import pytest
+
+from isokinetic.contracts.outputs import RULE_STAGES, campaign_path, rule_figures, rule_outputs_of
+from isokinetic.stages.analysis import write_analysis
+from isokinetic.stages.characteristic import assemble, write_characteristic
+from isokinetic.stages.repeatability import repeatability
+from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
+from isokinetic.stages.windows import WindowSpec, windows_stage
+
+#: Three short triangle cases and a sine case (the fewest the model fit accepts, and a harmonic record).
+SPEC = {
+    "description": "three short triangle cases and a sine", "seed": 11, "temperature_C": 40.0,
+    "damper": {"piston_area_m2": 4.0e-3, "chamber_volume_1_m3": 3.0e-4, "chamber_volume_2_m3": 3.0e-4,
+               "orifice_area_m2": 6.0e-8, "orifice_length_m": 5.0e-4, "discharge_coefficient": 0.6,
+               "density_kg_m3": 815.0, "viscosity_Pa_s": 0.03, "oil_compressibility_1_Pa": 3.8e-9},
+    "effects": {"friction": {"coulomb_force_N": 90.0}},
+    "measurement": {"force_noise_N": 5.0, "force_noise_rel": 0.01, "displacement_noise_m": 1.0e-6},
+    "plan": {"triangle": {"velocities_mm_s": [0.05, 0.5, 1.5], "periods_s": [8, 8, 8], "sample_rate_Hz": 20.0},
+             "sine": {"frequency_Hz": 1.75, "amplitudes_mm": [0.3], "periods": 6, "sample_rate_Hz": 200.0}},
+}
+
+
+@pytest.fixture(scope="module")
+def campaign(tmp_path_factory):
+    """results/<campaign>/ with the simulated campaign, its characteristic and its analysis."""
+    root = tmp_path_factory.mktemp("results") / "small"
+    write_campaign(VirtualCampaign.from_config("small", SPEC), root)
+    write_characteristic(root, repeatability_tolerance=0.05)
+    write_analysis(root)
+    return root
+
+
+def files_of(rule: str, root) -> list:
+    paths = list(rule_outputs_of(rule).values()) + [f.path for f in rule_figures(rule)]
+    return [root / p for p in paths]
+
+
+def test_rules_run_their_stages_in_method_order():
+    assert RULE_STAGES["characteristic"] == ("validate", "windows", "repeatability", "characteristic")
+    assert RULE_STAGES["analysis"][-1] == "figures"          # figures read the others' tables
+    assert RULE_STAGES["analysis"].index("nominal") < RULE_STAGES["analysis"].index("models")
+    assert campaign_path("c", rule_outputs_of("characteristic")["windows"]) == "results/c/windows.parquet"
+
+
+@pytest.mark.parametrize("rule", ["characteristic", "analysis"])
+def test_job_writes_every_output_of_its_stages(campaign, rule):
+    missing = [p for p in files_of(rule, campaign) if not p.is_file() or p.stat().st_size == 0]
+    assert not missing
+
+
+def test_characteristic_job_equals_its_stages_run_one_by_one(campaign):
+    spec = WindowSpec()
+    windows = windows_stage(campaign, spec)
+    rep = repeatability(windows, 0.05)
+    pd.testing.assert_frame_equal(pd.read_parquet(campaign / "windows.parquet"), windows)
+    pd.testing.assert_frame_equal(pd.read_parquet(campaign / "repeatability.parquet"), rep)
+    pd.testing.assert_frame_equal(pd.read_parquet(campaign / "characteristic.parquet"), assemble(windows, rep))
+
+
+def test_analysis_job_reads_the_characteristic_job_outputs_only(campaign, tmp_path):
+    # a folder with only what rule analysis takes as input gives the same tables
+    copy = tmp_path / "small"
+    shutil.copytree(campaign / "ingest", copy / "ingest")
+    for name in ("cases.parquet", "windows.parquet", "characteristic.parquet"):
+        shutil.copy(campaign / name, copy / name)
+    write_analysis(copy)
+    for rel in rule_outputs_of("analysis").values():
+        pd.testing.assert_frame_equal(pd.read_parquet(copy / rel), pd.read_parquet(campaign / rel))

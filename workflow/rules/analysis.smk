@@ -1,0 +1,29 @@
+# Everything a campaign's characteristic and records give apart from the diagnosis, in one job:
+# test design check (Fig. 5, 6), the nominal model through the campaign's plan, harmonic records
+# (Fig. 15), fitted models and their comparison (Fig. 13, 14), and the characteristic figures
+# (Fig. 7-12) (isokinetic.stages.analysis.write_analysis).
+
+
+rule analysis:
+    """Design check, nominal model, harmonic records, model fits and the campaign's figures."""
+    input:
+        ingest="results/{campaign}/ingest",
+        cases="results/{campaign}/cases.parquet",
+        windows="results/{campaign}/windows.parquet",
+        characteristic="results/{campaign}/characteristic.parquet",
+    output:
+        **rule_outputs("analysis"),
+    log:
+        "logs/{campaign}/analysis.log",
+    benchmark:
+        benchmark_path("analysis")
+    resources:
+        **rule_resources("analysis"),
+    params:
+        phi=config["design"]["convergence_fraction"],
+        max_amplitude_m=config["design"]["max_amplitude_mm"] * 1e-3,
+        min_amplitude_m=config["design"]["min_amplitude_mm"] * 1e-3,
+        start_fraction=config["windows"]["start_fraction"],
+        end_fraction=config["windows"]["end_fraction"],
+    script:
+        "../scripts/analysis.py"

@@ -1,0 +1,14 @@
+"""Rule analysis: design check, nominal model, harmonic records, model fits and figures of one campaign."""
+from pathlib import Path
+
+from isokinetic.job import job
+from isokinetic.stages.analysis import DesignLimits, write_analysis
+from isokinetic.stages.windows import WindowSpec
+
+with job(snakemake) as j:
+    p = snakemake.params
+    written = write_analysis(Path(snakemake.input.characteristic).parent, WindowSpec(p.start_fraction, p.end_fraction),
+                             DesignLimits(p.phi, p.max_amplitude_m, p.min_amplitude_m))
+    missing = sorted(set(map(str, snakemake.output)) - {str(p) for p in written})
+    if missing:
+        raise RuntimeError(f"analysis did not write: {missing}")
