@@ -1,6 +1,7 @@
 # Blind test of the diagnosis on withheld effects: one generation job, the diagnosis in a fixed
 # number of chunks (each job starts Python once and diagnoses its share of the scenarios), one
-# scoring job. Only blind_score reads the truth.
+# scoring job. Only blind_score reads the truth. The suite is the longest chain of the default build,
+# so its jobs go first (priority) and the campaigns' jobs fill the other core.
 
 
 rule blind_generate:
@@ -12,6 +13,7 @@ rule blind_generate:
         "logs/blind/generate.log",
     benchmark:
         benchmark_path("blind_generate", BLIND_DIR)
+    priority: 10
     resources:
         **rule_resources("blind_generate"),
     params:
@@ -39,6 +41,7 @@ rule blind_diagnose:
         benchmark_path("blind_diagnose-chunk{chunk}", BLIND_DIR)
     wildcard_constraints:
         chunk=r"\d+",
+    priority: 10
     resources:
         **rule_resources("blind_diagnose"),
     params:
