@@ -111,15 +111,16 @@ def export_seed(work: Path) -> Path:
     return out
 
 
-def add_campaign(seed: Path, raw_dir: Path, name: str) -> None:
-    """Copy the seed campaign to raw_dir/name and name it so in its campaign.yaml (id = folder name)."""
+def add_campaign(source: Path, raw_dir: Path, name: str) -> None:
+    """Copy the raw campaign folder ``source`` to raw_dir/name and name it so in its campaign.yaml (a
+    campaign's id is its folder's name). Also used by benchmark/run.py."""
     folder = raw_dir / name
-    shutil.copytree(seed, folder)
+    shutil.copytree(source, folder)
     manifest = folder / "campaign.yaml"
-    text, count = re.subn(rf"^campaign: {re.escape(SEED_NAME)}$", f"campaign: {name}",
+    text, count = re.subn(rf"^campaign: {re.escape(source.name)}$", f"campaign: {name}",
                           manifest.read_text(encoding="utf-8"), flags=re.MULTILINE)
     if count != 1:
-        raise RuntimeError(f"{manifest}: expected one 'campaign: {SEED_NAME}' line, found {count}")
+        raise RuntimeError(f"{manifest}: expected one 'campaign: {source.name}' line, found {count}")
     manifest.write_text(text, encoding="utf-8")
 
 

@@ -40,6 +40,7 @@ import pandas as pd
 
 from isokinetic import __version__
 from isokinetic.audit.lineage import git_state, path_sha256, sha256_text
+from isokinetic.contracts.outputs import RULE_STAGES
 from isokinetic.io import LINEAGE_SUFFIXES, canonical_json, read_lineage, sha256_file, write_json
 
 log = logging.getLogger("isokinetic.provenance")
@@ -48,8 +49,8 @@ FORMAT_VERSION = 1
 FILE_NAME = "provenance.json"
 #: Packages whose versions are recorded (the scientific stack, the workflow engine, the plots).
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "pandera", "snakemake", "matplotlib")
-#: Pipeline order of the per-campaign rules; any other rule follows, sorted by name.
-STAGE_ORDER = ("virtual_rig", "ingest", "characteristic", "analysis", "diagnosis", "raw_check")
+#: Pipeline order of the rules (contracts.outputs.RULE_STAGES); any other rule follows, sorted by name.
+STAGE_ORDER = tuple(RULE_STAGES)
 #: Prefix of a simulated case's raw_file (virtual_rig._cases_table).
 VIRTUAL_PREFIX = "virtual_rig:"
 
