@@ -22,6 +22,12 @@ from isokinetic.contracts.outputs import (
     rule_outputs_of,
 )
 from isokinetic.contracts.scenarios import scenario_names, suite_size
+from isokinetic.scheduling import coalesce_reevaluations
+
+# Snakemake 9 arms a new 1 s scheduler wake-up after every scheduling pass, so wake-ups pile up with
+# every finished job and the scheduling work grows with the square of the job count; one pending
+# wake-up is enough (isokinetic.scheduling; benchmark/scaling.py).
+coalesce_reevaluations()
 
 validate(config, schema="../schemas/config.schema.yaml")
 if config["windows"]["start_fraction"] >= config["windows"]["end_fraction"]:
