@@ -28,6 +28,8 @@ from isokinetic.stages.harmonic import (
     loop,
     peak_to_peak,
     peak_velocity_characteristic,
+    savgol_derivative,
+    savgol_derivative_coeffs,
     signed_area,
     smooth_velocity,
     write_harmonic,
@@ -257,3 +259,22 @@ def test_campaign_without_sine_or_free_cases_gives_an_empty_table_and_says_so(ra
     tables.validate_table(table, tables.HARMONIC)
     paths = write_harmonic(raw_campaign.root, tmp_path / "out")
     assert all(p.is_file() for p in paths) and pd.read_parquet(paths[0]).empty
+
+
+@pytest.mark.parametrize(("n", "polyorder"), [(5, 2), (5, 3), (7, 3), (31, 3), (101, 2)])
+def test_savgol_derivative_equals_scipy_savgol_filter(n, polyorder):
+    from scipy.signal import savgol_coeffs, savgol_filter  # the independent reference
+
+    x = np.cumsum(np.random.default_rng(n).normal(size=400))
+    expected = savgol_filter(x, n, polyorder, deriv=1, delta=0.01, mode="interp")
+    np.testing.assert_allclose(savgol_derivative(x, n, polyorder, 0.01), expected,
+                               rtol=0, atol=1e-12 * np.abs(expected).max())
+    weights = savgol_coeffs(n, polyorder, deriv=1, delta=0.01, use="dot")
+    np.testing.assert_allclose(savgol_derivative_coeffs(n, polyorder, 0.01), weights,
+                               rtol=0, atol=1e-12 * np.abs(weights).max())
+
+
+def test_savgol_derivative_of_a_cubic_is_exact_to_the_ends():
+    t = np.linspace(0.0, 2.0, 41)
+    x = 1.0 - 2.0 * t + 0.5 * t**2 - 0.3 * t**3
+    np.testing.assert_allclose(savgol_derivative(x, 9, 3, t[1] - t[0]), -2.0 + t - 0.9 * t**2, atol=1e-10)

@@ -108,6 +108,36 @@ def _odd_window(n: int, polyorder: int, n_max: int) -> int:
     return min(max(n, lo), hi)
 
 
+def savgol_derivative_coeffs(n: int, polyorder: int, delta: float) -> np.ndarray:
+    """Weights w of the Savitzky-Golay first derivative at a window's centre: v_i = sum_k w_k
+    x_(i-n//2+k), the slope at the centre of the least-squares polynomial of degree ``polyorder``
+    through the n (odd) samples spaced ``delta`` (Savitzky & Golay 1964; the weights of
+    ``scipy.signal.savgol_coeffs(n, polyorder, deriv=1, delta=delta, use='dot')``)."""
+    offsets = np.arange(n, dtype=float) - n // 2
+    powers = offsets[:, None] ** np.arange(polyorder + 1)
+    return np.linalg.pinv(powers)[1] / delta
+
+
+def savgol_derivative(x: np.ndarray, n: int, polyorder: int, delta: float) -> np.ndarray:
+    """First derivative of ``x`` by a Savitzky-Golay filter of n (odd, <= len(x)) samples; the
+    first and last n//2 samples use the polynomial fitted to the first and last n samples
+    (``scipy.signal.savgol_filter(x, n, polyorder, deriv=1, delta=delta, mode='interp')``, which the
+    tests compare it with; here in numpy because importing scipy.signal costs a job about 0.45 s)."""
+    x = np.asarray(x, dtype=float)
+    half = n // 2
+    out = np.empty_like(x)
+    out[half:x.size - half] = np.correlate(x, savgol_derivative_coeffs(n, polyorder, delta), mode="valid")
+    if half:
+        offsets = np.arange(n, dtype=float) - half
+        fit = np.linalg.pinv(offsets[:, None] ** np.arange(polyorder + 1))     # polynomial coefficients
+        coef = fit @ np.column_stack([x[:n], x[x.size - n:]])                   # (polyorder + 1, 2 edges)
+        slope = np.arange(1, polyorder + 1)[:, None] * coef[1:]                 # derivative's coefficients
+        at = offsets[:half, None] ** np.arange(polyorder)                       # the first half samples
+        out[:half] = at @ slope[:, 0] / delta
+        out[x.size - half:] = (-offsets[:half][::-1, None]) ** np.arange(polyorder) @ slope[:, 1] / delta
+    return out
+
+
 def _uniform(time_s: np.ndarray) -> tuple[np.ndarray, float, bool]:
     """(grid, dt, is_uniform): the record's own times if evenly spaced (to 1e-3 of dt), else an
     even grid over the same span with the median interval."""
@@ -181,14 +211,12 @@ def default_window_s(time_s, displacement_m, polyorder: int = 3, period_s: float
     sigma = _noise_sigma(x)
     if sigma == 0.0:
         return n_min * dt
-    from scipy.signal import savgol_coeffs, savgol_filter  # scipy.signal (~0.5 s): only for sine and free cases
-
-    v = savgol_filter(x, n_cap, polyorder, deriv=1, delta=dt)
+    v = savgol_derivative(x, n_cap, polyorder, dt)
     scale = float(np.percentile(np.abs(v), 99))
     if scale == 0.0:
         return n_cap * dt
     for n in range(n_min, n_cap + 1, 2):
-        gain = float(np.sqrt(np.sum(savgol_coeffs(n, polyorder, deriv=1, delta=dt) ** 2)))
+        gain = float(np.sqrt(np.sum(savgol_derivative_coeffs(n, polyorder, dt) ** 2)))
         if gain * sigma <= NOISE_TARGET * scale:
             return n * dt
     return n_cap * dt
@@ -198,10 +226,10 @@ def smooth_velocity(time_s, displacement_m, window_s: float | None = None, polyo
                     period_s: float | None = None) -> np.ndarray:
     """Velocity [m/s] as the Savitzky-Golay derivative of the displacement.
 
-    ``scipy.signal.savgol_filter(x, n, polyorder, deriv=1, delta=dt)``: a least-squares polynomial
-    of degree ``polyorder`` over n samples (n the odd sample count nearest ``window_s``, at least
-    polyorder + 2) differentiated at the centre; the ends use the polynomial fitted to the first /
-    last window (mode 'interp'). ``window_s=None`` picks :func:`default_window_s` (``period_s``
+    :func:`savgol_derivative` (``scipy.signal.savgol_filter(x, n, polyorder, deriv=1, delta=dt)``): a
+    least-squares polynomial of degree ``polyorder`` over n samples (n the odd sample count nearest
+    ``window_s``, at least polyorder + 2) differentiated at the centre; the ends use the polynomial
+    fitted to the first / last window (mode 'interp'). ``window_s=None`` picks :func:`default_window_s` (``period_s``
     sets its bias bound). Unevenly sampled records (interval spread > 1e-3) are interpolated onto
     an even grid of the median interval, differentiated, and interpolated back.
     """
@@ -218,9 +246,7 @@ def smooth_velocity(time_s, displacement_m, window_s: float | None = None, polyo
     if not (window_s > 0):
         raise ValueError(f"window_s must be > 0, got {window_s!r}")
     n = _odd_window(int(round(window_s / dt)), polyorder, xg.size)
-    from scipy.signal import savgol_filter  # scipy.signal (~0.5 s): only for sine and free cases
-
-    v = savgol_filter(xg, n, polyorder, deriv=1, delta=dt, mode="interp")
+    v = savgol_derivative(xg, n, polyorder, dt)
     return v if same else np.interp(t, grid, v)
 
 
