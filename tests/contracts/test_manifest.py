@@ -148,3 +148,27 @@ def test_no_damper_numeric_strings_and_command_removal(raw_campaign):
     assert m.damper is None and m.sample_rate_Hz == 100.0
     assert "command" not in m.cases[4].columns and "command" in m.cases[0].columns
     assert m.metadata["columns"] == {"humidity": {"name": "rh", "unit": "%"}}
+
+
+def test_gas_force_is_optional_and_reaches_every_case(raw_campaign):
+    assert load_manifest(MANIFEST_FILE).gas_force_N is None
+    raw_campaign.edit_manifest(_set(-25.5, "gas_force_N"))
+    m = load_manifest(MANIFEST_FILE)
+    assert m.gas_force_N == -25.5
+    assert [c.gas_force_N for c in m.cases] == [-25.5] * len(CASE_IDS)
+    assert "gas_force_N" not in m.metadata                # a spec key (1.1), not carried as metadata
+
+
+@pytest.mark.parametrize("value, words", [
+    ("heavy", "must be a number, got 'heavy'"),
+    (True, "must be a number, got True"),
+    (float("nan"), "must be a number, got nan"),
+    (2.0e6, "above the bound 1e+06 N"),
+    (-2.0e6, "above the bound 1e+06 N"),
+])
+def test_bad_gas_force_fails_the_campaign(raw_campaign, value, words):
+    raw_campaign.edit_manifest(_set(value, "gas_force_N"))
+    with pytest.raises(ManifestError) as info:
+        load_manifest(MANIFEST_FILE)
+    assert info.value.key == "gas_force_N"
+    assert words in str(info.value)

@@ -149,3 +149,49 @@ def test_cases_table_written_before_the_motion_was_measured(results):
     write_parquet(cases, root / "cases.parquet")
     page = render_campaign_report(root)
     assert '<section id="cases">' in page and "delay [ms]" in page
+
+
+def _table(page: str, table_id: str) -> str:
+    table = page[page.index(f'<table id="{table_id}">'):]
+    return table[:table.index("</table>")]
+
+
+def test_reading_outside_its_physical_range_is_shown_with_its_reason(built):
+    root = built / CAMPAIGN
+    page = (root / "report.html").read_text(encoding="utf-8")
+    models = pd.read_parquet(root / "models" / "models.parquet")
+    cd = models[(models["model"] == "wallaschek") & (models["parameter"] == "discharge_coefficient_eq")].iloc[0]
+    assert not cd["plausible"]            # the fixture's quadratic term gives C_D ~ 1.9 with the nominal A_O
+    derived = _table(page, "models-wallaschek-derived")
+    row = next(r for r in derived.split("<tr")[2:] if "<td>discharge_coefficient_eq</td>" in r)
+    assert row.startswith(' class="flagged"')
+    assert "<td>(0, 1]</td>" in row and '<span class="badge bad">outside its range</span>' in row
+    assert numbers.esc(cd["plausibility"]) in row
+    in_range = next(r for r in derived.split("<tr")[2:] if "<td>viscosity_eq</td>" in r)
+    assert 'class="flagged"' not in in_range and "<td>in range</td>" in in_range
+    text = plain(page)
+    assert "3 reading(s) lie wholly outside their physical range" in text
+    assert "readings outside their physical range" in text        # the summary card
+
+
+def test_reading_not_excluded_is_shown_apart_from_an_implausible_one(results):
+    root = build_campaign(results / "straddle", stamped=False)
+    models = pd.read_parquet(root / "models" / "models.parquet")
+    at = (models["model"] == "wallaschek") & (models["parameter"] == "discharge_coefficient_eq")
+    note = "not excluded: discharge_coefficient_eq = 1.05 lies outside (0, 1], but its 95 % interval reaches into it"
+    models.loc[at, ["plausible", "plausibility"]] = [True, note]
+    write_parquet(models, root / "models" / "models.parquet")
+    row = next(r for r in _table(render_campaign_report(root), "models-wallaschek-derived").split("<tr")[2:]
+               if "<td>discharge_coefficient_eq</td>" in r)
+    assert row.startswith(' class="warned"') and '<span class="badge warn">not excluded</span>' in row
+    assert "discharge_coefficient_eq = 1.05 lies outside (0, 1]" in plain(row)
+
+
+def test_models_table_written_before_the_plausibility_check(results):
+    root = build_campaign(results / "oldmodels", stamped=False)
+    models = pd.read_parquet(root / "models" / "models.parquet")
+    write_parquet(models.drop(columns=["physical_range", "plausible", "plausibility"]),
+                  root / "models" / "models.parquet")
+    page = render_campaign_report(root)
+    assert '<table id="models-wallaschek-derived">' in page
+    assert "physical range" not in page and "outside its range" not in page

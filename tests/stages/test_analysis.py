@@ -73,3 +73,12 @@ def test_analysis_job_reads_the_characteristic_job_outputs_only(campaign, tmp_pa
     write_analysis(copy)
     for rel in rule_outputs_of("analysis").values():
         pd.testing.assert_frame_equal(pd.read_parquet(copy / rel), pd.read_parquet(campaign / rel))
+
+
+def test_analysis_job_writes_the_static_force_of_the_campaign(campaign):
+    # the simulated damper has friction but no static force: the interval holds 0
+    table = pd.read_parquet(campaign / rule_outputs_of("analysis")["static_force"])
+    row = table.iloc[0]
+    assert (len(table), row["campaign"], row["source"], row["n_matched"]) == (1, "small", "characteristic", 3)
+    assert row["ci_low_N"] <= 0.0 <= row["ci_high_N"]
+    assert RULE_STAGES["analysis"].index("harmonic") < RULE_STAGES["analysis"].index("static_force")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from pathlib import Path
 
 import numpy as np
@@ -14,7 +15,9 @@ from conftest import CAMPAIGN, CASE_IDS, assert_quarantine, set_cell, tree_hashe
 from isokinetic.contracts.campaign import read_ingested
 from isokinetic.contracts.manifest import ManifestError
 from isokinetic.io import sha256_file
+from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.ingest import ingest_campaign
+from isokinetic.stages.static_force import static_force_stage
 
 
 def test_good_campaign(raw_campaign):
@@ -191,3 +194,23 @@ def test_unreadable_csv(raw_campaign):
     cases, quarantine = raw_campaign.run()
     assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "F01", "ingest", "file", None)])
     assert quarantine["reason"].iloc[0].endswith("no header row")
+
+
+def test_gas_force_shifts_the_characteristic_and_is_recorded(raw_campaign):
+    ingest_campaign(raw_campaign.raw_dir, "results/plain")
+    raw_campaign.edit_manifest(lambda m: m.update(gas_force_N=25.0))
+    ingest_campaign(raw_campaign.raw_dir, "results/gas")
+    plain, gas = write_characteristic("results/plain"), write_characteristic("results/gas")
+    assert len(plain) == 12                            # three triangle cases, four windows each
+    np.testing.assert_allclose(gas["force_N"] - plain["force_N"], -25.0, atol=1e-9)
+    pd.testing.assert_frame_equal(gas.drop(columns="force_N"), plain.drop(columns="force_N"))
+    # T03's force column is inverted: the gas force is taken off in the spec's sign convention, as declared
+    t03 = read_ingested("results/gas").timeseries("T03")["force_N"] - read_ingested("results/plain").timeseries(
+        "T03")["force_N"]
+    np.testing.assert_allclose(t03, -25.0, atol=1e-9)
+    assert read_ingested("results/gas").meta["gas_force_N"] == 25.0
+    assert read_ingested("results/plain").meta["gas_force_N"] is None
+    # the static force carries the declared gas force and moves by it
+    before, after = static_force_stage("results/plain"), static_force_stage("results/gas")
+    assert after.static_force_N - before.static_force_N == pytest.approx(-25.0, abs=1e-6)
+    assert (after.gas_force_N, math.isnan(before.gas_force_N)) == (25.0, True)

@@ -1,7 +1,7 @@
 """Models of the steady characteristic (isokinetic.stages.models): Eq. (32) families by hand numbers,
 recovery of a known virtual truth by the Wallaschek and Surace fits within their 95 % intervals
-(and interval coverage over seeds), physical readings, the comparison table and the stage (its
-figures, Fig. 13-14, are tested in tests/plots/test_models.py).
+(and interval coverage over seeds), physical readings and their plausibility against physical ranges,
+the comparison table and the stage (its figures, Fig. 13-14, are tested in tests/plots/test_models.py).
 
 Truth values come from Table 1 and the effects through the paper's definitions
 D_L = A_p^2 c1 = 8 pi mu l_O A_p^2 / A_O^2 and D_Q = A_p^3 c2 = rho A_p^3 / (2 C_D^2 A_O^2), typed
@@ -22,7 +22,14 @@ from isokinetic.physics.damper import TABLE_1 as TABLE1
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import true_responses
 from isokinetic.stages.characteristic import assemble
-from isokinetic.stages.models import comparison_table, fit_models, nominal_families, write_models
+from isokinetic.stages.models import (
+    PhysicalRange,
+    comparison_table,
+    fit_models,
+    nominal_families,
+    plausibility,
+    write_models,
+)
 from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.virtual_rig import Measurement, measure
 from isokinetic.stages.windows import extract_windows
@@ -154,10 +161,10 @@ def test_symmetric_model_flags_an_asymmetric_truth(virtual):
 
 # ------------------------------------------------------------------------ physical readings
 
-def nominal_characteristic(friction_N: float = 40.0) -> pd.DataFrame:
-    """Exact Eq. (31) (Table 1, C_D 0.6) plus Coulomb friction at 12 speeds, both directions."""
+def nominal_characteristic(friction_N: float = 40.0, cd: float = 0.6, d_l: float = TRUE_D_L) -> pd.DataFrame:
+    """Exact Eq. (31) (Table 1, C_D 0.6 unless ``cd``) plus Coulomb friction at 12 speeds, both directions."""
     v = np.concatenate([np.geomspace(5e-6, 1.5e-3, 12), -np.geomspace(5e-6, 1.5e-3, 12)])
-    f = friction_N * np.sign(v) + TRUE_D_L * v + true_d_q(0.6) * v * np.abs(v)
+    f = friction_N * np.sign(v) + d_l * v + true_d_q(cd) * v * np.abs(v)
     n = v.size
     return pd.DataFrame({"campaign": "nominal", "case": [f"T{i % 12 + 1:02d}" for i in range(n)],
                          "segment": np.where(v > 0, 1, 2), "direction": np.where(v > 0, "+", "-"),
@@ -199,6 +206,75 @@ def test_fit_without_damper_has_no_readings_and_too_few_points_are_skipped():
     models_df, _ = fit_models(few, None)
     fitted_pairs = set(zip(models_df["model"], models_df["direction"], strict=True))
     assert fitted_pairs == {("wallaschek", "both"), ("surace", "+")}
+
+
+# ------------------------------------------------------------------------ plausibility of the readings
+
+def readings(models_df: pd.DataFrame, model: str = "wallaschek", direction: str = "both") -> pd.DataFrame:
+    return models_df[(models_df["model"] == model) & (models_df["direction"] == direction)].set_index("parameter")
+
+
+def test_discharge_coefficient_above_one_is_flagged_with_value_and_bound():
+    models_df, _ = fit_models(nominal_characteristic(cd=1.9), TABLE1)
+    cd = readings(models_df).loc["discharge_coefficient_eq"]
+    assert cd["ci_low"] > 1.0                                       # exact data: a narrow interval around 1.9
+    assert not cd["plausible"]
+    assert cd["physical_range"] == "(0, 1]"
+    assert "discharge_coefficient_eq = 1.9," in cd["plausibility"]
+    assert "wholly above the physical bound 1:" in cd["plausibility"]
+    # D_Q itself is a positive resistance: only the reading through the nominal orifice area is implausible
+    assert readings(models_df).loc["D_Q", "plausible"] and readings(models_df).loc["D_Q", "plausibility"] == ""
+
+
+def test_readings_inside_their_ranges_are_plausible():
+    models_df, _ = fit_models(nominal_characteristic(), TABLE1)
+    assert len(models_df) == 24
+    assert models_df["plausible"].all()
+    assert (models_df["plausibility"] == "").all()
+    assert (models_df["physical_range"] != "").all()
+    assert readings(models_df).loc["orifice_area_eq", "physical_range"] == "(0, 0.004]"    # up to A_p
+
+
+def test_negative_friction_magnitude_is_flagged():
+    models_df, _ = fit_models(nominal_characteristic(friction_N=-40.0), TABLE1)
+    for model, direction in (("wallaschek", "both"), ("surace", "+"), ("surace", "-")):
+        fc = readings(models_df, model, direction).loc["F_C"]
+        assert fc["ci_high"] < 0.0
+        assert not fc["plausible"]
+        assert fc["plausibility"].startswith("F_C = -40 N, 95 % interval [")
+        assert "wholly below the physical bound 0: a friction force opposes the motion" in fc["plausibility"]
+    assert (models_df["parameter"] == "F_C").sum() == (~models_df["plausible"]).sum()    # nothing else flagged
+
+
+def test_negative_laminar_term_flags_viscosity_and_an_orifice_wider_than_the_piston():
+    models_df, _ = fit_models(nominal_characteristic(d_l=-TRUE_D_L), TABLE1)
+    rows = readings(models_df)
+    assert not rows.loc[["D_L", "c1", "viscosity_eq", "orifice_area_eq"], "plausible"].any()
+    assert "wholly below the physical bound 0: a viscosity is positive" in rows.loc["viscosity_eq", "plausibility"]
+    # sqrt of a negative c1 has no real value; its interval ends go to +inf, beyond A_p
+    assert rows.loc["orifice_area_eq", "plausibility"].startswith("orifice_area_eq has no real estimate, 95 % "
+                                                                 "interval [inf, inf] wholly above the physical "
+                                                                 "bound 0.004")
+    assert rows.loc[["F_C", "D_Q", "c2", "discharge_coefficient_eq"], "plausible"].all()
+
+
+def test_an_interval_straddling_the_bound_is_not_excluded():
+    unit_range = PhysicalRange(high=1.0, low_open=True, high_open=False, why="at most 1")
+    ok, reason = plausibility("discharge_coefficient_eq", 1.05, 0.95, 1.15, unit_range, "-")
+    assert ok
+    assert reason == ("not excluded: discharge_coefficient_eq = 1.05 lies outside (0, 1], but its 95 % interval "
+                      "[0.95, 1.15] reaches into it")
+    # a closed bound is inside the range; an open one is not
+    assert plausibility("F_C", -3.0, -6.0, 0.0, PhysicalRange(), "N")[0]
+    assert not plausibility("viscosity_eq", -3.0, -6.0, 0.0, PhysicalRange(low_open=True), "Pa s")[0]
+    # no interval: never called implausible
+    assert plausibility("F_C", -3.0, math.nan, math.nan, PhysicalRange(), "N")[0]
+
+
+def test_fit_without_damper_checks_the_fitted_parameters_only():
+    models_df, _ = fit_models(nominal_characteristic(friction_N=-40.0), None)
+    assert set(models_df.loc[~models_df["plausible"], "parameter"]) == {"F_C"}
+    assert (models_df["physical_range"] == "[0, inf)").all()
 
 
 # ------------------------------------------------------------------------ comparison table

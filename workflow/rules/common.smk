@@ -146,6 +146,7 @@ def campaign_outputs(campaign):
                 ("characteristic", "quarantine"),
                 ("analysis", "models"),
                 ("analysis", "table"),
+                ("analysis", "static_force"),
                 ("diagnosis", "json"),
             )
         ]

@@ -124,7 +124,7 @@ KINDS = {k.name: k for k in (
          primary=("G1", "G2", "G3", "stroke_to_converge_m", "window_start_stroke_m", "flagged", "reasons"),
          keys=("case",), damper=True, locate=steps.locate_plan_check, rederive=steps.rederive_plan_check),
     Kind("models", outputs_of("models")["models"], "fitted model parameter",
-         primary=("estimate", "ci_low", "ci_high", "std_error"), keys=("model", "direction", "parameter"),
+         primary=("estimate", "ci_low", "ci_high", "std_error", "plausible"), keys=("model", "direction", "parameter"),
          damper=True, unit_column="unit", intro=steps.intro_models, rederive=steps.rederive_models),
     Kind("residuals", outputs_of("models")["residuals"], "fitted model residual",
          primary=("predicted_N", "residual_N", "normalized_residual"), keys=("model", "case", "segment"),

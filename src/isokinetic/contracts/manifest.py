@@ -33,7 +33,7 @@ import hashlib
 import math
 import re
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
 import yaml
@@ -63,7 +63,7 @@ CHANNELS = tuple(UNITS)
 REQUIRED_CHANNELS = ("time", "displacement", "force")
 
 TOP_KEYS = frozenset({"format_version", "campaign", "description", "source", "temperature_C",
-                      "sample_rate_Hz", "columns", "damper", "cases"})
+                      "sample_rate_Hz", "columns", "damper", "cases", "gas_force_N"})
 CASE_KEYS = frozenset({"id", "waveform", "file", "sample_rate_Hz", "columns", "period_s",
                        "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s"})
 COLUMN_KEYS = ("name", "unit", "invert")
@@ -77,6 +77,9 @@ MAX_DEPTH = 32
 MAX_NODES = 200_000
 #: Most cases in one campaign.
 MAX_CASES = 1_000
+#: Largest |gas_force_N| (format 1.1) a manifest may declare: 1 MN, far above any damper's gas force; a
+#: larger value is a unit error (kN written as N?) and refuses the campaign.
+MAX_GAS_FORCE_N = 1.0e6
 #: Upper bounds (inclusive) of positive sizes, campaign-level or per case. A value above its bound
 #: is a unit or typing error, or hostile: the campaign is refused. Lower bounds: > 0 as before.
 BOUNDS = {
@@ -122,6 +125,7 @@ class CaseSpec:
     keys: dict                       # the case entry exactly as written
     metadata: dict                   # the entry's keys the spec does not define
     problems: tuple[Problem, ...] = ()
+    gas_force_N: float | None = None  # the campaign's gas_force_N (1.1), subtracted from the force at ingest
 
     @property
     def id(self) -> str:
@@ -148,6 +152,9 @@ class Manifest:
     cases: tuple[CaseSpec, ...]
     metadata: dict = field(default_factory=dict)
     sha256: str = ""
+    #: Known static force (gas force) subtracted from every force sample at ingest (format 1.1), N, in
+    #: the force channel's sign convention after ``invert``; None when the manifest declares none.
+    gas_force_N: float | None = None
 
 
 def number(value) -> float | None:
@@ -386,6 +393,16 @@ def _optional(doc: Mapping, key: str, kind: type, where: str):
     return value
 
 
+def _gas_force(doc: Mapping, where: str) -> float | None:
+    """The optional ``gas_force_N`` (format 1.1): a finite number of at most :data:`MAX_GAS_FORCE_N` in
+    magnitude, either sign (None when absent)."""
+    value = _optional(doc, "gas_force_N", float, where)
+    if value is not None and abs(value) > MAX_GAS_FORCE_N:
+        raise ManifestError(where, "gas_force_N", f"|{value:g}| N is above the bound {MAX_GAS_FORCE_N:g} N "
+                                                  "(a unit error?)")
+    return value
+
+
 def _case_id(entry, index: int, where: str) -> str:
     if not isinstance(entry, Mapping):
         raise ManifestError(where, f"cases[{index}]", f"expected a mapping, got {entry!r}")
@@ -529,6 +546,7 @@ def load_manifest(path: str | Path) -> Manifest:
             raise ManifestError(where, f"cases[{index}].id", f"duplicate case id {case!r}")
         seen.add(case)
         cases.append(_case(entry, case, rate, base_columns, where, Path(path).parent))
+    gas_force_N = _gas_force(doc, where)
     metadata = {k: v for k, v in doc.items() if k not in TOP_KEYS}
     for key, extra in (("columns", extra_columns), ("damper", extra_damper)):
         if extra:
@@ -540,5 +558,7 @@ def load_manifest(path: str | Path) -> Manifest:
         path=where, format_version=FORMAT_VERSION, campaign=campaign,
         description=_optional(doc, "description", str, where), source=_optional(doc, "source", str, where),
         temperature_C=_optional(doc, "temperature_C", float, where), sample_rate_Hz=rate,
+        gas_force_N=gas_force_N,
         columns={ch: _column(spec) for ch, spec in base_columns.items()}, damper=damper,
-        cases=tuple(cases), metadata=metadata, sha256=hashlib.sha256(data).hexdigest())
+        cases=tuple(replace(c, gas_force_N=gas_force_N) for c in cases), metadata=metadata,
+        sha256=hashlib.sha256(data).hexdigest())

@@ -251,9 +251,40 @@ MODELS = Schema(
         "estimate": Column("float64", nullable=True),
         "ci_low": Column("float64", nullable=True),
         "ci_high": Column("float64", nullable=True),
+        # physical range check (stages.models): the range ('' when none), false only when the whole
+        # interval lies outside it, and the reason ('' when inside; 'not excluded: ...' when it straddles)
+        "physical_range": Column("str"),
+        "plausible": Column("bool"),
+        "plausibility": Column("str"),
     },
     strict=False,
     name="models",
+)
+
+#: The static force at v -> 0 (gas force, load-cell zero) of a campaign: one row (stages.static_force).
+STATIC_FORCE = Schema(
+    {
+        "campaign": Column("str"),
+        # NaN: not estimated (no speed with both directions; note says why)
+        "static_force_N": Column("float64", _not_inf, nullable=True),
+        "std_error_N": Column("float64", Check.ge(0), nullable=True),
+        "ci_low_N": Column("float64", _not_inf, nullable=True),
+        "ci_high_N": Column("float64", _not_inf, nullable=True),
+        "confidence": Column("float64", Check.gt(0)),
+        "source": Column("str", Check.isin(["characteristic", "harmonic_binned", "none"])),
+        "method": Column("str", Check.isin(["linear_fit", "two_speeds", "lowest_speed", "none"])),
+        "n_speeds": Column("int64", Check.ge(0)),
+        "n_matched": Column("int64", Check.ge(0)),
+        "v_min_m_s": Column("float64", nullable=True),
+        "v_max_m_s": Column("float64", nullable=True),
+        # the declared gas force ingest subtracted (manifest gas_force_N); NaN: none declared
+        "gas_force_N": Column("float64", nullable=True),
+        "significant": Column("bool"),
+        "note": Column("str"),
+    },
+    checks=(Check("one_row", fn=lambda df: pd.Series([len(df) == 1])),),
+    strict=False,
+    name="static_force",
 )
 
 #: Harmonic and free-waveform summary points (peak-to-peak, peak-velocity, velocity-binned).

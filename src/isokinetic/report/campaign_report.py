@@ -31,6 +31,7 @@ from isokinetic.report.embed import FigureView, figure_views, read_captions
 from isokinetic.report.layout import footer, render
 from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, missing, short, text, yes_no
 from isokinetic.report.sources import Sources, lineage_of, lineage_rows, read_json, read_parquet, selector_of
+from isokinetic.stages.static_force import offset_check
 
 DAMPER_LABELS = {
     "piston_area_m2": ("piston area A_p", "m^2"), "chamber_volume_1_m3": ("chamber volume V_1", "m^3"),
@@ -64,6 +65,7 @@ class CampaignData:
     models: pd.DataFrame | None
     comparison: pd.DataFrame | None
     harmonic: pd.DataFrame | None
+    static_force: pd.DataFrame | None
     diagnosis: dict | None
     provenance: dict | None
     sources: Sources
@@ -82,6 +84,7 @@ class CampaignData:
                    models=read_parquet(root / "models" / "models.parquet"),
                    comparison=read_parquet(root / "models" / "comparison.parquet"),
                    harmonic=read_parquet(root / "harmonic" / "harmonic.parquet"),
+                   static_force=read_parquet(root / "static_force.parquet"),
                    diagnosis=read_json(root / "diagnosis.json"), provenance=provenance,
                    sources=Sources(root, provenance))
 
@@ -165,6 +168,11 @@ def _summary_cards(d: CampaignData) -> list[dict]:
     if d.repeatability is not None:
         card("repeatability pairs flagged", f"{int(d.repeatability['flagged'].sum())} / {len(d.repeatability)}",
              d.sources("repeatability.parquet").title("", "count of rows with flagged true", COUNTED))
+    implausible = _implausible(d.models)
+    if implausible is not None:
+        card("readings outside their physical range", str(len(implausible)) + (
+             " " + badge("implausible", "bad") if len(implausible) else ""),
+             d.sources("models/models.parquet").title("", "count of rows with plausible false", COUNTED))
     diag = d.diagnosis
     if diag and diag.get("status", "ok") == "ok":
         src = d.sources("diagnosis.json")
@@ -308,7 +316,11 @@ MODEL_COLS = [Col("direction", "dir", text, False), Col("parameter", "parameter"
               Col("estimate", "estimate"), Col("ci_low", "95 % low"), Col("ci_high", "95 % high"),
               Col("std_error", "std error", lambda x: fmt(x, 3)), Col("unit", "unit", formula, False),
               Col("description", "meaning", formula, False), Col("assumption", "assuming", formula, False)]
+#: The plausibility check of each reading (stages.models), shown beside its unit when the table has it.
+PLAUSIBILITY_COLS = [Col("physical_range", "physical range", text, False),
+                     Col("plausibility_shown", "plausible?", str, False)]
 MODEL_KEYS = ["model", "direction", "parameter"]
+NOT_EXCLUDED = "not excluded: "
 COMPARISON_ERRORS = (("rel_err_nominal_plan", "nominal model through the plan"),
                      ("rel_err_nominal_eq31", "incompressible nominal (Eq. 31)"),
                      ("rel_err_wallaschek", "Wallaschek fit"), ("rel_err_surace", "Surace fit"))
@@ -324,23 +336,67 @@ def _fit_rows(row: Mapping) -> list[str]:
     return [f"fitted on {row.get('n_points')} rows (case/segment) of {table}: {shown}"]
 
 
+def _has_plausibility(models: pd.DataFrame | None) -> bool:
+    """The models table carries the plausibility check (tables written before it was added do not)."""
+    return models is not None and {"physical_range", "plausible", "plausibility"} <= set(models.columns)
+
+
+def _plausibility_html(row: Mapping) -> str:
+    """A reading's plausibility as HTML: a badge and the reason when outside or not excluded."""
+    reason = row.get("plausibility")
+    reason = reason if isinstance(reason, str) else ""
+    if not missing(row.get("plausible")) and not bool(row.get("plausible")):
+        return f"{badge('outside its range', 'bad')} {esc(reason)}"
+    if reason.startswith(NOT_EXCLUDED):
+        return f"{badge('not excluded', 'warn')} {esc(reason[len(NOT_EXCLUDED):])}"
+    return "in range" if row.get("physical_range") else "-"
+
+
+def _plausibility_class(row: Mapping) -> str:
+    """Row class: flagged when the reading lies outside its physical range, warned when only not excluded."""
+    if not missing(row.get("plausible")) and not bool(row.get("plausible")):
+        return "flagged"
+    reason = row.get("plausibility")
+    return "warned" if isinstance(reason, str) and reason.startswith(NOT_EXCLUDED) else ""
+
+
+def _implausible(models: pd.DataFrame | None) -> pd.DataFrame | None:
+    """The rows of readings wholly outside their physical range (None: the table has no check)."""
+    if not _has_plausibility(models):
+        return None
+    return models[~models["plausible"].astype(bool)]
+
+
 def _model_view(d: CampaignData, model: str, group: pd.DataFrame) -> dict:
-    """One fitted model: its fit quality, fitted parameters and physical readings."""
+    """One fitted model: its fit quality, fitted parameters and physical readings with their plausibility."""
     src = d.sources("models/models.parquet")
     first = group.iloc[0]
     scale = first.get("residual_scale")
     fit_sel = selector_of(first, MODEL_KEYS)
+    cols, row_class = MODEL_COLS, None
+    if _has_plausibility(group):
+        group = group.assign(plausibility_shown=[_plausibility_html(r) for r in group.to_dict("records")])
+        cols, row_class = MODEL_COLS[:7] + PLAUSIBILITY_COLS + MODEL_COLS[7:], _plausibility_class
     fitted = group[group["kind"] == "fitted"]
     derived = group[group["kind"] != "fitted"]
     return {"name": MODEL_NAMES.get(model, model), "n_points": int(first["n_points"]), "dof": int(first["dof"]),
             "rms": Markup(fmt(first["rms_residual_N"])), "scale": Markup(fmt(scale, 3)),
             "kind": "warn" if not missing(scale) and float(scale) > 3 else "info",
             "title": src.title(fit_sel, "n_points,dof,rms_residual_N,residual_scale"),
-            "fitted": table_view(fitted, MODEL_COLS, src, MODEL_KEYS, caption="Fitted parameters, 95 % intervals",
-                                 row_extra=_fit_rows, table_id=f"models-{model}-fitted"),
-            "derived": table_view(derived, MODEL_COLS, src, MODEL_KEYS, row_extra=_fit_rows,
+            "fitted": table_view(fitted, cols, src, MODEL_KEYS, caption="Fitted parameters, 95 % intervals",
+                                 row_class=row_class, row_extra=_fit_rows, table_id=f"models-{model}-fitted"),
+            "derived": table_view(derived, cols, src, MODEL_KEYS, row_class=row_class, row_extra=_fit_rows,
                                   caption="Physical readings (equivalent values with the nominal geometry)",
                                   table_id=f"models-{model}-derived") if len(derived) else None}
+
+
+def _implausible_note(models: pd.DataFrame | None) -> list[Markup] | None:
+    """One line per reading wholly outside its physical range: model, direction and reason."""
+    bad = _implausible(models)
+    if bad is None or not len(bad):
+        return None
+    return [Markup(f"{esc(r['model'])} ({esc(r['direction'])}): {esc(r['plausibility'])}")
+            for r in bad.to_dict("records")]
 
 
 def _comparison(d: CampaignData) -> dict | None:
@@ -360,14 +416,45 @@ def _comparison(d: CampaignData) -> dict | None:
     return {"table": kv_table(items), "lineage": lineage_of(csrc)} if items else None
 
 
+def _static_force(d: CampaignData) -> dict | None:
+    """The static force at v -> 0 (gas force, load-cell zero; stages.static_force) and whether the
+    diagnosis' load-cell offset agrees with it (offset_check: a disagreement is never silent)."""
+    sf = d.static_force
+    if sf is None or sf.empty:
+        return None
+    row = sf.iloc[0].to_dict()
+    src = d.sources("static_force.parquet")
+    sel = f"campaign={row['campaign']}"
+    if missing(row["static_force_N"]):
+        value = esc(row["note"])
+    else:
+        value = (f"{fmt(row['static_force_N'], 3)} N &plusmn; {fmt(row['std_error_N'], 2)} N "
+                 f"(95 %: {fmt(row['ci_low_N'], 3)} to {fmt(row['ci_high_N'], 3)} N; "
+                 f"{int(row['n_speeds'])} lowest speeds, {fmt(row['v_min_m_s'] * 1e3, 3)}&ndash;"
+                 f"{fmt(row['v_max_m_s'] * 1e3, 3)} mm/s)")
+    gas = "none declared" if missing(row["gas_force_N"]) else f"{fmt(row['gas_force_N'])} N, subtracted at ingest"
+    check = offset_check(row, d.diagnosis)
+    verdict = esc(check.text) if check.status != "disagree" else f"{badge('disagree', 'bad')} {esc(check.text)}"
+    items = [("static force at v &rarr; 0 (mean of the + and &minus; branches)", value,
+              src.title(sel, "static_force_N,std_error_N,ci_low_N,ci_high_N")),
+             ("gas force (manifest <code>gas_force_N</code>)", gas, src.title(sel, "gas_force_N")),
+             ("against the diagnosis' load-cell offset", verdict,
+              d.sources("diagnosis.json").title("instrument.force_offset_N", "force_offset_N"))]
+    if row["note"] and not missing(row["static_force_N"]):
+        items.append(("note", esc(row["note"]), src.title(sel, "note")))
+    return {"table": kv_table(items), "lineage": lineage_of(src), "disagree": check.status == "disagree"}
+
+
 def _models_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
     figures = d.figures("models", captions)
     models = d.models
     src = d.sources("models/models.parquet")
     if models is None or not len(models):
-        return {"figures": figures, "models": None, "produced": models is not None, "lineage": lineage_of(src)}
+        return {"figures": figures, "models": None, "produced": models is not None, "lineage": lineage_of(src),
+                "static_force": _static_force(d)}
     views = [_model_view(d, model, group) for model, group in models.groupby("model", sort=False)]
-    return {"figures": figures, "models": views, "comparison": _comparison(d)}
+    return {"figures": figures, "models": views, "comparison": _comparison(d), "implausible": _implausible_note(models),
+            "static_force": _static_force(d)}
 
 
 HARMONIC_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text, False),

@@ -5,6 +5,7 @@ One process runs, in order (each stage is its own module and writes its own file
 - design (:mod:`isokinetic.stages.design`): plan check, G-numbers, Fig. 5 and Fig. 6 (Sec. 3.3, 4.2-4.3);
 - nominal (:mod:`isokinetic.stages.nominal`): the nominal model through the campaign's plan and windows;
 - harmonic (:mod:`isokinetic.stages.harmonic`): sine and free-waveform records, Fig. 15;
+- static_force (:mod:`isokinetic.stages.static_force`): the force at v -> 0 (gas force, load-cell zero);
 - models (:mod:`isokinetic.stages.models`): nominal families, fitted models, comparison, Fig. 13-14;
 - figures (:mod:`isokinetic.stages.figures`): the characteristic figures, Fig. 7-12.
 
@@ -25,6 +26,7 @@ from isokinetic.stages.figures import write_campaign_figures
 from isokinetic.stages.harmonic import write_harmonic
 from isokinetic.stages.models import write_models
 from isokinetic.stages.nominal import nominal_stage
+from isokinetic.stages.static_force import write_static_force
 from isokinetic.stages.windows import WindowSpec
 
 log = logging.getLogger(__name__)
@@ -46,7 +48,7 @@ def _folder(stage: str, name: str) -> str:
 
 def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSpec(),
                    limits: DesignLimits = DesignLimits()) -> list[Path]:
-    """design -> nominal -> harmonic -> models -> figures of a campaign folder with its characteristic;
+    """design -> nominal -> harmonic -> static_force -> models -> figures of a campaign folder with its characteristic;
     returns every file written. Flagged plan checks are logged as warnings."""
     root = Path(campaign_root)
     plan_check, written = write_design(root, root / _folder("design", "plan_check"),
@@ -57,6 +59,7 @@ def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSp
     nominal = nominal_stage(root, spec)
     written.append(write_parquet(nominal, root / STAGE_OUTPUTS["nominal"]["nominal"]))
     written += write_harmonic(root, root / _folder("harmonic", "table"))
+    written += write_static_force(root)
     written += write_models(root, root / _folder("models", "models"), spec)
     written += write_campaign_figures(root, root / str(Path(figures_of("figures")[0].path).parent))
     log.info("%d cases checked (%d flagged), %d nominal-model windows, %d files written", len(plan_check),

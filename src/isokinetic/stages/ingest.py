@@ -5,6 +5,10 @@ Each case CSV is mapped to the canonical SI time series (``row``, ``time_s``,
 quarantined (stage ``ingest``) and every other case carries on; a broken manifest raises
 :class:`isokinetic.contracts.manifest.ManifestError`. Raw files are only ever opened for reading.
 
+A manifest's ``gas_force_N`` (format 1.1) is subtracted from every force sample here, at the edge
+where the force becomes SI, and recorded in ``campaign.json`` (``gas_force_N``, null when none): every
+stage downstream sees the damper's force alone.
+
 A case that parses but fails the time-series schema (NaN/inf, time not increasing) is
 quarantined here too, naming the CSV column: ``campaign.write_ingested`` only accepts
 schema-valid series.
@@ -195,8 +199,18 @@ def canonical_timeseries(raw: pd.DataFrame, columns: dict[str, Column]) -> tuple
     return pd.DataFrame(out, columns=["row"] + [CANONICAL[ch] for ch in CANONICAL if ch in columns]), []
 
 
+def subtract_gas_force(series: pd.DataFrame, gas_force_N: float | None) -> pd.DataFrame:
+    """The canonical series with a known static gas force taken off its force (manifest ``gas_force_N``,
+    format 1.1): F = F_measured - F_gas, so that the steady characteristic, the models and the
+    diagnosis all see the damper's force alone. None or 0 leaves the series as it is."""
+    if not gas_force_N:
+        return series
+    return series.assign(force_N=series["force_N"].to_numpy(float) - float(gas_force_N))
+
+
 def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict, list[Problem], pd.DataFrame | None]:
-    """One case: its CASES row, its problems, and its time series when it is ok."""
+    """One case: its CASES row, its problems, and its time series when it is ok (less the manifest's
+    gas force, ``spec.gas_force_N``: :func:`subtract_gas_force`)."""
     problems = list(spec.problems)
     path = campaign_dir / spec.file if spec.file is not None else None
     sha, n_samples, df, warnings = "", 0, None, []
@@ -214,6 +228,7 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict
             n_samples = len(raw)
             df, problems = canonical_timeseries(raw, spec.columns)
     if df is not None:
+        df = subtract_gas_force(df, spec.gas_force_N)
         names = {CANONICAL[ch]: col.name for ch, col in spec.columns.items()}
         problems = [dataclasses.replace(p, column=names.get(p.column, p.column)) for p in timeseries_problems(df)]
     row = {"campaign": campaign, **dataclasses.asdict(spec.plan),
@@ -244,6 +259,8 @@ def campaign_meta(manifest: Manifest, manifest_file: str) -> dict:
     return {"format_version": manifest.format_version, "campaign": manifest.campaign,
             "source": manifest.source, "description": manifest.description,
             "temperature_C": manifest.temperature_C,
+            # the static gas force subtracted from every force sample (N), None when none was declared
+            "gas_force_N": manifest.gas_force_N,
             "damper": None if manifest.damper is None else manifest.damper.to_dict(),
             "manifest_file": manifest_file, "manifest_sha256": manifest.sha256,
             "metadata": jsonable(manifest.metadata)}
@@ -263,5 +280,8 @@ def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path) -> None
             series[spec.id] = df
     log.info("campaign %s: %d of %d cases ingested, %d quarantined", manifest.campaign, len(series),
              len(rows), len(rows) - len(series))
+    if manifest.gas_force_N:
+        log.info("campaign %s: gas force %g N subtracted from every force sample (manifest gas_force_N)",
+                 manifest.campaign, manifest.gas_force_N)
     write_ingested(Path(campaign_root) / "ingest", campaign_meta(manifest, manifest_file.as_posix()),
                    pd.DataFrame(rows), quarantine_frame(quarantined), series)

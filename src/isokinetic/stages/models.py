@@ -29,6 +29,20 @@ Physical readings (rows with ``kind='derived'`` right after the parameter they c
     equivalent discharge coefficient C_D = sqrt(ρ / (2 c2 A_O²)) (nominal A_O, ρ). Intervals are the
     monotone transforms of the parameter interval ends (ends swap for decreasing transforms; an end
     at or below zero maps to 0 or +inf). Needs the damper block (A_p at least).
+
+Plausibility (columns physical_range, plausible, plausibility; :func:`physical_range`, :func:`plausibility`)
+    Every fitted parameter and physical reading is checked against the values it can physically take:
+    F_C >= 0 (a friction magnitude; a static force such as a gas force or a load-cell zero larger than the
+    friction pushes one Surace direction's F_C below zero), D_L, D_Q, c1, c2 >= 0 (flow resistances
+    dissipate energy), viscosity_eq > 0, discharge_coefficient_eq in (0, 1] (real flow over ideal
+    orifice flow) and orifice_area_eq in (0, A_p] (an orifice wider than the piston does not throttle).
+    A reading is *implausible* (``plausible`` false) only when its whole 95 % interval lies outside the
+    range: then ``plausibility`` gives the reason, naming the value, the interval and the bound. A
+    reading whose estimate lies outside but whose interval reaches into the range is *not excluded*: it
+    stays ``plausible``, and ``plausibility`` says "not excluded: ..." so the report can show it apart.
+    An interval end that is missing (NaN) counts as unbounded, so a reading without an interval is
+    never called implausible. ``plausibility`` is empty for a reading inside its range, and
+    ``physical_range`` is empty (and ``plausible`` true) for a parameter with no known range.
 """
 
 from __future__ import annotations
@@ -37,6 +51,7 @@ import json
 import logging
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -74,8 +89,9 @@ _PARAM_INFO = {
 }
 
 MODEL_COLUMNS = ["campaign", "model", "direction", "parameter", "kind", "derived_from", "estimate", "ci_low",
-                 "ci_high", "std_error", "unit", "description", "assumption", "n_points", "dof",
-                 "rms_residual_N", "residual_scale", "weighting", "confidence", "source_file", "source_rows"]
+                 "ci_high", "std_error", "unit", "description", "assumption", "physical_range", "plausible",
+                 "plausibility", "n_points", "dof", "rms_residual_N", "residual_scale", "weighting", "confidence",
+                 "source_file", "source_rows"]
 RESIDUAL_COLUMNS = ["campaign", "model", "case", "segment", "direction", "velocity_m_s", "force_N",
                     "predicted_N", "residual_N", "standard_error_N", "normalized_residual"]
 
@@ -219,14 +235,113 @@ def physical_readings(parameter: str, estimate: float, ci_low: float, ci_high: f
 
 
 # ----------------------------------------------------------------------------------------------
+# plausibility of the readings
+# ----------------------------------------------------------------------------------------------
+
+def _num(x: float) -> str:
+    """A value in a reason: 4 significant digits, 'inf' for infinity."""
+    return f"{x:.4g}"
+
+
+@dataclass(frozen=True)
+class PhysicalRange:
+    """The values a reading can physically take, low .. high (each end open or closed), and why."""
+
+    low: float = 0.0
+    high: float = math.inf
+    low_open: bool = False
+    high_open: bool = True
+    why: str = ""
+
+    def text(self) -> str:
+        """Interval notation: '[0, inf)', '(0, 1]'."""
+        right = ")" if self.high_open or math.isinf(self.high) else "]"
+        return f"{'(' if self.low_open else '['}{_num(self.low)}, {_num(self.high)}{right}"
+
+    def below(self, x: float) -> bool:
+        """x lies below the range."""
+        return x < self.low or (self.low_open and x == self.low)
+
+    def above(self, x: float) -> bool:
+        """x lies above the range."""
+        return x > self.high or (self.high_open and x == self.high)
+
+
+_FRICTION = ("a friction force opposes the motion, so its magnitude cannot be negative (a static force, gas force "
+             "or load-cell zero, larger than the friction pushes one direction's F_C below zero)")
+_LAMINAR = "a laminar flow resistance dissipates energy, so it cannot be negative"
+_TURBULENT = ("a turbulent (orifice) flow resistance cannot be negative (a digressive curve, e.g. an opening "
+              "valve, gives D_Q < 0: the fixed-orifice model does not apply)")
+_RANGES = {
+    "F_C": PhysicalRange(why=_FRICTION),
+    "D_L": PhysicalRange(why=_LAMINAR),
+    "c1": PhysicalRange(why=_LAMINAR),
+    "D_Q": PhysicalRange(why=_TURBULENT),
+    "c2": PhysicalRange(why=_TURBULENT),
+    "viscosity_eq": PhysicalRange(low_open=True, why="a viscosity is positive"),
+    "discharge_coefficient_eq": PhysicalRange(
+        high=1.0, low_open=True, high_open=False,
+        why="a discharge coefficient (real over ideal orifice flow) is at most 1; above it, the real orifice is "
+            "larger or the quadratic loss smaller than the nominal A_O implies"),
+}
+
+
+def physical_range(parameter: str, damper: Damper | None = None) -> PhysicalRange | None:
+    """The physical range of a fitted parameter or reading (module doc); None when it has none.
+
+    orifice_area_eq's upper bound is the piston area A_p, so it needs ``damper``.
+    """
+    if parameter == "orifice_area_eq":
+        if damper is None:
+            return None
+        return PhysicalRange(high=damper.piston_area_m2, low_open=True, high_open=False,
+                             why=f"an orifice wider than the piston (A_p = {_num(damper.piston_area_m2)} m^2) "
+                                 "does not throttle the flow")
+    return _RANGES.get(parameter)
+
+
+def plausibility(parameter: str, estimate: float, ci_low: float, ci_high: float, rng: PhysicalRange | None,
+                 unit: str = "", confidence: float = CONFIDENCE) -> tuple[bool, str]:
+    """(plausible, reason) of a reading against its physical range ``rng`` (module doc).
+
+    False only when the whole interval lies outside the range; a NaN end counts as unbounded. A
+    plausible reading whose estimate lies outside the range gets a 'not excluded: ...' note.
+    """
+    if rng is None:
+        return True, ""
+    lo = -math.inf if math.isnan(ci_low) else float(ci_low)
+    hi = math.inf if math.isnan(ci_high) else float(ci_high)
+    has_estimate = math.isfinite(estimate)
+    unit_text = "" if unit in ("", "-") else f" {unit}"
+    value = f"{parameter} = {_num(estimate)}{unit_text}" if has_estimate else f"{parameter} has no real estimate"
+    interval = f"{confidence * 100:g} % interval [{_num(lo)}, {_num(hi)}]"
+    if rng.above(lo):
+        return False, f"{value}, {interval} wholly above the physical bound {_num(rng.high)}: {rng.why}"
+    if rng.below(hi):
+        return False, f"{value}, {interval} wholly below the physical bound {_num(rng.low)}: {rng.why}"
+    if has_estimate and (rng.above(estimate) or rng.below(estimate)):
+        return True, f"not excluded: {value} lies outside {rng.text()}, but its {interval} reaches into it"
+    return True, ""
+
+
+def plausibility_columns(parameter: str, estimate: float, ci_low: float, ci_high: float, damper: Damper | None,
+                         unit: str = "", confidence: float = CONFIDENCE) -> dict:
+    """The models table's physical_range, plausible and plausibility of one row."""
+    rng = physical_range(parameter, damper)
+    ok, reason = plausibility(parameter, estimate, ci_low, ci_high, rng, unit, confidence)
+    return {"physical_range": "" if rng is None else rng.text(), "plausible": ok, "plausibility": reason}
+
+
+# ----------------------------------------------------------------------------------------------
 # fitting
 # ----------------------------------------------------------------------------------------------
 
 def _empty_models() -> pd.DataFrame:
     df = pd.DataFrame({c: pd.Series(dtype=object if c in ("campaign", "model", "direction", "parameter", "kind",
                                                            "derived_from", "unit", "description", "assumption",
-                                                           "weighting", "source_file", "source_rows") else
-                                     "int64" if c in ("n_points", "dof") else float)
+                                                           "physical_range", "plausibility", "weighting",
+                                                           "source_file", "source_rows") else
+                                     "int64" if c in ("n_points", "dof") else bool if c == "plausible" else float)
                        for c in MODEL_COLUMNS})
     return df
 
@@ -243,7 +358,8 @@ def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str 
 
     models_df follows tables.MODELS plus kind ('fitted' | 'derived'), derived_from, std_error, unit,
     description, assumption, n_points, dof, rms_residual_N, residual_scale, weighting, confidence,
-    and the row-level lineage: source_file (``source_file``, the table ``char`` was read from) and
+    the plausibility check (physical_range, plausible, plausibility: module doc), and the row-level
+    lineage: source_file (``source_file``, the table ``char`` was read from) and
     source_rows, the (case, segment) keys of the rows that fit used, sorted, 'T01/1,T01/2,...'
     (:func:`lineage.row_keys`; n_points of them). A derived row carries its parameter's sources.
     Derived physical readings need ``damper``; without it only the fitted rows are written. A model
@@ -299,8 +415,11 @@ def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str 
         sub["normalized_residual"] = resid / sig / (r["residual_scale"] if np.isfinite(r["residual_scale"]) and
                                                     r["residual_scale"] > 0 else 1.0)
         res_parts.append(sub)
+    for row in model_rows:
+        row.update(plausibility_columns(row["parameter"], row["estimate"], row["ci_low"], row["ci_high"], damper,
+                                        row["unit"], confidence))
     models = pd.DataFrame(model_rows, columns=MODEL_COLUMNS) if model_rows else _empty_models()
-    models = models.astype({"n_points": "int64", "dof": "int64"})
+    models = models.astype({"n_points": "int64", "dof": "int64", "plausible": bool})
     residuals = pd.concat(res_parts, ignore_index=True)[RESIDUAL_COLUMNS] if res_parts else _empty_residuals()
     residuals = residuals.astype({"segment": "int64"})
     return tables.validate_table(models, tables.MODELS), residuals
@@ -464,6 +583,8 @@ def write_models(campaign_root, out_dir, spec: WindowSpec = WindowSpec(), figure
         for r in sub.itertuples():
             log.info("campaign %s: %s %s %s = %.6g [%.6g, %.6g] %s", campaign, m, r.direction, r.parameter, r.estimate,
                      r.ci_low, r.ci_high, r.unit)
+    for r in models_df[~models_df["plausible"]].itertuples():
+        log.warning("campaign %s: %s %s: implausible reading: %s", campaign, r.model, r.direction, r.plausibility)
     paths = [write_parquet(models_df, out / TABLE_FILES[0]),
              write_parquet(residuals, out / TABLE_FILES[1]),
              write_parquet(comparison, out / TABLE_FILES[2])]
@@ -473,6 +594,7 @@ def write_models(campaign_root, out_dir, spec: WindowSpec = WindowSpec(), figure
     return paths
 
 
-__all__ = ["nominal_families", "design_matrix", "standard_errors", "wls", "physical_readings", "fit_models",
+__all__ = ["nominal_families", "design_matrix", "standard_errors", "wls", "physical_readings", "PhysicalRange",
+           "physical_range", "plausibility", "plausibility_columns", "fit_models",
            "model_parameters", "model_force", "comparison_table", "family_velocities", "sine_loops", "write_models",
            "TABLE_FILES", "FIGURE_FILES"]
