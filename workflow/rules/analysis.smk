@@ -1,7 +1,7 @@
 # Everything a campaign's characteristic and records give apart from the diagnosis, in one job:
 # test design check (Fig. 5, 6), the nominal model through the campaign's plan, harmonic records
-# (Fig. 15), fitted models and their comparison (Fig. 13, 14), and the characteristic figures
-# (Fig. 7-12) (isokinetic.stages.analysis.write_analysis).
+# (Fig. 15), the static force at v -> 0, fitted models and their comparison (Fig. 13, 14), their
+# CSV exports, and the characteristic figures (Fig. 7-12) (isokinetic.stages.analysis.write_analysis).
 
 
 rule analysis:

@@ -136,7 +136,7 @@ def benchmark_path(rule, campaign="{campaign}"):
 
 
 def campaign_outputs(campaign):
-    """What a campaign's provenance record covers: its tables, diagnosis and figures."""
+    """What a campaign's report reads: its tables, their CSV exports, diagnosis and figures."""
     return (
         [
             output_path(rule, name, campaign)
@@ -147,6 +147,8 @@ def campaign_outputs(campaign):
                 ("analysis", "models"),
                 ("analysis", "table"),
                 ("analysis", "static_force"),
+                ("analysis", "characteristic_csv"),
+                ("analysis", "models_csv"),
                 ("diagnosis", "json"),
             )
         ]

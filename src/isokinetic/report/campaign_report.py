@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from isokinetic.contracts.outputs import figures_in
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in
 from isokinetic.io import write_text
 from isokinetic.report.cells import Col, Table, badge, kv_table, table_view
 from isokinetic.report.diagnosis_section import diagnosis_section
@@ -276,6 +276,12 @@ def _point_origin(r: Mapping) -> list[str]:
             f"raw sha256 {short(r.get('raw_sha256'))})"]
 
 
+def _export_link(d: CampaignData, name: str) -> str | None:
+    """The page-relative link of a CSV export (stages.exports) when the campaign has it, else None."""
+    rel = STAGE_OUTPUTS["exports"][name]
+    return rel if (d.root / rel).is_file() else None
+
+
 def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
     src = d.sources("characteristic.parquet")
     figures = d.figures("characteristic", captions)
@@ -284,7 +290,7 @@ def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dic
         return {"figures": figures, "table": None, "lineage": lineage_of(src)}
     speed = char["velocity_m_s"].abs()
     char = char.assign(_speed=speed).sort_values(["direction", "_speed", "case", "period"]).reset_index(drop=True)
-    return {"figures": figures, "n": len(char),
+    return {"figures": figures, "n": len(char), "csv": _export_link(d, "characteristic_csv"),
             "table": table_view(char, CHARACTERISTIC_COLS, src, ["case", "segment"], row_extra=_point_origin,
                                 row_class=lambda r: "flagged" if r.get("repeatability_flagged") else "",
                                 table_id="characteristic-points")}
@@ -451,10 +457,10 @@ def _models_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
     src = d.sources("models/models.parquet")
     if models is None or not len(models):
         return {"figures": figures, "models": None, "produced": models is not None, "lineage": lineage_of(src),
-                "static_force": _static_force(d)}
+                "static_force": _static_force(d), "csv": _export_link(d, "models_csv")}
     views = [_model_view(d, model, group) for model, group in models.groupby("model", sort=False)]
     return {"figures": figures, "models": views, "comparison": _comparison(d), "implausible": _implausible_note(models),
-            "static_force": _static_force(d)}
+            "static_force": _static_force(d), "csv": _export_link(d, "models_csv")}
 
 
 HARMONIC_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text, False),

@@ -7,6 +7,7 @@ One process runs, in order (each stage is its own module and writes its own file
 - harmonic (:mod:`isokinetic.stages.harmonic`): sine and free-waveform records, Fig. 15;
 - static_force (:mod:`isokinetic.stages.static_force`): the force at v -> 0 (gas force, load-cell zero);
 - models (:mod:`isokinetic.stages.models`): nominal families, fitted models, comparison, Fig. 13-14;
+- exports (:mod:`isokinetic.stages.exports`): characteristic.csv and models/models.csv for spreadsheets;
 - figures (:mod:`isokinetic.stages.figures`): the characteristic figures, Fig. 7-12.
 
 They share one job because each is cheap next to the 1-2 s of imports a job starts with.
@@ -22,6 +23,7 @@ from pathlib import Path
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
 from isokinetic.stages.design import plan_warnings, write_design
+from isokinetic.stages.exports import write_exports
 from isokinetic.stages.figures import write_campaign_figures
 from isokinetic.stages.harmonic import write_harmonic
 from isokinetic.stages.models import write_models
@@ -48,8 +50,8 @@ def _folder(stage: str, name: str) -> str:
 
 def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSpec(),
                    limits: DesignLimits = DesignLimits()) -> list[Path]:
-    """design -> nominal -> harmonic -> static_force -> models -> figures of a campaign folder with its characteristic;
-    returns every file written. Flagged plan checks are logged as warnings."""
+    """design -> nominal -> harmonic -> static_force -> models -> exports -> figures of a campaign folder with its
+    characteristic; returns every file written. Flagged plan checks are logged as warnings."""
     root = Path(campaign_root)
     plan_check, written = write_design(root, root / _folder("design", "plan_check"),
                                        phi=limits.convergence_fraction, max_amplitude_m=limits.max_amplitude_m,
@@ -61,6 +63,7 @@ def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSp
     written += write_harmonic(root, root / _folder("harmonic", "table"))
     written += write_static_force(root)
     written += write_models(root, root / _folder("models", "models"), spec)
+    written += write_exports(root)
     written += write_campaign_figures(root, root / str(Path(figures_of("figures")[0].path).parent))
     log.info("%d cases checked (%d flagged), %d nominal-model windows, %d files written", len(plan_check),
              int(plan_check["flagged"].sum()), len(nominal), len(written))
