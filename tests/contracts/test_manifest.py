@@ -7,7 +7,7 @@ import math
 import pytest
 
 from conftest import CAMPAIGN, CASE_IDS
-from isokinetic.contracts.manifest import ManifestError, load_manifest
+from isokinetic.contracts.manifest import CsvDialect, ManifestError, load_manifest
 
 MANIFEST_FILE = f"data/raw/{CAMPAIGN}/campaign.yaml"
 
@@ -171,4 +171,46 @@ def test_bad_gas_force_fails_the_campaign(raw_campaign, value, words):
     with pytest.raises(ManifestError) as info:
         load_manifest(MANIFEST_FILE)
     assert info.value.key == "gas_force_N"
+    assert words in str(info.value)
+
+
+def test_csv_block_is_optional_and_reaches_every_case(raw_campaign):
+    m = load_manifest(MANIFEST_FILE)
+    assert m.csv is None and {c.csv for c in m.cases} == {None}
+    raw_campaign.edit_manifest(_set({"delimiter": ";", "decimal": ","}, "csv"))
+    m = load_manifest(MANIFEST_FILE)
+    assert m.csv == CsvDialect(delimiter=";", decimal=",")
+    assert [c.csv for c in m.cases] == [m.csv] * len(CASE_IDS)
+    assert "csv" not in m.metadata                        # a spec key (1.1), not carried as metadata
+
+
+@pytest.mark.parametrize("block, dialect", [
+    ({"delimiter": "\t"}, CsvDialect("\t", ".")),
+    ({"delimiter": "\\t", "decimal": ","}, CsvDialect("\t", ",")),   # '\t' in single quotes: backslash and t
+    ({"delimiter": "tab"}, CsvDialect("\t", ".")),
+    ({"delimiter": "|", "decimal": ","}, CsvDialect("|", ",")),
+    ({"delimiter": ";"}, CsvDialect(";", ".")),
+    ({}, CsvDialect(",", ".")),
+])
+def test_csv_block_keys_default_to_the_format(raw_campaign, block, dialect):
+    raw_campaign.edit_manifest(_set(block, "csv"))
+    assert load_manifest(MANIFEST_FILE).csv == dialect
+
+
+@pytest.mark.parametrize("block, key, words", [
+    (";", "csv", "expected a mapping with keys delimiter and decimal, got ';'"),
+    ({"delimiter": ";", "thousands": "."}, "csv.thousands", "unknown key: the csv block declares only delimiter"),
+    ({"delimiter": ":"}, "csv.delimiter", "must be one of ',', ';', \"\\t\" (tab) or '|', got ':'"),
+    ({"delimiter": [";"]}, "csv.delimiter", "got [';']"),
+    ({"delimiter": None}, "csv.delimiter", "got None"),
+    ({"delimiter": ";", "decimal": ";"}, "csv.decimal", "must be '.' or ',', got ';'"),
+    ({"decimal": ","}, "csv", "delimiter and decimal mark are both ','"),
+    ({"delimiter": ",", "decimal": ","}, "csv", "delimiter and decimal mark are both ','"),
+])
+def test_bad_csv_block_fails_the_campaign(raw_campaign, block, key, words):
+    raw_campaign.edit_manifest(_set(block, "csv"))
+    with pytest.raises(ManifestError) as info:
+        load_manifest(MANIFEST_FILE)
+    assert info.value.key == key
+    assert str(info.value).startswith(f"{MANIFEST_FILE}: key {key!r}: ")    # the campaign's folder and the key
     assert words in str(info.value)

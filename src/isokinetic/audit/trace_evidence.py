@@ -265,6 +265,9 @@ def column_mapping(src: RawSource, case: str) -> list[str]:
         return lines + ["(the pipeline used the simulated SI series; the CSV holds the same quantised values)"]
     spec = next(s for s in src.manifest.cases if s.id == case)
     out = []
+    if spec.csv is not None:
+        out.append(f"read with {spec.csv.delimiter!r} between fields and {spec.csv.decimal!r} as the decimal mark "
+                   "(manifest csv block)")
     for ch, col in spec.columns.items():
         factor = UNITS[ch][col.unit]
         how = "ISO 8601 -> seconds from the first sample" if factor is None else f"x {factor:g}"

@@ -20,7 +20,8 @@ YAML is turned into Python objects (:func:`check_yaml_events` walks the parser's
 * a case ``file`` that is not a bare name inside the campaign folder (path separator, ``..``,
   absolute path, drive letter, NUL), or a symlink whose target lies outside the campaign folder;
 * sizes that make no physical sense or would allocate gigabytes (:data:`BOUNDS`, per key, and
-  :data:`MAX_PLANNED_SAMPLES` samples per planned record; at most :data:`MAX_CASES` cases).
+  :data:`MAX_PLANNED_SAMPLES` samples per planned record; at most :data:`MAX_CASES` cases);
+* a ``csv`` block (format 1.1) that is not one of the dialects ingest can read (:func:`csv_dialect`).
 
 Keys the spec does not define are kept in ``metadata``, mirroring the manifest's structure
 (top-level keys, unknown ``columns`` channels, extra ``damper`` keys, per-case keys under
@@ -63,7 +64,7 @@ CHANNELS = tuple(UNITS)
 REQUIRED_CHANNELS = ("time", "displacement", "force")
 
 TOP_KEYS = frozenset({"format_version", "campaign", "description", "source", "temperature_C",
-                      "sample_rate_Hz", "columns", "damper", "cases", "gas_force_N"})
+                      "sample_rate_Hz", "columns", "damper", "cases", "gas_force_N", "csv"})
 CASE_KEYS = frozenset({"id", "waveform", "file", "sample_rate_Hz", "columns", "period_s",
                        "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s"})
 COLUMN_KEYS = ("name", "unit", "invert")
@@ -80,6 +81,14 @@ MAX_CASES = 1_000
 #: Largest |gas_force_N| (format 1.1) a manifest may declare: 1 MN, far above any damper's gas force; a
 #: larger value is a unit error (kN written as N?) and refuses the campaign.
 MAX_GAS_FORCE_N = 1.0e6
+#: Field delimiters a manifest's ``csv`` block (format 1.1) may declare, with the words used in messages.
+CSV_DELIMITERS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'"}
+#: Spellings of the tab delimiter besides a real tab (YAML ``"\t"``): ``'\t'`` in single quotes (a
+#: backslash and a t, the usual slip) and the word ``tab``.
+CSV_TAB_SPELLINGS = ("\\t", "tab")
+#: Decimal marks a ``csv`` block may declare.
+CSV_DECIMALS = (".", ",")
+CSV_KEYS = ("delimiter", "decimal")
 #: Upper bounds (inclusive) of positive sizes, campaign-level or per case. A value above its bound
 #: is a unit or typing error, or hostile: the campaign is refused. Lower bounds: > 0 as before.
 BOUNDS = {
@@ -96,6 +105,18 @@ MAX_PLANNED_SAMPLES = 10_000_000
 #: YAML tags a manifest may carry explicitly (the plain types of the YAML core schema).
 SAFE_TAGS = frozenset("tag:yaml.org,2002:" + t for t in
                       ("null", "bool", "int", "float", "str", "seq", "map", "timestamp"))
+
+
+@dataclass(frozen=True)
+class CsvDialect:
+    """The case files' dialect declared by a manifest's ``csv`` block (format 1.1): field delimiter and
+    decimal mark. Quoting (``"``), line ends, comments and encoding are the format's, whatever the dialect."""
+
+    delimiter: str = ","
+    decimal: str = "."
+
+    def to_dict(self) -> dict:
+        return {"delimiter": self.delimiter, "decimal": self.decimal}
 
 
 class ManifestError(ValueError):
@@ -126,6 +147,7 @@ class CaseSpec:
     metadata: dict                   # the entry's keys the spec does not define
     problems: tuple[Problem, ...] = ()
     gas_force_N: float | None = None  # the campaign's gas_force_N (1.1), subtracted from the force at ingest
+    csv: CsvDialect | None = None    # the campaign's csv block (1.1); None: none declared, ',' and '.'
 
     @property
     def id(self) -> str:
@@ -155,6 +177,9 @@ class Manifest:
     #: Known static force (gas force) subtracted from every force sample at ingest (format 1.1), N, in
     #: the force channel's sign convention after ``invert``; None when the manifest declares none.
     gas_force_N: float | None = None
+    #: The case files' dialect (format 1.1 ``csv`` block); None when the manifest declares none: the
+    #: format's ',' between fields and '.' as the decimal mark, read exactly as before 1.1.
+    csv: CsvDialect | None = None
 
 
 def number(value) -> float | None:
@@ -403,6 +428,41 @@ def _gas_force(doc: Mapping, where: str) -> float | None:
     return value
 
 
+def _csv_delimiter(value, where: str) -> str:
+    if isinstance(value, str) and value.strip().lower() in CSV_TAB_SPELLINGS:
+        return "\t"
+    if not isinstance(value, str) or value not in CSV_DELIMITERS:
+        raise ManifestError(where, "csv.delimiter", f"must be one of ',', ';', \"\\t\" (tab) or '|', got {value!r}")
+    return value
+
+
+def csv_dialect(block, where: str) -> CsvDialect | None:
+    """The optional ``csv`` block (format 1.1), e.g. ``{delimiter: ";", decimal: ","}`` (None when absent).
+
+    Either key may be left out (defaults ',' and '.'). The tab delimiter is written ``"\\t"`` (double
+    quotes), ``'\\t'`` or ``tab``. Refused as a broken manifest, naming the key: a block that is not a
+    mapping, a key other than ``delimiter`` and ``decimal`` (a ``thousands`` or ``encoding`` key would
+    otherwise be silently ignored), a delimiter not in :data:`CSV_DELIMITERS`, a decimal mark not in
+    :data:`CSV_DECIMALS`, and the same character for both.
+    """
+    if block is None:
+        return None
+    if not isinstance(block, Mapping):
+        raise ManifestError(where, "csv", f"expected a mapping with keys {' and '.join(CSV_KEYS)}, got {block!r}")
+    unknown = [k for k in block if k not in CSV_KEYS]
+    if unknown:
+        raise ManifestError(where, f"csv.{unknown[0]}", f"unknown key: the csv block declares only "
+                                                        f"{' and '.join(CSV_KEYS)} (ingest reads nothing else)")
+    delimiter = _csv_delimiter(block.get("delimiter", ","), where)
+    decimal = block.get("decimal", ".")
+    if decimal not in CSV_DECIMALS:
+        raise ManifestError(where, "csv.decimal", f"must be '.' or ',', got {decimal!r}")
+    if delimiter == decimal:
+        raise ManifestError(where, "csv", f"delimiter and decimal mark are both {decimal!r}: numbers could not be "
+                                          "told from fields (a decimal comma needs another delimiter, e.g. ';')")
+    return CsvDialect(delimiter=delimiter, decimal=decimal)
+
+
 def _case_id(entry, index: int, where: str) -> str:
     if not isinstance(entry, Mapping):
         raise ManifestError(where, f"cases[{index}]", f"expected a mapping, got {entry!r}")
@@ -547,6 +607,7 @@ def load_manifest(path: str | Path) -> Manifest:
         seen.add(case)
         cases.append(_case(entry, case, rate, base_columns, where, Path(path).parent))
     gas_force_N = _gas_force(doc, where)
+    dialect = csv_dialect(doc.get("csv"), where)
     metadata = {k: v for k, v in doc.items() if k not in TOP_KEYS}
     for key, extra in (("columns", extra_columns), ("damper", extra_damper)):
         if extra:
@@ -558,7 +619,7 @@ def load_manifest(path: str | Path) -> Manifest:
         path=where, format_version=FORMAT_VERSION, campaign=campaign,
         description=_optional(doc, "description", str, where), source=_optional(doc, "source", str, where),
         temperature_C=_optional(doc, "temperature_C", float, where), sample_rate_Hz=rate,
-        gas_force_N=gas_force_N,
+        gas_force_N=gas_force_N, csv=dialect,
         columns={ch: _column(spec) for ch, spec in base_columns.items()}, damper=damper,
-        cases=tuple(replace(c, gas_force_N=gas_force_N) for c in cases), metadata=metadata,
+        cases=tuple(replace(c, gas_force_N=gas_force_N, csv=dialect) for c in cases), metadata=metadata,
         sha256=hashlib.sha256(data).hexdigest())

@@ -9,6 +9,13 @@ A manifest's ``gas_force_N`` (format 1.1) is subtracted from every force sample 
 where the force becomes SI, and recorded in ``campaign.json`` (``gas_force_N``, null when none): every
 stage downstream sees the damper's force alone.
 
+A manifest's ``csv`` block (format 1.1, e.g. ``{delimiter: ";", decimal: ","}``, a spreadsheet export)
+sets the delimiter every check of :func:`read_case_csv` splits on and the decimal mark :func:`to_si`
+reads; it is recorded in ``campaign.json`` (``csv``, null when none). The same data in either dialect
+gives the same SI series, bit for bit. With a decimal comma, a value holding a '.' is refused, naming
+row and column: ``1.234,5`` (thousands separator) or ``1.5`` (a '.' file declared ',') could otherwise
+be misread by a factor of 1000. Without a ``csv`` block, files are read exactly as before 1.1.
+
 A case that parses but fails the time-series schema (NaN/inf, time not increasing) is
 quarantined here too, naming the CSV column: ``campaign.write_ingested`` only accepts
 schema-valid series.
@@ -30,7 +37,16 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
-from isokinetic.contracts.manifest import MANIFEST_NAME, UNITS, CaseSpec, Column, Manifest, load_manifest
+from isokinetic.contracts.manifest import (
+    CSV_DELIMITERS,
+    MANIFEST_NAME,
+    UNITS,
+    CaseSpec,
+    Column,
+    CsvDialect,
+    Manifest,
+    load_manifest,
+)
 from isokinetic.io import sha256_file
 from isokinetic.stages.validate import Problem, quarantine_frame, quarantine_rows, timeseries_problems
 
@@ -64,8 +80,8 @@ def _data_lines(lines: list[str], header: int) -> list[tuple[int, str]]:
     return out
 
 
-def _encoding_problem(data: bytes, exc: UnicodeDecodeError) -> Problem:
-    """The row and column of the first byte that is not UTF-8."""
+def _encoding_problem(data: bytes, exc: UnicodeDecodeError, delimiter: str = ",") -> Problem:
+    """The row and column of the first byte that is not UTF-8 (fields split on ``delimiter``)."""
     start = exc.start
     bad = data[start]
     line_start = data.rfind(b"\n", 0, start) + 1
@@ -77,25 +93,28 @@ def _encoding_problem(data: bytes, exc: UnicodeDecodeError) -> Problem:
         text = data[line_start:line_end].rstrip(b"\r")
         return Problem("file", f"not UTF-8: byte 0x{bad:02x} in line {len(lines) + 1} ({text!r}), "
                                "before the data", kind="key")
-    names = next(csv.reader([lines[header].rstrip("\r")]))
+    names = next(csv.reader([lines[header].rstrip("\r")], delimiter=delimiter))
     row = len(_data_lines(lines, header))
-    field = data.count(b",", line_start, start)
-    fields = data[line_start:line_end].rstrip(b"\r").split(b",")
+    sep = delimiter.encode()
+    field = data.count(sep, line_start, start)
+    fields = data[line_start:line_end].rstrip(b"\r").split(sep)
     raw = fields[field] if field < len(fields) else b""
     column = names[field].strip() if field < len(names) else "file"
     return Problem(column, f"not UTF-8: byte 0x{bad:02x} in {raw!r}", row=row,
                    kind="column" if field < len(names) else "key")
 
 
-def _field_count_problem(names: list[str], row: int, fields: list[str], last: bool, ends_in_newline: bool):
-    """A data row whose field count differs from the header's (cut off, ragged, decimal commas)."""
+def _field_count_problem(names: list[str], row: int, fields: list[str], last: bool, ends_in_newline: bool,
+                         delimiter: str = ","):
+    """A data row whose field count differs from the header's (cut off, ragged, decimal commas when the
+    fields are separated by ',')."""
     n, want = len(fields), len(names)
     if n < want:
         cut = last and not ends_in_newline
         what = "the file is cut off mid-row" if cut else "a ragged row"
         return Problem(names[n], f"row ends after {n} of {want} fields: {what}", row=row)
     extra, i = n - want, 0
-    while extra > 0 and i < want and i + 1 < n:
+    while delimiter == "," and extra > 0 and i < want and i + 1 < n:
         if _INTEGER.fullmatch(fields[i].strip()) and _DIGITS.fullmatch(fields[i + 1].strip()):
             return Problem(names[i], f"decimal comma in '{fields[i].strip()},{fields[i + 1].strip()}' (row has "
                                      f"{n} fields, the header {want}): the format needs ',' between fields "
@@ -104,15 +123,35 @@ def _field_count_problem(names: list[str], row: int, fields: list[str], last: bo
     return Problem("file", f"row has {n} fields, the header {want}", row=row, kind="key")
 
 
-def read_case_csv(path: str | Path, warnings: list[str] | None = None) -> pd.DataFrame:
+def _delimiter_problem(header: str, dialect: CsvDialect | None) -> Problem | None:
+    """A one-field header that holds another delimiter than the file's: ';' or tabs without a ``csv``
+    block (the format's ','), any other of :data:`CSV_DELIMITERS` with one."""
+    if dialect is None:
+        for sep, label in ((";", "';'"), ("\t", "tabs")):
+            if sep in header:
+                return Problem("file", f"fields are separated by {label}, not ',' (header {header!r}): the format "
+                                       "needs ',' between fields and '.' as the decimal mark", kind="key")
+        return None
+    for sep, label in CSV_DELIMITERS.items():
+        if sep != dialect.delimiter and sep in header:
+            return Problem("file", f"fields are separated by {label}, not {CSV_DELIMITERS[dialect.delimiter]} as "
+                                   f"the manifest's csv block declares (header {header!r})", kind="key")
+    return None
+
+
+def read_case_csv(path: str | Path, warnings: list[str] | None = None,
+                  dialect: CsvDialect | None = None) -> pd.DataFrame:
     """A case CSV as strings (NaN for empty/NA cells), opened read-only.
 
     Blank lines and ``#`` lines before the header are skipped; header names are stripped; a
     UTF-8 byte-order mark is stripped. Raises :class:`CaseFileError` for an empty file, bytes
-    that are not UTF-8 (naming row and column), a ``;`` or tab delimiter, and a data row whose
-    field count differs from the header's (a file cut off mid-row, decimal commas). A last row
-    without a line end is kept, with a warning appended to ``warnings``.
+    that are not UTF-8 (naming row and column), a header split by another delimiter than the
+    file's (``;`` or tabs without ``dialect``), and a data row whose field count differs from the
+    header's (a file cut off mid-row, decimal commas). A last row without a line end is kept, with
+    a warning appended to ``warnings``. ``dialect`` (the manifest's ``csv`` block) sets the delimiter
+    of every check and of the table; cells stay text (the decimal mark is :func:`to_si`'s).
     """
+    delimiter = "," if dialect is None else dialect.delimiter
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
@@ -128,7 +167,7 @@ def read_case_csv(path: str | Path, warnings: list[str] | None = None) -> pd.Dat
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise CaseFileError(_encoding_problem(data, exc)) from None
+        raise CaseFileError(_encoding_problem(data, exc, delimiter)) from None
     if "\n" not in text and "\r" in text:       # old Mac line ends
         text = text.replace("\r", "\n")
     lines = text.split("\n")
@@ -139,22 +178,22 @@ def read_case_csv(path: str | Path, warnings: list[str] | None = None) -> pd.Dat
     header = next((i for i, line in enumerate(lines) if line.strip() and not line.startswith("#")), None)
     if header is None:
         raise CaseFileError(Problem("file", "no header row", kind="key"))
-    names = next(csv.reader([lines[header]]))
+    names = next(csv.reader([lines[header]], delimiter=delimiter))
     if len(names) == 1:
-        for sep, label in ((";", "';'"), ("\t", "tabs")):
-            if sep in lines[header]:
-                raise CaseFileError(Problem("file", f"fields are separated by {label}, not ',' (header "
-                                                    f"{lines[header]!r}): the format needs ',' between fields "
-                                                    "and '.' as the decimal mark", kind="key"))
+        problem = _delimiter_problem(lines[header], dialect)
+        if problem is not None:
+            raise CaseFileError(problem)
     names = [name.strip() for name in names]
     rows = _data_lines(lines, header)
-    for (row, _), fields in zip(rows, csv.reader([line for _, line in rows])):
+    for (row, _), fields in zip(rows, csv.reader([line for _, line in rows], delimiter=delimiter)):
         if len(fields) != len(names):
-            raise CaseFileError(_field_count_problem(names, row, fields, row == len(rows) - 1, ends_in_newline))
+            raise CaseFileError(_field_count_problem(names, row, fields, row == len(rows) - 1, ends_in_newline,
+                                                     delimiter))
     if rows and not ends_in_newline and warnings is not None:
         warnings.append(f"no line end after the last row ({rows[-1][0]}): it may be cut off in its last value")
     try:
-        df = pd.read_csv(io.StringIO("\n".join(lines[header:]) + "\n"), dtype=str, skipinitialspace=True)
+        df = pd.read_csv(io.StringIO("\n".join(lines[header:]) + "\n"), sep=delimiter, dtype=str,
+                         skipinitialspace=True)
     except pd.errors.EmptyDataError:
         raise CaseFileError(Problem("file", "no header row", kind="key")) from None
     except pd.errors.ParserError as exc:
@@ -163,26 +202,45 @@ def read_case_csv(path: str | Path, warnings: list[str] | None = None) -> pd.Dat
     return df
 
 
-def to_si(raw: pd.Series, channel: str, column: Column) -> tuple[np.ndarray | None, Problem | None]:
-    """One CSV column in SI (float64), or the first value that does not parse."""
+def decimal_point(raw: pd.Series) -> pd.Series:
+    """Text numbers written with a decimal comma, rewritten with '.' for parsing: ``-0,25`` -> ``-0.25``,
+    ``1,5E-3`` -> ``1.5E-3``. A value holding a '.' becomes NaN (refused by :func:`to_si`): ``1.234,5``
+    has a thousands separator, ``1.5`` was written with '.' decimals; neither is guessed."""
+    text = raw.astype(object)
+    dotted = text.str.contains(".", regex=False, na=False).astype(bool)
+    return text.str.replace(",", ".", regex=False).mask(dotted)
+
+
+def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".") -> tuple[np.ndarray | None, Problem | None]:
+    """One CSV column in SI (float64), or the first value that does not parse. ``decimal`` is the files'
+    decimal mark (the manifest's ``csv`` block): with ',' numbers go through :func:`decimal_point`, and
+    ISO 8601 stamps may carry a decimal comma in their seconds (``10:59:59,95``)."""
+    note = ""
     if column.unit == "datetime":
-        stamps = pd.to_datetime(raw, format="ISO8601", utc=True, errors="coerce")
+        text = raw if decimal == "." else raw.astype(object).str.replace(",", ".", regex=False)
+        stamps = pd.to_datetime(text, format="ISO8601", utc=True, errors="coerce")
         bad = stamps.isna() & raw.notna()
         values = (stamps - stamps.iloc[0]).dt.total_seconds().to_numpy(float) if len(raw) else np.empty(0)
         what = "invalid ISO 8601 timestamp"
     else:
-        numbers = pd.to_numeric(raw, errors="coerce")
+        numbers = pd.to_numeric(raw if decimal == "." else decimal_point(raw), errors="coerce")
         bad = numbers.isna() & raw.notna()
         values = numbers.to_numpy(float) * UNITS[channel][column.unit]
         what = "non-numeric value"
+        if decimal != ".":
+            note = (": the manifest's csv block declares ',' as the decimal mark, and a '.' is not read (a thousands "
+                    "separator? a file written with '.' decimals?)")
     if bad.any():
         first = int(np.argmax(bad.to_numpy()))
-        return None, Problem(column.name, f"{what} {raw.iloc[first]!r}", row=first)
+        value = raw.iloc[first]
+        return None, Problem(column.name, f"{what} {value!r}" + (note if "." in str(value) else ""), row=first)
     return (-values if column.invert else values), None
 
 
-def canonical_timeseries(raw: pd.DataFrame, columns: dict[str, Column]) -> tuple[pd.DataFrame | None, list[Problem]]:
-    """The canonical SI time series of a case, or the problems of its columns (one per column)."""
+def canonical_timeseries(raw: pd.DataFrame, columns: dict[str, Column],
+                         decimal: str = ".") -> tuple[pd.DataFrame | None, list[Problem]]:
+    """The canonical SI time series of a case, or the problems of its columns (one per column);
+    ``decimal``: the files' decimal mark (:func:`to_si`)."""
     present = ", ".join(map(str, raw.columns))
     problems = [Problem(col.name, f"column not in the file (header: {present})")
                 for col in columns.values() if col.name not in raw.columns]
@@ -190,7 +248,7 @@ def canonical_timeseries(raw: pd.DataFrame, columns: dict[str, Column]) -> tuple
         return None, problems
     out = {"row": np.arange(len(raw), dtype="int64")}
     for channel, col in columns.items():
-        values, problem = to_si(raw[col.name], channel, col)
+        values, problem = to_si(raw[col.name], channel, col, decimal)
         if problem is not None:
             problems.append(problem)
         out[CANONICAL[channel]] = values
@@ -209,8 +267,8 @@ def subtract_gas_force(series: pd.DataFrame, gas_force_N: float | None) -> pd.Da
 
 
 def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict, list[Problem], pd.DataFrame | None]:
-    """One case: its CASES row, its problems, and its time series when it is ok (less the manifest's
-    gas force, ``spec.gas_force_N``: :func:`subtract_gas_force`)."""
+    """One case: its CASES row, its problems, and its time series when it is ok (read in the manifest's
+    dialect, ``spec.csv``; less its gas force, ``spec.gas_force_N``: :func:`subtract_gas_force`)."""
     problems = list(spec.problems)
     path = campaign_dir / spec.file if spec.file is not None else None
     sha, n_samples, df, warnings = "", 0, None, []
@@ -221,12 +279,12 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict
             problems.append(Problem("file", f"file not found: {path.as_posix()}", kind="key"))
     if not problems:
         try:
-            raw = read_case_csv(path, warnings)
+            raw = read_case_csv(path, warnings, spec.csv)
         except CaseFileError as exc:
             problems.append(exc.problem)
         else:
             n_samples = len(raw)
-            df, problems = canonical_timeseries(raw, spec.columns)
+            df, problems = canonical_timeseries(raw, spec.columns, "." if spec.csv is None else spec.csv.decimal)
     if df is not None:
         df = subtract_gas_force(df, spec.gas_force_N)
         names = {CANONICAL[ch]: col.name for ch, col in spec.columns.items()}
@@ -261,6 +319,8 @@ def campaign_meta(manifest: Manifest, manifest_file: str) -> dict:
             "temperature_C": manifest.temperature_C,
             # the static gas force subtracted from every force sample (N), None when none was declared
             "gas_force_N": manifest.gas_force_N,
+            # the case files' dialect (manifest csv block, format 1.1), None when none was declared (',' and '.')
+            "csv": None if manifest.csv is None else manifest.csv.to_dict(),
             "damper": None if manifest.damper is None else manifest.damper.to_dict(),
             "manifest_file": manifest_file, "manifest_sha256": manifest.sha256,
             "metadata": jsonable(manifest.metadata)}
@@ -280,6 +340,9 @@ def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path) -> None
             series[spec.id] = df
     log.info("campaign %s: %d of %d cases ingested, %d quarantined", manifest.campaign, len(series),
              len(rows), len(rows) - len(series))
+    if manifest.csv is not None:
+        log.info("campaign %s: case files read with delimiter %r and decimal mark %r (manifest csv block)",
+                 manifest.campaign, manifest.csv.delimiter, manifest.csv.decimal)
     if manifest.gas_force_N:
         log.info("campaign %s: gas force %g N subtracted from every force sample (manifest gas_force_N)",
                  manifest.campaign, manifest.gas_force_N)
