@@ -24,6 +24,7 @@ from isokinetic.io import (
     read_lineage,
     remove_stale_tmp,
     sha256_file,
+    vector_figures,
     write_atomic,
     write_json,
     write_parquet,
@@ -142,6 +143,28 @@ def test_png_carries_the_record_in_a_text_chunk_and_keeps_every_pixel(tmp_path):
     with lineage_context(RECORD):                               # same figure and record: same bytes
         again = save_figure(figure(), tmp_path / "g.png")
     assert sha256_file(again) == sha256_file(path)
+
+
+@pytest.mark.parametrize("fmt, magic, stamp, absent", [
+    ("svg", b"<?xml", b"<dc:description>", (b"<dc:date>", b"Matplotlib v")),
+    ("pdf", b"%PDF", b"/Subject", (b"/CreationDate", b"/Producer"))])
+def test_a_vector_copy_is_written_beside_the_png_reproducibly_with_the_record(tmp_path, fmt, magic, stamp, absent):
+    with lineage_context(RECORD), vector_figures(fmt):
+        save_figure(figure(), tmp_path / "f.png")
+        save_figure(figure(), tmp_path / "g.png")
+    first, second = (tmp_path / f"f.{fmt}").read_bytes(), (tmp_path / f"g.{fmt}").read_bytes()
+    assert first.startswith(magic) and first == second      # no date, no random ids: same figure, same bytes
+    assert stamp in first and not any(x in first for x in absent)
+    assert (tmp_path / "f.png").is_file()
+
+
+def test_no_vector_copy_outside_a_block_or_with_none(tmp_path):
+    save_figure(figure(), tmp_path / "a.png")
+    with vector_figures("none"):
+        save_figure(figure(), tmp_path / "b.png")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.png", "b.png"]
+    with pytest.raises(ValueError, match="expected one of none, svg, pdf"), vector_figures("eps"):
+        pass
 
 
 def _chunk(kind: bytes, payload: bytes) -> bytes:

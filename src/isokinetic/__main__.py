@@ -3,6 +3,8 @@
 ``python -m isokinetic --help`` lists the commands, one line each; ``<command> --help`` explains one:
 
 - ``export-virtual``: write a config's simulated campaign in the raw campaign format;
+- ``init-campaign``: draft a folder's ``campaign.yaml`` from its case CSV files, or ``--check`` a folder against
+  its manifest (:mod:`isokinetic.init_campaign`);
 - ``trace``: audit one number of a results table, re-derived from the raw data (:mod:`isokinetic.audit.trace`);
 - ``raw-check``: every raw file a processed campaign read still has its recorded sha256
   (:mod:`isokinetic.audit.raw_check`).
@@ -39,6 +41,36 @@ def _export_virtual(args: argparse.Namespace) -> int:
     return 0
 
 
+def _init_campaign(args: argparse.Namespace) -> int:
+    """Draft FOLDER/campaign.yaml from the folder's case CSV files, or check the folder against its manifest.
+
+    The draft guesses the CSV dialect, each column's role and unit, the sample rate and each file's waveform
+    (triangle: period, amplitude, phase; sine: frequency, amplitude; otherwise free), with a comment beside
+    every guessed value saying how it was found and how sure it is. The damper block is left for you to
+    fill in. Only FOLDER/campaign.yaml is written, and an existing one only with --force.
+
+    --check prints, case by case, where the files disagree with the existing manifest (waveform, period or
+    frequency, amplitude, phase, sample rate, units). Exit status: 0 all agree, 1 otherwise.
+    """
+    from isokinetic.init_campaign.check import print_check
+    from isokinetic.init_campaign.draft import write_draft
+
+    if args.check:
+        return print_check(args.folder)
+    path, survey = write_draft(args.folder, force=args.force)
+    kinds = [f.waveform.kind for f in survey.usable]
+    counts = ", ".join(f"{kinds.count(k)} {k}" for k in ("triangle", "sine", "free") if k in kinds)
+    print(f"wrote {path}: {len(kinds)} cases ({counts})")
+    for f in survey.files:
+        if not f.ok:
+            print(f"  set aside (commented out): {f.file}: {f.problem}")
+    if survey.campaign_note:
+        print(f"warning: {survey.campaign_note}", file=sys.stderr)
+    print("next: check every 'likely' and 'guess' comment, fill in the damper block, then run "
+          f"'python -m isokinetic init-campaign --check {args.folder}'")
+    return 0
+
+
 def _trace(args: argparse.Namespace) -> int:
     """Show how one number of a results table was derived, re-derive it from the raw data and compare.
 
@@ -65,6 +97,7 @@ def _raw_check(args: argparse.Namespace) -> int:
 #: One line of help per command (``--help`` lists them).
 COMMANDS = {
     "export-virtual": "write a simulated campaign in the raw campaign format",
+    "init-campaign": "draft a folder's campaign.yaml from its CSV files; --check a folder against it",
     "trace": "audit one number: its derivation, re-derived from the raw data",
     "raw-check": "check that the raw files a processed campaign read are unchanged",
 }
@@ -90,6 +123,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--name", help="campaign id written to campaign.yaml; must equal the --out folder name "
                                   "(default: that folder name)")
     p.set_defaults(func=_export_virtual)
+
+    p = sub.add_parser("init-campaign", help=COMMANDS["init-campaign"],
+                       description=inspect.cleandoc(_init_campaign.__doc__),
+                       formatter_class=argparse.RawDescriptionHelpFormatter,
+                       epilog="examples:\n"
+                              "  init-campaign data/raw/bench2          draft data/raw/bench2/campaign.yaml\n"
+                              "  init-campaign data/raw/bench2 --force  replace an existing draft\n"
+                              "  init-campaign data/raw/bench2 --check  compare the files with their manifest")
+    p.add_argument("folder", help="campaign folder holding the case CSV files, e.g. data/raw/<campaign>")
+    p.add_argument("--force", action="store_true", help="replace an existing campaign.yaml")
+    p.add_argument("--check", action="store_true",
+                   help="do not draft: check the folder's files against its existing campaign.yaml")
+    p.set_defaults(func=_init_campaign)
 
     p = sub.add_parser("trace", help=COMMANDS["trace"],
                        description=inspect.cleandoc(_trace.__doc__),

@@ -102,6 +102,31 @@ def current_lineage() -> Mapping | None:
     return _RECORD.get()
 
 
+#: Vector formats a figure may also be written in, beside its PNG (config ``figures.vector_format``).
+VECTOR_FORMATS = ("svg", "pdf")
+_VECTOR: contextvars.ContextVar[str | None] = contextvars.ContextVar("isokinetic_vector_format", default=None)
+
+
+@contextmanager
+def vector_figures(vector_format: str | None) -> Iterator[str | None]:
+    """Within the block every figure saved as a PNG (:func:`write_png`'s callers, through
+    :func:`isokinetic.plots.style.save_figure`) is also written as ``vector_format`` (``svg`` or ``pdf``)
+    beside it; None or ``none``: PNG only. A job enters it with its rule's ``vector_format`` param."""
+    fmt = None if vector_format in (None, "none") else str(vector_format)
+    if fmt is not None and fmt not in VECTOR_FORMATS:
+        raise ValueError(f"vector format {vector_format!r}: expected one of none, {', '.join(VECTOR_FORMATS)}")
+    token = _VECTOR.set(fmt)
+    try:
+        yield fmt
+    finally:
+        _VECTOR.reset(token)
+
+
+def current_vector_format() -> str | None:
+    """The format of the enclosing :func:`vector_figures` block (None outside one)."""
+    return _VECTOR.get()
+
+
 # ----------------------------------------------------------------------------------------------
 # atomic writes
 # ----------------------------------------------------------------------------------------------
@@ -199,6 +224,24 @@ def write_png(fig, path: str | os.PathLike, *, dpi: float, metadata: Mapping[str
         meta[LINEAGE_KEY] = canonical_json(record)
     return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=dpi, metadata=meta,
                                                       pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL}))
+
+
+def write_vector(fig, path: str | os.PathLike, vector_format: str) -> Path:
+    """Write a matplotlib figure as SVG or PDF atomically, byte for byte reproducible: no date, no software
+    stamp, fixed SVG element ids; the current lineage record in the document's description (SVG
+    ``Description``, PDF ``Subject``)."""
+    import matplotlib  # only where a figure is written
+
+    record = current_lineage()
+    lineage = None if record is None else canonical_json(record)
+    if vector_format == "svg":
+        meta = {"Date": None, "Creator": None, "Description": lineage}
+    elif vector_format == "pdf":
+        meta = {"CreationDate": None, "ModDate": None, "Creator": None, "Producer": None, "Subject": lineage}
+    else:
+        raise ValueError(f"vector format {vector_format!r}: expected one of {', '.join(VECTOR_FORMATS)}")
+    with matplotlib.rc_context({"svg.hashsalt": "isokinetic", "svg.fonttype": "path"}):
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, format=vector_format, metadata=meta))
 
 
 def write_text(text: str, path: str | os.PathLike) -> Path:

@@ -13,8 +13,10 @@ Entering the block sends the package's log records to the job's log file ``snake
 sha256 of every input). Inside the block every Parquet, JSON and PNG file the package writes
 carries that record as it is written (:func:`isokinetic.io.lineage_context`), no output is read
 back or rewritten afterwards, and no file is hashed twice (:func:`isokinetic.io.hash_once`: a stage
-that hashes an input again, as ingest does its raw files, reuses the record's hash). Leaving the
-block closes the log file.
+that hashes an input again, as ingest does its raw files, reuses the record's hash). A rule with a
+``vector_format`` param (``svg`` or ``pdf``; config ``figures.vector_format``) has every figure also
+written in that format beside its PNG (:func:`isokinetic.io.vector_figures`). Leaving the block closes
+the log file.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 from isokinetic.audit.lineage import from_snakemake
-from isokinetic.io import hash_once, lineage_context
+from isokinetic.io import hash_once, lineage_context, vector_figures
 
 LOGGER_NAME = "isokinetic"
 LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
@@ -70,7 +72,7 @@ def job(smk) -> Iterator[Job]:
     try:
         with hash_once():
             record = from_snakemake(smk)
-            with lineage_context(record):
+            with lineage_context(record), vector_figures(getattr(smk.params, "vector_format", None)):
                 yield Job(log=log, lineage=record)
     finally:
         _drop_handlers(log)

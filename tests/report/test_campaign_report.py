@@ -42,6 +42,14 @@ def test_campaign_page_embeds_every_figure_and_nothing_external(built):
     assert "<style>" in page and 'data-images-total' in page
 
 
+def test_a_figure_with_a_vector_copy_links_it_beside_its_caption(results):
+    root = build_campaign(results)
+    (root / "figures" / "fig09_characteristic.svg").write_text("<svg/>", encoding="utf-8")
+    page = render_campaign_report(root)
+    assert page.count(" download>SVG</a>") == 1 and '<a href="figures/fig09_characteristic.svg" download>' in page
+    assert "PDF</a>" not in page
+
+
 def test_campaign_page_shows_the_numbers(built):
     root = built / CAMPAIGN
     text = plain((root / "report.html").read_text(encoding="utf-8"))
@@ -133,10 +141,11 @@ def test_cases_table_shows_the_delay_of_each_case(built):
     for r in table.split("<tr")[2:]:
         cells = [plain(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", r)]
         rows[cells[0]] = cells
-    # case, waveform, status, samples, motion start [s], delay [ms], speed / planned, motion rms [um], quality
-    assert rows["T02"][4:] == ["7.3234", "23.4", "0.9987", "1.20", TIME_NOTE]
-    assert rows["T01"][4:] == ["0", "0", "1.000", "1.00", "ok"]
-    assert rows["T04"][2:] == ["quarantined", "0", "-", "-", "-", "-", "quarantined"]
+    # case, waveform, status, samples, motion start [s], delay [ms], speed / planned, motion rms [um],
+    # temperature [C], T span [K], T from, quality (the fixture's cases carry no temperature)
+    assert rows["T02"][4:] == ["7.3234", "23.4", "0.9987", "1.20", "-", "-", "-", TIME_NOTE]
+    assert rows["T01"][4:] == ["0", "0", "1.000", "1.00", "-", "-", "-", "ok"]
+    assert rows["T04"][2:] == ["quarantined", "0", "-", "-", "-", "-", "-", "-", "-", "quarantined"]
     assert 'class="warned"' in table
     cell = next(c for c in parse(page).cells if "cases.parquet [case=T02]" in c["title"] and "delay_s" in c["title"])
     assert "audit: python -m isokinetic trace results/demo/cases.parquet case=T02" in cell["title"]

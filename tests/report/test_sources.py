@@ -19,10 +19,11 @@ STAGES = {"ingest/campaign.json": ("ingest or virtual_rig", "ingest or virtual_r
           "design/plan_check.parquet": ("design", "analysis"), "models/models.parquet": ("models", "analysis"),
           "models/comparison.parquet": ("models", "analysis"), "harmonic/harmonic.parquet": ("harmonic", "analysis"),
           "diagnosis.json": ("diagnosis", "diagnosis"), "scores.parquet": ("blind_score", "blind_score"),
-          "summary.json": ("blind_score", "blind_score"), "provenance.json": ("provenance", "campaign_report")}
+          "summary.json": ("blind_score", "blind_score"), "provenance.json": ("provenance", "campaign_report"),
+          "compare.parquet": ("compare", "compare"), "compare.json": ("compare", "compare")}
 SIBLINGS = {"figures": "design/plan_check.parquet", "models": "models/models.parquet",
             "harmonic": "harmonic/harmonic.parquet", "design": "design/plan_check.parquet",
-            "diagnosis": "diagnosis.json", "blind_score": "scores.parquet"}
+            "diagnosis": "diagnosis.json", "blind_score": "scores.parquet", "compare": "compare.parquet"}
 
 
 def test_rule_and_sibling_of_every_file_the_pages_read():
@@ -32,7 +33,8 @@ def test_rule_and_sibling_of_every_file_the_pages_read():
         assert (stage_of(fig.path), rule_of(fig.path)) == (fig.stage, stage_rule(fig.stage)), fig
         assert sibling_table(fig.path) == SIBLINGS[fig.stage], fig
     assert [Path(f.path).name for f in CAMPAIGN_FIGURES] == browser.campaign_figure_files()
-    assert len(CAMPAIGN_FIGURES) == 12 and [f.section for f in FIGURES if f not in CAMPAIGN_FIGURES] == ["blind"]
+    assert len(CAMPAIGN_FIGURES) == 13 and [f.section for f in FIGURES if f not in CAMPAIGN_FIGURES] == [
+        "blind", "compare", "compare"]
 
 
 def test_trace_command_audits_one_row():

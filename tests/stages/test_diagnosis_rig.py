@@ -8,6 +8,7 @@ The rig shares no code with the diagnosis' model; its campaigns go through the r
 import json
 
 import pytest
+import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -88,3 +89,39 @@ def test_every_accepted_campaign_gets_a_valid_diagnosis_json(tmp_path, friction,
     validate_diagnosis(written)
     assert written["status"] in ("ok", "not_diagnosed"), written.get("reason")  # "failed" would hide a bug here
     assert written == json.loads(json.dumps(result))
+
+
+# a campaign whose oil warms from 36 to 60 C case by case (the viscosity halves): the reference rig's oil follows
+# Vogel's law, the manifest gives a Walther law through two rounded datasheet points and the channel is in K
+WARMING = rrc.OilTemperature((36.0, 40.0, 44.0, 48.0, 52.0, 56.0, 60.0))
+WARM_PLAN = PLAN + [(0.04, 80.0), (0.5, 20.0)]
+
+
+def diagnose_warming(tmp_path, name: str, law: bool = True, effects=rr.NOMINAL_EFFECTS) -> dict:
+    raw = tmp_path / "raw" / name
+    rrc.write_campaign(raw, rig_cases(WARM_PLAN), rr.TABLE1, effects, rr.RigImperfections(**QUIET), 5,
+                       write_phase=False, oil=WARMING)
+    if not law:
+        manifest = yaml.safe_load((raw / "campaign.yaml").read_text(encoding="utf-8"))
+        del manifest["damper"]["viscosity_law"]
+        (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    return diagnose_raw_campaign(raw, tmp_path / "work")
+
+
+def test_a_warming_campaign_with_its_viscosity_law_is_explained_by_the_nominal_model(tmp_path):
+    result = diagnose_warming(tmp_path, "warming")
+    assert result["verdict"] == [] and result["explained"] is True
+
+
+def test_without_its_viscosity_law_the_warming_is_not_taken_for_the_nominal_damper(tmp_path):
+    # the control: the same records read at one viscosity are far from the nominal model
+    with_law = diagnose_warming(tmp_path, "warming")
+    without = diagnose_warming(tmp_path, "warming-nolaw", law=False)
+    assert without["gap_before"] > 20 * with_law["gap_before"]
+    assert without["verdict"] != [] or without["explained"] is False
+
+
+def test_oil_more_viscous_than_its_law_is_found_as_viscosity_at_the_case_temperatures(tmp_path):
+    result = diagnose_warming(tmp_path, "thick", effects=rr.TrueEffects(viscosity_Pa_s=0.036))
+    assert "viscosity" in result["verdict"]
+    assert result["params"]["viscosity_Pa_s"] == pytest.approx(0.036, rel=0.05)

@@ -48,7 +48,7 @@ def test_write_campaign_figures_with_one_triangle_case(tmp_path):
     root = tmp_path / "results" / "thin"
     write_campaign(root, cases, series, windows, char, cases_at_root=True)
     paths = figures.write_campaign_figures(root, tmp_path / "fig")
-    assert len(paths) == 6 and all(p.stat().st_size > 5_000 for p in paths)
+    assert len(paths) == len(figures.FIGURE_FILES) == 7 and all(p.stat().st_size > 5_000 for p in paths)
 
 
 def test_write_campaign_figures_with_no_ok_triangle_case(tmp_path):

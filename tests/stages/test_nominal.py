@@ -59,6 +59,17 @@ def test_fast_short_case_falls_below_eq31():
     assert np.all(out["force_std_N"] > 1e-3 * np.abs(out["force_N"]))   # still drifting in the window
 
 
+def test_each_case_at_its_own_viscosity_follows_eq31_at_that_viscosity():
+    # two converged cases, one at the damper's viscosity, one with the oil at 0.4 of it (a warm case)
+    cases = cases_table([tri("T01", 1.0e-4, 80.0), tri("T02", 1.0e-4, 80.0)])
+    out = model_windows("unit", cases, TABLE1, viscosity_scales={"T02": 0.4})
+    thin = dm.Damper(**{**TABLE1.to_dict(), "viscosity_Pa_s": 0.4 * TABLE1.viscosity_Pa_s})
+    for case, damper in (("T01", TABLE1), ("T02", thin)):
+        w = out[out["case"] == case]
+        eq31 = dm.nominal_force(w["velocity_m_s"].to_numpy(), damper)
+        np.testing.assert_allclose(w["force_N"].to_numpy(), eq31, rtol=1e-4)
+
+
 # ------------------------------------------------------- same as the rig's independent path
 
 EFFECTS = dm.Effects(coulomb_force_N=60.0, leakage_conductance_m3_s_Pa=1e-12, asymmetry=0.08,

@@ -113,3 +113,17 @@ def test_bad_config_key_is_named(project, tmp_path):
     proc = snakemake(project, "-n", "--configfile", str(path), check=False)
     assert proc.returncode != 0
     assert "['windows']['end_fraction']" in proc.stdout + proc.stderr
+
+
+def test_vector_format_writes_an_svg_beside_every_figure_of_the_jobs_that_draw(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    vector = ["--config", "figures={vector_format: svg}"]
+    planned = snakemake(work, "-n", *vector).stdout
+    jobs = [block.split(":", 1)[0] for block in planned.split("\nrule ")[1:]]
+    # only the jobs that draw rerun (their outputs grew), and the pages that show their figures
+    assert set(jobs) - {"all", "report_index", "campaign_report"} == {"analysis", "diagnosis"}, jobs
+    snakemake(work, "results/tiny/figures/fig09_characteristic.svg", *vector)
+    figures = work / "results" / "tiny" / "figures"
+    pngs = sorted(p.stem for p in figures.glob("*.png"))
+    assert pngs and sorted(p.stem for p in figures.glob("*.svg")) == pngs
+    assert (figures / "fig09_characteristic.svg").read_bytes().startswith(b"<?xml")

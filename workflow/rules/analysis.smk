@@ -25,5 +25,6 @@ rule analysis:
         min_amplitude_m=config["design"]["min_amplitude_mm"] * 1e-3,
         start_fraction=config["windows"]["start_fraction"],
         end_fraction=config["windows"]["end_fraction"],
+        vector_format=VECTOR_FORMAT,
     script:
         "../scripts/analysis.py"

@@ -67,5 +67,7 @@ rule blind_score:
         benchmark_path("blind_score", BLIND_DIR)
     resources:
         **rule_resources("blind_score"),
+    params:
+        vector_format=VECTOR_FORMAT,
     script:
         "../scripts/blind_score.py"

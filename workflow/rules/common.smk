@@ -14,9 +14,11 @@ from isokinetic.contracts.outputs import (
     BLIND_DIR,
     CAMPAIGN_ID,
     CAMPAIGN_ID_PATTERN,
+    COMPARE_DIR,
     FIGURES,
     RESULTS_DIR,
     campaign_path,
+    comparison_folder,
     is_folder,
     rule_figures,
     rule_outputs_of,
@@ -99,10 +101,14 @@ def raw_files(wildcards):
     return sorted(str(p) for p in folder.iterdir() if p.is_file())
 
 
+#: Every figure is also written in this vector format beside its PNG (config figures.vector_format).
+VECTOR_FORMAT = (config.get("figures") or {}).get("vector_format", "none")
+
+
 def rule_outputs(rule, campaign="{campaign}"):
     """Name -> output of a rule's job (all its stages'), from isokinetic.contracts.outputs: a folder as
     directory(), figures as report items with their caption (one figure is named 'figure', several are
-    the list 'figures')."""
+    the list 'figures'), and their vector copies as the list 'vectors' (config figures.vector_format)."""
     out = {}
     for name, path in rule_outputs_of(rule).items():
         out[name] = directory(campaign_path(campaign, path)) if is_folder(path) else campaign_path(campaign, path)
@@ -112,6 +118,10 @@ def rule_outputs(rule, campaign="{campaign}"):
         out["figure"] = figures[0]
     elif figures:
         out["figures"] = figures
+    if figures and VECTOR_FORMAT != "none":
+        out["vectors"] = [
+            campaign_path(campaign, str(Path(f.path).with_suffix(f".{VECTOR_FORMAT}"))) for f in rule_figures(rule)
+        ]
     return out
 
 
@@ -208,12 +218,65 @@ def blind_chunk(wildcards):
     return BLIND_NAMES[int(wildcards.chunk) :: BLIND_CHUNKS]
 
 
+COMPARISONS = config.get("comparisons") or {}
+
+
+def check_comparisons(comparisons, campaigns):
+    """Each comparison names campaigns this build has (virtual_campaigns keys and raw folders)."""
+    for name, spec in comparisons.items():
+        for campaign in spec["campaigns"]:
+            if campaign not in campaigns:
+                raise WorkflowError(
+                    f"config 'comparisons': comparison {name!r} names campaign {campaign!r}, which is neither "
+                    f"a key of 'virtual_campaigns' nor a raw campaign folder in {RAW_DIR}/ "
+                    f"(campaigns: {', '.join(campaigns) or 'none'})"
+                )
+
+
+check_comparisons(COMPARISONS, CAMPAIGNS)
+if COMPARISONS and COMPARE_DIR in CAMPAIGNS:
+    raise WorkflowError(
+        f"a campaign named {COMPARE_DIR!r} would share results/{COMPARE_DIR}/ with the comparisons; rename it"
+    )
+
+
+def comparison_settings(name):
+    """The settings a comparison gives beyond its campaigns (description, alpha, model,
+    velocity_tolerance); the others take isokinetic.stages.compare.CompareSpec's defaults."""
+    return {key: value for key, value in COMPARISONS[name].items() if key != "campaigns"}
+
+
+def comparison_inputs(wildcards):
+    """The characteristic and fitted models of every campaign of a comparison, in its order."""
+    campaigns = COMPARISONS[wildcards.comparison]["campaigns"]
+    return {
+        "characteristics": [output_path("characteristic", "characteristic", c) for c in campaigns],
+        "models": [output_path("analysis", "models", c) for c in campaigns],
+    }
+
+
+def comparison_outputs(name):
+    """Everything a comparison's job writes: table, CSV, summary, Fig. 18-19, page."""
+    folder = comparison_folder(name)
+    return [campaign_path(folder, p) for p in rule_outputs_of("compare").values()] + figure_paths("compare", folder)
+
+
+def comparison_pages():
+    """results/compare/<name>/report.html of every comparison (the index links them)."""
+    return [output_path("compare", "page", comparison_folder(name)) for name in COMPARISONS]
+
+
 def all_outputs():
     """Every result of the workflow: each campaign's outputs, provenance and page, the index and the
-    plan-check summary, the blind suite."""
-    return (
+    plan-check summary, the blind suite, the comparisons; and each figure's vector copy when the config
+    asks for one (figures.vector_format)."""
+    outputs = (
         [DESIGN_SUMMARY, "results/index.html"]
         + [path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]
         + [output_path("campaign_report", name, campaign) for campaign in CAMPAIGNS for name in ("provenance", "page")]
         + (BLIND_OUTPUTS if BLIND else [])
+        + [path for name in COMPARISONS for path in comparison_outputs(name)]
     )
+    if VECTOR_FORMAT == "none":
+        return outputs
+    return outputs + [str(Path(p).with_suffix(f".{VECTOR_FORMAT}")) for p in map(str, outputs) if p.endswith(".png")]

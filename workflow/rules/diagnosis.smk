@@ -16,5 +16,6 @@ rule diagnosis:
     params:
         start_fraction=config["windows"]["start_fraction"],
         end_fraction=config["windows"]["end_fraction"],
+        vector_format=VECTOR_FORMAT,
     script:
         "../scripts/diagnosis.py"

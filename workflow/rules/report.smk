@@ -1,8 +1,8 @@
 # Reports for people: one self-contained HTML page per campaign (figures embedded, no server, no
 # network), with the campaign's provenance record written first in the same job, and
-# results/index.html over all campaigns and the blind suite, with every campaign's plan check in one
-# table. Every number on the pages names its source file, rule, commit and parameters
-# (isokinetic.report).
+# results/index.html over all campaigns, the blind suite and the comparisons (their pages are written
+# by rule compare), with every campaign's plan check in one table. Every number on the pages names its
+# source file, rule, commit and parameters (isokinetic.report).
 
 
 rule campaign_report:
@@ -15,7 +15,7 @@ rule campaign_report:
         cases="results/{campaign}/cases.parquet",
         comparison=output_path("analysis", "comparison"),
         plan_check=output_path("analysis", "plan_check"),
-        captions=[f.caption for f in FIGURES if f.stage != "blind_score"],
+        captions=[f.caption for f in FIGURES if f.stage not in ("blind_score", "compare")],
     output:
         **rule_outputs("campaign_report"),
     log:
@@ -32,12 +32,14 @@ rule campaign_report:
 
 rule report_index:
     """results/index.html: every campaign's verdict and key numbers, linked to its page; the blind
-    suite; and results/design/plan_check.parquet, every campaign's plan check in one table."""
+    suite; each comparison, linked to its page; and results/design/plan_check.parquet, every
+    campaign's plan check in one table."""
     input:
         reports=expand("results/{campaign}/report.html", campaign=CAMPAIGNS),
         diagnoses=expand("results/{campaign}/diagnosis.json", campaign=CAMPAIGNS),
         plan_checks=expand(output_path("analysis", "plan_check"), campaign=CAMPAIGNS),
         blind=BLIND_OUTPUTS if config.get("blind") else [],
+        comparisons=comparison_pages(),
         captions=[f.caption for f in rule_figures("blind_score")],
     output:
         index="results/index.html",
@@ -51,5 +53,6 @@ rule report_index:
     params:
         campaigns=CAMPAIGNS,
         blind_dir=lambda wildcards, input: str(Path(input.blind[0]).parent) if input.blind else None,
+        comparisons=list(COMPARISONS),
     script:
         "../scripts/report_index.py"

@@ -1,5 +1,5 @@
-"""Rule report_index: results/index.html over every campaign and the blind suite, and every campaign's
-plan check in one table (results/design/plan_check.parquet)."""
+"""Rule report_index: results/index.html over every campaign, the comparisons and the blind suite, and every
+campaign's plan check in one table (results/design/plan_check.parquet)."""
 from pathlib import Path
 
 from isokinetic.job import job
@@ -12,5 +12,6 @@ with job(snakemake) as j:
                int(summary["flagged"].sum()))
     out = Path(snakemake.output.index)
     write_index(out.parent, out, list(snakemake.params.campaigns), blind_dir=snakemake.params.blind_dir,
-                captions_dir=Path(snakemake.input.captions[0]).parent, lineage_record=j.lineage)
+                captions_dir=Path(snakemake.input.captions[0]).parent, lineage_record=j.lineage,
+                comparisons=list(snakemake.params.comparisons))
     j.log.info("wrote %s (%d bytes) over %d campaigns", out, out.stat().st_size, len(snakemake.params.campaigns))

@@ -23,7 +23,7 @@ import pandas as pd
 from isokinetic.audit.provenance import VIRTUAL_PREFIX
 from isokinetic.audit.trace_core import Context, MissingFile, RawFileChanged, TraceStop, read_lineage, sha_text
 from isokinetic.contracts.campaign import write_ingested
-from isokinetic.contracts.manifest import MANIFEST_NAME, UNITS, load_manifest
+from isokinetic.contracts.manifest import MANIFEST_NAME, UNIT_OFFSETS, UNITS, load_manifest
 from isokinetic.io import sha256_file
 from isokinetic.stages.ingest import CANONICAL, campaign_meta, ingest_case
 from isokinetic.stages.validate import quarantine_frame, quarantine_rows, write_validated
@@ -170,7 +170,8 @@ def rebuild(ctx: Context, src: RawSource, cases: Sequence[str] | None = None,
             spec = specs.get(case)
             if spec is None:
                 raise RawFileChanged(f"case {case} is no longer in {ctx.rel(src.manifest_path)}")
-            row, problems, df = ingest_case(src.campaign_dir, src.manifest.campaign, spec)
+            row, problems, df = ingest_case(src.campaign_dir, src.manifest.campaign, spec,
+                                            src.manifest.temperature_C)
             rec = src.recorded_row(case)
             if rec is not None and rec["raw_file"] and row["raw_file"] and \
                     ctx.resolve(str(rec["raw_file"])).resolve() == Path(row["raw_file"]).resolve():
@@ -271,6 +272,9 @@ def column_mapping(src: RawSource, case: str) -> list[str]:
     for ch, col in spec.columns.items():
         factor = UNITS[ch][col.unit]
         how = "ISO 8601 -> seconds from the first sample" if factor is None else f"x {factor:g}"
-        out.append(f"{col.name} [{col.unit}] {how}{' x (-1) (invert)' if col.invert else ''} -> {CANONICAL[ch]}")
+        offset = UNIT_OFFSETS.get((ch, col.unit))
+        how += f" {offset:+g}" if offset else ""
+        invert = " x (-1) (invert)" if col.invert and ch != "temperature" else ""
+        out.append(f"{col.name} [{col.unit}] {how}{invert} -> {CANONICAL[ch]}")
     return out
 

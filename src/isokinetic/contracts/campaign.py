@@ -23,6 +23,7 @@ from isokinetic.contracts import tables
 from isokinetic.io import write_json, write_parquet
 from isokinetic.physics.damper import Damper
 from isokinetic.physics.plan import CasePlan
+from isokinetic.physics.viscosity import ViscosityLaw, case_viscosity_scales, law_from_mapping
 
 #: Keys of campaign.json; ``damper`` is a dict of Damper fields or None.
 CAMPAIGN_KEYS = ("format_version", "campaign", "source", "description", "temperature_C",
@@ -60,6 +61,27 @@ def case_plan(row) -> CasePlan:
                     amplitude_m=float(row["amplitude_m"]), period_s=float(row["period_s"]),
                     frequency_Hz=float(row["frequency_Hz"]), phase_rad=float(row["phase_rad"]),
                     duration_s=float(row["duration_s"]))
+
+
+def viscosity_law(meta: dict) -> ViscosityLaw | None:
+    """The oil's viscosity-temperature law of a campaign.json (``viscosity_law``, format 1.1), None without one
+    or without a damper block (the law's kinematic form needs the damper's density)."""
+    block, damper = meta.get("viscosity_law"), meta.get("damper")
+    if not block or not damper:
+        return None
+    return law_from_mapping(block, float(damper["density_kg_m3"]))
+
+
+def viscosity_scales(meta: dict, cases: pd.DataFrame) -> dict[str, float]:
+    """case -> μ(T_case) / damper.viscosity_Pa_s for a campaign with a viscosity law and case temperatures
+    (``temperature_C`` of cases.parquet); empty when either is missing (every case at the damper block's
+    viscosity). :func:`isokinetic.physics.viscosity.case_viscosity_scales`."""
+    law = viscosity_law(meta)
+    if law is None or "temperature_C" not in cases or cases.empty:
+        return {}
+    scales = case_viscosity_scales(cases["temperature_C"].to_numpy(float), law,
+                                   float(meta["damper"]["viscosity_Pa_s"]))
+    return dict(zip(cases["case"].astype(str), scales.tolist(), strict=True))
 
 
 def write_ingested(ingest_dir: str | Path, meta: dict, cases: pd.DataFrame, quarantine: pd.DataFrame,

@@ -21,7 +21,9 @@ YAML is turned into Python objects (:func:`check_yaml_events` walks the parser's
   absolute path, drive letter, NUL), or a symlink whose target lies outside the campaign folder;
 * sizes that make no physical sense or would allocate gigabytes (:data:`BOUNDS`, per key, and
   :data:`MAX_PLANNED_SAMPLES` samples per planned record; at most :data:`MAX_CASES` cases);
-* a ``csv`` block (format 1.1) that is not one of the dialects ingest can read (:func:`csv_dialect`).
+* a ``csv`` block (format 1.1) that is not one of the dialects ingest can read (:func:`csv_dialect`);
+* a ``damper.viscosity_law`` (format 1.1) that is not a valid law (:func:`viscosity_law`), a campaign
+  ``temperature_C`` outside :data:`TEMPERATURE_RANGE_C` (a case's is that case's problem).
 
 Keys the spec does not define are kept in ``metadata``, mirroring the manifest's structure
 (top-level keys, unknown ``columns`` channels, extra ``damper`` keys, per-case keys under
@@ -41,6 +43,7 @@ import yaml
 
 from isokinetic.physics.damper import Damper
 from isokinetic.physics.plan import WAVEFORMS, CasePlan
+from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
 from isokinetic.stages.validate import Problem
 
 FORMAT_VERSION = 1
@@ -59,14 +62,20 @@ UNITS: dict[str, dict[str, float | None]] = {
     "displacement": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
     "force": {"N": 1.0, "kN": 1e3},
     "command": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
+    "temperature": {"C": 1.0, "K": 1.0},   # (1.1) oil or body temperature; kept in C (UNIT_OFFSETS)
 }
+#: (channel, unit) -> offset added after the factor: the temperature channel is kept in degrees Celsius.
+UNIT_OFFSETS = {("temperature", "K"): -273.15}
+#: Plausible temperatures of a damper under test [C] (cold tests to beyond any oil's flash point); a value
+#: outside is a unit error: any temperature above -73 C written in K and declared as C lies above it.
+TEMPERATURE_RANGE_C = (-60.0, 200.0)
 CHANNELS = tuple(UNITS)
 REQUIRED_CHANNELS = ("time", "displacement", "force")
 
 TOP_KEYS = frozenset({"format_version", "campaign", "description", "source", "temperature_C",
                       "sample_rate_Hz", "columns", "damper", "cases", "gas_force_N", "csv"})
 CASE_KEYS = frozenset({"id", "waveform", "file", "sample_rate_Hz", "columns", "period_s",
-                       "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s"})
+                       "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s", "temperature_C"})
 COLUMN_KEYS = ("name", "unit", "invert")
 DEFAULT_TRIANGLE_PHASE_RAD = -math.pi / 2
 
@@ -148,6 +157,7 @@ class CaseSpec:
     problems: tuple[Problem, ...] = ()
     gas_force_N: float | None = None  # the campaign's gas_force_N (1.1), subtracted from the force at ingest
     csv: CsvDialect | None = None    # the campaign's csv block (1.1); None: none declared, ',' and '.'
+    temperature_C: float | None = None  # the case's temperature_C (1.1); None: not given on the case
 
     @property
     def id(self) -> str:
@@ -180,6 +190,8 @@ class Manifest:
     #: The case files' dialect (format 1.1 ``csv`` block); None when the manifest declares none: the
     #: format's ',' between fields and '.' as the decimal mark, read exactly as before 1.1.
     csv: CsvDialect | None = None
+    #: The oil's viscosity-temperature law (format 1.1 ``damper.viscosity_law``); None when not given.
+    viscosity_law: ViscosityLaw | None = None
 
 
 def number(value) -> float | None:
@@ -400,7 +412,34 @@ def _damper(block, where: str) -> tuple[Damper | None, dict]:
         if value is None or value <= 0:
             raise ManifestError(where, f"damper.{f.name}", f"must be a positive number, got {block[f.name]!r}")
         values[f.name] = value
-    return Damper.from_mapping(values), {k: v for k, v in block.items() if k not in values}
+    return Damper.from_mapping(values), {k: v for k, v in block.items() if k not in values and k != "viscosity_law"}
+
+
+def viscosity_law(block, damper: Damper | None, where: str) -> ViscosityLaw | None:
+    """The optional ``damper.viscosity_law`` (format 1.1), e.g. ``{kind: walther, points: [[40.0, 0.030],
+    [100.0, 0.006]]}`` ([C, Pa s]; :mod:`isokinetic.physics.viscosity`); a malformed law refuses the campaign,
+    naming the key."""
+    if not isinstance(block, Mapping) or block.get("viscosity_law") is None:
+        return None
+    try:
+        return law_from_mapping(dict(block["viscosity_law"]) if isinstance(block["viscosity_law"], Mapping)
+                                else block["viscosity_law"], damper.density_kg_m3)
+    except ValueError as exc:
+        raise ManifestError(where, "damper.viscosity_law", str(exc)) from None
+
+
+def temperature_value(value, key: str) -> tuple[float | None, Problem | None]:
+    """A temperature [C] within :data:`TEMPERATURE_RANGE_C`, or the problem (None and None when absent)."""
+    if value is None:
+        return None, None
+    out = number(value)
+    lo, hi = TEMPERATURE_RANGE_C
+    if out is None:
+        return None, Problem(key, f"must be a number (C), got {value!r}", kind="key")
+    if not lo <= out <= hi:
+        return None, Problem(key, f"{out:g} C lies outside {lo:g}..{hi:g} C (a temperature in K written as C?)",
+                             kind="key")
+    return out, None
 
 
 def _optional(doc: Mapping, key: str, kind: type, where: str):
@@ -425,6 +464,14 @@ def _gas_force(doc: Mapping, where: str) -> float | None:
     if value is not None and abs(value) > MAX_GAS_FORCE_N:
         raise ManifestError(where, "gas_force_N", f"|{value:g}| N is above the bound {MAX_GAS_FORCE_N:g} N "
                                                   "(a unit error?)")
+    return value
+
+
+def _campaign_temperature(doc: Mapping, where: str) -> float | None:
+    """The campaign's ``temperature_C`` within :data:`TEMPERATURE_RANGE_C` (None when absent)."""
+    value, problem = temperature_value(doc.get("temperature_C"), "temperature_C")
+    if problem is not None:
+        raise ManifestError(where, "temperature_C", problem.message)
     return value
 
 
@@ -545,6 +592,9 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
         plan["frequency_Hz"] = _positive(entry, "frequency_Hz", problems)
         plan["phase_rad"] = 0.0
     duration = _positive(entry, "duration_s", problems, required=False)
+    case_temperature, problem = temperature_value(entry.get("temperature_C"), "temperature_C")
+    if problem is not None:
+        problems.append(problem)
     for key, value in (("sample_rate_Hz", rate), ("period_s", plan["period_s"]),
                        ("frequency_Hz", plan["frequency_Hz"]), ("amplitude_mm", plan["amplitude_m"] * 1e3),
                        ("duration_s", duration)):
@@ -563,7 +613,8 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
     return CaseSpec(
         plan=plan_,
         file=file, columns=columns, keys=dict(entry),
-        metadata={k: v for k, v in entry.items() if k not in CASE_KEYS}, problems=tuple(problems))
+        metadata={k: v for k, v in entry.items() if k not in CASE_KEYS}, problems=tuple(problems),
+        temperature_C=case_temperature)
 
 
 def load_manifest(path: str | Path) -> Manifest:
@@ -594,6 +645,7 @@ def load_manifest(path: str | Path) -> Manifest:
     _bounded(rate, "sample_rate_Hz", where)
     base_columns, extra_columns = _campaign_columns(doc.get("columns"), where)
     damper, extra_damper = _damper(doc.get("damper"), where)
+    law = viscosity_law(doc.get("damper"), damper, where)
     entries = doc.get("cases")
     if not isinstance(entries, list) or not entries:
         raise ManifestError(where, "cases", "missing" if entries is None else "must be a non-empty list of cases")
@@ -618,8 +670,8 @@ def load_manifest(path: str | Path) -> Manifest:
     return Manifest(
         path=where, format_version=FORMAT_VERSION, campaign=campaign,
         description=_optional(doc, "description", str, where), source=_optional(doc, "source", str, where),
-        temperature_C=_optional(doc, "temperature_C", float, where), sample_rate_Hz=rate,
-        gas_force_N=gas_force_N, csv=dialect,
+        temperature_C=_campaign_temperature(doc, where), sample_rate_Hz=rate,
+        gas_force_N=gas_force_N, csv=dialect, viscosity_law=law,
         columns={ch: _column(spec) for ch, spec in base_columns.items()}, damper=damper,
         cases=tuple(replace(c, gas_force_N=gas_force_N, csv=dialect) for c in cases), metadata=metadata,
         sha256=hashlib.sha256(data).hexdigest())

@@ -7,8 +7,8 @@ own files; a *rule* is one Snakemake job, which runs one or more stages in one P
 that always run together share a job. The one place these facts live: the workflow's rules build
 their outputs from it, the report finds its figures and the rule behind each file in it, and
 ``trace`` names the stage and rule of a file from it. Paths are relative to a campaign's folder
-``results/<campaign>/`` (or to ``results/blind/`` for the blind suite). Standard library only, so
-that building the workflow's DAG stays fast.
+``results/<campaign>/`` (or to ``results/blind/`` for the blind suite, ``results/compare/<name>/`` for
+a comparison of campaigns). Standard library only, so that building the workflow's DAG stays fast.
 """
 
 from __future__ import annotations
@@ -21,6 +21,8 @@ CAMPAIGN_ID_PATTERN = "[a-z0-9][a-z0-9_-]*"
 CAMPAIGN_ID = re.compile(CAMPAIGN_ID_PATTERN)
 RESULTS_DIR = "results"
 BLIND_DIR = "blind"
+#: Comparisons of campaigns (config ``comparisons``) are written to ``results/compare/<name>/``.
+COMPARE_DIR = "compare"
 
 
 @dataclass(frozen=True)
@@ -51,6 +53,8 @@ class Figure:
 
 #: Every figure of the pipeline, in report order.
 FIGURES = (
+    Figure("fig20_case_temperature", "figures", "figures", "cases",
+           "Fig. 20 - temperature of each case and the viscosity the models take at it"),
     Figure("fig07_time_and_loops", "figures", "figures", "characteristic",
            "Fig. 7 - time domain and displacement-force loops"),
     Figure("fig08_window_selection", "figures", "figures", "characteristic", "Fig. 8 - window selection"),
@@ -66,6 +70,10 @@ FIGURES = (
     Figure("fig06_at_diagram", "design", "design", "design", "Fig. 6 - A-T diagram of the plan"),
     Figure("fig16_gap", "diagnosis", "diagnosis", "diagnosis", "Fig. 16 - the sim-to-real gap before and after"),
     Figure("fig17_blind_confusion", "blind_score", "", "blind", "Fig. 17 - blind test: truth against verdict"),
+    Figure("fig18_compare_overlay", "compare", "", "compare",
+           "Fig. 18 - the campaigns' characteristics overlaid, with uncertainty bands"),
+    Figure("fig19_compare_difference", "compare", "", "compare",
+           "Fig. 19 - difference to the reference campaign, with its 95 % interval"),
 )
 
 
@@ -110,6 +118,8 @@ STAGE_OUTPUTS = {
     "provenance": {"provenance": "provenance.json"},
     "campaign_report": {"page": "report.html"},
     "blind_score": {"scores": "scores.parquet", "summary": "summary.json"},
+    "compare": {"table": "compare.parquet", "csv": "compare.csv", "summary": "compare.json"},
+    "compare_report": {"page": "report.html"},
 }
 
 #: The stages each per-campaign (or blind-suite) rule runs, in order, in one process. A rule's
@@ -123,6 +133,7 @@ RULE_STAGES = {
     "raw_check": ("raw_check",),
     "campaign_report": ("provenance", "campaign_report"),
     "blind_score": ("blind_score",),
+    "compare": ("compare", "compare_report"),
 }
 
 
@@ -196,3 +207,8 @@ def sibling_table(path: str) -> str | None:
 def campaign_path(campaign: str, path: str) -> str:
     """``results/<campaign>/<path>`` (``{campaign}`` keeps the Snakemake wildcard)."""
     return f"{RESULTS_DIR}/{campaign}/{path.rstrip('/')}"
+
+
+def comparison_folder(name: str) -> str:
+    """``compare/<name>``: a comparison's folder below ``results/`` (``{comparison}`` keeps the wildcard)."""
+    return f"{COMPARE_DIR}/{name}"

@@ -111,6 +111,8 @@ TIMESERIES = Schema(
         "displacement_m": Column("float64", _finite),
         "force_N": Column("float64", _finite),
         "command_m": Column("float64", _finite, required=False),
+        # (format 1.1) the manifest's temperature channel, in C
+        "temperature_C": Column("float64", _finite, required=False),
     },
     strict=False,
     name="timeseries",
@@ -146,6 +148,13 @@ CASES = Schema(
         "velocity_ratio": Column("float64", Check.ge(0), nullable=True, required=False),
         # rms departure of the measured displacement from the planned triangle at the motion start [m]
         "motion_rms_m": Column("float64", Check.ge(0), nullable=True, required=False),
+        # the case's temperature [C]: the mean of its temperature channel, else the case's temperature_C,
+        # else the campaign's (temperature_source: channel | case | campaign; NaN and '' when none is known);
+        # temperature_span_C: max - min of the channel over the record (NaN without a channel)
+        "temperature_C": Column("float64", _not_inf, nullable=True, required=False),
+        "temperature_span_C": Column("float64", Check.ge(0), nullable=True, required=False),
+        "temperature_source": Column("str", Check.isin(("channel", "case", "campaign", "")), nullable=True,
+                                     required=False),
     },
     strict=False,
     name="cases",
@@ -300,6 +309,38 @@ HARMONIC = Schema(
     },
     strict=False,
     name="harmonic",
+)
+
+#: Campaigns compared point by point (stages.compare): one row per campaign (against the reference),
+#: direction and velocity; basis 'measured' (matched points) or 'model:<name>' (both through their fit).
+_BASIS = Check("measured_or_model", fn=lambda s: s.eq("measured") | s.str.startswith("model:"))
+COMPARE = Schema(
+    {
+        "comparison": Column("str"),
+        "reference": Column("str"),
+        "campaign": Column("str"),
+        "direction": Column("str", Check.isin(DIRECTIONS)),
+        "velocity_m_s": Column("float64", _finite),
+        "basis": Column("str", _BASIS),
+        # each side: the case whose point the row uses ('' on a model row for the side it did not come from),
+        # its measured velocity, force (the campaign's moved to the reference's velocity) and standard error;
+        # the noise and repeatability parts of a measured point's SE (NaN on a model row)
+        **{f"{side}_{name}": col for side in ("reference", "campaign") for name, col in (
+            ("case", Column("str")), ("velocity_m_s", Column("float64", _finite)),
+            ("force_N", Column("float64", _finite)), ("se_N", Column("float64", Check.ge(0))),
+            ("noise_se_N", Column("float64", Check.ge(0), nullable=True)),
+            ("repeatability_se_N", Column("float64", Check.ge(0), nullable=True)))},
+        "velocity_shift_N": Column("float64", _finite),
+        "difference_N": Column("float64", _finite),
+        "difference_se_N": Column("float64", Check.gt(0)),
+        "z": Column("float64", _finite),
+        "p_value": Column("float64", [Check.ge(0), Check("at_most_1", fn=lambda s: s <= 1)]),
+        "alpha": Column("float64", Check.gt(0)),
+        "significant": Column("bool"),
+        "test": Column("str"),
+    },
+    strict=True,
+    name="compare",
 )
 
 

@@ -64,6 +64,7 @@ class Observations:
     drives: tuple[Drive | None, ...] = ()
     noise: dict = field(default_factory=dict)   # the pooled noise model(s), for the report
     speed_rel_se: np.ndarray | None = None      # relative standard error of the drive's measured speed
+    viscosity_scale: tuple[float, ...] = ()     # per plan, μ(T_case)/μ_nominal (viscosity law); empty: all 1
 
     def __len__(self) -> int:
         return int(self.force_N.size)
@@ -78,6 +79,7 @@ class Observations:
         used = sorted(set(self.case_index[keep].tolist()))
         remap = {old: new for new, old in enumerate(used)}
         plans, drives = [], []
+        scales = tuple(self.viscosity_scale[old] for old in used) if self.viscosity_scale else ()
         for old in used:
             rows = keep[self.case_index[keep] == old]
             plan = self.plans[old]
@@ -89,7 +91,7 @@ class Observations:
                                                                 "speed_m_s", "start", "stop", "force_N", "sigma_N")}
         return Observations(campaign=self.campaign, plans=tuple(plans), rep_rel=self.rep_rel,
                             case_index=np.array([remap[i] for i in self.case_index[keep]], dtype=np.int64),
-                            drives=tuple(drives) if self.drives else (), noise=self.noise,
+                            drives=tuple(drives) if self.drives else (), noise=self.noise, viscosity_scale=scales,
                             speed_rel_se=None if self.speed_rel_se is None else self.speed_rel_se[keep], **fields_)
 
 
@@ -118,6 +120,7 @@ class _Collector:
     cols: dict[str, list] = field(default_factory=lambda: {k: [] for k in COLUMNS})
     plans: list = field(default_factory=list)
     drives: list = field(default_factory=list)
+    scales: list = field(default_factory=list)           # per plan, μ(T_case)/μ_nominal
     window_samples: dict = field(default_factory=dict)   # sample rate -> steady windows' samples
     all_windows: dict = field(default_factory=dict)      # sample rate -> every window's samples
 
@@ -151,8 +154,9 @@ class _Collector:
         cols["white_se2"].append(float(np.var(fw, ddof=1)) / fw.size)
         return int(j1)
 
-    def add_case(self, rec: CaseRecord, spec: WindowSpec, n_bins: int) -> None:
-        """The window and ``n_bins`` transient bins of each half-period of one case."""
+    def add_case(self, rec: CaseRecord, spec: WindowSpec, n_bins: int, viscosity_scale: float = 1.0) -> None:
+        """The window and ``n_bins`` transient bins of each half-period of one case (modelled with the
+        viscosity times ``viscosity_scale``: the oil at the case's temperature)."""
         plan = rec.plan
         fs, half = plan.sample_rate_Hz, plan.period_s / 2.0
         last = 0
@@ -168,6 +172,7 @@ class _Collector:
             self.cols["speed_rel_se"] += [rel_se] * (len(self.cols["case"]) - before)
         self.plans.append(replace(plan, duration_s=float(rec.model_times_s[max(last - 1, 0)])))
         self.drives.append(rec.drive)
+        self.scales.append(float(viscosity_scale))
 
     def arrays(self) -> dict[str, np.ndarray]:
         return {k: np.asarray(v, dtype=np.int64 if k in _INT_COLUMNS else (object if k in _TEXT_COLUMNS else float))
@@ -192,7 +197,8 @@ def case_record(row: pd.Series, series: pd.DataFrame, win: pd.DataFrame) -> Case
 def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
                        load_series: Callable[[pd.Series], pd.DataFrame], spec: WindowSpec = WindowSpec(),
                        n_bins: int = 4, force_offset_N: float = 0.0,
-                       unsteady: frozenset = frozenset(), input_var_N2: np.ndarray | None = None) -> Observations:
+                       unsteady: frozenset = frozenset(), input_var_N2: np.ndarray | None = None,
+                       viscosity_scales: Mapping[str, float] | None = None) -> Observations:
     """Windows and transient bins of every triangle case, in plan time, with honest standard errors.
 
     Measured means are taken from the case's series over [a, b) in plan time (record time minus
@@ -202,6 +208,7 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
     windows not named (case, segment) in ``unsteady`` (the stage's ``prepare`` finds both first).
     ``input_var_N2`` adds, per observation, the variance that the measured drive speed's own error
     propagates into the model (:func:`isokinetic.diagnosis.model.drive_input_variance`).
+    ``viscosity_scales`` (case -> μ(T_case)/μ_nominal) models each case at its own temperature's viscosity.
     """
     by_case = {c: g.set_index("segment") for c, g in char.groupby("case")}
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle") & cases["case"].isin(by_case)]
@@ -210,7 +217,7 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
         series = load_series(row)
         rec = case_record(row, series, by_case[case_plan(row).case])
         if rec is not None:
-            collector.add_case(rec, spec, n_bins)
+            collector.add_case(rec, spec, n_bins, (viscosity_scales or {}).get(rec.plan.case, 1.0))
     return _observations(campaign, collector, input_var_N2)
 
 
@@ -227,7 +234,9 @@ def _observations(campaign: str, collector: _Collector, input_var_N2: np.ndarray
     rep_rel = _between_period(arrays, se2)
     sigma = np.sqrt(se2 + (rep_rel * force) ** 2)
     keep = {k: arrays[k] for k in KEPT_COLUMNS}
+    scales = tuple(collector.scales) if any(x != 1.0 for x in collector.scales) else ()
     return Observations(campaign=campaign, plans=tuple(collector.plans), drives=tuple(collector.drives),
+                        viscosity_scale=scales,
                         rep_rel=rep_rel, sigma_N=sigma, noise={**noise, "between_period_rel": rep_rel},
                         speed_rel_se=arrays["speed_rel_se"], **keep)
 

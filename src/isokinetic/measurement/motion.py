@@ -119,6 +119,18 @@ def coarse_shift(t, y, period_s: float, phase_rad: float, n: int = 101) -> float
     return float(fine[int(np.argmin(shift_misfit(tb, yb, fine, period_s, phase_rad)))])
 
 
+def line_fit(t, y) -> tuple[float, float, float, float, float]:
+    """Least-squares line through (t, y): (slope, value at the mean time, mean time, standard error of that
+    value, standard error of the slope), the residual scatter taken as the noise."""
+    tm, ym = t.mean(), y.mean()
+    tc = t - tm
+    sxx = float(tc @ tc)
+    slope = float(tc @ (y - ym) / sxx)
+    resid = y - ym - slope * tc
+    sigma = math.sqrt(float(resid @ resid) / max(t.size - 2, 1))
+    return slope, float(ym), float(tm), sigma / math.sqrt(t.size), sigma / math.sqrt(sxx)
+
+
 def line_fits(t, y, starts_s, half_s: float):
     """Least-squares lines over [0.1, 0.9]·T/2 after each start: (slope, value at mean time,
     mean time, crossing-time standard error per unit slope, samples), NaN for too few samples."""
@@ -129,13 +141,8 @@ def line_fits(t, y, starts_s, half_s: float):
     for k, (a, b) in enumerate(zip(i0, i1)):
         if b - a < MIN_LINE_SAMPLES:
             continue
-        tw, yw = t[a:b], y[a:b]
-        tm, ym = tw.mean(), yw.mean()
-        tc = tw - tm
-        slope = float(tc @ (yw - ym) / (tc @ tc))
-        resid = yw - ym - slope * tc
-        sigma = math.sqrt(float(resid @ resid) / max(b - a - 2, 1))
-        out[k] = (slope, ym, tm, sigma / math.sqrt(b - a), b - a)
+        slope, ym, tm, se_mean, _ = line_fit(t[a:b], y[a:b])
+        out[k] = (slope, ym, tm, se_mean, b - a)
     return out
 
 

@@ -422,6 +422,12 @@ def case_viscosity(damper, effects: TrueEffects, rig: RigImperfections, case_ind
     return true_viscosity(damper, effects) * (1.0 + rig.viscosity_drift_rel * frac)
 
 
+def vogel_viscosity_ratio(temperature_C, reference_C: float, b_K: float, c_K: float):
+    """mu(T) / mu(T_ref) of an oil following Vogel's law, mu = A exp(b / (T - c)), T in K."""
+    t = np.asarray(temperature_C, dtype=float) + 273.15
+    return np.exp(b_K / (t - c_K) - b_K / (reference_C + 273.15 - c_K))
+
+
 def chamber_model(damper, effects: TrueEffects = NOMINAL_EFFECTS, viscosity_Pa_s: float | None = None) -> ChamberModel:
     """Coefficients of the real damper (design + effects) at the viscosity ``viscosity_Pa_s``."""
     mu = true_viscosity(damper, effects) if viscosity_Pa_s is None else float(viscosity_Pa_s)
@@ -742,15 +748,16 @@ def integrate_pressures(case: TriangleCase, model: ChamberModel, pieces: Sequenc
 
 def true_series(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
                 rig: RigImperfections = IDEAL_RIG, case_index: int = 0, n_cases: int = 1,
-                rtol: float = 1e-10) -> pd.DataFrame:
-    """Noise-free record of one case at the sample times.
+                rtol: float = 1e-10, viscosity_ratio: float = 1.0) -> pd.DataFrame:
+    """Noise-free record of one case at the sample times; ``viscosity_ratio`` multiplies the case's
+    viscosity (the oil at this case's temperature: :func:`vogel_viscosity_ratio`).
 
     Columns: time_s, command_m (ideal, undelayed), actuator_m (x, what the LVDT sees), piston_m,
     piston_velocity_m_s, p1_Pa, p2_Pa (absolute), viscosity_Pa_s (this case, after drift),
     force_N (true load-cell force, Eq. 8; 0 in a backlash gap unless
     ``effects.backlash_gap_force == "hydraulic"``).
     """
-    mu = case_viscosity(damper, effects, rig, case_index, n_cases)
+    mu = case_viscosity(damper, effects, rig, case_index, n_cases) * float(viscosity_ratio)
     model = chamber_model(damper, effects, mu)
     _check_stroke(case, model)
     pieces = piston_pieces(case, effects, rig)

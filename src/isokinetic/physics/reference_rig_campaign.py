@@ -48,6 +48,7 @@ from isokinetic.physics.reference_rig import (
     piston_diameter_m,
     true_series,
     true_viscosity,
+    vogel_viscosity_ratio,
 )
 
 #: Isothermal compressibility of air at atmospheric pressure, Table 1 [1/Pa] (catalogue form).
@@ -118,9 +119,55 @@ def measure(truth: pd.DataFrame, case: TriangleCase, rig: RigImperfections, seed
 
 def simulate_case(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
                   rig: RigImperfections = IDEAL_RIG, seed: int = 0, case_index: int = 0,
-                  n_cases: int = 1, rtol: float = 1e-10) -> pd.DataFrame:
+                  n_cases: int = 1, rtol: float = 1e-10, viscosity_ratio: float = 1.0) -> pd.DataFrame:
     """:func:`true_series` followed by :func:`measure` (true and measured columns together)."""
-    return measure(true_series(case, damper, effects, rig, case_index, n_cases, rtol), case, rig, seed, case_index)
+    return measure(true_series(case, damper, effects, rig, case_index, n_cases, rtol, viscosity_ratio), case, rig,
+                   seed, case_index)
+
+
+@dataclasses.dataclass(frozen=True)
+class OilTemperature:
+    """A campaign whose oil warms from case to case: the truth (Vogel's law, mu = A exp(b / (T - c))) and
+    what the rig logs of it.
+
+    Case i runs at ``case_temperatures_C[i]`` with the viscosity mu_true(T_i) (mu_true holds at the
+    campaign's ``temperature_C``); the logged channel (:data:`TEMPERATURE_COLUMN`, in K) rises by
+    ``warmup_K`` over each record with white sensor noise ``sensor_noise_K``, quantised to 0.01 K. The
+    manifest's ``damper.viscosity_law`` gives two datasheet points of the truth at ``law_points_C``, the
+    viscosities rounded to three significant digits: a Walther line through them is close to, not equal
+    to, the Vogel truth between them.
+    """
+
+    case_temperatures_C: tuple[float, ...]
+    vogel_b_K: float = 977.0
+    vogel_c_K: float = 150.0
+    warmup_K: float = 0.3
+    sensor_noise_K: float = 0.05
+    law_points_C: tuple[float, float] = (40.0, 100.0)
+
+    def viscosity_ratio(self, case_index: int, temperature_C: float) -> float:
+        """mu(T_case) / mu(T_campaign)."""
+        return float(vogel_viscosity_ratio(self.case_temperatures_C[case_index], temperature_C, self.vogel_b_K,
+                                           self.vogel_c_K))
+
+    def law(self, viscosity_Pa_s: float, temperature_C: float) -> dict:
+        """The manifest's viscosity_law: two rounded points of the truth."""
+        return {"kind": "walther", "points": [
+            [float(t), _sig(viscosity_Pa_s * float(vogel_viscosity_ratio(t, temperature_C, self.vogel_b_K,
+                                                                          self.vogel_c_K)), 3)]
+            for t in self.law_points_C]}
+
+    def logged_K(self, time_s: np.ndarray, case_index: int, seed: int) -> np.ndarray:
+        """The temperature channel of case i [K]: linear warm-up plus sensor noise, quantised to 0.01 K."""
+        t = np.asarray(time_s, dtype=float)
+        span = max(float(t[-1] - t[0]), 1e-12) if t.size else 1.0
+        rise = self.warmup_K * ((t - t[0]) / span - 0.5) if t.size else t
+        noise = np.random.default_rng(np.random.SeedSequence([int(seed), int(case_index), 7])).standard_normal(t.size)
+        return quantise(self.case_temperatures_C[case_index] + 273.15 + rise + self.sensor_noise_K * noise, 0.01)
+
+
+#: CSV column of the logged oil temperature (K), written only for a campaign with an :class:`OilTemperature`.
+TEMPERATURE_COLUMN = ("oil_K", "K")
 
 
 # ---------------------------------------------------------------------------------------------
@@ -283,8 +330,9 @@ def _csv_text(header: str, columns: Sequence[tuple[np.ndarray, int]]) -> str:
 
 
 def case_csv(series: pd.DataFrame, case: TriangleCase, rig: RigImperfections, invert_force: bool = False,
-             time_offset_s: float = 0.0) -> str:
-    """CSV text of one measured case (columns :data:`EXPORT_COLUMNS`, "\\n" line ends)."""
+             time_offset_s: float = 0.0, temperature_K: np.ndarray | None = None) -> str:
+    """CSV text of one measured case (columns :data:`EXPORT_COLUMNS`, "\\n" line ends; and
+    :data:`TEMPERATURE_COLUMN` when ``temperature_K`` is given)."""
     cols = EXPORT_COLUMNS
     columns = [
         _times_ms(series["time_s"].to_numpy(), case.sample_rate_Hz, time_offset_s),
@@ -294,6 +342,9 @@ def case_csv(series: pd.DataFrame, case: TriangleCase, rig: RigImperfections, in
         _quantised(series["command_meas_m"].to_numpy(), rig.command_resolution_m, cols["command"][2]),
     ]
     header = ",".join(cols[k][0] for k in ("time", "displacement", "force", "command"))
+    if temperature_K is not None:
+        columns.append((np.rint(np.asarray(temperature_K) * 100.0) * 0.01 + 0.0, 2))
+        header += "," + TEMPERATURE_COLUMN[0]
     return _csv_text(header, columns)
 
 
@@ -303,7 +354,7 @@ def _sig(x: float, digits: int = 4) -> float:
 
 
 def campaign_manifest(campaign: str, cases: Sequence[TriangleCase], damper, description: str = "",
-                      temperature_C: float = 40.0, write_phase: bool = True) -> dict:
+                      temperature_C: float = 40.0, write_phase: bool = True, oil: OilTemperature | None = None) -> dict:
     """campaign.yaml content (raw-campaign format v1): nominal damper only, rounded numbers."""
     rates = [c.sample_rate_Hz for c in cases]
     default_rate = max(rates, key=lambda r: (rates.count(r), -rates.index(r)))
@@ -317,6 +368,11 @@ def campaign_manifest(campaign: str, cases: Sequence[TriangleCase], damper, desc
             e["sample_rate_Hz"] = float(c.sample_rate_Hz)
         e["file"] = f"{c.case_id}.csv"
         entries.append(e)
+    columns = {k: {"name": v[0], "unit": v[1]} for k, v in EXPORT_COLUMNS.items()}
+    design = {f: float(getattr(damper, f)) for f in (fl.name for fl in dataclasses.fields(DamperDesign))}
+    if oil is not None:
+        columns["temperature"] = {"name": TEMPERATURE_COLUMN[0], "unit": TEMPERATURE_COLUMN[1]}
+        design["viscosity_law"] = oil.law(damper.viscosity_Pa_s, temperature_C)
     return {
         "format_version": 1,
         "campaign": campaign,
@@ -324,8 +380,8 @@ def campaign_manifest(campaign: str, cases: Sequence[TriangleCase], damper, desc
         "source": "simulation",
         "temperature_C": float(temperature_C),
         "sample_rate_Hz": float(default_rate),
-        "columns": {k: {"name": v[0], "unit": v[1]} for k, v in EXPORT_COLUMNS.items()},
-        "damper": {f: float(getattr(damper, f)) for f in (fl.name for fl in dataclasses.fields(DamperDesign))},
+        "columns": columns,
+        "damper": design,
         "cases": entries,
     }
 
@@ -334,14 +390,16 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[TriangleCase], dam
                    effects: TrueEffects = NOMINAL_EFFECTS, rig: RigImperfections = IDEAL_RIG, seed: int = 0, *,
                    description: str = "Low-velocity mapping, triangular excitation", temperature_C: float = 40.0,
                    write_phase: bool = True, invert_force: bool = False, time_offset_s: float = 0.0,
-                   rtol: float = 1e-10) -> dict[str, pd.DataFrame]:
+                   rtol: float = 1e-10, oil: OilTemperature | None = None) -> dict[str, pd.DataFrame]:
     """Simulate ``cases`` and write ``<folder>/campaign.yaml`` plus one CSV per case.
 
     The campaign id is the folder name; the folder must be absent or empty. Only the nominal
     ``damper`` block is written, nothing about ``effects`` or ``rig``. ``invert_force`` writes
     the force with the opposite sign without declaring ``invert: true``; ``time_offset_s`` is
     added to the time column; ``write_phase`` False omits phase_rad. Case i (0-based, in order) uses noise stream
-    [seed, i] and the viscosity drift fraction i/(n-1). Same inputs -> identical bytes.
+    [seed, i] and the viscosity drift fraction i/(n-1). ``oil`` (:class:`OilTemperature`) runs case i at its
+    temperature's viscosity, logs the temperature channel and writes the law's datasheet points. Same inputs
+    -> identical bytes.
     Returns {case id: true and measured series (SI, unshifted, force in this spec's sign)}.
     """
     folder = Path(folder)
@@ -355,12 +413,16 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[TriangleCase], dam
         raise FileExistsError(f"{folder}: campaign folder exists and is not empty")
     folder.mkdir(parents=True, exist_ok=True)
     series = {}
+    if oil is not None and len(oil.case_temperatures_C) != len(cases):
+        raise ValueError(f"oil: {len(oil.case_temperatures_C)} case temperatures for {len(cases)} cases")
     for i, case in enumerate(cases):
-        s = simulate_case(case, damper, effects, rig, seed, i, len(cases), rtol)
+        ratio = 1.0 if oil is None else oil.viscosity_ratio(i, temperature_C)
+        s = simulate_case(case, damper, effects, rig, seed, i, len(cases), rtol, ratio)
         series[case.case_id] = s
+        logged = None if oil is None else oil.logged_K(s["time_s"].to_numpy(), i, seed)
         with open(folder / f"{case.case_id}.csv", "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(case_csv(s, case, rig, invert_force, time_offset_s))
-    manifest = campaign_manifest(name, cases, damper, description, temperature_C, write_phase)
+            fh.write(case_csv(s, case, rig, invert_force, time_offset_s, logged))
+    manifest = campaign_manifest(name, cases, damper, description, temperature_C, write_phase, oil)
     with open(folder / "campaign.yaml", "w", encoding="utf-8", newline="\n") as fh:
         yaml.safe_dump(manifest, fh, sort_keys=False, default_flow_style=False, allow_unicode=True, width=100)
     return series

@@ -26,7 +26,7 @@ import math
 import threading
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -357,6 +357,33 @@ def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: f
     vel = np.repeat(lay.w, lay.count)
     ends = np.cumsum([t.size for t in lay.times]).tolist()
     return [(t.copy(), dp[e - t.size:e], vel[e - t.size:e]) for t, e in zip(lay.times, ends)]
+
+
+def triangle_responses_at(cases: Sequence[CasePlan], hyds: Sequence[Hydraulics], backlash_m: float = 0.0,
+                          step: float = DEFAULT_STEP, drives: Sequence[Drive | None] | None = None
+                          ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """:func:`triangle_responses` with coefficients of its own for each case (e.g. the viscosity at the
+    case's temperature): the cases that share coefficients run in one batch, results in case order."""
+    if len(hyds) != len(cases):
+        raise ValueError(f"{len(hyds)} coefficient sets for {len(cases)} cases")
+    drives = [None] * len(cases) if drives is None else list(drives)
+    groups: dict[Hydraulics, list[int]] = {}
+    for i, hyd in enumerate(hyds):
+        groups.setdefault(hyd, []).append(i)
+    out: list = [None] * len(cases)
+    for hyd, idx in groups.items():
+        group_drives = [drives[i] for i in idx]
+        runs = triangle_responses([cases[i] for i in idx], hyd, backlash_m, step,
+                                  group_drives if any(d is not None for d in group_drives) else None)
+        for i, run in zip(idx, runs, strict=True):
+            out[i] = run
+    return out
+
+
+def scaled_viscosity(hyd: Hydraulics, scale: float) -> Hydraulics:
+    """``hyd`` with the oil's viscosity multiplied by ``scale``: c1 = 8 π μ l_O / A_O² scales with it
+    (Sec. 2.2); c2 does not hold μ."""
+    return hyd if scale == 1.0 else replace(hyd, laminar_coefficient=hyd.laminar_coefficient * scale)
 
 
 def _sine_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):

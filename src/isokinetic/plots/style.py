@@ -18,7 +18,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure  # used directly: no pyplot state, Agg canvas when saving
 from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from isokinetic.io import write_png
+from isokinetic.io import current_vector_format, write_png, write_vector
 
 #: Resolution of every PNG [dots per inch].
 DPI = 120
@@ -98,13 +98,19 @@ def lay_out(fig: Figure, dpi: float) -> None:
 def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = DPI,
                 metadata: Mapping[str, str] | None = None) -> Path:
     """Write a PNG atomically; ``metadata`` becomes PNG text chunks (matplotlib's ``savefig``), and
-    so does a pipeline job's lineage record (:func:`isokinetic.io.write_png`).
+    so does a pipeline job's lineage record (:func:`isokinetic.io.write_png`). Inside a
+    :func:`isokinetic.io.vector_figures` block the figure is also written as SVG or PDF beside the PNG
+    (same name, that suffix: :func:`isokinetic.io.write_vector`).
 
     The layout is done once (:func:`lay_out`). The software stamp is left out
     (:data:`PNG_METADATA`), so identical figures and metadata give identical bytes.
     """
     lay_out(fig, dpi)
-    return write_png(fig, path, dpi=dpi, metadata={**PNG_METADATA, **(metadata or {})})
+    out = write_png(fig, path, dpi=dpi, metadata={**PNG_METADATA, **(metadata or {})})
+    vector = current_vector_format()
+    if vector is not None:
+        write_vector(fig, Path(path).with_suffix(f".{vector}"), vector)
+    return out
 
 
 __all__ = ["DPI", "MM", "PNG_METADATA", "footnote", "force_unit", "lay_out", "new_figure", "plain_log_ticks",

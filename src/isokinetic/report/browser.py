@@ -19,11 +19,11 @@ import tempfile
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
-from isokinetic.contracts.outputs import FIGURES, figure
+from isokinetic.contracts.outputs import COMPARE_DIR, FIGURES, figure, figures_in
 from isokinetic.report.embed import png_ok
 
 #: Report sections of a campaign page that show figures (the blind suite's are on the index).
-CAMPAIGN_SECTIONS = ("characteristic", "models", "harmonic", "design", "diagnosis")
+CAMPAIGN_SECTIONS = ("cases", "characteristic", "models", "harmonic", "design", "diagnosis")
 
 _EXTERNAL = re.compile(r"""(?:src|href|action|poster|data)\s*=\s*["']?\s*(?:https?:|ftp:|//)"""
                        r"""|url\(\s*["']?\s*(?!data:)[^)'"\s]|@import""", re.IGNORECASE)
@@ -142,13 +142,16 @@ def _browser_problems(path: Path, n_figures: int) -> list[str]:
 
 
 def check_pages(results_root: str | os.PathLike, campaigns: Sequence[str], *, index: bool = True,
-                blind: bool = True, browser: bool = True) -> list[str]:
-    """Problems of the built pages (empty list: all good): each campaign's report.html (and, with
-    ``index``, index.html, which shows Fig. 17 when ``blind``) present, non-empty, self-contained,
-    every figure embedded as a PNG and, with ``browser``, decoded by headless Chromium."""
+                blind: bool = True, browser: bool = True, comparisons: Sequence[str] = ()) -> list[str]:
+    """Problems of the built pages (empty list: all good): each campaign's report.html, each comparison's
+    (``results/compare/<name>/report.html``, Fig. 18-19) and, with ``index``, index.html (which shows
+    Fig. 17 when ``blind``) present, non-empty, self-contained, every figure embedded as a PNG and, with
+    ``browser``, decoded by headless Chromium."""
     results_root = Path(results_root)
     problems = []
     pages = [(results_root / c / "report.html", campaign_figure_files()) for c in campaigns]
+    pages += [(results_root / COMPARE_DIR / name / "report.html", [Path(f.path).name for f in figures_in("compare")])
+              for name in comparisons]
     if index:
         pages.append((results_root / "index.html", [figure("fig17_blind_confusion").path] if blind else []))
     for path, figs in pages:

@@ -23,10 +23,11 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
+from isokinetic.contracts.campaign import viscosity_law
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in
 from isokinetic.io import write_text
 from isokinetic.report.cells import Col, Table, badge, kv_table, table_view
-from isokinetic.report.diagnosis_section import diagnosis_section
+from isokinetic.report.diagnosis_section import diagnosis_section, viscosity_as_temperature
 from isokinetic.report.embed import FigureView, figure_views, read_captions
 from isokinetic.report.layout import footer, render
 from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, missing, short, text, yes_no
@@ -215,6 +216,9 @@ CASE_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text,
              Col("delay_s", "delay [ms]", lambda x: fmt(x, 3), scale=1e3),
              Col("velocity_ratio", "speed / planned", lambda x: fmt(x, 4)),
              Col("motion_rms_m", "motion rms [&micro;m]", lambda x: fmt(x, 3), scale=1e6),
+             Col("temperature_C", "temperature [&deg;C]", lambda x: fmt(x, 4)),
+             Col("temperature_span_C", "T span [K]", lambda x: fmt(x, 3)),
+             Col("temperature_source", "T from", text, False),
              Col("quality", "quality", text, False)]
 
 
@@ -236,18 +240,40 @@ def _case_row_class(r: Mapping) -> str:
     return "warned" if isinstance(r.get("quality"), str) and r["quality"] != "ok" else ""
 
 
-def _cases_section(d: CampaignData) -> dict:
-    """The cases table: status, quality and the measured motion of each case (validate)."""
+def temperature_summary(meta: Mapping | None, cases: pd.DataFrame | None) -> str:
+    """What the report says about the cases' temperatures and their use by the models (format 1.1)."""
+    law = viscosity_law(meta or {})
+    known = pd.Series(dtype=float) if cases is None or "temperature_C" not in cases else \
+        pd.to_numeric(cases["temperature_C"], errors="coerce").dropna()
+    if known.empty:
+        return "No temperature is known (no temperature channel, no <code>temperature_C</code>)."
+    sources = sorted(set(cases["temperature_source"].fillna("").astype(str)) - {""}) \
+        if "temperature_source" in cases else []
+    text_ = (f"Case temperatures {fmt(known.min(), 4)} to {fmt(known.max(), 4)} &deg;C (from "
+             f"{', '.join(sources) or '?'}).")
+    if law is None:
+        return text_ + (" The manifest gives no viscosity law (<code>damper.viscosity_law</code>): the nominal model "
+                        "and the diagnosis take the damper block's viscosity for every case.")
+    mu = law.viscosity_Pa_s(known.to_numpy(float))
+    return text_ + (f" With the manifest's {law.kind} law the nominal model and the diagnosis take each case's "
+                    f"viscosity at its temperature: {fmt(1e3 * mu.min(), 3)} to {fmt(1e3 * mu.max(), 3)} mPa s.")
+
+
+def _cases_section(d: CampaignData, captions: Mapping[str, str] | None = None) -> dict:
+    """The cases table: status, quality, the measured motion (validate) and the temperature of each case."""
     src = d.sources("cases.parquet")
     if d.cases is None:
         return {"table": None, "lineage": lineage_of(src)}
     cases = d.cases.copy()
-    for column in ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m"):
+    for column in ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m", "temperature_C",
+                   "temperature_span_C"):
         if column not in cases:
-            cases[column] = np.nan      # a cases table written before the motion was measured
+            cases[column] = np.nan      # a cases table written before the motion or temperature was recorded
     if "quality" not in cases:
         cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
-    return {"table": table_view(cases, CASE_COLS, src, ["case"], row_class=_case_row_class, table_id="cases-table")}
+    return {"table": table_view(cases, CASE_COLS, src, ["case"], row_class=_case_row_class, table_id="cases-table"),
+            "temperature": Markup(temperature_summary(d.meta, d.cases)),
+            "figures": d.figures("cases", captions or {})}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -502,14 +528,25 @@ def _quarantine_section(d: CampaignData) -> dict:
                                 table_id="quarantine")}
 
 
+def _viscosity_note(d: CampaignData) -> str | None:
+    """The diagnosis' viscosity deviation as a temperature offset at the cases' median temperature."""
+    meta = d.meta or {}
+    temps = None if d.cases is None or "temperature_C" not in d.cases else \
+        pd.to_numeric(d.cases.loc[d.cases["status"] == "ok", "temperature_C"], errors="coerce").dropna()
+    reference = float(temps.median()) if temps is not None and len(temps) else meta.get("temperature_C")
+    nominal = (meta.get("damper") or {}).get("viscosity_Pa_s")
+    return viscosity_as_temperature(d.diagnosis or {}, viscosity_law(meta), reference, nominal)
+
+
 def render_campaign_report(campaign_root: str | os.PathLike, *, captions_dir: str | os.PathLike | None = None,
                            lineage_record: Mapping | None = None, index_href: str | None = "../index.html") -> str:
     """The HTML page of one campaign, read from ``results/<campaign>/`` (missing parts are said)."""
     d = CampaignData.read(campaign_root)
     captions = read_captions(captions_dir)
     meta = d.meta or {}
-    diagnosis = diagnosis_section(d.diagnosis, d.sources("diagnosis.json"), d.figures("diagnosis", captions))
-    sections = {"head": _header_section(d), "plan": _plan_section(d), "cases": _cases_section(d),
+    diagnosis = diagnosis_section(d.diagnosis, d.sources("diagnosis.json"), d.figures("diagnosis", captions),
+                                  _viscosity_note(d))
+    sections = {"head": _header_section(d), "plan": _plan_section(d), "cases": _cases_section(d, captions),
                 "characteristic": _characteristic_section(d, captions), "repeatability": _repeatability_section(d),
                 "models": _models_section(d, captions), "harmonic": _harmonic_section(d, captions),
                 "design": d.figures("design", captions), "diagnosis": diagnosis, "quarantine": _quarantine_section(d)}

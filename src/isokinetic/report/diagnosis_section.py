@@ -9,11 +9,13 @@ used. Every value's title names its JSON key path, which ``python -m isokinetic 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import pandas as pd
 from markupsafe import Markup
 
+from isokinetic.physics.viscosity import ViscosityLaw, equivalent_temperature_offset_C
 from isokinetic.report.cells import Cell, Col, Row, Table, json_table_view, kv_table, number_cell
 from isokinetic.report.embed import FigureView
 from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, short, text, yes_no
@@ -87,6 +89,32 @@ def _params(diag: Mapping, src: Source) -> Table | None:
     return Table(["parameter", "estimate", "std error", "unit"], rows, id="diagnosis-params")
 
 
+def viscosity_as_temperature(diag: Mapping, law: ViscosityLaw | None, reference_C: float | None,
+                             nominal_Pa_s: float | None) -> str | None:
+    """The fitted viscosity deviation read as a temperature offset (:func:`equivalent_temperature_offset_C`)
+    at the cases' median temperature, with the 95 % interval from its standard error; a hint to give a
+    viscosity law when there is none. None when the verdict fits no viscosity."""
+    mu = (diag.get("params") or {}).get("viscosity_Pa_s")
+    if mu is None or not nominal_Pa_s:
+        return None
+    ratio = float(mu) / float(nominal_Pa_s)
+    head = f"The fitted viscosity is {fmt(ratio, 3)} &times; the nominal"
+    if law is None or reference_C is None or not math.isfinite(reference_C):
+        return (head + ". With a viscosity-temperature law in the manifest (<code>damper.viscosity_law</code>) and "
+                "case temperatures, this deviation would also be read as a temperature offset.")
+    se = ((diag.get("identifiability") or {}).get("parameters") or {}).get("viscosity_Pa_s", {}).get("std_error")
+    dt = equivalent_temperature_offset_C(law, reference_C, ratio)
+    text_ = (f"{head} at each case's temperature: the oil behaves as if it were {fmt(abs(dt), 3)} K "
+             f"{'colder' if dt < 0 else 'warmer'} than the temperature the models took (equivalent offset "
+             f"&Delta;T = {fmt(dt, 3)} K at {fmt(reference_C, 4)} &deg;C, the cases' median; {law.kind} law)")
+    if se is not None and math.isfinite(float(se)) and float(se) > 0:
+        lo, hi = (ratio - 1.96 * float(se) / nominal_Pa_s, ratio + 1.96 * float(se) / nominal_Pa_s)
+        if lo > 0:
+            ends = sorted(equivalent_temperature_offset_C(law, reference_C, r) for r in (lo, hi))
+            text_ += f"; 95 % interval {fmt(ends[0], 3)} to {fmt(ends[1], 3)} K"
+    return text_ + ". A temperature sensor reading that far off, or oil that no longer follows its datasheet law."
+
+
 def _correlation(diag: Mapping) -> dict | None:
     corr = (diag.get("identifiability") or {}).get("correlation") or {}
     if not corr:
@@ -152,8 +180,10 @@ def _confounded(diag: Mapping) -> str | None:
     return "; ".join(", ".join(g) if isinstance(g, (list, tuple)) else str(g) for g in confounded)
 
 
-def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[FigureView]) -> dict:
-    """The data of the diagnosis section (``state``: missing, not_diagnosed or ok)."""
+def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[FigureView],
+                      viscosity_note: str | None = None) -> dict:
+    """The data of the diagnosis section (``state``: missing, not_diagnosed or ok); ``viscosity_note``:
+    :func:`viscosity_as_temperature`."""
     if diag is None:
         return {"state": "missing", "lineage": lineage_of(src), "figures": figures}
     if diag.get("status", "ok") != "ok":
@@ -163,5 +193,6 @@ def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[Figur
             "unexplained_note": diag.get("unexplained_note", ""), "how_far": _how_far(diag, src),
             "instrument": _instrument(diag, src), "instrument_note": diag.get("confounded_instrument_note"),
             "params": _params(diag, src), "correlation": _correlation(diag), "where": _where(diag, src),
+            "viscosity_note": Markup(viscosity_note) if viscosity_note else None,
             "candidates": _candidates(diag, src), "confounded": _confounded(diag),
             "lineage": lineage_of(src, "verdict"), "observations": _observations(diag), "figures": figures}

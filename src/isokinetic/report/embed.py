@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from isokinetic.contracts.outputs import Figure
+from isokinetic.io import VECTOR_FORMATS
 from isokinetic.report.sources import Lineage, Source, Sources, lineage_of
 
 #: The first eight bytes of every PNG file (PNG specification, section 5.2).
@@ -69,12 +70,21 @@ class FigureView:
     label: str
     facts: str
     lineage: Lineage
+    vectors: tuple[tuple[str, str], ...] = ()   # (format, page-relative link) of its SVG/PDF copies
 
 
-def figure_view(src: Source, fig: Figure, caption: str = "") -> FigureView:
-    """The figure ``fig`` read from ``src``, embedded."""
+def vector_links(src: Source, href: str) -> tuple[tuple[str, str], ...]:
+    """(format, link) of each vector copy written beside a figure's PNG (config ``figures.vector_format``);
+    ``href`` is the PNG's path relative to the page."""
+    return tuple((fmt.upper(), str(Path(href).with_suffix(f".{fmt}"))) for fmt in VECTOR_FORMATS
+                 if src.path.with_suffix(f".{fmt}").is_file())
+
+
+def figure_view(src: Source, fig: Figure, caption: str = "", href_prefix: str = "") -> FigureView:
+    """The figure ``fig`` read from ``src``, embedded; ``href_prefix`` leads from the page to ``src``'s folder."""
     return FigureView(id=fig.name, title=fig.title, caption=caption, uri=png_data_uri(src.path), label=src.label,
-                      facts=" | ".join(src.facts()), lineage=lineage_of(src))
+                      facts=" | ".join(src.facts()), lineage=lineage_of(src),
+                      vectors=vector_links(src, href_prefix + fig.path))
 
 
 def figure_views(sources: Sources, figures: tuple[Figure, ...], captions: Mapping[str, str]) -> list[FigureView]:

@@ -2,9 +2,11 @@
 
 One row per campaign (cases, quarantined cases, characteristic points, flagged plan cases and
 repeatability pairs, the Wallaschek fit's residual scale, the diagnosis verdict and gap), linked
-to its page (:mod:`isokinetic.report.campaign_report`); then the blind test of the diagnosis
-(``results/blind/``): its targets, detection by magnitude bin, Fig. 17 and every scenario. Every
-number's title names its file, rule and commit, as on the campaign pages.
+to its page (:mod:`isokinetic.report.campaign_report`); then the comparisons of campaigns
+(``results/compare/<name>/``, config ``comparisons``), each linked to its page
+(:mod:`isokinetic.report.compare_report`); then the blind test of the diagnosis (``results/blind/``):
+its targets, detection by magnitude bin, Fig. 17 and every scenario. Every number's title names its
+file, rule and commit, as on the campaign pages.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from isokinetic.contracts.outputs import figure
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, comparison_folder, figure
 from isokinetic.io import write_text
 from isokinetic.report.cells import Cell, Col, Row, Table, badge, number_cell, table_view
 from isokinetic.report.embed import figure_view, read_captions
@@ -95,6 +97,42 @@ def _campaign_row(results_root: Path, campaign: str) -> tuple[dict, list[Source]
 
 
 # ----------------------------------------------------------------------------------------------
+# one row per comparison
+# ----------------------------------------------------------------------------------------------
+
+def _comparison_row(results_root: Path, name: str) -> tuple[dict, list[Source]]:
+    """A comparison's row of the index (its compare.json) and the files it read."""
+    folder = comparison_folder(name)
+    srcs = Sources(results_root / folder)
+    rel = STAGE_OUTPUTS["compare"]["summary"]
+    summary = read_json(results_root / folder / rel)
+    src = srcs(rel)
+    page = STAGE_OUTPUTS["compare_report"]["page"]
+    row = {"name": name, "href": f"{folder}/{page}", "report": (results_root / folder / page).is_file(),
+           "campaigns": "-", "description": "", "cells": [Cell("compare.json missing", colspan=4)]}
+    if summary is None:
+        return row, srcs.all()
+    campaigns = list(summary.get("campaigns") or [])
+    row["campaigns"] = ", ".join(campaigns)
+    row["description"] = summary.get("description") or ""
+    pairs = summary.get("pairs") or []
+
+    def total(key: str) -> float:
+        return sum(p.get(key) or 0 for p in pairs)
+
+    z = [p["max_abs_z"] for p in pairs if p.get("max_abs_z") is not None]
+    n_sig = int(total("n_significant"))
+    shown = f"{n_sig} " + (badge("none", "good") if n_sig == 0 else badge("differ", "bad"))
+    row["cells"] = [
+        number_cell(f"{int(total('n_rows'))} ({int(total('n_measured'))} measured, {int(total('n_model'))} model)",
+                    src.title("pairs", "n_rows,n_measured,n_model", COUNTED)),
+        number_cell(shown, src.title("pairs", "n_significant", COUNTED)),
+        number_cell(fmt(total("expected_by_chance"), 2), src.title("pairs", "expected_by_chance", COUNTED)),
+        number_cell(fmt(max(z), 3) if z else "-", src.title("pairs", "max_abs_z", COUNTED))]
+    return row, srcs.all()
+
+
+# ----------------------------------------------------------------------------------------------
 # the blind suite
 # ----------------------------------------------------------------------------------------------
 
@@ -162,7 +200,8 @@ def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[dict, 
             "all_pass": bool(summary.get("all_pass")), "targets": _targets(summary, ssrc),
             "bins": _bins(summary, ssrc), "lineage": lineage_of(ssrc, "targets"), "scores_label": scores_label,
             "scores_audit": trace_command(scores_label, "scenario=<id>"),
-            "figure": figure_view(srcs(BLIND_FIGURE.path), BLIND_FIGURE, captions.get(BLIND_FIGURE.name, "")),
+            "figure": figure_view(srcs(BLIND_FIGURE.path), BLIND_FIGURE, captions.get(BLIND_FIGURE.name, ""),
+                                  href_prefix=f"{blind_dir.name}/"),
             "scores": None}
     if scores is not None:
         view["scores"] = table_view(scores, [c for c in SCORE_COLS if c.key in scores], srcs("scores.parquet"),
@@ -178,8 +217,9 @@ def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[dict, 
 
 def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
                  blind_dir: str | os.PathLike | None = None, captions_dir: str | os.PathLike | None = None,
-                 lineage_record: Mapping | None = None) -> str:
-    """``results/index.html``: every campaign with its verdict and key numbers, and the blind-suite scores."""
+                 lineage_record: Mapping | None = None, comparisons: Sequence[str] = ()) -> str:
+    """``results/index.html``: every campaign with its verdict and key numbers, each comparison (linked to
+    its page), and the blind-suite scores."""
     results_root = Path(results_root)
     captions = read_captions(captions_dir)
     rows, sources = [], []
@@ -188,6 +228,13 @@ def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
         rows.append(row)
         sources += srcs
     nav = [("campaigns", "Campaigns")]
+    compared = []
+    for name in comparisons:
+        row, srcs = _comparison_row(results_root, name)
+        compared.append(row)
+        sources += srcs
+    if compared:
+        nav.append(("comparisons", "Comparisons"))
     blind = None
     if blind_dir is not None:
         blind, srcs = _blind_section(Path(blind_dir), captions)
@@ -195,7 +242,7 @@ def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
         nav.append(("blind", "Blind test"))
     nav.append(("lineage", "Lineage"))
     return render("report_index.html.j2", title="isokinetic - results", nav=nav, lineage_record=lineage_record,
-                  campaigns=rows, blind=blind, lineage_files=lineage_rows(sources),
+                  campaigns=rows, comparisons=compared, blind=blind, lineage_files=lineage_rows(sources),
                   footer=footer(lineage_record, sources))
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from isokinetic.contracts.campaign import viscosity_scales
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import INSTRUMENT, case_delays
 from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
@@ -41,10 +42,15 @@ from isokinetic.stages.windows import WindowSpec
 log = logging.getLogger(__name__)
 
 
+def campaign_meta(campaign_root: Path) -> dict:
+    """The campaign.json of a processed campaign folder."""
+    return json.loads((Path(campaign_root) / "ingest" / "campaign.json").read_text(encoding="utf-8"))
+
+
 def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame, pd.DataFrame]:
     """(campaign, nominal damper or None, cases, characteristic) of a processed campaign folder."""
     root = Path(campaign_root)
-    meta = json.loads((root / "ingest" / "campaign.json").read_text(encoding="utf-8"))
+    meta = campaign_meta(root)
     damper = None if meta.get("damper") is None else Damper.from_mapping(meta["damper"])
     return meta["campaign"], damper, pd.read_parquet(root / CASES_FILE), pd.read_parquet(
         root / CHARACTERISTIC_FILE)
@@ -56,7 +62,8 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
 
     Observations are built twice: first to profile the load-cell offset against the nominal model,
     then with the noise model fitted to offset-free samples (the proportional noise scales with the
-    true force). Observations is None, with the reason, when the campaign cannot be diagnosed.
+    true force). With a viscosity law and case temperatures, each case is modelled at its temperature.
+    Observations is None, with the reason, when the campaign cannot be diagnosed.
     """
     root = Path(campaign_root)
     campaign, damper, cases, char = load_campaign(root)
@@ -72,14 +79,15 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
             cache[key] = pd.read_parquet(root / key)
         return cache[key]
 
-    obs = build_observations(campaign, cases, char, load, spec, n_bins)
+    scales = viscosity_scales(campaign_meta(root), cases)   # each case at its temperature (viscosity law)
+    obs = build_observations(campaign, cases, char, load, spec, n_bins, viscosity_scales=scales)
     if len(obs):
         dg0 = Diagnoser(obs, damper, alpha)
         first = dg0.refit((), INSTRUMENT)
         offset = 0.0 if first is None else first.offset_N
         obs = build_observations(campaign, cases, char, load, spec, n_bins, offset,
                                  unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
-                                 drive_input_variance(obs, damper, dg0.nominal))
+                                 drive_input_variance(obs, damper, dg0.nominal), scales)
     if len(obs) == 0:
         return campaign, damper, cases, None, "no triangle case with four windows: nothing to compare"
     return campaign, damper, cases, obs, ""

@@ -1,15 +1,17 @@
-"""The rule ``figures``: Fig. 7-12 of one campaign from its tables.
+"""The rule ``figures``: Fig. 7-12 and Fig. 20 of one campaign from its tables.
 
 The figures of the paper "A method for the identification of hydraulic damper characteristics from
 steady velocity inputs" (Titurus et al.), Sec. 4.4-4.5, are drawn by :mod:`isokinetic.plots.figures`.
 This stage reads a campaign's results folder (the cases, windows and characteristic tables and the
 time series of the chosen cases), chooses the three cases of Fig. 7 and the case of Fig. 8 (paper:
-cases 4, 12, 22 of 23), says on every figure what is missing or quarantined, and writes the six
-PNGs named by :data:`isokinetic.contracts.outputs.FIGURES`.
+cases 4, 12, 22 of 23), says on every figure what is missing or quarantined, and writes the seven
+PNGs named by :data:`isokinetic.contracts.outputs.FIGURES`, and Fig. 20, the temperature of each case
+(:mod:`isokinetic.plots.temperature`).
 """
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from pathlib import Path
@@ -17,7 +19,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from isokinetic.contracts.campaign import viscosity_law
 from isokinetic.contracts.outputs import figure, figures_of
+from isokinetic.physics.viscosity import ViscosityLaw
 from isokinetic.plots.figures import (
     campaign_name,
     case_speed_m_s,
@@ -29,8 +33,9 @@ from isokinetic.plots.figures import (
     window_selection,
 )
 from isokinetic.plots.style import footnote, save_figure
+from isokinetic.plots.temperature import case_temperature
 
-#: File names written by :func:`write_campaign_figures`, in order (Fig. 7-12).
+#: File names written by :func:`write_campaign_figures`, in order (Fig. 20, 7-12: report order).
 FIGURE_FILES = tuple(Path(f.path).name for f in figures_of("figures"))
 
 #: Rank fractions of the speed-ordered triangle cases chosen for Fig. 7 (paper: cases 4, 12, 22 of 23).
@@ -176,9 +181,16 @@ def _fig7_note(picked: list[str], series: dict[str, pd.DataFrame], note: str) ->
 # the rule
 # ----------------------------------------------------------------------------------------------
 
+def _viscosity_law(root: Path) -> ViscosityLaw | None:
+    """The campaign's viscosity law (ingest/campaign.json, format 1.1), None without one."""
+    path = root / "ingest" / "campaign.json"
+    return viscosity_law(json.loads(path.read_text(encoding="utf-8"))) if path.is_file() else None
+
+
 def write_campaign_figures(campaign_root: str | os.PathLike, out_dir: str | os.PathLike,
                            campaign: str | None = None) -> list[Path]:
-    """Read ``campaign_root`` (``results/<campaign>``) and write the six figure PNGs to ``out_dir``.
+    """Read ``campaign_root`` (``results/<campaign>``) and write the figure PNGs to ``out_dir`` (Fig. 7-12
+    and Fig. 20, the temperature of each case).
 
     Tables: ``cases.parquet`` (at the root or in ``ingest/``), ``characteristic.parquet`` (falls back
     to ``windows.parquet`` without repeatability flags), ``windows.parquet`` for Fig. 8 (falls back
@@ -209,6 +221,7 @@ def write_campaign_figures(campaign_root: str | os.PathLike, out_dir: str | os.P
         fig = make(char, campaign=name)
         footnote(fig, note)
         figs.append(fig)
+    figs.insert(0, case_temperature(cases, _viscosity_law(root), campaign=name))  # Fig. 20 leads: the cases section
     return [save_figure(fig, out / fname) for fig, fname in zip(figs, FIGURE_FILES, strict=True)]
 
 

@@ -40,6 +40,8 @@ from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
 from isokinetic.contracts.manifest import (
     CSV_DELIMITERS,
     MANIFEST_NAME,
+    TEMPERATURE_RANGE_C,
+    UNIT_OFFSETS,
     UNITS,
     CaseSpec,
     Column,
@@ -53,7 +55,8 @@ from isokinetic.stages.validate import Problem, quarantine_frame, quarantine_row
 log = logging.getLogger("isokinetic")
 
 #: Channel -> canonical column of the ingested time series.
-CANONICAL = {"time": "time_s", "displacement": "displacement_m", "force": "force_N", "command": "command_m"}
+CANONICAL = {"time": "time_s", "displacement": "displacement_m", "force": "force_N", "command": "command_m",
+             "temperature": "temperature_C"}
 
 
 class CaseFileError(Exception):
@@ -225,7 +228,7 @@ def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".") -> t
     else:
         numbers = pd.to_numeric(raw if decimal == "." else decimal_point(raw), errors="coerce")
         bad = numbers.isna() & raw.notna()
-        values = numbers.to_numpy(float) * UNITS[channel][column.unit]
+        values = numbers.to_numpy(float) * UNITS[channel][column.unit] + UNIT_OFFSETS.get((channel, column.unit), 0.0)
         what = "non-numeric value"
         if decimal != ".":
             note = (": the manifest's csv block declares ',' as the decimal mark, and a '.' is not read (a thousands "
@@ -234,7 +237,35 @@ def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".") -> t
         first = int(np.argmax(bad.to_numpy()))
         value = raw.iloc[first]
         return None, Problem(column.name, f"{what} {value!r}" + (note if "." in str(value) else ""), row=first)
+    if channel == "temperature":
+        return temperature_values(values, column)
     return (-values if column.invert else values), None
+
+
+def temperature_values(values_C: np.ndarray, column: Column) -> tuple[np.ndarray | None, Problem | None]:
+    """A temperature channel [C], or the first sample outside :data:`TEMPERATURE_RANGE_C` (a unit error:
+    kelvin declared as C, or a broken sensor reading). ``invert`` does not apply to a temperature."""
+    lo, hi = TEMPERATURE_RANGE_C
+    outside = ~((values_C >= lo) & (values_C <= hi))
+    if outside.any():
+        first = int(np.argmax(outside))
+        return None, Problem(column.name, f"temperature {values_C[first]:g} C (unit {column.unit}) lies outside "
+                                          f"{lo:g}..{hi:g} C (a unit error?)", row=first)
+    return values_C, None
+
+
+def case_temperature(series: pd.DataFrame | None, case_C: float | None,
+                     campaign_C: float | None) -> tuple[float, float, str]:
+    """(temperature [C], span max - min [K], source) of a case: the mean of its temperature channel, else
+    the case's ``temperature_C``, else the campaign's; (NaN, NaN, '') when none is known."""
+    if series is not None and "temperature_C" in series:
+        t = series["temperature_C"].to_numpy(float)
+        return float(t.mean()), float(t.max() - t.min()), "channel"
+    if case_C is not None:
+        return float(case_C), math.nan, "case"
+    if campaign_C is not None:
+        return float(campaign_C), math.nan, "campaign"
+    return math.nan, math.nan, ""
 
 
 def canonical_timeseries(raw: pd.DataFrame, columns: dict[str, Column],
@@ -266,9 +297,11 @@ def subtract_gas_force(series: pd.DataFrame, gas_force_N: float | None) -> pd.Da
     return series.assign(force_N=series["force_N"].to_numpy(float) - float(gas_force_N))
 
 
-def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict, list[Problem], pd.DataFrame | None]:
+def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec,
+                campaign_temperature_C: float | None = None) -> tuple[dict, list[Problem], pd.DataFrame | None]:
     """One case: its CASES row, its problems, and its time series when it is ok (read in the manifest's
-    dialect, ``spec.csv``; less its gas force, ``spec.gas_force_N``: :func:`subtract_gas_force`)."""
+    dialect, ``spec.csv``; less its gas force, ``spec.gas_force_N``: :func:`subtract_gas_force`). The row's
+    temperature: :func:`case_temperature` (``campaign_temperature_C``: the manifest's)."""
     problems = list(spec.problems)
     path = campaign_dir / spec.file if spec.file is not None else None
     sha, n_samples, df, warnings = "", 0, None, []
@@ -294,6 +327,8 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec) -> tuple[dict
            "raw_sha256": sha, "timeseries_file": "" if problems else timeseries_relpath(spec.id),
            "n_samples": n_samples, "status": "quarantined" if problems else "ok",
            "quality": "quarantined" if problems else ("; ".join(warnings) or "ok")}
+    row["temperature_C"], row["temperature_span_C"], row["temperature_source"] = case_temperature(
+        None if problems else df, spec.temperature_C, campaign_temperature_C)
     return row, problems, (None if problems else df)
 
 
@@ -317,6 +352,8 @@ def campaign_meta(manifest: Manifest, manifest_file: str) -> dict:
     return {"format_version": manifest.format_version, "campaign": manifest.campaign,
             "source": manifest.source, "description": manifest.description,
             "temperature_C": manifest.temperature_C,
+            # the oil's viscosity-temperature law (damper.viscosity_law, format 1.1), None when none was given
+            "viscosity_law": None if manifest.viscosity_law is None else manifest.viscosity_law.to_dict(),
             # the static gas force subtracted from every force sample (N), None when none was declared
             "gas_force_N": manifest.gas_force_N,
             # the case files' dialect (manifest csv block, format 1.1), None when none was declared (',' and '.')
@@ -333,7 +370,7 @@ def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path) -> None
     manifest = load_manifest(manifest_file)
     rows, quarantined, series = [], [], {}
     for spec in manifest.cases:
-        row, problems, df = ingest_case(campaign_dir, manifest.campaign, spec)
+        row, problems, df = ingest_case(campaign_dir, manifest.campaign, spec, manifest.temperature_C)
         rows.append(row)
         quarantined += quarantine_rows(manifest.campaign, spec.id, "ingest", problems)
         if df is not None:

@@ -38,11 +38,17 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts import tables
-from isokinetic.contracts.campaign import case_plan
+from isokinetic.contracts.campaign import case_plan, viscosity_scales
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.hydraulics import Hydraulics
 from isokinetic.physics.plan import CasePlan, triangle_displacement
-from isokinetic.physics.responses import Drive, drive_times, triangle_responses
+from isokinetic.physics.responses import (
+    Drive,
+    drive_times,
+    scaled_viscosity,
+    triangle_responses,
+    triangle_responses_at,
+)
 from isokinetic.stages.windows import WindowSpec, line_slope, window_ranges
 
 log = logging.getLogger("isokinetic.nominal")
@@ -97,15 +103,20 @@ class ModelPlan:
     window_end_s: np.ndarray
 
     drives: tuple[Drive | None, ...] = ()
+    #: per plan, μ(T_case)/μ_nominal (the oil's viscosity at the case's temperature); empty: all 1
+    viscosity_scales: tuple[float, ...] = ()
 
     @classmethod
     def from_cases(cls, campaign: str, cases: pd.DataFrame, spec: WindowSpec = WindowSpec(),
                    durations: Mapping[str, float] | None = None,
-                   drives: Mapping[str, Drive] | None = None) -> ModelPlan:
+                   drives: Mapping[str, Drive] | None = None,
+                   viscosity_scales: Mapping[str, float] | None = None) -> ModelPlan:
         """Status-ok triangle cases of a cases table (tables.CASES).
 
         ``drives`` (case -> :class:`isokinetic.physics.responses.Drive`, :func:`case_drives`) runs a case with its
         measured half-period speeds on its measured sample grid; a case without one runs the plan.
+        ``viscosity_scales`` (case -> μ(T_case)/μ_nominal, :func:`isokinetic.contracts.campaign.viscosity_scales`)
+        runs a case at its own temperature's viscosity; a case without one at the damper's.
 
         Raises ValueError naming the case when its record does not hold four complete
         half-periods or a window holds fewer than MIN_WINDOW_SAMPLES samples (as
@@ -139,7 +150,9 @@ class ModelPlan:
             used.append(drive)
         arrays = {k: np.asarray(v, dtype=float if k in ("sign", "velocity_m_s", "window_start_s", "window_end_s")
                                 else np.int64) for k, v in cols.items()}
-        return cls(campaign=campaign, spec=spec, plans=tuple(plans), drives=tuple(used), **arrays)
+        scales = tuple(float((viscosity_scales or {}).get(p.case, 1.0)) for p in plans)
+        return cls(campaign=campaign, spec=spec, plans=tuple(plans), drives=tuple(used),
+                   viscosity_scales=scales if any(x != 1.0 for x in scales) else (), **arrays)
 
     def __len__(self) -> int:
         return int(self.segment.size)
@@ -156,8 +169,12 @@ class ModelPlan:
         if not self.plans:
             return mean, std
         hyd = Hydraulics.from_damper(damper, effects) if hydraulics is None else hydraulics
-        responses = triangle_responses(self.plans, hyd, effects.backlash_m,
-                                       drives=self.drives if any(self.drives) else None)
+        drives = self.drives if any(self.drives) else None
+        if self.viscosity_scales:
+            responses = triangle_responses_at(self.plans, [scaled_viscosity(hyd, x) for x in self.viscosity_scales],
+                                              effects.backlash_m, drives=drives)
+        else:
+            responses = triangle_responses(self.plans, hyd, effects.backlash_m, drives=drives)
         a = hyd.piston_area_m2
         for w in range(len(self)):
             _t, dp, vel = responses[self.case_index[w]]
@@ -200,13 +217,15 @@ class ModelPlan:
 def model_windows(campaign: str, cases: pd.DataFrame, damper: Damper, effects: Effects = NOMINAL,
                   spec: WindowSpec = WindowSpec(), durations: Mapping[str, float] | None = None,
                   label: str | None = None, validate: bool = True,
-                  drives: Mapping[str, Drive] | None = None) -> pd.DataFrame:
+                  drives: Mapping[str, Drive] | None = None,
+                  viscosity_scales: Mapping[str, float] | None = None) -> pd.DataFrame:
     """Noise-free model windows of every status-ok triangle case of ``cases`` (tables.WINDOWS).
 
     One-shot form of ``ModelPlan.from_cases(...).windows(...)``; inside a fit prepare the
     ModelPlan once and call :meth:`ModelPlan.forces` (or ``windows(validate=False)``).
     """
-    return ModelPlan.from_cases(campaign, cases, spec, durations, drives).windows(damper, effects, label, validate)
+    return ModelPlan.from_cases(campaign, cases, spec, durations, drives, viscosity_scales).windows(
+        damper, effects, label, validate)
 
 
 def motion_start(row: Mapping) -> float:
@@ -271,7 +290,8 @@ def nominal_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFram
     """Nominal-model windows of a validated campaign folder ``results/<campaign>/``.
 
     Reads ``ingest/campaign.json`` (damper block) and ``cases.parquet``; without a damper block
-    returns an empty WINDOWS table and logs why. Cases with NaN ``duration_s`` take the last time
+    returns an empty WINDOWS table and logs why. With a viscosity law (format 1.1) and case temperatures,
+    each case runs at its own temperature's viscosity. Cases with NaN ``duration_s`` take the last time
     stamp of their measured series as the record length.
     """
     root = Path(campaign_root)
@@ -286,7 +306,11 @@ def nominal_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFram
     drives = case_drives(cases, windows)
     durations = plan_time_ends(cases, lambda row: pd.read_parquet(root / row["timeseries_file"], columns=["time_s"])
                                ["time_s"].to_numpy())
-    out = model_windows(campaign, cases, damper, NOMINAL, spec, durations, drives=drives)
+    scales = viscosity_scales(meta, cases)
+    if scales:
+        log.info("campaign %s: nominal viscosity at each case's temperature (viscosity law): %.4g..%.4g Pa s",
+                 campaign, damper.viscosity_Pa_s * min(scales.values()), damper.viscosity_Pa_s * max(scales.values()))
+    out = model_windows(campaign, cases, damper, NOMINAL, spec, durations, drives=drives, viscosity_scales=scales)
     log.info("campaign %s: %d nominal model windows from %d triangle case(s)", campaign, len(out),
              out["case"].nunique() if len(out) else 0)
     return out

@@ -336,7 +336,7 @@ def case_sha256(series: pd.DataFrame, measurement: Measurement) -> str:
 
 
 def _cases_table(campaign: str, cases: Sequence[CasePlan], series: Mapping[str, pd.DataFrame],
-                 measurement: Measurement) -> pd.DataFrame:
+                 measurement: Measurement, temperature_C: float) -> pd.DataFrame:
     rows = []
     for c in cases:
         rows.append({"campaign": campaign, "case": c.case, "waveform": c.waveform,
@@ -346,7 +346,9 @@ def _cases_table(campaign: str, cases: Sequence[CasePlan], series: Mapping[str, 
                      "raw_file": f"virtual_rig:{campaign}/{c.case}",
                      "raw_sha256": case_sha256(series[c.case], measurement),
                      "timeseries_file": timeseries_relpath(c.case),
-                     "n_samples": int(len(series[c.case])), "status": "ok"})
+                     "n_samples": int(len(series[c.case])), "status": "ok",
+                     "temperature_C": float(temperature_C), "temperature_span_C": math.nan,
+                     "temperature_source": "campaign"})
     df = pd.DataFrame(rows)
     return df.astype({"n_samples": "int64"})
 
@@ -363,7 +365,7 @@ def write_campaign(vc: VirtualCampaign, campaign_root: str | os.PathLike) -> Pat
             "manifest_sha256": "", "metadata": _generated_by(vc, [c.case for c in vc.cases], None)}
     assert set(meta) == set(CAMPAIGN_KEYS)
     ingest = Path(campaign_root) / "ingest"
-    write_ingested(ingest, meta, _cases_table(vc.name, vc.cases, series, vc.measurement),
+    write_ingested(ingest, meta, _cases_table(vc.name, vc.cases, series, vc.measurement, vc.temperature_C),
                    tables.empty(tables.QUARANTINE), series)
     return ingest
 

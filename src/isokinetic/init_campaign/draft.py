@@ -1,0 +1,221 @@
+"""The draft ``campaign.yaml``: every guessed value with a comment saying how it was found and how sure it is.
+
+Values are written as YAML the manifest parser reads back (:func:`isokinetic.contracts.manifest.load_manifest`);
+comments never hold a line break. The damper block cannot be inferred from the records: it is written
+commented out with the keys to fill in. A file that is not a usable case is listed commented out with
+its reason. The draft goes to ``FOLDER/campaign.yaml`` only: never over an existing one without ``force``,
+never through a symlink.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from isokinetic.contracts.manifest import DEFAULT_TRIANGLE_PHASE_RAD, MANIFEST_NAME, CsvDialect
+from isokinetic.init_campaign.survey import RATE_FLOOR, FileSurvey, Survey, column_how, survey_folder
+from isokinetic.init_campaign.waveform import Estimate, round_to_uncertainty
+from isokinetic.physics.damper import Damper
+
+#: Comments start at this column when the value leaves room.
+COMMENT_COLUMN = 40
+#: What each damper key is (SI), for the commented-out block.
+DAMPER_HELP = {
+    "piston_area_m2": "effective piston area",
+    "chamber_volume_1_m3": "volume of chamber 1",
+    "chamber_volume_2_m3": "volume of chamber 2",
+    "orifice_area_m2": "orifice (or equivalent bypass) area",
+    "orifice_length_m": "orifice length",
+    "discharge_coefficient": "orifice discharge coefficient",
+    "density_kg_m3": "oil density",
+    "viscosity_Pa_s": "dynamic viscosity at the test temperature",
+    "oil_compressibility_1_Pa": "oil compressibility",
+}
+_CONTROL = re.compile(r"[\x00-\x1f\x7f\u2028\u2029\x85]")
+
+
+def scalar(value) -> str:
+    """One YAML scalar, quoted when it must be (a column name with ': ' or '#', a file name with a newline)."""
+    if isinstance(value, float):
+        text = repr(value)
+        return text.replace("e", ".0e", 1) if "e" in text and "." not in text else text
+    if isinstance(value, str) and _CONTROL.search(value):
+        return json.dumps(value)          # a YAML double-quoted scalar, every control character escaped
+    return yaml.safe_dump([value], default_flow_style=True, allow_unicode=True, width=1 << 30).strip()[1:-1]
+
+
+def comment(text: str) -> str:
+    """A one-line comment text: control characters (a newline in a file name) shown escaped."""
+    return _CONTROL.sub(lambda m: json.dumps(m.group())[1:-1], text)
+
+
+def line(indent: int, body: str, note: str = "") -> str:
+    """``body`` indented, with ``# note`` aligned at COMMENT_COLUMN."""
+    text = " " * indent + body
+    if note:
+        text = f"{text:<{COMMENT_COLUMN - 1}} # {comment(note)}"
+    return text
+
+
+def column_entry(name: str, unit: str | None) -> str:
+    return f"{{name: {scalar(name)}, unit: {scalar(unit)}}}"
+
+
+def _pm(estimate: Estimate, scale: float, unit: str) -> str:
+    """``value ± se unit``, the value to the standard error's first digit (at most 9 significant digits)."""
+    value, se = estimate.value * scale, estimate.se * scale
+    if not (math.isfinite(se) and se > 0):
+        return f"{value:.9g} {unit}"
+    cap = 8 - math.floor(math.log10(abs(value))) if value else 9
+    return f"{value:.{max(0, min(1 - math.floor(math.log10(se)), cap))}f} ± {se:.1g} {unit}"
+
+
+def header_lines(survey: Survey) -> list[str]:
+    n, bad = len(survey.usable), len(survey.files) - len(survey.usable)
+    out = [f"# {MANIFEST_NAME} drafted by `python -m isokinetic init-campaign` from {len(survey.files)} files "
+           f"in {comment(survey.folder.absolute().name)!s}/ ({n} cases" + (f", {bad} set aside below)" if bad else ")"),
+           "# (raw campaign format 1.1). Beside every guessed value: how it was found and how sure it is:",
+           "#   sure: names and magnitudes agree, or nothing else fits; likely: check it; guess: check it by hand.",
+           "# To do by hand: the description, temperature_C, the damper block, every 'likely' and 'guess'. Then run",
+           f"#   python -m isokinetic init-campaign --check {comment(survey.folder.as_posix())}"]
+    if survey.campaign_note:
+        out.append(f"# WARNING: {comment(survey.campaign_note)}")
+    return out
+
+
+def campaign_lines(survey: Survey) -> list[str]:
+    temps = [f.data[f.roles["temperature"]].numbers for f in survey.usable if "temperature" in f.roles]
+    out = [line(0, "format_version: 1"),
+           line(0, f"campaign: {scalar(survey.campaign)}",
+                "the folder name" if not survey.campaign_note else "NOT the folder name: see the warning above"),
+           line(0, f"description: {scalar(f'{len(survey.usable)} cases drafted from CSV files')}",
+                "replace: what was tested, on which damper"),
+           line(0, "source: rig", "rig | simulation (informational)")]
+    if temps:
+        median = float(np.median([np.nanmedian(t) for t in temps]))
+        out.append(line(0, f"# temperature_C: {median:.1f}", "the temperature column's median over the files; the "
+                                                               "column itself is read per sample"))
+    else:
+        out.append(line(0, "# temperature_C: 40.0", "damper temperature, C: not in the files, fill in"))
+    if survey.sample_rate_Hz is not None:
+        out.append(line(0, f"sample_rate_Hz: {scalar(survey.sample_rate_Hz)}", f"{survey.rate_how}, sure"))
+    if survey.dialect != CsvDialect():
+        d = survey.dialect
+        out.append(line(0, f"csv: {{delimiter: {json.dumps(d.delimiter)}, decimal: {json.dumps(d.decimal)}}}",
+                        f"{survey.dialect_how}, sure"))
+    out.append("columns:")
+    for channel, choice in survey.columns.items():
+        out.append(line(2, f"{channel}: {column_entry(choice.name, choice.unit)}", f"{choice.how}, {choice.sure}"))
+    extras = sorted({e for f in survey.usable for e in f.extras})
+    if extras:
+        out.append(line(2, f"# not used: {', '.join(repr(e) for e in extras)} (extra columns are ignored by ingest)"))
+    return out
+
+
+def damper_lines() -> list[str]:
+    out = ["# damper:   nominal design data in SI units. It cannot be inferred from the records: fill in all nine",
+           "#           keys and uncomment the block (without it there is no nominal model to compare against)."]
+    for f in fields(Damper):
+        out.append(line(0, f"#   {f.name}:", DAMPER_HELP.get(f.name, "")))
+    return out
+
+
+def triangle_lines(f: FileSurvey) -> list[str]:
+    w = f.waveform
+    period = w.period_s.rounded
+    rounded = "" if period == w.period_s.value else f", rounded to {scalar(period)}"
+    out = [line(4, f"period_s: {scalar(period)}", f"mid-stroke crossings every T/2: {_pm(w.period_s, 1.0, 's')}"
+                                                  f"{rounded}, {w.period_s.sure}")]
+    amp = w.amplitude_m
+    amp_mm = Estimate(amp.value * 1e3, amp.se * 1e3).rounded_amplitude
+    speed = 4.0 * amp.value / period * 1e3
+    sure = "sure" if f.motion == "command" else "likely"
+    out.append(line(4, f"amplitude_mm: {scalar(amp_mm)}",
+                    f"speed {speed:.4g} mm/s x T/4 = {_pm(amp, 1e3, 'mm')} from the {f.motion}, {sure}"))
+    snapped = abs(w.phase_rad) == -DEFAULT_TRIANGLE_PHASE_RAD
+    said = ("-pi/2, the spec's default" if w.phase_rad == DEFAULT_TRIANGLE_PHASE_RAD else "+pi/2" if snapped
+            else "CHECK: the fitted phase")
+    out.append(line(4, f"phase_rad: {scalar(w.phase_rad if snapped else round(w.phase_rad, 6))}",
+                    f"{said}: {w.phase_note}, {w.phase_sure}"))
+    if w.periods < 2.0 * (1 - 1e-6):
+        out.append(line(4, f"# the record holds {w.periods:.2f} periods; the pipeline needs 2 (four half-periods)"))
+    return out
+
+
+def case_lines(f: FileSurvey, survey: Survey) -> list[str]:
+    """One case entry: id, file, waveform and its keys, overrides (sample rate, columns)."""
+    w = f.waveform
+    source = f.roles[f.motion]
+    out = [line(2, f"- id: {scalar(f.case_id)}", f.id_note), line(4, f"file: {scalar(f.file)}")]
+    out.append(line(4, f"waveform: {w.kind}", f"from {source!r} ({f.motion}): {w.how}, {w.sure}"))
+    if w.kind == "triangle":
+        out += triangle_lines(f)
+    elif w.kind == "sine":
+        freq = w.frequency_Hz
+        out.append(line(4, f"frequency_Hz: {scalar(freq.rounded)}", f"{_pm(freq, 1.0, 'Hz')}, {freq.sure}"))
+        amp = w.amplitude_m
+        sure = "sure" if f.motion == "command" else "likely"
+        out.append(line(4, f"amplitude_mm: {scalar(Estimate(amp.value * 1e3, amp.se * 1e3).rounded_amplitude)}",
+                        f"{_pm(amp, 1e3, 'mm')} from the {f.motion}" + (f"; {w.phase_note}" if w.phase_note else "")
+                        + f", {sure}"))
+    rate = f.rate
+    own = round_to_uncertainty(rate.value, rate.se, floor=RATE_FLOOR)
+    if own != survey.sample_rate_Hz:
+        out.append(line(4, f"sample_rate_Hz: {scalar(own)}", f"median time step {1.0 / own:.6g} s, sure"))
+    out += override_lines(f, survey)
+    out += [line(4, f"# NOTE: {w_}") for w_ in f.warnings]
+    return out
+
+
+def override_lines(f: FileSurvey, survey: Survey) -> list[str]:
+    """The case's ``columns:`` where its file differs from the campaign's columns."""
+    entries = []
+    for channel in dict.fromkeys([*survey.columns, *f.roles]):
+        name, choice = f.roles.get(channel), survey.columns.get(channel)
+        if name is None:
+            if choice is not None and channel not in ("time", "displacement", "force"):
+                entries.append(line(6, f"{channel}: null", f"this file has no {channel} column, sure"))
+            continue
+        unit = survey.units[(channel, name)]
+        if choice is None or (name, unit.unit) != (choice.name, choice.unit):
+            how, sure = f.role_how[channel]
+            sure = max(sure, unit.sure, key=["sure", "likely", "guess"].index)
+            entries.append(line(6, f"{channel}: {column_entry(name, unit.unit)}",
+                                f"{column_how(how, unit)}, {sure}"))
+    return [line(4, "columns:")] + entries if entries else []
+
+
+def set_aside_lines(f: FileSurvey) -> list[str]:
+    return [line(2, f"# - id: {scalar(f.case_id)}", f"NOT A CASE: {f.problem}"), line(2, f"#   file: {scalar(f.file)}")]
+
+
+def draft_text(survey: Survey) -> str:
+    """The draft manifest's text."""
+    out = header_lines(survey) + campaign_lines(survey) + damper_lines() + ["cases:"]
+    for f in survey.files:
+        out += case_lines(f, survey) if f.ok else set_aside_lines(f)
+    return "\n".join(out) + "\n"
+
+
+def write_draft(folder: str | Path, force: bool = False) -> tuple[Path, Survey]:
+    """Survey ``folder`` and write its draft ``campaign.yaml`` (an existing one only with ``force``)."""
+    folder = Path(folder)
+    path = folder / MANIFEST_NAME
+    if path.is_symlink():
+        raise FileExistsError(f"{path} is a symlink: not written through (remove it first)")
+    if path.exists() and not force:
+        raise FileExistsError(f"{path} exists: not overwritten (--force replaces it)")
+    survey = survey_folder(folder)
+    if not survey.usable:
+        reasons = "; ".join(f"{f.file}: {f.problem}" for f in survey.files)
+        raise ValueError(f"{folder}: no usable case file, nothing drafted ({comment(reasons)})")
+    text = draft_text(survey)
+    with open(path, "w" if force else "x", encoding="utf-8", newline="\n") as fh:
+        fh.write(text)
+    return path, survey
