@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import inspect
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -178,5 +179,17 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
+def run() -> int:
+    """:func:`main` for the command line: output piped into a reader that stops early (``| head``) ends
+    the command quietly (Python's documented recipe: stdout to devnull, so that the exit's flush is silent)."""
+    try:
+        code = main()
+        sys.stdout.flush()
+        return code
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(run())

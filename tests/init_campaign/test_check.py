@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 import yaml
@@ -68,3 +71,16 @@ def test_check_reports_a_wrong_waveform_amplitude_and_sample_rate(campaign_copy)
 def test_check_reports_a_file_ingest_would_refuse(campaign_copy):
     (campaign_copy / "T22.csv").write_text("time_s;disp_mm\n0;1\n", encoding="utf-8")
     assert findings(campaign_copy)["T22"] == ["file"]
+
+
+def test_check_piped_into_a_reader_that_stops_early_ends_quietly(campaign_copy):
+    # `init-campaign FOLDER --check | head -1`: the read end is closed before the command prints
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "isokinetic", "init-campaign", str(campaign_copy), "--check"],
+                              stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=120)
+    finally:
+        os.close(write_end)
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 1
