@@ -24,7 +24,7 @@ import numpy as np
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.hydraulics import Hydraulics
-from isokinetic.physics.responses import drive_times, scaled_viscosity, triangle_responses, triangle_responses_at
+from isokinetic.physics.responses import drive_times, triangle_responses_at
 
 #: Panel width of the model's segment tables (isokinetic.physics.hydraulics.DEFAULT_STEP is 0.03): error ~1e-8 of the
 #: pressure scale, far below any window's noise, with about half the nodes.
@@ -67,12 +67,9 @@ class Evaluator:
         drives = self.obs.drives if self.obs.drives else None
         friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
         forces = []
-        if self.obs.viscosity_scale:  # each case at its own temperature's viscosity
-            runs = triangle_responses_at(self.obs.plans, [scaled_viscosity(hyd, x) for x in self.obs.viscosity_scale],
-                                         0.0, MODEL_STEP, drives)
-        else:
-            runs = triangle_responses(self.obs.plans, hyd, 0.0, MODEL_STEP, drives)
-        for _t, dp, vel in runs:
+        # each case at its own temperature's viscosity (none given: all at the damper's)
+        for _t, dp, vel in triangle_responses_at(self.obs.plans, hyd, self.obs.viscosity_scale, 0.0, MODEL_STEP,
+                                                 drives):
             force = hyd.piston_area_m2 * dp
             if friction:  # the search profiles friction linearly (LinearTerms): its runs carry none
                 force = force + friction_force(vel, effects)

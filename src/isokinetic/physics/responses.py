@@ -359,17 +359,21 @@ def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: f
     return [(t.copy(), dp[e - t.size:e], vel[e - t.size:e]) for t, e in zip(lay.times, ends)]
 
 
-def triangle_responses_at(cases: Sequence[CasePlan], hyds: Sequence[Hydraulics], backlash_m: float = 0.0,
-                          step: float = DEFAULT_STEP, drives: Sequence[Drive | None] | None = None
+def triangle_responses_at(cases: Sequence[CasePlan], hyd: Hydraulics, viscosity_scales: Sequence[float] = (),
+                          backlash_m: float = 0.0, step: float = DEFAULT_STEP,
+                          drives: Sequence[Drive | None] | None = None
                           ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """:func:`triangle_responses` with coefficients of its own for each case (e.g. the viscosity at the
-    case's temperature): the cases that share coefficients run in one batch, results in case order."""
-    if len(hyds) != len(cases):
-        raise ValueError(f"{len(hyds)} coefficient sets for {len(cases)} cases")
+    """:func:`triangle_responses` with each case's oil viscosity times its ``viscosity_scales`` entry (the
+    viscosity at the case's temperature, :func:`scaled_viscosity`); empty: every case at ``hyd``. The cases
+    that share coefficients run in one batch, results in case order."""
+    if not viscosity_scales:
+        return triangle_responses(cases, hyd, backlash_m, step, drives)
+    if len(viscosity_scales) != len(cases):
+        raise ValueError(f"{len(viscosity_scales)} viscosity scales for {len(cases)} cases")
     drives = [None] * len(cases) if drives is None else list(drives)
     groups: dict[Hydraulics, list[int]] = {}
-    for i, hyd in enumerate(hyds):
-        groups.setdefault(hyd, []).append(i)
+    for i, scale in enumerate(viscosity_scales):
+        groups.setdefault(scaled_viscosity(hyd, scale), []).append(i)
     out: list = [None] * len(cases)
     for hyd, idx in groups.items():
         group_drives = [drives[i] for i in idx]

@@ -64,7 +64,7 @@ from isokinetic.io import write_json, write_parquet, write_text
 from isokinetic.plots.compare import Z_95, difference_figure, overlay_figure
 from isokinetic.plots.style import save_figure
 from isokinetic.stages.exports import csv_text
-from isokinetic.stages.models import MODEL_NAMES, PARAMETERS, design_matrix, standard_errors
+from isokinetic.stages.models import MODEL_NAMES, PARAMETERS, design_matrix, standard_errors, wls
 
 log = logging.getLogger(__name__)
 
@@ -228,21 +228,11 @@ def weighted_fit(velocity_m_s, force_N, sigma_N) -> tuple[np.ndarray, np.ndarray
     least squares of :func:`isokinetic.stages.models.wls` (columns scaled, QR, covariance scaled by the
     reduced chi-square); needs more points than parameters."""
     x = design_matrix(velocity_m_s)
-    w = 1.0 / np.asarray(sigma_N, dtype=float)
-    xw, yw = x * w[:, None], np.asarray(force_N, dtype=float) * w
     n, p = x.shape
     if n <= p:
         raise ValueError(f"{n} points for {p} parameters: no residual degrees of freedom")
-    scale = np.linalg.norm(xw, axis=0)
-    scale[scale == 0] = 1.0
-    q, r = np.linalg.qr(xw / scale)
-    if np.min(np.abs(np.diag(r))) <= 1e-12 * np.max(np.abs(np.diag(r))):
-        raise ValueError("design matrix is rank deficient")
-    est = np.linalg.solve(r, q.T @ yw) / scale
-    res = yw - xw @ est
-    s2 = float(res @ res) / (n - p)
-    rinv = np.linalg.inv(r)
-    return est, s2 * (rinv @ rinv.T) / np.outer(scale, scale), math.sqrt(s2)
+    fit = wls(x, np.asarray(force_N, dtype=float), np.asarray(sigma_N, dtype=float))
+    return fit["estimate"], fit["covariance"], fit["residual_scale"]
 
 
 def _stored_fit(models_df: pd.DataFrame | None, model: str, direction: str) -> tuple[np.ndarray, np.ndarray, str]:

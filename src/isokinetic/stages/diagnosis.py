@@ -42,18 +42,15 @@ from isokinetic.stages.windows import WindowSpec
 log = logging.getLogger(__name__)
 
 
-def campaign_meta(campaign_root: Path) -> dict:
-    """The campaign.json of a processed campaign folder."""
-    return json.loads((Path(campaign_root) / "ingest" / "campaign.json").read_text(encoding="utf-8"))
-
-
-def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame, pd.DataFrame]:
-    """(campaign, nominal damper or None, cases, characteristic) of a processed campaign folder."""
+def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame, pd.DataFrame, dict[str, float]]:
+    """(campaign, nominal damper or None, cases, characteristic, case -> viscosity scale) of a processed
+    campaign folder; the scales put each case at its temperature's viscosity (format 1.1 viscosity law,
+    :func:`isokinetic.contracts.campaign.viscosity_scales`; empty without one)."""
     root = Path(campaign_root)
-    meta = campaign_meta(root)
+    meta = json.loads((root / "ingest" / "campaign.json").read_text(encoding="utf-8"))
     damper = None if meta.get("damper") is None else Damper.from_mapping(meta["damper"])
-    return meta["campaign"], damper, pd.read_parquet(root / CASES_FILE), pd.read_parquet(
-        root / CHARACTERISTIC_FILE)
+    cases = pd.read_parquet(root / CASES_FILE)
+    return meta["campaign"], damper, cases, pd.read_parquet(root / CHARACTERISTIC_FILE), viscosity_scales(meta, cases)
 
 
 def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
@@ -66,7 +63,7 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
     Observations is None, with the reason, when the campaign cannot be diagnosed.
     """
     root = Path(campaign_root)
-    campaign, damper, cases, char = load_campaign(root)
+    campaign, damper, cases, char, scales = load_campaign(root)
     if damper is None:
         return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model"
     if char.empty:
@@ -79,7 +76,6 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
             cache[key] = pd.read_parquet(root / key)
         return cache[key]
 
-    scales = viscosity_scales(campaign_meta(root), cases)   # each case at its temperature (viscosity law)
     obs = build_observations(campaign, cases, char, load, spec, n_bins, viscosity_scales=scales)
     if len(obs):
         dg0 = Diagnoser(obs, damper, alpha)

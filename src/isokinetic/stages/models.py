@@ -150,9 +150,9 @@ def standard_errors(force_std_N, n_samples, force_N, weighting: str = "standard_
 def wls(x: np.ndarray, y: np.ndarray, sigma: np.ndarray, confidence: float = CONFIDENCE) -> dict:
     """Weighted least squares with residual-variance scaling and t intervals.
 
-    Returns estimate, std_error, ci_low, ci_high (arrays), dof, residual_scale (sqrt of the reduced
-    chi-square), predicted. Columns are scaled to unit norm before a QR solve (v and v|v| span many
-    decades). Intervals are NaN when dof < 1.
+    Returns estimate, std_error, ci_low, ci_high (arrays), covariance (of the estimates, scaled by the
+    reduced chi-square), dof, residual_scale (sqrt of the reduced chi-square), predicted. Columns are
+    scaled to unit norm before a QR solve (v and v|v| span many decades). Intervals are NaN when dof < 1.
     """
     n, p = x.shape
     if n < p:
@@ -180,9 +180,10 @@ def wls(x: np.ndarray, y: np.ndarray, sigma: np.ndarray, confidence: float = CON
         rs = math.sqrt(s2)
     else:
         se = lo = hi = np.full(p, np.nan)
+        cov = np.full((p, p), np.nan)
         rs = math.nan
-    return {"estimate": est, "std_error": se, "ci_low": lo, "ci_high": hi, "dof": dof, "residual_scale": rs,
-            "predicted": pred}
+    return {"estimate": est, "std_error": se, "ci_low": lo, "ci_high": hi, "covariance": cov, "dof": dof,
+            "residual_scale": rs, "predicted": pred}
 
 
 # ----------------------------------------------------------------------------------------------

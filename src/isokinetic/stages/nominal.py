@@ -42,13 +42,7 @@ from isokinetic.contracts.campaign import case_plan, viscosity_scales
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.hydraulics import Hydraulics
 from isokinetic.physics.plan import CasePlan, triangle_displacement
-from isokinetic.physics.responses import (
-    Drive,
-    drive_times,
-    scaled_viscosity,
-    triangle_responses,
-    triangle_responses_at,
-)
+from isokinetic.physics.responses import Drive, drive_times, triangle_responses_at
 from isokinetic.stages.windows import WindowSpec, line_slope, window_ranges
 
 log = logging.getLogger("isokinetic.nominal")
@@ -169,12 +163,8 @@ class ModelPlan:
         if not self.plans:
             return mean, std
         hyd = Hydraulics.from_damper(damper, effects) if hydraulics is None else hydraulics
-        drives = self.drives if any(self.drives) else None
-        if self.viscosity_scales:
-            responses = triangle_responses_at(self.plans, [scaled_viscosity(hyd, x) for x in self.viscosity_scales],
-                                              effects.backlash_m, drives=drives)
-        else:
-            responses = triangle_responses(self.plans, hyd, effects.backlash_m, drives=drives)
+        responses = triangle_responses_at(self.plans, hyd, self.viscosity_scales, effects.backlash_m,
+                                          drives=self.drives if any(self.drives) else None)
         a = hyd.piston_area_m2
         for w in range(len(self)):
             _t, dp, vel = responses[self.case_index[w]]
