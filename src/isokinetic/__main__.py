@@ -45,13 +45,18 @@ def _export_virtual(args: argparse.Namespace) -> int:
 def _init_campaign(args: argparse.Namespace) -> int:
     """Draft FOLDER/campaign.yaml from the folder's case CSV files, or check the folder against its manifest.
 
-    The draft guesses the CSV dialect, each column's role and unit, the sample rate and each file's waveform
-    (triangle: period, amplitude, phase; sine: frequency, amplitude; otherwise free), with a comment beside
-    every guessed value saying how it was found and how sure it is. The damper block is left for you to
-    fill in. Only FOLDER/campaign.yaml is written, and an existing one only with --force.
+    The draft guesses the file format (CSV dialect, encoding, units row, MTS 793 export), each column's role
+    and unit (a column in volts is never taken for a scaled one; the roles are checked by physics, and a force
+    of the opposite sign is drafted with `invert: true`), the sample rate and each file's waveform (triangle:
+    period, amplitude, phase; sine: frequency, amplitude; otherwise free); a stepped record (a sweep,
+    standstills) becomes one case per step, each with its time_range_s. Beside every guessed value, a comment
+    says how it was found and how sure it is. Case files in subfolders are found; every file passed over is
+    listed. The damper block is left for you to fill in. Only FOLDER/campaign.yaml is written, and an
+    existing one only with --force.
 
     --check prints, case by case, where the files disagree with the existing manifest (waveform, period or
-    frequency, amplitude, phase, sample rate, units). Exit status: 0 all agree, 1 otherwise.
+    frequency, amplitude, phase, sample rate, units, the column choice and the roles' physics). Exit status:
+    0 all agree, 1 otherwise.
     """
     from isokinetic.init_campaign.check import print_check
     from isokinetic.init_campaign.draft import write_draft
@@ -59,12 +64,14 @@ def _init_campaign(args: argparse.Namespace) -> int:
     if args.check:
         return print_check(args.folder)
     path, survey = write_draft(args.folder, force=args.force)
-    kinds = [f.waveform.kind for f in survey.usable]
-    counts = ", ".join(f"{kinds.count(k)} {k}" for k in ("triangle", "sine", "free") if k in kinds)
+    kinds = survey.case_kinds()
+    counts = ", ".join(f"{kinds.count(k)} {k}" for k in ("triangle", "sine", "free", "standstill") if k in kinds)
     print(f"wrote {path}: {len(kinds)} cases ({counts})")
     for f in survey.files:
         if not f.ok:
             print(f"  set aside (commented out): {f.file}: {f.problem}")
+    for name, why in survey.skipped:
+        print(f"  passed over: {name}: {why}")
     if survey.campaign_note:
         print(f"warning: {survey.campaign_note}", file=sys.stderr)
     print("next: check every 'likely' and 'guess' comment, fill in the damper block, then run "
@@ -146,10 +153,12 @@ def build_parser() -> argparse.ArgumentParser:
                               "  trace results/paper-lag-damper/repeatability.parquet case=T12,direction=-\n"
                               "  trace results/lag-damper-demo/models/models.parquet "
                               "model=surace,direction=+,parameter=D_L\n"
+                              "  trace results/paper-lag-damper/characteristic.csv row=0\n"
                               "  trace results/paper-lag-damper/diagnosis.json gap_before\n"
                               "  trace results/blind/scores.parquet scenario=blind-003\n"
                               "  trace results/lag-damper-demo/ingest/timeseries/T12.parquet row=5")
-    p.add_argument("table", help="a results table (.parquet) or diagnosis.json")
+    p.add_argument("table", help="a results table (.parquet, or the CSV exports characteristic.csv and "
+                                 "models/models.csv) or diagnosis.json")
     p.add_argument("selector", nargs="?",
                    help="column=value[,column=value...] picking one row, or row=N (0-based); for "
                         "diagnosis.json a key path (gap_before, params.coulomb_force_N, '.' for all keys)")

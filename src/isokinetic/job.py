@@ -74,6 +74,9 @@ def job(smk) -> Iterator[Job]:
             record = from_snakemake(smk)
             with lineage_context(record), vector_figures(getattr(smk.params, "vector_format", None)):
                 yield Job(log=log, lineage=record)
+    except Exception as e:  # the job's log names why it failed (the run's closing summary quotes it)
+        log.error("job failed: %s: %s", type(e).__name__, e)
+        raise
     finally:
         _drop_handlers(log)
         logging.captureWarnings(False)

@@ -98,7 +98,8 @@ def test_provenance_lists_every_raw_file_with_its_hash(project):
     params = {"repeatability_tolerance": 0.05}
     assert char["params"] == params and char["inputs_current"] and char["consistent"]
     assert char["params_sha256"] == lineage.sha256_text(canonical_json(params))
-    made = ("cases.parquet", "quarantine.parquet", "windows.parquet", "repeatability.parquet", "characteristic.parquet")
+    made = ("cases.parquet", "quarantine.parquet", "windows.parquet", "repeatability.parquet", "characteristic.parquet",
+            "energy.parquet")
     assert char["outputs"] == {(project / ROOT / f).as_posix(): sha256(project / ROOT / f) for f in made}
     assert char["last_run_utc"].endswith("Z")
     index = prov["outputs"]
@@ -146,6 +147,40 @@ def test_provenance_flags_a_changed_raw_file(project, tmp_path):
     (work / RAW / f"{CASE_IDS[2]}.csv").unlink()
     again = provenance.campaign_provenance(work / ROOT, base=work)
     assert again["checks"]["missing_raw_files"] == [(RAW / f"{CASE_IDS[2]}.csv").as_posix()]
+
+
+def test_provenance_reads_no_raw_file_leading_outside_the_campaign_folder(project, tmp_path):
+    work = tmp_path / "copy"
+    shutil.copytree(project, work)
+    case_file = work / RAW / f"{CASE_IDS[1]}.csv"
+    outside = tmp_path / "outside.csv"                 # the same bytes, so a hash would even match
+    outside.write_bytes(case_file.read_bytes())
+    case_file.unlink()
+    case_file.symlink_to(outside)
+    prov = provenance.campaign_provenance(work / ROOT, base=work)
+    path = (RAW / f"{CASE_IDS[1]}.csv").as_posix()
+    entry = next(f for f in prov["raw"]["files"] if f["path"] == path)
+    assert entry["outside"] and entry["sha256_now"] is None and entry["unchanged"] is None
+    assert prov["checks"]["raw_files_outside"] == [path] and not prov["checks"]["raw_unchanged"]
+    assert not prov["checks"]["ok"] and any(path in line for line in provenance.provenance_warnings(prov))
+
+
+def test_unused_raw_folder_entries_are_listed_by_name_never_hashed(project, tmp_path):
+    work = tmp_path / "copy"
+    shutil.copytree(project, work)
+    secret = tmp_path / "secret.txt"
+    secret.write_text("not campaign data\n", encoding="utf-8")
+    (work / RAW / "passwd.csv").symlink_to(secret)
+    (work / RAW / "notes {old}.txt").write_text("x", encoding="utf-8")
+    (work / RAW / "run1").mkdir()
+    (work / RAW / "run1" / "spare.csv").write_text("t,x\n", encoding="utf-8")
+    prov = provenance.campaign_provenance(work / ROOT, base=work)
+    unused = {u["path"]: u for u in prov["raw"]["unused_files"]}
+    assert set(unused) == {(RAW / name).as_posix() for name in ("passwd.csv", "notes {old}.txt", "run1/spare.csv")}
+    assert "outside the campaign folder" in unused[(RAW / "passwd.csv").as_posix()]["note"]
+    named = {f["path"] for f in prov["raw"]["files"]}
+    assert not named & set(unused)
+    assert sha256(secret) not in json.dumps(prov)
 
 
 def test_simulated_campaign_provenance_carries_the_rig_spec(tmp_path):

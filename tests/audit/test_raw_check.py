@@ -44,6 +44,20 @@ def test_changed_and_missing_files(raw_campaign, capsys):
     assert len(capsys.readouterr().out.splitlines()) == 3
 
 
+def test_case_file_turned_into_a_symlink_out_of_the_folder_is_reported_unread(raw_campaign, tmp_path):
+    raw_campaign.run()
+    t01 = raw_campaign.raw_dir / "T01.csv"
+    outside = tmp_path / "elsewhere.csv"
+    outside.write_bytes(t01.read_bytes())      # same bytes: only not reading it tells the change
+    t01.unlink()
+    t01.symlink_to(outside.resolve())
+    changes = raw_changes(raw_campaign.root)
+    assert [(c["path"], c["problem"], c["sha256_now"]) for c in changes] == [
+        (f"data/raw/{CAMPAIGN}/T01.csv", "outside", None)]
+    with pytest.raises(RawDataChanged, match="T01.csv now leads outside the campaign folder: not read"):
+        check_raw(raw_campaign.root)
+
+
 def test_quarantined_case_without_hash_is_not_checked(raw_campaign):
     (raw_campaign.raw_dir / "F01.csv").unlink()     # quarantined at ingest: no sha256 recorded
     raw_campaign.run()

@@ -25,14 +25,13 @@ from isokinetic.audit import trace as tr
 from isokinetic.contracts.outputs import rule_of
 from isokinetic.io import lineage_context, write_json, write_parquet
 from isokinetic.stages import blind_diagnose, blind_score
-from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage
 from isokinetic.stages.design import plan_check
 from isokinetic.stages.diagnosis import diagnose
 from isokinetic.stages.harmonic import harmonic_stage
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.models import fit_models
 from isokinetic.stages.nominal import nominal_stage
-from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.validate import write_validated
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign, write_campaign
 from isokinetic.stages.windows import WindowSpec, windows_stage
@@ -68,10 +67,11 @@ def process(root: Path, damper) -> None:
     """Every stage after ingest, as the rules run them, into ``root`` (results/<campaign>)."""
     write_validated(root, sample_rate_tolerance=0.05)
     win = windows_stage(root, SPEC_W)
-    rep = repeatability(win, 0.05)
+    records, _energy = records_stage(root)
+    rep = paired_repeatability(win, records, 0.05)
     write_parquet(win, root / "windows.parquet")
     write_parquet(rep, root / "repeatability.parquet")
-    char = assemble(win, rep)
+    char = assemble(win, rep, records)
     write_parquet(char, root / "characteristic.parquet")
     write_parquet(nominal_stage(root, SPEC_W), root / "nominal_windows.parquet")
     name = json.loads((root / "ingest" / "campaign.json").read_text())["campaign"]
@@ -396,3 +396,48 @@ def test_every_table_kind_is_a_file_a_rule_writes():
     assert tr.table_kind(Path("results/design/plan_check.parquet")).name == "plan_check"
     with pytest.raises(tr.TraceStop, match="not a table trace knows"):
         tr.table_kind(Path("results/x/quarantine.parquet"))
+
+
+# --------------------------------------------------------------------------------------------
+# the CSV exports (characteristic.csv, models/models.csv)
+# --------------------------------------------------------------------------------------------
+
+def _exported(project: Path, dst: Path) -> Path:
+    from isokinetic.stages.exports import write_exports
+
+    dst = copy_project(project, dst, "results/mini-raw", "data/raw/mini-raw")
+    write_exports(dst / "results/mini-raw")
+    return dst / "results/mini-raw"
+
+
+def test_csv_exports_are_traced_through_their_parquet_rows(project, tmp_path):
+    root = _exported(project, tmp_path / "p")
+    char = pd.read_parquet(root / "characteristic.parquet")
+    as_csv = run(root / "characteristic.csv", "row=5")
+    as_parquet = run(root / "characteristic.parquet", "row=5")
+    assert as_csv.status == tr.MATCH and as_csv.exit_code == 0, as_csv.text
+    assert "line 8 of the file" in as_csv.text and "force_N [N]" in as_csv.text  # the names and units rows
+    assert [(c.name, c.stored) for c in as_csv.comparisons] == [(c.name, c.stored) for c in as_parquet.comparisons]
+    stored = {c.name: c.stored for c in as_csv.comparisons}
+    assert stored["case"] == char.loc[5, "case"] and stored["force_N"] == char.loc[5, "force_N"]
+    by_key = run(root / "characteristic.csv", f"case={char.loc[5, 'case']},segment={char.loc[5, 'segment']}")
+    assert by_key.status == tr.MATCH and "line 8 of the file" in by_key.text
+    models = run(root / "models/models.csv", "row=1")
+    assert models.status == tr.MATCH, models.text
+
+
+def test_an_edited_csv_export_is_a_mismatch_naming_line_and_field(project, tmp_path):
+    root = _exported(project, tmp_path / "p")
+    path = root / "characteristic.csv"
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    fields = lines[3].split(",")
+    col = lines[0].split(",").index("force_N")
+    fields[col] = repr(float(fields[col]) + 1.0)
+    lines[3] = ",".join(fields)
+    path.write_text("".join(lines), encoding="utf-8")
+    result = run(path, "row=1")
+    assert result.status == tr.MISMATCH and result.exit_code == 1, result.text
+    assert "line 4 of" in result.text and "force_N: CSV" in result.text
+    other = run(path, "row=0")  # an untouched line still matches; the edited one is pointed out
+    assert other.status == tr.MATCH and "1 other line(s) of the file differ from their source rows (lines 4)" \
+        in other.text, other.text

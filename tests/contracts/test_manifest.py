@@ -69,8 +69,8 @@ def _duplicate_case(m):
     # a file name with a path refuses the whole manifest (hostile input; it used to quarantine the case)
     (_set("../T01.csv", "cases", 0, "file"), "cases.T01.file",
      "must be a bare file name inside the campaign folder, got '../T01.csv'"),
-    (_set("sub/T01.csv", "cases", 0, "file"), "cases.T01.file",
-     "must be a bare file name inside the campaign folder, got 'sub/T01.csv'"),
+    (_set("sub/../T01.csv", "cases", 0, "file"), "cases.T01.file",
+     "must be a bare file name inside the campaign folder, got 'sub/../T01.csv'"),
 ])
 def test_broken_manifest_names_file_and_key(raw_campaign, edit, key, words):
     raw_campaign.edit_manifest(edit)
@@ -111,8 +111,8 @@ def _problems(m, case):
     ("phase_rad", "north", ("key", "phase_rad", "must be a number, got 'north'")),
     ("sample_rate_Hz", 0, ("key", "sample_rate_Hz", "must be a positive number, got 0")),
     ("file", None, ("key", "file", "missing")),
-    ("columns", {"force": {"unit": "lbf"}},
-     ("column", "force_kN", "unknown unit 'lbf' for force; expected one of N, kN")),
+    ("columns", {"force": {"unit": "ton"}},
+     ("column", "force_kN", "unknown unit 'ton' for force; expected one of N, kN, lbf, kgf")),
     ("columns", {"force": {"invert": "yes"}}, ("key", "columns.force.invert", "must be true or false, got 'yes'")),
     ("columns", {"force": None}, ("key", "columns.force", "a required channel cannot be removed")),
 ])
@@ -130,7 +130,7 @@ def test_case_problems_stay_with_the_case(raw_campaign, field, value, expected):
 
 
 def test_campaign_unit_problem_reaches_every_case_naming_its_column(raw_campaign):
-    raw_campaign.edit_manifest(_set("lbf", "columns", "force", "unit"))
+    raw_campaign.edit_manifest(_set("ton", "columns", "force", "unit"))
     m = load_manifest(MANIFEST_FILE)
     columns = {c.id: [p.column for p in c.problems] for c in m.cases}
     assert columns == {"T01": ["force_kN"], "T02": ["force_kN"], "T03": ["force_inv_kN"],
@@ -185,12 +185,13 @@ def test_csv_block_is_optional_and_reaches_every_case(raw_campaign):
 
 
 @pytest.mark.parametrize("block, dialect", [
-    ({"delimiter": "\t"}, CsvDialect("\t", ".")),
-    ({"delimiter": "\\t", "decimal": ","}, CsvDialect("\t", ",")),   # '\t' in single quotes: backslash and t
-    ({"delimiter": "tab"}, CsvDialect("\t", ".")),
-    ({"delimiter": "|", "decimal": ","}, CsvDialect("|", ",")),
-    ({"delimiter": ";"}, CsvDialect(";", ".")),
-    ({}, CsvDialect(",", ".")),
+    ({"delimiter": "\t"}, CsvDialect(delimiter="\t", decimal=".")),
+    # '\t' in single quotes: backslash and t
+    ({"delimiter": "\\t", "decimal": ","}, CsvDialect(delimiter="\t", decimal=",")),
+    ({"delimiter": "tab"}, CsvDialect(delimiter="\t", decimal=".")),
+    ({"delimiter": "|", "decimal": ","}, CsvDialect(delimiter="|", decimal=",")),
+    ({"delimiter": ";"}, CsvDialect(delimiter=";", decimal=".")),
+    ({}, CsvDialect(delimiter=",", decimal=".")),
 ])
 def test_csv_block_keys_default_to_the_format(raw_campaign, block, dialect):
     raw_campaign.edit_manifest(_set(block, "csv"))
@@ -198,9 +199,10 @@ def test_csv_block_keys_default_to_the_format(raw_campaign, block, dialect):
 
 
 @pytest.mark.parametrize("block, key, words", [
-    (";", "csv", "expected a mapping with keys delimiter and decimal, got ';'"),
-    ({"delimiter": ";", "thousands": "."}, "csv.thousands", "unknown key: the csv block declares only delimiter"),
-    ({"delimiter": ":"}, "csv.delimiter", "must be one of ',', ';', \"\\t\" (tab) or '|', got ':'"),
+    (";", "csv", "expected a mapping with keys format, delimiter, decimal, encoding, units_row, got ';'"),
+    ({"delimiter": ";", "thousands": "."}, "csv.thousands",
+     "unknown key: the csv block declares only format, delimiter"),
+    ({"delimiter": ":"}, "csv.delimiter", "must be one of ',', ';', \"\\t\" (tab), '|' or whitespace, got ':'"),
     ({"delimiter": [";"]}, "csv.delimiter", "got [';']"),
     ({"delimiter": None}, "csv.delimiter", "got None"),
     ({"delimiter": ";", "decimal": ";"}, "csv.decimal", "must be '.' or ',', got ';'"),
@@ -214,3 +216,128 @@ def test_bad_csv_block_fails_the_campaign(raw_campaign, block, key, words):
     assert info.value.key == key
     assert str(info.value).startswith(f"{MANIFEST_FILE}: key {key!r}: ")    # the campaign's folder and the key
     assert words in str(info.value)
+
+
+# --- format 1.2 additions ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("block, dialect", [
+    ({"format": "mts793"}, CsvDialect(delimiter="\t", units_row=True, format="mts793")),
+    ({"format": "mts793", "delimiter": "whitespace", "encoding": "cp1252"},
+     CsvDialect(delimiter="whitespace", encoding="cp1252", units_row=True, format="mts793")),
+    ({"delimiter": "whitespace", "units_row": True}, CsvDialect(delimiter="whitespace", units_row=True)),
+    ({"encoding": "latin-1", "delimiter": ";", "decimal": ","},
+     CsvDialect(delimiter=";", decimal=",", encoding="latin-1")),
+])
+def test_csv_block_format_encoding_and_units_row(raw_campaign, block, dialect):
+    raw_campaign.edit_manifest(_set(block, "csv"))
+    assert load_manifest(MANIFEST_FILE).csv == dialect
+
+
+@pytest.mark.parametrize("block, key, words", [
+    ({"encoding": "klingon"}, "csv.encoding", "unknown encoding 'klingon'"),
+    ({"encoding": "base64"}, "csv.encoding", "'base64' is not a text encoding"),
+    ({"encoding": 1252}, "csv.encoding", "must be a text encoding name"),
+    ({"units_row": "yes"}, "csv.units_row", "must be true or false, got 'yes'"),
+    ({"format": "xlsx"}, "csv.format", "must be one of delimited, mts793, got 'xlsx'"),
+    ({"format": "mts793", "delimiter": ";"}, "csv.delimiter", "an mts793 export is tab or whitespace separated"),
+    ({"format": "mts793", "units_row": False}, "csv.units_row", "an mts793 export always has a units row"),
+    ({"encodng": "cp1252"}, "csv.encodng", "did you mean 'encoding'?"),
+])
+def test_bad_csv_block_1_2_keys_fail_the_campaign(raw_campaign, block, key, words):
+    raw_campaign.edit_manifest(_set(block, "csv"))
+    with pytest.raises(ManifestError) as info:
+        load_manifest(MANIFEST_FILE)
+    assert info.value.key == key and words in str(info.value)
+
+
+def test_vendor_units_are_accepted_and_sec_means_seconds(raw_campaign):
+    def edit(m):
+        m["columns"]["time"]["unit"] = "Sec"
+        m["columns"]["displacement"]["unit"] = "in"
+        m["columns"]["force"]["unit"] = "lbf"
+        m["cases"][1]["columns"] = {"force": {"unit": "kgf"}}
+    raw_campaign.edit_manifest(edit)
+    m = load_manifest(MANIFEST_FILE)
+    assert all(not c.problems for c in m.cases)
+    assert (m.columns["time"].unit, m.columns["displacement"].unit, m.columns["force"].unit) == ("s", "in", "lbf")
+    assert m.cases[1].columns["force"].unit == "kgf"
+
+
+@pytest.mark.parametrize("keys, time_range, rows", [
+    ({"time_range_s": [40.0, 52.5]}, (40.0, 52.5), None),
+    ({"time_range_s": ["0", 7.5]}, (0.0, 7.5), None),
+    ({"rows": [4000, 5200]}, None, (4000, 5200)),
+])
+def test_case_slice_keys(raw_campaign, keys, time_range, rows):
+    raw_campaign.edit_manifest(lambda m: m["cases"][0].update(keys))
+    t01 = load_manifest(MANIFEST_FILE).cases[0]
+    assert (t01.time_range_s, t01.rows, t01.problems) == (time_range, rows, ())
+
+
+@pytest.mark.parametrize("keys, key, words", [
+    ({"time_range_s": [5.0, 5.0]}, "time_range_s", "must be [start, end) in seconds"),
+    ({"time_range_s": [-1.0, 5.0]}, "time_range_s", "0 <= start < end"),
+    ({"time_range_s": [0.0, 2e6]}, "time_range_s", "end <= 1e+06"),
+    ({"time_range_s": 5.0}, "time_range_s", "got 5.0"),
+    ({"rows": [10, 5]}, "rows", "must be [first, stop) of 0-based data rows"),
+    ({"rows": [0.5, 5]}, "rows", "integers"),
+    ({"rows": [0, 10**12]}, "rows", "stop <= 1000000000"),
+    ({"rows": [0, 5], "time_range_s": [0.0, 1.0]}, "rows", "give time_range_s or rows, not both"),
+])
+def test_bad_case_slice_is_the_case_problem(raw_campaign, keys, key, words):
+    raw_campaign.edit_manifest(lambda m: m["cases"][0].update(keys))
+    m = load_manifest(MANIFEST_FILE)
+    [(kind, column, message)] = _problems(m, "T01")
+    assert (kind, column) == ("key", key) and words in message
+    assert all(not c.problems for c in m.cases[1:])
+
+
+def test_standstill_case_has_no_motion_keys(raw_campaign):
+    raw_campaign.edit_manifest(lambda m: m["cases"].extend([
+        {"id": "Z01", "waveform": "standstill", "file": "F01.csv", "time_range_s": [0.0, 2.0]},
+        {"id": "Z02", "waveform": "standstill", "file": "F01.csv", "amplitude_mm": 1.0}]))
+    m = load_manifest(MANIFEST_FILE)
+    z01 = m.cases[-2]
+    assert z01.waveform == "standstill" and z01.problems == () and math.isnan(z01.plan.amplitude_m)
+    assert _problems(m, "Z02") == [("key", "amplitude_mm", "a standstill case has no motion: leave the key out")]
+
+
+def test_case_gas_force_overrides_the_campaign(raw_campaign):
+    def edit(m):
+        m["gas_force_N"] = 100.0
+        m["cases"][1]["gas_force_N"] = 150.0
+        m["cases"][2]["gas_force_N"] = "lots"
+    raw_campaign.edit_manifest(edit)
+    m = load_manifest(MANIFEST_FILE)
+    assert [c.gas_force_N for c in m.cases[:2]] == [100.0, 150.0]
+    assert (m.cases[0].case_gas_force_N, m.cases[1].case_gas_force_N) == (None, 150.0)
+    assert _problems(m, "T03") == [("key", "gas_force_N", "must be a number (N), got 'lots'")]
+    assert "gas_force_N" not in m.metadata.get("cases", {}).get("T02", {})
+
+
+def test_keys_far_from_any_known_key_give_no_warning(raw_campaign):
+    raw_campaign.edit_manifest(lambda m: m["cases"][0].update(rig_operator="A. Smith", frequency_hz=1.0))
+    m = load_manifest(MANIFEST_FILE)
+    assert len(m.warnings) == 1 and "'cases.T01.frequency_hz'" in m.warnings[0] and "'frequency_Hz'" in m.warnings[0]
+
+
+def test_full_scale_is_read_per_channel_and_merged_into_a_case(raw_campaign):
+    """Issue 20 (1.2): columns.<channel>.full_scale, in the column's unit; a case's own columns may set it."""
+    raw_campaign.edit_manifest(lambda m: (m["columns"]["force"].update(full_scale=10),
+                                          raw_campaign.case_entry(m, "T02").update(
+                                              columns={"displacement": {"full_scale": "2.5"}})))
+    manifest = load_manifest(raw_campaign.raw_dir / "campaign.yaml")
+    cases = {c.id: c for c in manifest.cases}
+    assert manifest.columns["force"].full_scale == 10.0 and manifest.columns["time"].full_scale is None
+    assert cases["T02"].columns["displacement"].full_scale == 2.5 and cases["T02"].columns["force"].full_scale == 10.0
+    assert cases["T01"].columns["displacement"].full_scale is None
+
+
+@pytest.mark.parametrize("channel, value, words", [("force", 0, "must be a positive number"),
+                                                   ("force", "ten", "must be a positive number"),
+                                                   ("time", 10, "applies to displacement, force, command only")])
+def test_bad_full_scale_fails_the_campaign(raw_campaign, channel, value, words):
+    raw_campaign.edit_manifest(lambda m: m["columns"][channel].update(full_scale=value))
+    with pytest.raises(ManifestError) as info:
+        load_manifest(raw_campaign.raw_dir / "campaign.yaml")
+    assert info.value.key == f"columns.{channel}.full_scale" and words in info.value.problem

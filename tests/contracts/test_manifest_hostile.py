@@ -57,8 +57,8 @@ def _no_case_file_read(raw_campaign, monkeypatch) -> None:
 
 # --- file names and symlinks -------------------------------------------------------------------
 
-@pytest.mark.parametrize("name", ["../T01.csv", "sub/T01.csv", "/etc/passwd", "sub\\T01.csv", "C:T01.csv",
-                                  "..", "T01.csv\0", 5])
+@pytest.mark.parametrize("name", ["../T01.csv", "sub/../../T01.csv", "/etc/passwd", "sub\\T01.csv", "C:T01.csv",
+                                  "..", "T01.csv\0", 5, "sub//T01.csv", "sub/", "./T01.csv"])
 def test_file_name_with_a_path_refuses_the_manifest(raw_campaign, monkeypatch, name):
     raw_campaign.edit_manifest(lambda m: m["cases"][0].update(file=name))
     _no_case_file_read(raw_campaign, monkeypatch)
@@ -76,6 +76,22 @@ def test_symlink_leading_outside_refuses_the_manifest(raw_campaign, monkeypatch,
     link.symlink_to(secret)
     _no_case_file_read(raw_campaign, monkeypatch)
     _refused("cases.T02.file", "'T02.csv' is a symlink to", "outside the campaign folder")
+
+
+def test_subfolder_symlink_leading_outside_refuses_the_manifest(raw_campaign, monkeypatch, tmp_path):
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "elsewhere" / "T01.csv").write_bytes((raw_campaign.raw_dir / "T01.csv").read_bytes())
+    (raw_campaign.raw_dir / "run1").symlink_to(tmp_path / "elsewhere")
+    raw_campaign.edit_manifest(lambda m: m["cases"][0].update(file="run1/T01.csv"))
+    _no_case_file_read(raw_campaign, monkeypatch)
+    _refused("cases.T01.file", "'run1/T01.csv' is a symlink to", "outside the campaign folder")
+
+
+def test_case_file_in_a_subfolder_is_accepted(raw_campaign):
+    (raw_campaign.raw_dir / "run1").mkdir()
+    (raw_campaign.raw_dir / "T01.csv").rename(raw_campaign.raw_dir / "run1" / "T01.csv")
+    raw_campaign.edit_manifest(lambda m: m["cases"][0].update(file="run1/T01.csv"))
+    assert load_manifest(MANIFEST_FILE).cases[0].file == "run1/T01.csv"
 
 
 def test_dangling_symlink_outside_and_symlink_inside(raw_campaign):

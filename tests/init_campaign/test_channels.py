@@ -84,3 +84,28 @@ def test_a_command_is_smoother_than_its_measured_displacement():
     t = np.arange(4000) / 100.0
     command = triangle_displacement(t, 1e-3, 20.0)
     assert ch.roughness(command) < ch.roughness(command + rng.normal(0, 1e-6, t.size))
+
+
+def test_a_damper_force_follows_the_velocity_in_every_cycle():
+    rng = np.random.default_rng(9)
+    t = np.arange(5000) / 500.0
+    y = 0.01 * np.sin(2 * np.pi * 1.0 * t)
+    v = 0.01 * 2 * np.pi * np.cos(2 * np.pi * 1.0 * t)
+    force = 2000.0 * v + rng.normal(0, 1.0, t.size)
+    follows = ch.force_follows_velocity(t, y, force)
+    assert follows.correlation > 0.99 and follows.opposed_cycles == 0 and not follows.problem
+    assert follows.damping_N_s_m == pytest.approx(2000.0, rel=0.01) and ch.plausible_damping(follows.damping_N_s_m)
+    opposed = ch.force_follows_velocity(t, y, -force)
+    assert opposed.opposed_everywhere and opposed.cycles == opposed.opposed_cycles >= 8
+    half = np.where(t < 5.0, force, -force)                 # the sign flips half way: no convention fits
+    mixed = ch.force_follows_velocity(t, y, half)
+    assert not mixed.opposed_everywhere and mixed.problem
+    assert "does not follow the velocity" in ch.force_follows_velocity(t, y, rng.normal(0, 1.0, t.size)).problem
+
+
+@pytest.mark.parametrize("text, expected", [("in", ("length", "in")), ("lbf", ("force", "lbf")),
+                                            ("Sec", ("time", "s")), ("°C", ("temperature", "C")),
+                                            ("F", ("temperature", "F")), ("kN", ("force", "kN")), ("V", None),
+                                            ("", None)])
+def test_a_units_row_cell_gives_dimension_and_unit(text, expected):
+    assert ch.unit_from_units_row(text) == expected

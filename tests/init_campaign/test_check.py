@@ -84,3 +84,11 @@ def test_check_piped_into_a_reader_that_stops_early_ends_quietly(campaign_copy):
         os.close(write_end)
     assert "Traceback" not in proc.stderr, proc.stderr
     assert proc.returncode == 1
+
+
+def test_check_reports_columns_other_than_the_role_choice_takes(campaign_copy):
+    def swap(m):
+        m["columns"]["displacement"], m["columns"]["command"] = m["columns"]["command"], m["columns"]["displacement"]
+    edit_manifest(campaign_copy, swap)
+    for keys in findings(campaign_copy).values():
+        assert {"columns.displacement", "columns.command"} <= set(keys)

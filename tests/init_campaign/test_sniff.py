@@ -23,7 +23,7 @@ def text(delimiter: str, decimal: str, comments: str = "") -> str:
                                                 ("|", "."), ("|", ",")])
 def test_sniff_finds_delimiter_decimal_and_header(delimiter, decimal):
     sniffed = sniff_text(text(delimiter, decimal))
-    assert sniffed.dialect == CsvDialect(delimiter, decimal)
+    assert sniffed.dialect == CsvDialect(delimiter=delimiter, decimal=decimal)
     assert sniffed.header == tuple(HEADER)
     assert sniffed.comments == ()
 
@@ -31,7 +31,7 @@ def test_sniff_finds_delimiter_decimal_and_header(delimiter, decimal):
 def test_sniff_keeps_comment_lines_before_the_header():
     sniffed = sniff_text(text(";", ",", comments="# rig: bench 2\n\n# operator: x; y\n"))
     assert sniffed.comments == ("# rig: bench 2", "# operator: x; y")
-    assert sniffed.dialect == CsvDialect(";", ",") and sniffed.header == tuple(HEADER)
+    assert sniffed.dialect == CsvDialect(delimiter=";", decimal=",") and sniffed.header == tuple(HEADER)
 
 
 def test_sniff_tolerates_a_cut_off_last_row():

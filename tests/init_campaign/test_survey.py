@@ -37,11 +37,11 @@ def test_case_ids_follow_the_case_id_rule_and_stay_unique():
 
 
 def test_files_in_another_dialect_than_most_are_set_aside():
-    files = [FileSurvey(f"{i}.csv", str(i), dialect=CsvDialect(";", ",")) for i in range(2)]
+    files = [FileSurvey(f"{i}.csv", str(i), dialect=CsvDialect(delimiter=";", decimal=",")) for i in range(2)]
     files.append(FileSurvey("odd.csv", "odd", dialect=CsvDialect()))
     dialect, how = choose_dialect(files)
-    assert dialect == CsvDialect(";", ",") and "2 of 3 files" in how
-    assert files[2].problem.startswith("written with ',' between fields") and files[0].ok
+    assert dialect == CsvDialect(delimiter=";", decimal=",") and "2 of 3 files" in how
+    assert files[2].problem.startswith("written as ',' between fields") and files[0].ok
 
 
 def survey_of(columns: dict[str, np.ndarray]) -> FileSurvey:
@@ -73,6 +73,13 @@ def test_names_win_over_magnitudes():
 def test_a_folder_with_no_case_file_is_an_error(tmp_path: Path):
     from isokinetic.init_campaign.survey import survey_folder
 
-    (tmp_path / "notes.txt").write_text("x", encoding="utf-8")
+    (tmp_path / "notes.md").write_text("x", encoding="utf-8")
     with pytest.raises(FileNotFoundError, match="no case files"):
         survey_folder(tmp_path)
+
+
+def test_a_volts_column_takes_no_role_from_magnitudes_either():
+    t = np.arange(400) / 100.0
+    y = triangle_displacement(t, 1.0, 2.0)
+    survey = survey_of({"time_s": t, "x_mm": y, "ai1_V": np.sign(np.gradient(y, t)) * 2.5})
+    assert "force" not in survey.roles and survey.volts == {"ai1_V": None}

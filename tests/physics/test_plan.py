@@ -40,3 +40,17 @@ def test_other_phases_keep_their_half_periods():
 def test_default_tolerance_is_a_thousandth_of_a_radian():
     assert half_periods(300.0, -1.5708, 600.0).tolist() == EXACT
     assert len(half_periods(300.0, -math.pi / 2 + 0.01, 600.0)) == 3
+
+
+def test_half_periods_stop_at_max_count_whatever_the_record_length():
+    """Issue 20: a last time stamp of 1e308 s (or NaN) must not loop over 1e308 s of half-periods."""
+    four = half_periods(300.0, -math.pi / 2, 600.0)
+    for duration_s in (1e308, math.inf, math.nan):
+        rows = half_periods(300.0, -math.pi / 2, duration_s, max_count=4)
+        assert rows.tolist() == (four.tolist() if duration_s == duration_s else [])
+
+
+def test_half_periods_without_a_bound_refuse_a_record_of_centuries():
+    with pytest.raises(ValueError, match="more than 1000000 half-periods"):
+        half_periods(4.0, -math.pi / 2, 1.26e9)          # a year typo in an ISO stamp: 40 years of record
+    assert len(half_periods(4.0, -math.pi / 2, 4.0e5)) == 200_000      # a long real record is still listed

@@ -31,7 +31,7 @@ def test_overlay_draws_points_models_and_bands_of_every_campaign_on_log_axes():
     for ax, d in zip(fig.axes, "+-", strict=True):
         assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
         assert {f"{kind}:{c}:{d}" for kind in ("points", "model", "band") for c in "ab"} <= gids(ax)
-        assert "[mm/s]" in ax.get_xlabel() and "[kN]" in ax.get_ylabel()
+        assert "[mm/s]" in ax.get_xlabel() and ax.get_ylabel().endswith("[N]")
     assert "reference a" in fig._suptitle.get_text() and "95 % prediction band" in fig._supxlabel.get_text()
 
 
@@ -42,7 +42,8 @@ def test_overlay_bars_are_1_96_standard_errors_of_each_point():
     pts = r.points[(r.points["campaign"] == "a") & (r.points["direction"] == "-")]
     assert np.allclose(bars.lines[0].get_xdata(), np.abs(pts["velocity_m_s"].to_numpy()) * 1e3)
     half = np.array([np.ptp(seg[:, 1]) / 2 for seg in bars.lines[2][0].get_segments()])
-    assert half == pytest.approx(Z_95 * pts["se_N"].to_numpy() / 1e3)
+    scale = 1e3 if ax.get_ylabel().endswith("[kN]") else 1.0  # the axis' force unit
+    assert half == pytest.approx(Z_95 * pts["se_N"].to_numpy() / scale)
 
 
 def test_difference_marks_model_rows_and_rings_the_significant_ones():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from isokinetic.plots import figures
@@ -92,7 +93,7 @@ def test_characteristic_plots_one_point_per_window(camp):
     assert all(ln.get_linewidth() > 3 for ln in p2)
     x = np.concatenate([ln.get_xdata() for ln in p1])
     assert x.min() < 0 < x.max()  # both quadrants
-    assert ax.get_xlabel() == "Piston velocity v [mm/s]" and ax.get_ylabel() == "Steady force F [kN]"
+    assert ax.get_xlabel() == "Piston velocity v [mm/s]" and ax.get_ylabel() == "Steady force F [N]"
     assert ax.get_legend() is not None and "synthetic-damper" in fig.get_suptitle()
 
 
@@ -180,3 +181,68 @@ def test_char_figures_state_missing_data_on_empty_table():
     for make in (figures.characteristic, figures.low_velocity_detail, figures.loglog_characteristic, figures.noise):
         fig = make(empty, campaign="x")
         assert any("no characteristic points" in t.get_text() for ax in fig.axes for t in ax.texts), make.__name__
+
+
+# ----------------------------------------------------------------------------------------------
+# sine and free points (issue 19) and which figures apply
+# ----------------------------------------------------------------------------------------------
+
+def _sine_rows(char):
+    """Two sine cases' peak-velocity rows made from the triangle table's columns (forces off the triangle's)."""
+    rows = []
+    for k, (case, v) in enumerate((("H01", 2e-3), ("H02", 4e-3))):
+        for seg, d, period in ((1, "+", 1), (2, "-", 1), (3, "+", 2), (4, "-", 2)):
+            s = 1.0 if d == "+" else -1.0
+            rows.append({**char.iloc[0].to_dict(), "case": case, "segment": seg, "direction": d, "period": period,
+                         "velocity_m_s": s * v, "force_N": s * (1000.0 + 500.0 * k), "n_samples": 5,
+                         "method": "sine_peak", "repeatability_flagged": False})
+    return pd.DataFrame(rows)
+
+
+def test_characteristic_draws_sine_points_one_per_case_and_direction(camp):
+    _, _, _, char = camp
+    sine = _sine_rows(char)
+    both = pd.concat([char.assign(method="triangle_window"), sine], ignore_index=True)
+    fig = figures.characteristic(both)
+    ax = fig.axes[0]
+    lines = _lines(ax, "sine_peak")
+    assert len(lines) == 4 and _n_points(lines) == 4
+    xs = sorted(float(x) for ln in lines for x in ln.get_xdata())
+    assert xs == pytest.approx([-4.0, -2.0, 2.0, 4.0])            # mm/s, the periods' mean
+    assert _n_points(_lines(ax, "period1")) == (char["period"] == 1).sum()
+    assert "triangle tests; sine tests, force at peak velocity" in fig.get_suptitle()
+
+
+def test_characteristic_of_a_sine_only_table_is_drawn_not_missing(camp):
+    _, _, _, char = camp
+    fig = figures.characteristic(_sine_rows(char))
+    ax = fig.axes[0]
+    assert not ax.texts and _lines(ax, "sine_peak") and not _lines(ax, "period1")
+    assert "(sine tests, force at peak velocity)" in fig.get_suptitle()
+
+
+def test_applies_names_why_a_triangle_figure_does_not_apply():
+    sine_only = pd.DataFrame({"case": ["H01", "T01"], "waveform": ["sine", "triangle"],
+                              "status": ["ok", "quarantined"]})
+    assert figures.applies("fig07_time_and_loops", sine_only) == ("no status-ok triangle case: it shows triangle "
+                                                                  "records")
+    assert figures.applies("fig12_noise", sine_only).startswith("no status-ok triangle case")
+    assert figures.applies("fig09_characteristic", sine_only) is None
+    assert figures.applies("fig15_harmonic_loops", sine_only) is None
+    assert figures.applies("fig20_case_temperature", sine_only) is None
+    triangle_only = sine_only.assign(waveform=["triangle", "triangle"])
+    assert figures.applies("fig07_time_and_loops", triangle_only) is None
+    assert figures.applies("fig15_harmonic_loops", triangle_only) == ("no status-ok sine or free case: it shows sine "
+                                                                      "and free records")
+    assert figures.applies("fig09_characteristic", None).startswith("no cases")
+
+
+def test_loglog_draws_sine_points_as_markers_apart_from_the_window_lines(camp):
+    _, _, _, char = camp
+    both = pd.concat([char.assign(method="triangle_window"), _sine_rows(char)], ignore_index=True)
+    ax = figures.loglog_characteristic(both).axes[0]
+    alone = figures.loglog_characteristic(char).axes[0]
+    for gid in ("q1", "q3-folded"):
+        np.testing.assert_array_equal(_lines(ax, gid)[0].get_xdata(), _lines(alone, gid)[0].get_xdata())
+    sine = _lines(ax, "q1-sine_peak") + _lines(ax, "q3-folded-sine_peak")
+    assert _n_points(sine) == 4 and all(ln.get_linestyle() == "None" for ln in sine)

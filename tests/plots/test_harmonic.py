@@ -25,3 +25,23 @@ def test_figure_draws_every_case_with_its_points(raw_campaign):
             "peak-velocity-F01"} <= gids
     assert len([ax for ax in fig.axes if ax.get_lines()]) == 2 * (1 + len(loops))
     assert any("lags v by" in s for s in _texts(fig)) and fig._supxlabel.get_text() == "a note"
+
+
+def test_panel_titles_stay_apart_and_each_names_its_case(raw_campaign):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    cases, _ = raw_campaign.run()
+    table, loops = harmonic_stage(raw_campaign.root)
+    fig = harmonic_figure(table, loops, cases, campaign="demo")
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    axes = fig.axes
+    for left, right in zip(axes[0::2], axes[1::2], strict=True):
+        boxes = [ax.title.get_window_extent(renderer) for ax in (left, right)]
+        assert boxes[0].x1 < boxes[1].x0, (left.get_title(), right.get_title())  # a gap between the two titles
+        for ax, box in zip((left, right), boxes, strict=True):  # each centred over its own panel
+            frame = ax.get_window_extent(renderer)
+            assert abs((box.x0 + box.x1) / 2 - (frame.x0 + frame.x1) / 2) < 2.0 and frame.x0 <= box.x0
+    for (left, right), case in zip(zip(axes[2::2], axes[3::2], strict=True), loops, strict=True):
+        assert left.get_title().startswith(f"{case}:") and right.get_title().startswith(case)

@@ -48,11 +48,9 @@ def test_save_figure_draws_the_pixels_savefig_draws(tmp_path):
             assert im_a.size == im_b.size and np.array_equal(np.asarray(im_a), np.asarray(im_b))
 
 
-def test_force_unit_switches_to_kN_at_1_kN_and_ignores_non_finite():
-    assert style.force_unit([999.0, -20.0]) == (1.0, "N")
-    assert style.force_unit(np.array([10.0, -1000.0])) == (1e3, "kN")
-    assert style.force_unit(pd.Series([np.nan, np.inf, 5.0])) == (1.0, "N")
-    assert style.force_unit([]) == (1.0, "N")
+def test_force_unit_is_newtons_as_in_the_tables_at_any_magnitude():
+    for forces in ([999.0, -20.0], np.array([10.0, -1000.0]), pd.Series([np.nan, np.inf, 5.0]), [], [-2.5e5]):
+        assert style.force_unit(forces) == (1.0, "N")
 
 
 def test_footnote_wraps_to_the_figure_width_unless_asked_for_one_line():

@@ -42,3 +42,23 @@ def test_no_known_temperature_is_said_on_the_figure():
     fig = case_temperature(_cases([math.nan], [math.nan], [""]), LAW)
     assert "no temperature known" in _texts(fig)
     assert "no temperature known" in _texts(case_temperature(None, None))
+
+
+def _label_boxes(fig):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    return [t.get_window_extent(renderer) for t in fig.axes[0].get_xticklabels() if t.get_text()]
+
+
+def test_case_labels_never_overlap_however_many_cases_and_however_long_their_names():
+    for n, name in ((4, "T{:02d}"), (30, "T{:02d}"), (30, "sweep_step_{:03d}"), (200, "S{:03d}")):
+        cases = pd.DataFrame({"case": [name.format(i) for i in range(n)], "temperature_C": 40.0,
+                              "temperature_span_C": math.nan, "temperature_source": "campaign"})
+        boxes = _label_boxes(case_temperature(cases, None))
+        assert boxes, (n, name)
+        boxes.sort(key=lambda b: b.x0)
+        for a, b in zip(boxes, boxes[1:]):
+            assert a.x1 <= b.x0, (n, name, a, b)

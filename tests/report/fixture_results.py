@@ -122,7 +122,12 @@ def build_campaign(root: Path, *, damper: bool = True, stamped: bool = True) -> 
             "period_s": 20.0, "frequency_Hz": np.nan, "phase_rad": 0.0, "duration_s": 40.0,
             "raw_file": "data/raw/demo/T04.csv", "raw_sha256": "ef" * 32, "timeseries_file": "", "n_samples": 0,
             "status": "quarantined", "motion_start_s": np.nan, "delay_s": np.nan, "velocity_ratio": np.nan,
-            "motion_rms_m": np.nan, "quality": "quarantined"}])
+            "motion_rms_m": np.nan, "quality": "quarantined"},
+           {"campaign": CAMPAIGN, "case": "H01", "waveform": "sine", "sample_rate_Hz": 200.0, "amplitude_m": 2.3e-4,
+            "period_s": np.nan, "frequency_Hz": 1.75, "phase_rad": 0.0, "duration_s": 6.0,
+            "raw_file": "data/raw/demo/H01.csv", "raw_sha256": "12" * 32,
+            "timeseries_file": "ingest/timeseries/H01.parquet", "n_samples": 1200, "status": "ok",
+            **MOTION_NONE}])
     write_parquet(tables.validate_table(cases, tables.CASES), root / "cases.parquet")
     quarantine = pd.DataFrame({"campaign": [CAMPAIGN], "case": ["T04"], "stage": ["validate"], "column": ["force_kN"],
                                "row": pd.array([12], dtype="Int64"), "reason": [QUARANTINE_REASON]})

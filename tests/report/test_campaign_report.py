@@ -204,3 +204,36 @@ def test_models_table_written_before_the_plausibility_check(results):
     page = render_campaign_report(root)
     assert '<table id="models-wallaschek-derived">' in page
     assert "physical range" not in page and "outside its range" not in page
+
+
+def test_characteristic_points_are_shown_open_with_their_method(built):
+    page = (built / CAMPAIGN / "report.html").read_text(encoding="utf-8")
+    table = page[page.index('id="characteristic-points"'):]
+    before = page[page.index('id="characteristic"'):page.index('id="characteristic-points"')]
+    assert "<details" not in before  # not folded away
+    assert len(re.findall(r"<tr", table.split("</table>")[0])) == len(characteristic()) + 1
+
+
+def test_sine_only_campaign_leaves_out_the_triangle_figures_saying_why(results):
+    root = results / CAMPAIGN
+    cases = pd.read_parquet(root / "cases.parquet")
+    write_parquet(cases[cases["waveform"] == "sine"].reset_index(drop=True), root / "cases.parquet")
+    char = characteristic().assign(method="sine_peak", case="H01")
+    write_parquet(char, root / "characteristic.parquet")
+    rep = pd.read_parquet(root / "repeatability.parquet")
+    write_parquet(rep.iloc[:0], root / "repeatability.parquet")
+    page = render_campaign_report(root)
+    shown = {Path(a["data-file"]).name for a in parse(page).images}
+    for name in ("fig07_time_and_loops", "fig08_window_selection", "fig12_noise"):
+        assert f"{name}.png" not in shown
+        line = re.search(rf'<p class="note info left-out" id="{name}">(.*?)</p>', page).group(1)
+        assert "left out, does not apply to this campaign (no status-ok triangle case" in line, line
+    assert {"fig09_characteristic.png", "fig15_harmonic_loops.png", "fig20_case_temperature.png"} <= shown
+    assert browser.page_problems(page, browser.campaign_figure_files(pd.read_parquet(root / "cases.parquet"))) == []
+    assert f"Points by method: {len(char)} sine peak." in plain(page)
+    methods = [row[1] for row in re.findall(r'<tr[^>]*>\s*<td>([^<]*)</td>\s*<td>([^<]*)</td>',
+                                            page[page.index('id="characteristic-points"'):].split("</table>")[0])]
+    assert methods == ["sine peak"] * len(char)
+    rep_section = page[page.index('id="repeatability"'):page.index('id="models"')]
+    assert "does not apply to this campaign (no status-ok triangle case" in rep_section
+    assert "No pair of the 0" not in rep_section

@@ -10,8 +10,7 @@ import pytest
 
 from isokinetic.contracts.outputs import RULE_STAGES, campaign_path, rule_figures, rule_outputs_of
 from isokinetic.stages.analysis import write_analysis
-from isokinetic.stages.characteristic import assemble, write_characteristic
-from isokinetic.stages.repeatability import repeatability
+from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage, write_characteristic
 from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
 from isokinetic.stages.windows import WindowSpec, windows_stage
 
@@ -59,10 +58,12 @@ def test_job_writes_every_output_of_its_stages(campaign, rule):
 def test_characteristic_job_equals_its_stages_run_one_by_one(campaign):
     spec = WindowSpec()
     windows = windows_stage(campaign, spec)
-    rep = repeatability(windows, 0.05)
+    records, energy = records_stage(campaign)
+    rep = paired_repeatability(windows, records, 0.05)
     pd.testing.assert_frame_equal(pd.read_parquet(campaign / "windows.parquet"), windows)
     pd.testing.assert_frame_equal(pd.read_parquet(campaign / "repeatability.parquet"), rep)
-    pd.testing.assert_frame_equal(pd.read_parquet(campaign / "characteristic.parquet"), assemble(windows, rep))
+    pd.testing.assert_frame_equal(pd.read_parquet(campaign / "characteristic.parquet"), assemble(windows, rep, records))
+    pd.testing.assert_frame_equal(pd.read_parquet(campaign / "energy.parquet"), energy)
 
 
 def test_analysis_job_reads_the_characteristic_job_outputs_only(campaign, tmp_path):

@@ -21,6 +21,7 @@ from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
 CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 EXPORTED_CASES = ("T22", "H01")
 W = "campaign demo, case"
+HINT = ": set `encoding:` in the manifest's csv block (for example cp1252)"
 
 
 def respell(text: str, delimiter: str, decimal: str) -> str:
@@ -87,7 +88,8 @@ def test_exported_campaign_in_another_dialect_gives_the_same_si_series(exported,
         pd.testing.assert_frame_equal(got.timeseries(case), exported_ingested.timeseries(case), check_exact=True)
     raw = ["raw_file", "raw_sha256"]
     pd.testing.assert_frame_equal(got.cases.drop(columns=raw), exported_ingested.cases.drop(columns=raw))
-    assert got.meta["csv"] == {"delimiter": delimiter, "decimal": decimal}
+    assert got.meta["csv"] == {"format": "delimited", "delimiter": delimiter, "decimal": decimal, "encoding": "utf-8",
+                               "units_row": False}
     assert exported_ingested.meta["csv"] is None
 
 
@@ -110,7 +112,8 @@ def test_semicolon_decimal_comma_campaign_matches_the_baseline(raw_campaign, bas
     cases, quarantine = raw_campaign.run()
     assert quarantine.empty
     assert_rest_unchanged(raw_campaign, cases, baseline, set())
-    assert read_ingested(raw_campaign.root).meta["csv"] == {"delimiter": ";", "decimal": ","}
+    assert read_ingested(raw_campaign.root).meta["csv"] == {"format": "delimited", "delimiter": ";", "decimal": ",",
+                                                            "encoding": "utf-8", "units_row": False}
 
 
 def test_spreadsheet_export_without_csv_block_keeps_the_format_message(raw_campaign):
@@ -160,7 +163,8 @@ DOT_NOTE = (": the manifest's csv block declares ',' as the decimal mark, and a 
     (_edit_row("T01", 12, _set_field(2, b"1.234,5")), "T01", "force_kN", 12, "non-numeric value '1.234,5'" + DOT_NOTE),
     (_edit_row("H01", 3, _set_field(1, b"0.25")), "H01", "disp_mm", 3, "non-numeric value '0.25'" + DOT_NOTE),
     (_edit_row("H01", 3, _set_field(1, b"0,2,5")), "H01", "disp_mm", 3, "non-numeric value '0,2,5'"),
-    (_edit_row("T02", 30, _set_field(2, b"0,5\xb5")), "T02", "force_kN", 30, "not UTF-8: byte 0xb5 in b'0,5\\xb5'"),
+    (_edit_row("T02", 30, _set_field(2, b"0,5\xb5")), "T02", "force_kN", 30,
+     "not UTF-8: byte 0xb5 in b'0,5\\xb5'" + HINT),
 ], ids=["ragged", "extra-field", "cut-off", "thousands-separator", "dot-decimal", "two-commas", "not-utf8"])
 def test_damage_in_a_semicolon_file_names_row_and_column(raw_campaign, baseline, edit, case, column, row, message):
     respell_campaign(raw_campaign.raw_dir, ";", ",")

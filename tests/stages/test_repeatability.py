@@ -43,3 +43,19 @@ def test_characteristic_carries_flag_to_every_window_of_the_pair():
     assert sorted(flagged["segment"]) == [1, 3] and set(flagged["case"]) == {"T02"}
     assert len(char) == len(win)
     assert char["velocity_m_s"].is_monotonic_increasing
+
+
+def test_a_case_and_direction_with_one_period_has_no_row():
+    # a sine case of 2-3 steady cycles a direction gives period 1 only (stages.characteristic)
+    win = windows_table()
+    one = win[~((win["case"] == "T02") & (win["direction"] == "-") & (win["period"] == 2))]
+    rep = repeatability(one, tolerance=0.05)
+    assert set(zip(rep["case"], rep["direction"], strict=True)) == {("T01", "+"), ("T01", "-"), ("T02", "+")}
+    full = repeatability(win, tolerance=0.05)
+    pd.testing.assert_frame_equal(rep, full[~((full["case"] == "T02") & (full["direction"] == "-"))]
+                                  .reset_index(drop=True))
+
+
+def test_no_second_period_anywhere_gives_an_empty_table():
+    win = windows_table()
+    assert repeatability(win[win["period"] == 1], tolerance=0.05).empty

@@ -265,3 +265,78 @@ def test_a_crank_dyno_record_25_N_low_is_found_through_its_binned_characteristic
     result = estimate_static_force("c", None, binned)
     assert result.source == "harmonic_binned" and result.n_speeds >= 3
     assert _covers(result, -25.0) and result.significant
+
+
+# --- standstill cases and the declared gas forces (manifest 1.2) ---------------------------------
+
+def _standstill_campaign(tmp_path, declared: dict[str, float], true_gas_N: float = 120.0, moving: bool = False):
+    """A record at rest under a gas force of ``true_gas_N`` (coloured noise, 2 N), cut into one standstill
+    case per entry of ``declared`` (case -> its declared gas_force_N); ingested to tmp_path/results."""
+    from stages.test_ingest_vendor import MM_N, write_campaign
+
+    rng = np.random.default_rng(11)
+    n = 4000
+    t = np.arange(n) / 100.0
+    noise = np.convolve(rng.normal(0.0, 2.0, n + 9), np.ones(10) / np.sqrt(10), mode="valid")
+    table = pd.DataFrame({"time_s": t, "disp_mm": np.zeros(n), "force_N": true_gas_N + noise})
+    cases = [{"id": case, "waveform": "standstill", "file": "rest.csv", "rows": [1000 * i, 1000 * i + 1000],
+              "gas_force_N": gas} for i, (case, gas) in enumerate(declared.items())]
+    if moving:
+        cases.append({"id": "F01", "waveform": "free", "file": "rest.csv", "gas_force_N": true_gas_N})
+    folder = write_campaign(tmp_path / "raw", "rest", MM_N, cases,
+                            {"rest.csv": table.to_csv(index=False, float_format="%.17g").encode()})
+    ingest_campaign(folder, tmp_path / "results")
+    return tmp_path / "results", table
+
+
+def test_standstill_cases_give_the_static_force_directly(tmp_path):
+    root, table = _standstill_campaign(tmp_path, {"Z01": 100.0, "Z02": 100.0})
+    result = static_force_stage(root)
+    left = table["force_N"].to_numpy()[:2000] - 100.0
+    assert (result.source, result.method, result.n_standstill) == ("standstill", "standstill_mean", 2)
+    means, errors = [], []
+    for stretch in (left[:1000], left[1000:]):      # each case: its mean, the scatter of 20 block means
+        blocks = np.array([stretch[i:i + 50].mean() for i in range(0, 1000, 50)])
+        means.append(stretch.mean())
+        errors.append(blocks.std(ddof=1) / np.sqrt(20))
+    weights = 1.0 / np.square(errors)
+    assert result.static_force_N == pytest.approx(np.sum(weights * means) / np.sum(weights), abs=1e-9)
+    assert result.std_error_N == pytest.approx(max(1.0 / np.sqrt(np.sum(weights)), np.std(means, ddof=1) / np.sqrt(2)))
+    assert _covers(result, 20.0) and result.significant
+
+
+def test_each_standstill_case_is_checked_against_its_declared_gas_force(tmp_path):
+    root, _ = _standstill_campaign(tmp_path, {"Z01": 120.0, "Z02": 80.0, "Z03": 119.0})
+    result = static_force_stage(root)
+    assert result.gas_force_check == "disagrees"
+    lines = result.gas_force_cases.split("; ")
+    assert [line.split(":")[0] for line in lines] == ["Z01", "Z02", "Z03"]
+    assert [line.rsplit(": ", 1)[1] for line in lines] == ["agrees", "disagrees", "agrees"]
+    assert "N left of the declared 80 N" in lines[1]
+
+
+def test_declared_gas_forces_that_hold_agree(tmp_path):
+    root, _ = _standstill_campaign(tmp_path, {"Z01": 120.0, "Z02": 120.0})
+    (path,) = write_static_force(root)
+    table = pd.read_parquet(path)
+    assert tables.failure_cases(table, tables.STATIC_FORCE) is None
+    assert table["gas_force_check"].iloc[0] == "agrees" and not table["significant"].iloc[0]
+    assert table["n_standstill"].iloc[0] == 2
+
+
+def test_moving_cases_are_checked_together_and_say_when_they_cannot_be(tmp_path):
+    root, _ = _standstill_campaign(tmp_path, {"Z01": 120.0}, moving=True)
+    result = static_force_stage(root)               # no characteristic written: nothing to check F01 with
+    assert result.gas_force_check == "agrees"
+    assert result.gas_force_cases.split("; ")[1] == ("moving cases F01: not checked (no static force from the "
+                                                     "characteristic)")
+
+
+def test_without_declared_gas_forces_nothing_is_checked(tmp_path):
+    root = tmp_path / "c"
+    (root / "ingest").mkdir(parents=True)
+    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "c", "gas_force_N": None}))
+    characteristic(f0=-3.0).to_parquet(root / "characteristic.parquet")
+    result = static_force_stage(root)
+    assert (result.source, result.gas_force_check, result.gas_force_cases, result.n_standstill) == (
+        "characteristic", "not_checked", "", 0)

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+import yaml
 
 from conftest import CAMPAIGN, assert_quarantine, set_cell
 from isokinetic.contracts import tables
@@ -20,13 +23,16 @@ from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.validate import (
     INVERT_HINT,
     MAX_MOTION_RMS_FRACTION,
+    GapTolerance,
     Problem,
     motion_problems,
     quarantine_frame,
     quarantine_rows,
+    record_problems,
     validate_campaign,
     write_validated,
 )
+from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
 from isokinetic.stages.windows import windows_stage
 
 
@@ -269,3 +275,209 @@ def test_one_half_period_off_its_speed_is_flagged_but_usable():
 def test_small_motion_start_is_not_noted():
     assert motion_problems(_motion(PLAN, start_s=0.09), PLAN) == ([], [])
     assert INVERT_HINT == "the rig's sign convention looks opposite: add `invert: true`"
+
+
+# --- dropped samples -------------------------------------------------------------------------------
+
+CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
+#: Triangle cases of periods 80 s and 20 s and a sine case of the paper's plan, recorded at 500 Hz.
+VIRTUAL_CASES = ["T08", "T17", "T23", "H01"]
+RATE_HZ = 500.0
+
+
+def dropouts(n: int, seed: int, fraction: float = 0.01) -> np.ndarray:
+    """Sorted rows a busy logger drops from ``n``: ``fraction`` of them, about half in singles and half in
+    bursts of 5-40 (seeded), never the first or last sample."""
+    rng = np.random.default_rng(seed)
+    keep = np.ones(n, dtype=bool)
+    while (~keep).sum() < fraction * n:
+        length = 1 if rng.random() < 0.5 else int(rng.integers(5, 41))
+        start = int(rng.integers(1, n - length - 1))
+        keep[start:start + length] = False
+    return np.flatnonzero(~keep)
+
+
+def drop_data_rows(path: Path, rows) -> None:
+    """Remove the data rows ``rows`` (0-based, after the header line) of a case CSV, as a logger that dropped them."""
+    lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
+    gone = {1 + int(r) for r in rows}
+    path.write_text("".join(line for i, line in enumerate(lines) if i not in gone), encoding="utf-8")
+
+
+@pytest.fixture(scope="module")
+def lag_campaign(tmp_path_factory) -> Path:
+    """Raw campaign of the virtual rig (paper-lag-damper) with VIRTUAL_CASES at RATE_HZ."""
+    config = yaml.safe_load(CONFIG.read_text(encoding="utf-8"))["virtual_campaigns"]["paper-lag-damper"]
+    vc = VirtualCampaign.from_config("paper-lag-damper", config)
+    return export_raw_campaign(vc, tmp_path_factory.mktemp("virtual") / "lag", cases=VIRTUAL_CASES,
+                               sample_rate_Hz=RATE_HZ)
+
+
+def _run(raw_dir: Path, root: Path, gap_tolerance: GapTolerance = GapTolerance()):
+    ingest_campaign(raw_dir, root)
+    cases, quarantine = write_validated(root, gap_tolerance=gap_tolerance)
+    return cases.set_index("case"), quarantine
+
+
+@pytest.fixture(scope="module")
+def lag_full(lag_campaign, tmp_path_factory):
+    """(cases, windows) of the complete records."""
+    root = tmp_path_factory.mktemp("full") / "lag"
+    cases, quarantine = _run(lag_campaign, root)
+    assert quarantine.empty and (cases["quality"] == "ok").all()
+    return cases, windows_stage(root).set_index(["case", "segment"])
+
+
+def _copy(lag_campaign: Path, tmp_path: Path) -> Path:
+    raw = tmp_path / "raw" / "lag"
+    shutil.copytree(lag_campaign, raw)
+    return raw
+
+
+def _series_time(lag_campaign: Path, case: str) -> np.ndarray:
+    return pd.read_csv(lag_campaign / f"{case}.csv")["time_s"].to_numpy()
+
+
+def test_one_percent_dropped_in_singles_and_bursts_sets_no_case_aside(lag_campaign, lag_full, tmp_path):
+    raw = _copy(lag_campaign, tmp_path)
+    dropped = {}
+    for k, case in enumerate(VIRTUAL_CASES):
+        n = len(_series_time(lag_campaign, case))
+        dropped[case] = dropouts(n, seed=100 + k)
+        drop_data_rows(raw / f"{case}.csv", dropped[case])
+    cases, quarantine = _run(raw, tmp_path / "results" / "lag")
+    assert quarantine.empty
+    assert (cases["status"] == "ok").all()
+    full_cases, full_windows = lag_full
+    for case, rows in dropped.items():          # what was dropped, counted from the drop itself
+        n = full_cases.loc[case, "n_samples"]
+        runs = np.split(rows, np.flatnonzero(np.diff(rows) > 1) + 1)
+        assert cases.loc[case, "missing_samples"] == rows.size
+        assert cases.loc[case, "missing_fraction"] == pytest.approx(rows.size / n)
+        assert cases.loc[case, "longest_gap_s"] == pytest.approx((max(map(len, runs)) + 1) / RATE_HZ)
+        assert cases.loc[case, "quality"].startswith(f"{rows.size} sample(s) missing in {len(runs)} gap(s)")
+    tables.validate_table(pd.read_parquet(tmp_path / "results" / "lag" / "cases.parquet"), tables.CASES)
+    windows = windows_stage(tmp_path / "results" / "lag").set_index(["case", "segment"])
+    assert list(windows.index) == list(full_windows.index)
+    se = full_windows["force_std_N"] / np.sqrt(full_windows["n_samples"])
+    assert (np.abs(windows["force_N"] - full_windows["force_N"]) < se).all()
+    np.testing.assert_allclose(windows["velocity_m_s"], full_windows["velocity_m_s"], rtol=1e-3)
+    keys = ["case", "segment"]
+    char = assemble(windows.reset_index(), repeatability(windows.reset_index(), 0.05)).set_index(keys)
+    full_char = assemble(full_windows.reset_index(), repeatability(full_windows.reset_index(), 0.05)).set_index(keys)
+    assert (np.abs(char["force_N"] - full_char["force_N"]) < se.reindex(char.index)).all()
+    pd.testing.assert_series_equal(char["repeatability_flagged"], full_char["repeatability_flagged"])
+    for (case, segment), w in full_windows.iterrows():    # the window's missing samples: dropped in its time span
+        t = _series_time(lag_campaign, case)[dropped[case]]
+        inside = int(((t >= w["window_start_s"]) & (t <= w["window_end_s"])).sum())
+        assert windows.loc[(case, segment), "missing_samples"] == inside
+        assert windows.loc[(case, segment), "n_samples"] == w["n_samples"] - inside
+
+
+def test_window_missing_over_the_tolerance_sets_its_case_aside(lag_campaign, lag_full, tmp_path):
+    _, full_windows = lag_full
+    w = full_windows.loc[("T17", 2)]
+    first = int(w["row_start"]) + 100
+    rows = np.arange(first, int(w["row_stop"]), 14)[:170]      # singles: 170 of the window's 2501 samples, 6.8 %
+    assert rows.size == 170 and w["n_samples"] == 2501
+    raw = _copy(lag_campaign, tmp_path)
+    drop_data_rows(raw / "T17.csv", rows)
+    cases, quarantine = _run(raw, tmp_path / "results" / "lag")
+    assert cases["status"].to_dict() == {"T08": "ok", "T17": "quarantined", "T23": "ok", "H01": "ok"}
+    assert quarantine[["case", "stage", "column", "row"]].values.tolist() == [["T17", "validate", "time_s", first]]
+    assert quarantine["reason"].iloc[0] == (
+        f"campaign lag, case T17, column 'time_s', row {first}: 170 of the {int(w['n_samples'])} samples (6.8%) "
+        f"missing inside the window of segment 2 (t = {w['window_start_s']:.6g} .. {w['window_end_s']:.6g} s), "
+        "more than the 5.0% tolerated (validation.max_missing_fraction)")
+
+
+def _long_gap(lag_campaign, lag_full, tmp_path):
+    """T17 (T/2 = 10 s: 0.2 s tolerated) missing a burst of 110 samples (0.222 s, 4.4 % of window 3)."""
+    _, full_windows = lag_full
+    first = int(full_windows.loc[("T17", 3), "row_start"]) + 1000
+    raw = _copy(lag_campaign, tmp_path)
+    drop_data_rows(raw / "T17.csv", range(first, first + 110))
+    return raw, first
+
+
+def test_a_gap_longer_than_tolerated_sets_its_case_aside(lag_campaign, lag_full, tmp_path):
+    raw, first = _long_gap(lag_campaign, lag_full, tmp_path)
+    cases, quarantine = _run(raw, tmp_path / "results" / "lag")
+    assert cases["status"].to_dict() == {"T08": "ok", "T17": "quarantined", "T23": "ok", "H01": "ok"}
+    assert quarantine[["case", "column", "row"]].values.tolist() == [["T17", "time_s", first]]
+    t0 = (first - 1) / RATE_HZ          # window 3: the third half-period starts at T = 20 s, + [0.45, 0.95]·10 s
+    assert quarantine["reason"].iloc[0] == (
+        f"campaign lag, case T17, column 'time_s', row {first}: gap in time: 110 sample(s) missing between "
+        f"t = {t0:.6g} s and {t0 + 0.222:.6g} s (interval 0.222 s, sample interval 0.002 s), inside the window of "
+        f"segment 3 (t = 24.5 .. 29.5 s): longer than the 0.2 s tolerated (validation.max_gap_s, or 2% of the "
+        "half-period)")
+
+
+def test_gap_tolerances_are_parameters(lag_campaign, lag_full, tmp_path):
+    raw, _ = _long_gap(lag_campaign, lag_full, tmp_path)
+    cases, quarantine = _run(raw, tmp_path / "results" / "lag", GapTolerance(max_gap_s=0.5))
+    assert quarantine.empty
+    assert cases.loc["T17", "quality"].startswith("110 sample(s) missing in 1 gap(s)")
+    cases, quarantine = write_validated(tmp_path / "results" / "lag", gap_tolerance=GapTolerance(
+        max_missing_fraction=0.04, max_gap_s=0.5))
+    assert quarantine["reason"].iloc[0].endswith("more than the 4.0% tolerated (validation.max_missing_fraction)")
+
+
+def test_sample_rate_check_is_not_tripped_by_dropouts():
+    plan = CasePlan("T01", "triangle", 100.0, amplitude_m=1e-3, period_s=20.0, duration_s=40.0)
+    t = np.delete(np.arange(4001) / 100.0, np.arange(1, 4000, 4))     # a quarter of the samples lost in singles
+    assert np.mean(np.diff(t)) == pytest.approx(1.0 / 75.0, rel=0.01)  # the mean interval is 33 % off
+    assert record_problems(t, plan) == []
+
+
+@pytest.mark.parametrize("plan, limit_s", [
+    (CasePlan("T", "triangle", 100.0, amplitude_m=1e-3, period_s=20.0, duration_s=40.0), 0.2),
+    (CasePlan("T", "triangle", 100.0, amplitude_m=1e-3, period_s=4.0, duration_s=8.0), 0.1),
+    (CasePlan("H", "sine", 100.0, amplitude_m=1e-3, frequency_Hz=1.75, duration_s=4.0), 0.1),
+    (CasePlan("H", "sine", 100.0, amplitude_m=1e-3, frequency_Hz=0.05, duration_s=40.0), 0.2),
+    (CasePlan("F", "free", 100.0, duration_s=40.0), 0.1),
+])
+def test_longest_gap_tolerated_is_max_gap_s_or_2_percent_of_the_half_period(plan, limit_s):
+    assert GapTolerance().limit_s(plan) == pytest.approx(limit_s)
+
+
+def test_sine_and_free_records_with_dropouts_are_validated(raw_campaign):
+    drops = {"H01": [20, *range(100, 110), 250, 251, 333], "F01": [30, *range(120, 123), 200]}   # <= 0.1 s each
+    for case, rows in drops.items():
+        raw_campaign.edit_table(case, lambda t, rows=rows: t.drop(index=rows).reset_index(drop=True))
+    cases, quarantine = raw_campaign.run()
+    assert quarantine.empty and (cases["status"] == "ok").all()
+    table = cases.set_index("case")
+    for case, rows in drops.items():
+        assert table.loc[case, "missing_samples"] == len(rows)
+        assert "sample(s) missing" in table.loc[case, "quality"]
+    assert (table.loc[["T01", "T02", "T03"], "missing_samples"] == 0).all()
+    assert (table.loc[["T01", "T02", "T03"], "quality"] == "ok").all()
+
+
+def test_a_long_gap_at_a_reversal_outside_windows_and_motion_fits_is_only_flagged(lag_campaign, lag_full, tmp_path):
+    # T17 reverses at t = 10 s; window 1 ends at 9.5 s, the motion fit of half-period 2 starts at 11 s
+    raw = _copy(lag_campaign, tmp_path)
+    drop_data_rows(raw / "T17.csv", range(5000, 5250))               # t = 10.0 .. 10.498 s: 0.5 s without a sample
+    cases, quarantine = _run(raw, tmp_path / "results" / "lag")
+    assert quarantine.empty
+    assert cases.loc["T17", "quality"] == ("250 sample(s) missing in 1 gap(s), 1.25% of the record; longest gap "
+                                           "0.502 s at t = 9.998 s; at most 0.0% of an analysed span (tolerance 5.0%)")
+    assert cases.loc["T17", "longest_gap_s"] == pytest.approx(0.502)
+    _, full_windows = lag_full
+    windows = windows_stage(tmp_path / "results" / "lag").set_index(["case", "segment"])
+    np.testing.assert_array_equal(windows.loc["T17", "force_N"], full_windows.loc["T17", "force_N"])
+    assert (windows.loc["T17", "missing_samples"] == 0).all()
+
+
+def test_one_wild_displacement_sample_is_named_at_its_row():
+    """Issue 20: one sample far off the stroke moved the mid-stroke with it, and row 0 was named for a bad value
+    at row 500. The row is found around the median position."""
+    from isokinetic.stages.validate import plausibility_problems
+
+    t = np.arange(2000) / PLAN.sample_rate_Hz
+    y = triangle_displacement(t, PLAN.amplitude_m, PLAN.period_s)
+    y[500] = 1.0                                                  # 1 m in a 1 mm stroke
+    df = pd.DataFrame({"row": np.arange(t.size), "time_s": t, "displacement_m": y, "force_N": np.ones(t.size)})
+    problems = plausibility_problems(df, PLAN, None)
+    assert [(p.column, p.row) for p in problems] == [("displacement_m", 500)]

@@ -183,3 +183,44 @@ def test_extract_windows_cuts_each_case_at_its_motion_start():
         np.testing.assert_array_equal(out.loc[case, "force_N"], out.loc["T01", "force_N"])
     assert out.loc[("T02", 1), "window_start_s"] == pytest.approx(11.8)
     assert out.loc[("T03", 1), "window_start_s"] == pytest.approx(4.5)   # NaN: plan time, as without the column
+
+
+# --- dropped samples: the windows on the real time axis ----------------------------------------------
+
+def dropped(series: pd.DataFrame, rows) -> pd.DataFrame:
+    """The series without the samples of ``rows`` (a logger's dropouts); the rest keep their row numbers."""
+    return series[~series["row"].isin(list(rows))].reset_index(drop=True)
+
+
+def test_complete_window_mean_is_the_plain_mean_of_its_samples():
+    series = make_series()
+    series["force_N"] += np.random.default_rng(5).normal(0.0, 3.0, len(series))
+    rows = case_windows(plan(), series)
+    for r in rows:
+        assert r["force_N"] == series["force_N"].iloc[r["row_start"]:r["row_stop"]].mean()
+        assert r["missing_samples"] == 0
+
+
+def test_window_with_a_burst_missing_gives_the_time_mean_of_a_drifting_force():
+    series = make_series()
+    series["force_N"] += 2.0 * series["time_s"]                 # a slow drift, 2 N/s
+    burst = range(46, 53)                                       # 7 samples early in window 1 (t = 4.5 .. 9.5 s)
+    row = case_windows(plan(), dropped(series, burst))[0]
+    time_mean = LEVELS_N[0] + 2.0 * (4.5 + 9.5) / 2             # the drift's mean over the whole window
+    kept = series[(series.time_s >= 4.5) & (series.time_s <= 9.5) & ~series.row.isin(list(burst))]
+    assert kept["force_N"].mean() > time_mean + 0.5             # the plain mean leans to the window's end
+    assert row["force_N"] == pytest.approx(time_mean, abs=1e-9)
+
+
+def test_missing_samples_of_each_window_are_the_dropped_rows_inside_it():
+    series = make_series()
+    rows = case_windows(plan(), dropped(series, [*range(40, 50), 150, 151, 230, *range(393, 398)]))
+    # window k holds rows 45..95 (+100 k): 5 of the first burst, 2, 0, and 3 of the burst 393..397
+    assert [r["missing_samples"] for r in rows] == [5, 2, 0, 3]
+    assert [r["n_samples"] for r in rows] == [46, 49, 51, 48]
+
+
+def test_window_velocity_uses_the_real_time_stamps():
+    rows = case_windows(plan(), dropped(make_series(), [*range(50, 60), 70, 160, *range(300, 320)]))
+    expected = 4 * 1e-3 / 20.0                                  # noise-free triangle: W = 4Y/T exactly
+    assert [r["velocity_m_s"] for r in rows] == pytest.approx([expected, -expected] * 2, rel=1e-9)

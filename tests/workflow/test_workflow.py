@@ -12,6 +12,8 @@ import yaml
 
 from scratch_project import SNAKEMAKE, TINY, export, make_project
 
+from .hostile import release, write_protect
+
 
 def snakemake(workdir, *args, check=True):
     proc = subprocess.run([SNAKEMAKE, "--cores", "2", *args], cwd=workdir, capture_output=True, text=True)
@@ -127,3 +129,127 @@ def test_vector_format_writes_an_svg_beside_every_figure_of_the_jobs_that_draw(p
     pngs = sorted(p.stem for p in figures.glob("*.png"))
     assert pngs and sorted(p.stem for p in figures.glob("*.svg")) == pngs
     assert (figures / "fig09_characteristic.svg").read_bytes().startswith(b"<?xml")
+
+
+def test_failed_campaign_is_listed_on_a_rebuilt_index_and_named_in_the_closing_summary(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    broken = work / "data/raw/broken"
+    shutil.copytree(work / "data/raw/tiny-export", broken)
+    text = (broken / "campaign.yaml").read_text(encoding="utf-8").replace("campaign: tiny-export", "campaign: broken")
+    (broken / "campaign.yaml").write_text(text.replace("format_version: 1", "format_version: 99"), encoding="utf-8")
+    # a campaign that built before and fails now: its old results must not be shown as this run's
+    stale = work / "data/raw/tiny-export/campaign.yaml"
+    stale.write_text(stale.read_text(encoding="utf-8").replace("format_version: 1", "format_version: 98"),
+                     encoding="utf-8")
+    index = work / "results/index.html"
+    proc = snakemake(work, check=False)
+    assert proc.returncode != 0
+    out = proc.stdout + proc.stderr
+    for campaign, version in (("broken", 99), ("tiny-export", 98)):
+        line = next(x for x in out.splitlines() if x.strip().startswith(f"campaign {campaign}: rule ingest failed:"))
+        assert f"unknown version {version}" in line and f"(log: logs/{campaign}/ingest.log)" in line, line
+    page = index.read_text(encoding="utf-8")
+    rows = {name: page[page.index(f'id="campaign-{name}"'):].split("</tr>")[0] for name in
+            ("tiny", "tiny-export", "broken")}
+    assert 'href="tiny/report.html"' in rows["tiny"] and "failed" not in rows["tiny"]
+    for name, version in (("broken", 99), ("tiny-export", 98)):
+        assert "failed" in rows[name] and f"unknown version {version}" in rows[name], rows[name]
+        assert "report.html" not in rows[name]
+    assert "2 of 3 campaign(s) failed" in page
+    summary = pd.read_parquet(work / "results/design/plan_check.parquet")
+    assert set(summary["campaign"]) == {"tiny"}
+    # the handler's index is a stand-in: once the broken campaign is gone and the other fixed, the rule rebuilds it
+    shutil.rmtree(broken)
+    stale.write_text(stale.read_text(encoding="utf-8").replace("format_version: 98", "format_version: 1"),
+                     encoding="utf-8")
+    assert "report_index" in snakemake(work, "-n").stdout
+    snakemake(work)
+    page = index.read_text(encoding="utf-8")
+    assert "failed" not in plain_text(page) and 'id="campaign-broken"' not in page
+    assert 'href="tiny-export/report.html"' in page
+    assert set(pd.read_parquet(work / "results/design/plan_check.parquet")["campaign"]) == {"tiny", "tiny-export"}
+    assert "Nothing to be done" in snakemake(work, "-n").stdout
+
+
+def planned_rules(work, *targets):
+    """The rules of the jobs a dry run plans (empty when there is nothing to be done)."""
+    out = snakemake(work, "-n", *targets).stdout
+    return [block.split(":", 1)[0] for block in ("\n" + out).split("\nrule ")[1:]] + [
+        block.split(":", 1)[0] for block in ("\n" + out).split("\nlocalrule ")[1:]]
+
+
+def test_stray_file_names_with_pattern_characters_reach_no_job(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    raw = work / "data/raw/tiny-export"
+    for name in ("notes <old>.txt", "notes {old}.txt", "notes <results>.txt"):
+        (raw / name).write_text("not campaign data", encoding="utf-8")
+    (raw / "passwd.csv").symlink_to("/etc/passwd")
+    # no manifest names them: they are nobody's input, so the graph builds and nothing reruns
+    assert planned_rules(work) == []
+
+
+def test_case_file_named_with_pattern_characters_is_read_and_its_change_reruns_ingest(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    raw = work / "data/raw/tiny-export"
+    (raw / "T01.csv").rename(raw / "T{01}.csv")
+    doc = yaml.safe_load((raw / "campaign.yaml").read_text(encoding="utf-8"))
+    next(c for c in doc["cases"] if c["file"] == "T01.csv")["file"] = "T{01}.csv"
+    (raw / "campaign.yaml").write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
+    snakemake(work, "results/tiny-export/cases.parquet")
+    cases = pd.read_parquet(work / "results/tiny-export/cases.parquet").set_index("case")
+    assert cases.loc["T01", "raw_file"] == "data/raw/tiny-export/T{01}.csv" and set(cases["status"]) == {"ok"}
+    assert planned_rules(work, "results/tiny-export/cases.parquet") == []
+    st = (raw / "T{01}.csv").stat()
+    os.utime(raw / "T{01}.csv", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    assert "ingest" in planned_rules(work, "results/tiny-export/cases.parquet")
+
+
+def index_row(work, campaign):
+    page = (work / "results/index.html").read_text(encoding="utf-8")
+    return plain_text(page[page.index(f'id="campaign-{campaign}"'):].split("</tr>")[0])
+
+
+def test_write_protected_stale_outputs_fail_their_campaign_alone(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    protected = work / "results/tiny-export/cases.parquet"
+    manifest = work / "data/raw/tiny-export/campaign.yaml"
+    with manifest.open("a", encoding="utf-8") as fh:         # its outputs are stale now
+        fh.write("# edited\n")
+    write_protect(protected)
+    try:
+        planned = planned_rules(work)
+        assert "refused" in planned and "ingest" not in planned, planned
+        proc = snakemake(work, check=False)
+    finally:
+        release(protected)
+    assert proc.returncode != 0 and "ProtectedOutputException" not in proc.stdout + proc.stderr
+    line = next(x for x in (proc.stdout + proc.stderr).splitlines()
+                if x.strip().startswith("campaign tiny-export: rule refused failed:"))
+    assert "results/tiny-export/cases.parquet" in line and "write-protected" in line, line
+    row = index_row(work, "tiny-export")
+    assert "failed" in row and "write-protected" in row, row
+    assert "failed" not in index_row(work, "tiny")
+
+
+def test_campaign_folder_leading_outside_the_raw_folder_is_refused_alone(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    outside = tmp_path / "elsewhere" / "evil"
+    shutil.copytree(work / "data/raw/tiny-export", outside)
+    text = (outside / "campaign.yaml").read_text(encoding="utf-8")
+    (outside / "campaign.yaml").write_text(text.replace("campaign: tiny-export", "campaign: evil"), encoding="utf-8")
+    (work / "data/raw/evil").symlink_to(outside)
+    proc = snakemake(work, check=False)
+    assert proc.returncode != 0
+    line = next(x for x in (proc.stdout + proc.stderr).splitlines()
+                if x.strip().startswith("campaign evil: rule refused failed:"))
+    assert "is a symlink leading outside data/raw/" in line, line
+    assert not (work / "results/evil").exists() and not (work / "logs/evil").exists()
+    assert "leading outside" in index_row(work, "evil") and "failed" not in index_row(work, "tiny-export")
+
+
+def plain_text(page):
+    """The visible text of a page: tags, the inline style sheet and script left out."""
+    import re
+
+    body = re.sub(r"<(style|script)\b.*?</\1>", "", page, flags=re.S)
+    return re.sub(r"<[^>]+>", " ", body)

@@ -1,6 +1,7 @@
 # Helpers shared by the rules: config validation, campaign discovery, and every rule's outputs,
 # built from isokinetic.contracts.outputs (the one place that says what is written where).
 
+import functools
 import logging
 import os
 import re
@@ -10,6 +11,8 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
+from isokinetic.audit.raw_folder import SnakemakeInputs, snakemake_inputs
+from isokinetic.audit.refused import refusal
 from isokinetic.contracts.outputs import (
     BLIND_DIR,
     CAMPAIGN_ID,
@@ -95,10 +98,42 @@ def one_of(names):
     return "|".join(re.escape(n) for n in names) or "(?!)"
 
 
+@functools.cache
+def raw_inputs(campaign):
+    """The manifest and the case files it names (isokinetic.audit.raw_folder): plain paths for Snakemake and
+    fingerprints of the files whose names Snakemake would read as patterns; nothing for a refused campaign.
+    Another entry of the folder never reaches the job graph (a stray 'notes {old}.txt' stops nothing)."""
+    if campaign in REFUSED:
+        return SnakemakeInputs((), ())
+    try:
+        return snakemake_inputs(RAW_DIR / campaign)
+    except OSError:  # the folder changed under us: ingest names the problem
+        return SnakemakeInputs((str(RAW_DIR / campaign / "campaign.yaml"),), ())
+
+
 def raw_files(wildcards):
-    """Every file of a raw campaign folder: a change to any of them reruns its ingest."""
-    folder = RAW_DIR / wildcards.campaign
-    return sorted(str(p) for p in folder.iterdir() if p.is_file())
+    """The raw files of a campaign its ingest reads: a change to any of them reruns its ingest."""
+    return list(raw_inputs(wildcards.campaign).paths)
+
+
+def raw_fingerprints(wildcards):
+    """Size and modification time of the raw files whose names hold pattern characters (a params change
+    reruns ingest, as an input change would)."""
+    return list(raw_inputs(wildcards.campaign).fingerprints)
+
+
+def refusals(raw_campaigns, campaigns):
+    """Campaign -> why the workflow refuses it, before any job (isokinetic.audit.refused): a raw campaign
+    folder leading outside the raw data folder, or existing outputs (results/<c>/, logs/<c>/) it could not
+    replace (Snakemake would stop the whole build on a write-protected output). A refused campaign gets none
+    of its jobs; its rule refused's job fails with the reason, alone."""
+    reasons = {c: refusal(c, RAW_DIR if c in raw_campaigns else None, RESULTS_DIR, "logs") for c in campaigns}
+    return {c: reason for c, reason in reasons.items() if reason is not None}
+
+
+REFUSED = refusals(RAW_CAMPAIGNS, CAMPAIGNS)
+#: The campaigns the workflow processes (every campaign but the refused ones).
+ACTIVE = [c for c in CAMPAIGNS if c not in REFUSED]
 
 
 #: Every figure is also written in this vector format beside its PNG (config figures.vector_format).
@@ -169,18 +204,23 @@ def campaign_outputs(campaign):
 
 
 def check_raw_after_run():
-    """After a run: every raw file an ingest read still has the sha256 it recorded (else log each)."""
+    """After a run: every raw file an ingest read still has the sha256 it recorded (else log each). A refused
+    campaign is not looked at (its results are not this run's); a campaign whose ingest records cannot be
+    read is named, not checked, and the others still are."""
     # imported here, once at the end of a run, so that building the DAG does not pay for it
     from isokinetic.audit.raw_check import describe, raw_changes
 
-    bad = [
-        describe(c, change)
-        for c in RAW_CAMPAIGNS
-        if Path(f"results/{c}/ingest").is_dir()
-        for change in raw_changes(f"results/{c}")
-    ]
+    log = logging.getLogger("isokinetic")
+    bad = []
+    for c in RAW_CAMPAIGNS:
+        if c in REFUSED or not Path(f"results/{c}/ingest").is_dir():
+            continue
+        try:
+            bad += [describe(c, change) for change in raw_changes(f"results/{c}")]
+        except Exception as e:
+            log.warning("campaign %s: raw files not checked after the run: %s: %s", c, type(e).__name__, str(e)[:200])
     for line in bad:
-        logging.getLogger("isokinetic").error(line)
+        log.error(line)
     return bad
 
 
@@ -261,22 +301,63 @@ def comparison_outputs(name):
     return [campaign_path(folder, p) for p in rule_outputs_of("compare").values()] + figure_paths("compare", folder)
 
 
+#: The comparisons whose campaigns are all processed (a comparison naming a refused campaign is not built).
+ACTIVE_COMPARISONS = [name for name, spec in COMPARISONS.items() if not set(spec["campaigns"]) & set(REFUSED)]
+
+
 def comparison_pages():
-    """results/compare/<name>/report.html of every comparison (the index links them)."""
-    return [output_path("compare", "page", comparison_folder(name)) for name in COMPARISONS]
+    """results/compare/<name>/report.html of every comparison built (the index links them)."""
+    return [output_path("compare", "page", comparison_folder(name)) for name in ACTIVE_COMPARISONS]
+
+
+def refused_marker(campaign="{campaign}"):
+    """The output of a refused campaign's job (never written: the job fails with the reason)."""
+    return f"logs/_refused/{campaign}.txt"
 
 
 def all_outputs():
     """Every result of the workflow: each campaign's outputs, provenance and page, the index and the
     plan-check summary, the blind suite, the comparisons; and each figure's vector copy when the config
-    asks for one (figures.vector_format)."""
+    asks for one (figures.vector_format). A refused campaign gets its rule refused's job instead, which
+    fails with the reason (and no comparison naming it is built)."""
     outputs = (
         [DESIGN_SUMMARY, "results/index.html"]
-        + [path for campaign in CAMPAIGNS for path in campaign_outputs(campaign)]
-        + [output_path("campaign_report", name, campaign) for campaign in CAMPAIGNS for name in ("provenance", "page")]
+        + [path for campaign in ACTIVE for path in campaign_outputs(campaign)]
+        + [output_path("campaign_report", name, campaign) for campaign in ACTIVE for name in ("provenance", "page")]
+        + [refused_marker(campaign) for campaign in REFUSED]
         + (BLIND_OUTPUTS if BLIND else [])
-        + [path for name in COMPARISONS for path in comparison_outputs(name)]
+        + [path for name in ACTIVE_COMPARISONS for path in comparison_outputs(name)]
     )
     if VECTOR_FORMAT == "none":
         return outputs
     return outputs + [str(Path(p).with_suffix(f".{VECTOR_FORMAT}")) for p in map(str, outputs) if p.endswith(".png")]
+
+
+def report_failed_run(snakemake_log):
+    """After a failed run (onerror): results/index.html and the design summary rebuilt from the outputs that
+    exist, each failed campaign listed with its reason, and the run's closing summary naming every failed
+    campaign and job (isokinetic.report.run_status)."""
+    from snakemake.logging import logger
+
+    # imported here, once after a failed run, so that building the DAG does not pay for it
+    from isokinetic.report.run_status import failed_jobs, rebuild_after_failure, summary_lines
+
+    try:
+        lines = rebuild_after_failure(
+            snakemake_log,
+            campaigns=CAMPAIGNS,
+            raw_dirs={campaign: str(RAW_DIR / campaign) for campaign in RAW_CAMPAIGNS},
+            comparisons=list(COMPARISONS),
+            blind_dir=BLIND_ROOT if BLIND else None,
+            captions_dir=str(Path(FIGURES[0].caption).parent),
+            results_root=RESULTS_DIR,
+            index=f"{RESULTS_DIR}/index.html",
+            design_summary=DESIGN_SUMMARY,
+            older_than=[f.caption for f in rule_figures("blind_score")],
+        )
+        lines.append(f"{RESULTS_DIR}/index.html rebuilt: it lists every campaign, the failed ones with their reason")
+    except Exception as e:
+        lines = summary_lines(failed_jobs(snakemake_log))
+        lines.append(f"{RESULTS_DIR}/index.html could not be rebuilt after the failed run: {type(e).__name__}: {e}")
+    for line in lines:
+        logger.error(line)

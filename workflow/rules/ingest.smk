@@ -1,5 +1,6 @@
 rule ingest:
-    """Read a raw campaign folder (manifest + CSVs), convert to SI, write canonical Parquet."""
+    """Read a raw campaign folder (manifest + CSVs), convert to SI, write canonical Parquet. Its inputs are
+    the manifest and the case files it names, nothing else of the folder (common.smk raw_files)."""
     input:
         raw_files,
     output:
@@ -9,10 +10,14 @@ rule ingest:
     benchmark:
         benchmark_path("ingest")
     wildcard_constraints:
-        campaign=one_of(RAW_CAMPAIGNS),
+        campaign=one_of([c for c in RAW_CAMPAIGNS if c not in REFUSED]),
     resources:
         **rule_resources("ingest"),
     params:
         campaign_dir=lambda wildcards: str(RAW_DIR / wildcards.campaign),
+        max_case_file_MB=config.get("ingest", {}).get("max_case_file_MB", 256),
+        raw_dir=str(RAW_DIR),
+        # files named with pattern characters, which Snakemake cannot take as inputs: size and mtime
+        untracked=raw_fingerprints,
     script:
         "../scripts/ingest.py"

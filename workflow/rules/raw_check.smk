@@ -12,7 +12,7 @@ rule raw_check:
     benchmark:
         benchmark_path("raw_check")
     wildcard_constraints:
-        campaign=one_of(RAW_CAMPAIGNS),
+        campaign=one_of([c for c in RAW_CAMPAIGNS if c not in REFUSED]),
     resources:
         **rule_resources("raw_check"),
     script:

@@ -2,7 +2,8 @@
 # network), with the campaign's provenance record written first in the same job, and
 # results/index.html over all campaigns, the blind suite and the comparisons (their pages are written
 # by rule compare), with every campaign's plan check in one table. Every number on the pages names its
-# source file, rule, commit and parameters (isokinetic.report).
+# source file, rule, commit and parameters (isokinetic.report). The index never waits on every campaign:
+# after a failed run the onerror handler rebuilds it from what exists (common.smk, report_failed_run).
 
 
 rule campaign_report:
@@ -23,7 +24,7 @@ rule campaign_report:
     benchmark:
         benchmark_path("campaign_report")
     wildcard_constraints:
-        campaign=one_of(CAMPAIGNS),
+        campaign=one_of(ACTIVE),
     resources:
         **rule_resources("campaign_report"),
     script:
@@ -35,9 +36,9 @@ rule report_index:
     suite; each comparison, linked to its page; and results/design/plan_check.parquet, every
     campaign's plan check in one table."""
     input:
-        reports=expand("results/{campaign}/report.html", campaign=CAMPAIGNS),
-        diagnoses=expand("results/{campaign}/diagnosis.json", campaign=CAMPAIGNS),
-        plan_checks=expand(output_path("analysis", "plan_check"), campaign=CAMPAIGNS),
+        reports=expand("results/{campaign}/report.html", campaign=ACTIVE),
+        diagnoses=expand("results/{campaign}/diagnosis.json", campaign=ACTIVE),
+        plan_checks=expand(output_path("analysis", "plan_check"), campaign=ACTIVE),
         blind=BLIND_OUTPUTS if config.get("blind") else [],
         comparisons=comparison_pages(),
         captions=[f.caption for f in rule_figures("blind_score")],
@@ -52,7 +53,9 @@ rule report_index:
         **rule_resources("report_index"),
     params:
         campaigns=CAMPAIGNS,
+        raw_dirs={campaign: str(RAW_DIR / campaign) for campaign in RAW_CAMPAIGNS},
         blind_dir=lambda wildcards, input: str(Path(input.blind[0]).parent) if input.blind else None,
         comparisons=list(COMPARISONS),
+        refused=REFUSED,
     script:
         "../scripts/report_index.py"

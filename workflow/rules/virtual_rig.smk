@@ -7,7 +7,7 @@ rule virtual_rig:
     benchmark:
         benchmark_path("virtual_rig")
     wildcard_constraints:
-        campaign=one_of(VIRTUAL_CAMPAIGNS),
+        campaign=one_of([c for c in VIRTUAL_CAMPAIGNS if c not in REFUSED]),
     resources:
         **rule_resources("virtual_rig"),
     params:

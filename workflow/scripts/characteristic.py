@@ -3,10 +3,12 @@ from pathlib import Path
 
 from isokinetic.job import job
 from isokinetic.stages.characteristic import write_characteristic
+from isokinetic.stages.validate import GapTolerance
 from isokinetic.stages.windows import WindowSpec
 
 with job(snakemake) as j:
     p = snakemake.params
     write_characteristic(Path(snakemake.output.cases).parent, WindowSpec(p.start_fraction, p.end_fraction),
                          repeatability_tolerance=p.repeatability_tolerance,
-                         sample_rate_tolerance=p.sample_rate_tolerance)
+                         sample_rate_tolerance=p.sample_rate_tolerance,
+                         gap_tolerance=GapTolerance(p.max_missing_fraction, p.max_gap_s))

@@ -6,10 +6,12 @@ One file that answers, for a campaign, where its numbers came from:
     The evidence. A raw campaign: the manifest and every case file with the sha256 recorded at
     ingest (``ingest/campaign.json``, ``cases.parquet``) and any other file of the raw folder the
     ingest job read (its lineage inputs); for each file on disk, its sha256 now and whether it still
-    matches (``unchanged``). A simulated campaign: the virtual-rig spec (from the ingest files'
-    lineage: seed, nominal damper, effects, sensors, plan) and, per case, the sha256 of the
-    canonical CSV recorded when it was simulated (``python -m isokinetic export-virtual`` writes
-    those bytes); nothing to re-hash on disk.
+    matches (``unchanged``); a file leading outside the campaign folder (a symlink) is never read
+    (``outside``). ``unused_files``: every other entry of the raw folder, which no manifest names,
+    by name only (never opened or hashed: isokinetic.audit.raw_folder). A simulated campaign: the
+    virtual-rig spec (from the ingest files' lineage: seed, nominal damper, effects, sensors, plan)
+    and, per case, the sha256 of the canonical CSV recorded when it was simulated (``python -m
+    isokinetic export-virtual`` writes those bytes); nothing to re-hash on disk.
 ``environment``
     Python and the versions of the packages the numbers depend on (importlib.metadata), the
     isokinetic version, the git commit and dirty flag of the code, and the config hash.
@@ -21,8 +23,8 @@ One file that answers, for a campaign, where its numbers came from:
 ``outputs``
     The same by file: path -> {rule, created_utc, params_sha256, git_commit, git_dirty, sha256}.
 ``checks``
-    Changed or missing raw files, stages whose inputs changed since they ran, files without lineage,
-    and ``ok`` when all of these are empty.
+    Changed or missing raw files, raw files leading outside the campaign folder, stages whose inputs
+    changed since they ran, files without lineage, and ``ok`` when all of these are empty.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ import pandas as pd
 
 from isokinetic import __version__
 from isokinetic.audit.lineage import git_state, path_sha256, sha256_text
+from isokinetic.audit.raw_folder import inside, unused_entries
 from isokinetic.contracts.outputs import RULE_STAGES
 from isokinetic.io import LINEAGE_SUFFIXES, canonical_json, read_lineage, sha256_file, write_json
 
@@ -53,6 +56,8 @@ PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "pandera", "snakemake", "matp
 STAGE_ORDER = tuple(RULE_STAGES)
 #: Prefix of a simulated case's raw_file (virtual_rig._cases_table).
 VIRTUAL_PREFIX = "virtual_rig:"
+#: Note of a raw file that leads outside its campaign folder (never read).
+OUTSIDE_NOTE = "leads outside the campaign folder: not read"
 
 
 def environment() -> dict:
@@ -81,9 +86,14 @@ def _resolve(path: str, base: Path) -> Path:
     return p if p.is_absolute() else base / p
 
 
-def check_file(path: str, recorded: str, base: Path) -> dict:
-    """{path, sha256_recorded, exists, sha256_now, unchanged} of one file (paths as recorded)."""
+def check_file(path: str, recorded: str, base: Path, folder: Path | None = None) -> dict:
+    """{path, sha256_recorded, exists, sha256_now, unchanged} of one file (paths as recorded). A file that
+    resolves outside ``folder`` (the campaign's raw folder, when given: a symlink leading out) is not read:
+    it gets ``outside: true`` and no sha256."""
     p = _resolve(path, base)
+    if path and folder is not None and (p.is_symlink() or p.exists()) and not inside(p, folder):
+        return {"path": path, "sha256_recorded": recorded or None, "exists": True, "sha256_now": None,
+                "unchanged": None, "outside": True, "note": OUTSIDE_NOTE}
     exists = bool(path) and p.is_file()
     now = sha256_file(p) if exists else None
     return {"path": path, "sha256_recorded": recorded or None, "exists": exists, "sha256_now": now,
@@ -123,19 +133,37 @@ def raw_sources(root: Path, base: Path = Path(".")) -> dict:
         return out
     listed = set()
     manifest = meta.get("manifest_file") or ""
+    folder = _resolve(manifest, base).parent if manifest else None
     if manifest:
         out["files"].append({"role": "manifest", "case": None, "status": None,
-                             **check_file(manifest, meta.get("manifest_sha256") or "", base)})
+                             **check_file(manifest, meta.get("manifest_sha256") or "", base, folder)})
         listed.add(Path(manifest).as_posix())
     for r in case_rows:
         path = str(r.get("raw_file") or "")
         out["files"].append({"role": "case", "case": r["case"], "status": r.get("status"),
-                             **check_file(path, str(r.get("raw_sha256") or ""), base)})
+                             **check_file(path, str(r.get("raw_sha256") or ""), base, folder)})
         listed.add(Path(path).as_posix())
     for path, sha in sorted((ingest_lineage.get("inputs") or {}).items()):
         if Path(path).as_posix() not in listed:
-            out["files"].append({"role": "other", "case": None, "status": None, **check_file(path, sha, base)})
+            out["files"].append({"role": "other", "case": None, "status": None,
+                                 **check_file(path, sha, base, folder)})
+    out["unused_files"] = _unused(folder, manifest, listed)
     return out
+
+
+def _unused(folder: Path | None, manifest: str, listed: set[str]) -> list[dict]:
+    """The entries of the campaign's raw folder that no manifest names (listed by name only, never read)."""
+    if folder is None or not folder.is_dir():
+        return []
+    where = Path(manifest).parent
+    used = []
+    for p in listed:
+        try:
+            used.append(Path(p).relative_to(where).as_posix())
+        except ValueError:
+            continue
+    return [{**e, "path": (where / e["path"]).as_posix() if e["path"] else ""}
+            for e in unused_entries(folder, used)]
 
 
 def _stage_order(rule: str) -> tuple[int, str]:
@@ -213,6 +241,7 @@ def campaign_provenance(campaign_root: str | os.PathLike, *, base: str | os.Path
     exclude = (Path(out_path),) if out_path is not None else (root / FILE_NAME,)
     stage_list, index, unstamped = stages(root, base, exclude)
     changed = [f["path"] for f in raw["files"] if f["unchanged"] is False]
+    outside = [f["path"] for f in raw["files"] if f.get("outside")]
     missing = [f["path"] for f in raw["files"] if raw["kind"] == "raw" and f["sha256_recorded"] and not f["exists"]]
     stale = [s["rule"] for s in stage_list if not s["inputs_current"]]
     inconsistent = [s["rule"] for s in stage_list if not s["consistent"]]
@@ -222,10 +251,10 @@ def campaign_provenance(campaign_root: str | os.PathLike, *, base: str | os.Path
         "format_version": FORMAT_VERSION, "campaign": campaign or root.name, "created_utc": _now_utc(),
         "git": {"commit": commit, "dirty": dirty}, "config_sha256": config_sha256,
         "environment": environment(), "raw": raw, "stages": stage_list, "outputs": index,
-        "checks": {"raw_unchanged": not changed and not missing, "changed_raw_files": changed,
-                   "missing_raw_files": missing, "stale_stages": stale, "inconsistent_stages": inconsistent,
-                   "files_without_lineage": unstamped,
-                   "ok": not (changed or missing or stale or inconsistent or unstamped)},
+        "checks": {"raw_unchanged": not changed and not missing and not outside, "changed_raw_files": changed,
+                   "missing_raw_files": missing, "raw_files_outside": outside, "stale_stages": stale,
+                   "inconsistent_stages": inconsistent, "files_without_lineage": unstamped,
+                   "ok": not (changed or missing or outside or stale or inconsistent or unstamped)},
     }
 
 
@@ -246,6 +275,7 @@ def provenance_warnings(prov: Mapping) -> list[str]:
     lines = [f"campaign {name}: raw file {p} differs from its sha256 recorded at ingest" for p in
              c["changed_raw_files"]]
     lines += [f"campaign {name}: raw file {p} is missing" for p in c["missing_raw_files"]]
+    lines += [f"campaign {name}: raw file {p} {OUTSIDE_NOTE}" for p in c.get("raw_files_outside", [])]
     lines += [f"campaign {name}: stage {r} ran on inputs that have changed since" for r in c["stale_stages"]]
     lines += [f"campaign {name}: outputs of stage {r} come from different runs" for r in c["inconsistent_stages"]]
     lines += [f"campaign {name}: {p} has no lineage record" for p in c["files_without_lineage"]]

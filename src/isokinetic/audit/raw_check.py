@@ -28,7 +28,7 @@ class RawDataChanged(RuntimeError):
 def raw_changes(campaign_root: str | os.PathLike, base: str | os.PathLike = ".") -> list[dict]:
     """The raw files of a processed campaign that changed or went missing since ingest.
 
-    Each item: ``{"path", "role" ('manifest'|'case'|'other'), "case", "problem" ('changed'|'missing'),
+    Each item: ``{"path", "role" ('manifest'|'case'|'other'), "case", "problem" ('changed'|'missing'|'outside'),
     "sha256_recorded", "sha256_now"}``, paths as recorded (resolved against ``base``, the workflow's
     working directory). Files recorded without a hash (a case quarantined because its file was
     missing) are not checked. Empty for a simulated campaign.
@@ -40,7 +40,9 @@ def raw_changes(campaign_root: str | os.PathLike, base: str | os.PathLike = ".")
     for f in raw["files"]:
         if not f["sha256_recorded"]:
             continue
-        if not f["exists"]:
+        if f.get("outside"):
+            problem = "outside"
+        elif not f["exists"]:
             problem = "missing"
         elif f["unchanged"] is False:
             problem = "changed"
@@ -53,6 +55,9 @@ def raw_changes(campaign_root: str | os.PathLike, base: str | os.PathLike = ".")
 
 def describe(campaign: str, change: dict) -> str:
     """One readable line for a change."""
+    if change["problem"] == "outside":
+        return (f"campaign {campaign}: raw file {change['path']} now leads outside the campaign folder: not read "
+                f"(sha256 {change['sha256_recorded'][:12]}.. recorded at ingest)")
     if change["problem"] == "missing":
         return (f"campaign {campaign}: raw file {change['path']} is missing "
                 f"(sha256 {change['sha256_recorded'][:12]}.. recorded at ingest)")

@@ -33,6 +33,12 @@ Result
     (exit 2), or ``CANNOT TRACE`` (exit 2: unsupported table, bad selector, no spec to
     re-simulate from).
 
+CSV exports
+    ``characteristic.csv`` and ``models/models.csv`` (names row, units row, then the rows;
+    :mod:`isokinetic.stages.exports`) are traced through their Parquet source: the names and units rows
+    and the selected line, field by field, must be what the export writes for the same row of the
+    source (else ``MISMATCH``, naming line and fields); then that row is traced like the Parquet's.
+
 Selectors
     ``col=value,col=value`` must pick exactly one row (``case=T12,segment=3``); ``row=N`` picks
     the N-th row (0-based) of a table without a ``row`` column. For ``diagnosis.json`` the
@@ -50,6 +56,8 @@ Layout
 
 from __future__ import annotations
 
+import csv
+import io
 import json
 import math
 import os
@@ -74,6 +82,7 @@ from isokinetic.audit.trace_core import (
     Context,
     Kind,
     MissingFile,
+    NotReproduced,
     Report,
     Traced,
     TraceResult,
@@ -91,6 +100,7 @@ from isokinetic.audit.trace_core import (
 from isokinetic.audit.trace_evidence import describe_source, open_source
 from isokinetic.contracts.campaign import timeseries_relpath
 from isokinetic.contracts.outputs import outputs_of, rule_of
+from isokinetic.stages.exports import EXPORTS, csv_text
 
 __all__ = ["KINDS", "trace", "trace_row", "table_kind", "TraceResult", "TraceStop", "MATCH", "MISMATCH",
            "RAW_CHANGED", "MISSING", "CANNOT"]
@@ -139,6 +149,59 @@ KINDS = {k.name: k for k in (
 )}
 
 
+def csv_export_of(path: Path) -> tuple[Path, Sequence[str]] | None:
+    """(Parquet source, columns in their row's unit) of a CSV export (``characteristic.csv``,
+    ``models/models.csv``; :data:`isokinetic.stages.exports.EXPORTS`), None for any other file."""
+    for source, target, row_unit in EXPORTS.values():
+        n = len(PurePosixPath(target).parts)
+        if len(path.parts) > n and PurePosixPath(*path.parts[-n:]).as_posix() == target:
+            return path.parents[n - 1] / source, row_unit
+    return None
+
+
+def _csv_rows(text: str) -> list[list[str]]:
+    return list(csv.reader(io.StringIO(text)))
+
+
+def check_export(ctx: Context, path: Path, source: Path, row_unit: Sequence[str], selector: str | None) -> str:
+    """A CSV export against its Parquet source: the names and units rows, then the selected row field by
+    field against the source's row written the way the export writes it (:func:`exports.csv_text`). Returns
+    the selector of the same row in the source (``row=N``); a differing field stops the trace (MISMATCH)."""
+    if not source.is_file():
+        raise MissingFile(f"{ctx.rel(source)}: the Parquet source of {ctx.rel(path)} is missing")
+    try:
+        got = _csv_rows(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise NotReproduced(f"{ctx.rel(path)}: not the CSV the export writes ({exc})") from None
+    table = pd.read_parquet(source)
+    want = _csv_rows(csv_text(table, row_unit))
+    if len(got) < 2 or got[0] != want[0] or got[1] != want[1]:
+        raise NotReproduced(f"{ctx.rel(path)}: its column names or units row differ from those of "
+                            f"{ctx.rel(source)} (names: {', '.join(want[0])})")
+    frame = pd.DataFrame(got[2:], columns=got[0])
+    pos, _ = select_row(frame, parse_selector(selector))
+    line = pos + 3  # 1-based line of the file: names, units, then the rows
+    ctx.report.step(f"CSV export: data row {pos} (0-based, line {line} of the file, under the names and "
+                    f"units rows) of {ctx.rel(path)}, a view of {ctx.rel(source)} written by the stage exports",
+                    "units row: " + ", ".join(f"{n} [{u}]" for n, u in zip(got[0], got[1], strict=True) if u))
+    if len(got) != len(want):
+        raise NotReproduced(f"{ctx.rel(path)} has {len(got) - 2} rows, its source {ctx.rel(source)} {len(want) - 2}")
+    diff = [f"{n}: CSV {a!r}, Parquet {b!r}" for n, a, b in zip(want[0], got[line - 1], want[line - 1], strict=True)
+            if a != b]
+    if diff:
+        raise NotReproduced(f"line {line} of {ctx.rel(path)} differs from row {pos} of {ctx.rel(source)}: "
+                            + "; ".join(diff[:6]))
+    ctx.report.line(f"      every field of line {line} is the field of row {pos} of {ctx.rel(source)} as the "
+                    "export writes it (floats in their round-trip form): the row is traced there")
+    others = [i + 1 for i, (a, b) in enumerate(zip(got, want, strict=True)) if a != b and i != line - 1]
+    if others:
+        ctx.report.line(f"      note: {len(others)} other line(s) of the file differ from their source rows "
+                        f"(lines {', '.join(map(str, others[:8]))}{', ...' if len(others) > 8 else ''})")
+    if "row" in table.columns:
+        raise TraceStop(f"{ctx.rel(source)} has a 'row' column: its CSV rows cannot be traced by position")
+    return f"row={pos}"
+
+
 def table_kind(path: Path) -> Kind:
     """The kind of a results file: the rule that writes it (:func:`isokinetic.contracts.outputs.rule_of`
     of its path below the campaign folder, the longest such path first), then the kind at that path."""
@@ -152,7 +215,9 @@ def table_kind(path: Path) -> Kind:
                 return kind
     names = sorted({PurePosixPath(k.path).name for k in KINDS.values() if "*" not in k.path})
     patterns = [k.path.replace("*", "<case>") for k in KINDS.values() if "*" in k.path]
-    raise TraceStop(f"{path}: not a table trace knows; it traces {', '.join(names)} and {', '.join(patterns)}")
+    exports = ", ".join(target for _, target, _ in EXPORTS.values())
+    raise TraceStop(f"{path}: not a table trace knows; it traces {', '.join(names)}, {', '.join(patterns)} "
+                    f"and the CSV exports {exports}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -266,6 +331,10 @@ def trace(table: str | os.PathLike, selector: str | None = None, *, root: str | 
         try:
             if not path.is_file():
                 raise MissingFile(f"{path}: no such file")
+            export = csv_export_of(path)
+            if export is not None:  # a CSV export: checked against its Parquet source, which is traced
+                selector = check_export(ctx, path, *export, selector)
+                path = ctx.table = export[0]
             kind = table_kind(path)
             show_lineage(ctx, path)
             if kind.rederive is None:  # a JSON document: a key path instead of a row

@@ -356,8 +356,11 @@ def _is_number(x) -> bool:
 
 
 def _plain(x):
+    """A numpy scalar as its Python value; pandas' missing value (pd.NA, NaT) of a nullable column as NaN."""
     if isinstance(x, np.generic):
         return x.item()
+    if x is pd.NA or x is pd.NaT:
+        return math.nan
     return x
 
 

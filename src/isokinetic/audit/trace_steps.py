@@ -50,7 +50,7 @@ from isokinetic.audit.trace_evidence import (
 from isokinetic.contracts.campaign import case_plan, timeseries_relpath
 from isokinetic.io import sha256_file, write_parquet
 from isokinetic.stages.blind_score import score
-from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage
 from isokinetic.stages.design import plan_check
 from isokinetic.stages.diagnosis import diagnose
 from isokinetic.stages.harmonic import harmonic_stage
@@ -129,7 +129,12 @@ def _window_steps(ctx: Context, src: RawSource, scratch: Path, row: pd.Series, s
 
 def _stats_step(ctx: Context, new: pd.Series) -> None:
     ctx.report.step("Window statistics (windows.case_windows) on the re-derived samples",
-                    f"force_N     = mean of force_N over the {int(new['n_samples'])} samples = {new['force_N']:.10g} N",
+                    (f"force_N     = least-squares line of force_N at the window's time centre, over the "
+                     f"{int(new['n_samples'])} samples ({int(new['missing_samples'])} dropped; "
+                     f"windows.window_mean_force) = {new['force_N']:.10g} N"
+                     if pd.notna(new.get("missing_samples")) and new.get("missing_samples") > 0 else
+                     f"force_N     = mean of force_N over the {int(new['n_samples'])} samples = "
+                     f"{new['force_N']:.10g} N"),
                     f"force_std_N = standard deviation (ddof = 1) = {new['force_std_N']:.10g} N",
                     "velocity_m_s = least-squares slope of displacement_m against time_s = "
                     f"{new['velocity_m_s']:.10g} m/s",
@@ -175,8 +180,9 @@ def _characteristic_chain(ctx: Context, src: RawSource, root: Path, files: Seque
     scratch = rebuild(ctx, src, sample_rate_tolerance=srt)
     cases = pd.read_parquet(scratch / "cases.parquet")
     win = windows_stage(scratch, spec)
-    rep = repeatability(win, tol)
-    char = assemble(win, rep)
+    records, _energy = records_stage(scratch)          # the sine and free cases' points
+    rep = paired_repeatability(win, records, tol)
+    char = assemble(win, rep, records)
     write_parquet(win, scratch / "windows.parquet")
     write_parquet(rep, scratch / "repeatability.parquet")
     write_parquet(char, scratch / "characteristic.parquet")
@@ -268,8 +274,30 @@ def rederive_windows(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     return _case_windows(ctx, t, src)[1]
 
 
+def _rederive_record_point(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
+    """A sine case's peak-velocity point or a free record's velocity bin: the case re-derived, its points
+    recomputed (stages.characteristic.records_stage) with the repeatability flag of its two periods."""
+    case = str(t.row["case"])
+    spec, _spec_where = window_spec(ctx, [t.path, t.root / "windows.parquet"])
+    tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
+    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])},
+                      sample_rate_tolerance=_rate_tolerance(ctx, t.root, [t.path]))
+    _series_step(ctx, src, scratch, case)
+    win = windows_stage(scratch, spec)
+    records, _energy = records_stage(scratch)
+    new = match_row(assemble(win, paired_repeatability(win, records, tol), records), t, f"{t.row['method']} points")
+    ctx.report.step(f"{t.row['method']} point re-derived (characteristic.records_stage; repeatability tolerance "
+                    f"{tol:g} from {tol_where})",
+                    f"rows [{int(new['row_start'])}, {int(new['row_stop'])}), n_samples = {int(new['n_samples'])} "
+                    f"({'cycles' if new['method'] == 'sine_peak' else 'samples in the bin'}), force_N = "
+                    f"{new['force_N']:.10g} N")
+    return new
+
+
 def rederive_characteristic(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """One characteristic point: its window and the repeatability flag of its case and direction."""
+    if str(t.row.get("method", "triangle_window")) != "triangle_window":
+        return _rederive_record_point(ctx, t, src)
     win, _window, tol, tol_where = _case_windows(ctx, t, src)
     rep = repeatability(win, tol)
     new = match_row(assemble(win, rep), t, "characteristic of the case")

@@ -2,7 +2,9 @@
 
 Layout of ``results/<campaign>/ingest/``::
 
-    campaign.json          campaign metadata (CAMPAIGN_KEYS), damper data in SI or null
+    campaign.json          campaign metadata (CAMPAIGN_KEYS), damper data in SI or null; raw ingest adds
+                           gas_force_N, csv (the files' format), viscosity_law and warnings (manifest
+                           keys that look like slips, 1.2)
     cases.parquet          one row per planned case (tables.CASES), status ok|quarantined
     quarantine.parquet     cases set aside while ingesting (tables.QUARANTINE)
     timeseries/<case>.parquet   canonical SI time series (tables.TIMESERIES), status-ok cases only

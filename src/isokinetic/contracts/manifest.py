@@ -1,4 +1,4 @@
-"""The campaign manifest, ``campaign.yaml`` (shared/spec/raw-campaign-format.md, version 1).
+"""The campaign manifest, ``campaign.yaml`` (docs/raw-campaign-format.md, version 1).
 
 :func:`load_manifest` separates two kinds of trouble:
 
@@ -17,21 +17,32 @@ YAML is turned into Python objects (:func:`check_yaml_events` walks the parser's
   plain YAML types (``!!python/object:...``, ``!!binary``, local ``!tags``: nothing constructs
   objects), complex (non-scalar) mapping keys, nesting deeper than :data:`MAX_DEPTH`, more than
   :data:`MAX_NODES` values;
-* a case ``file`` that is not a bare name inside the campaign folder (path separator, ``..``,
-  absolute path, drive letter, NUL), or a symlink whose target lies outside the campaign folder;
+* a case ``file`` that is not a bare name or a relative path into a subfolder of the campaign folder
+  (``..``, absolute path, backslash, drive letter, NUL), or a symlink (the file, or a folder on its way)
+  whose target lies outside the campaign folder;
 * sizes that make no physical sense or would allocate gigabytes (:data:`BOUNDS`, per key, and
   :data:`MAX_PLANNED_SAMPLES` samples per planned record; at most :data:`MAX_CASES` cases);
-* a ``csv`` block (format 1.1) that is not one of the dialects ingest can read (:func:`csv_dialect`);
+* a ``csv`` block (format 1.1; 1.2: ``format``, ``encoding``, ``units_row``) that is not one of the
+  formats ingest can read (:func:`csv_dialect`);
 * a ``damper.viscosity_law`` (format 1.1) that is not a valid law (:func:`viscosity_law`), a campaign
   ``temperature_C`` outside :data:`TEMPERATURE_RANGE_C` (a case's is that case's problem).
 
 Keys the spec does not define are kept in ``metadata``, mirroring the manifest's structure
 (top-level keys, unknown ``columns`` channels, extra ``damper`` keys, per-case keys under
-``metadata["cases"][<id>]``).
+``metadata["cases"][<id>]``); one that lies close to a known key (``gas_force_n``) is also warned about in
+``Manifest.warnings`` (1.2, :func:`near_miss_warnings`).
+
+Format 1.2 additions (docs/raw-campaign-format.md, "1.2 additions"): the ``csv`` block's ``format``
+(``mts793``), ``encoding`` and ``units_row``; units ``in``, ``lbf``, ``kgf``, ``F`` and ``Sec``; a case's
+slice of its file (``time_range_s`` or ``rows``), its own ``gas_force_N`` and the ``standstill`` waveform;
+case files in subfolders; a channel's ``full_scale`` (issue 20: ingest refuses samples beyond
+:data:`FULL_SCALE_FACTOR` times it).
 """
 
 from __future__ import annotations
 
+import codecs
+import difflib
 import hashlib
 import math
 import re
@@ -44,6 +55,8 @@ import yaml
 from isokinetic.physics.damper import Damper
 from isokinetic.physics.plan import WAVEFORMS, CasePlan
 from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
+from isokinetic.rawfile import FORMATS as FILE_FORMATS
+from isokinetic.rawfile import FileFormat
 from isokinetic.stages.validate import Problem
 
 FORMAT_VERSION = 1
@@ -59,13 +72,23 @@ MAX_CASE_ID_LENGTH = 64
 #: Channel -> unit -> factor to SI; ``None`` marks ISO 8601 stamps (seconds from the first sample).
 UNITS: dict[str, dict[str, float | None]] = {
     "time": {"s": 1.0, "ms": 1e-3, "datetime": None},
-    "displacement": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
-    "force": {"N": 1.0, "kN": 1e3},
-    "command": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
-    "temperature": {"C": 1.0, "K": 1.0},   # (1.1) oil or body temperature; kept in C (UNIT_OFFSETS)
+    "displacement": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},              # in: 1.2
+    "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605, "kgf": 9.80665},       # lbf, kgf: 1.2 (exact)
+    "command": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},
+    "temperature": {"C": 1.0, "K": 1.0, "F": 5.0 / 9.0},   # (1.1) oil or body temperature; kept in C (UNIT_OFFSETS)
 }
 #: (channel, unit) -> offset added after the factor: the temperature channel is kept in degrees Celsius.
-UNIT_OFFSETS = {("temperature", "K"): -273.15}
+UNIT_OFFSETS = {("temperature", "K"): -273.15, ("temperature", "F"): -32.0 * 5.0 / 9.0}
+#: Other spellings of a unit a manifest may use (1.2): MTS 793 writes seconds as ``Sec``.
+UNIT_ALIASES = {"time": {"Sec": "s", "sec": "s"}}
+#: Unit texts of a file's units row (lower case, brackets and a degree sign dropped) -> the manifest's unit.
+UNIT_TEXTS = {
+    "s": "s", "sec": "s", "secs": "s", "second": "s", "seconds": "s", "ms": "ms", "msec": "ms",
+    "m": "m", "mm": "mm", "um": "um", "µm": "um", "μm": "um", "micron": "um", "in": "in", "inch": "in",
+    "inches": "in", "n": "N", "newton": "N", "kn": "kN", "lbf": "lbf", "lb": "lbf", "lbs": "lbf", "kgf": "kgf",
+    "c": "C", "degc": "C", "deg c": "C", "celsius": "C", "k": "K", "kelvin": "K", "f": "F", "degf": "F",
+    "deg f": "F", "fahrenheit": "F",
+}
 #: Plausible temperatures of a damper under test [C] (cold tests to beyond any oil's flash point); a value
 #: outside is a unit error: any temperature above -73 C written in K and declared as C lies above it.
 TEMPERATURE_RANGE_C = (-60.0, 200.0)
@@ -75,8 +98,21 @@ REQUIRED_CHANNELS = ("time", "displacement", "force")
 TOP_KEYS = frozenset({"format_version", "campaign", "description", "source", "temperature_C",
                       "sample_rate_Hz", "columns", "damper", "cases", "gas_force_N", "csv"})
 CASE_KEYS = frozenset({"id", "waveform", "file", "sample_rate_Hz", "columns", "period_s",
-                       "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s", "temperature_C"})
-COLUMN_KEYS = ("name", "unit", "invert")
+                       "amplitude_mm", "phase_rad", "frequency_Hz", "duration_s", "temperature_C",
+                       "time_range_s", "rows", "gas_force_N"})     # the last three: 1.2
+#: Case-file suffixes (1.2: .txt and .dat for vendor exports); a manifest may name any, init-campaign looks
+#: for these.
+CASE_FILE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
+#: How alike (difflib ratio, lower case) an unknown key must be to a known one to be warned about as a slip.
+NEAR_MISS_RATIO = 0.8
+#: Largest data-row number a case's ``rows`` slice may name (1.2): far beyond any record.
+MAX_ROW = 1_000_000_000
+COLUMN_KEYS = ("name", "unit", "invert", "full_scale")     # full_scale: 1.2
+#: A sample beyond this many times its channel's declared ``full_scale`` is no reading of the sensor (ingest
+#: sets the case aside, naming the row).
+FULL_SCALE_FACTOR = 100.0
+#: Channels that may declare a ``full_scale`` (the temperature channel has its own plausible range).
+FULL_SCALE_CHANNELS = ("displacement", "force", "command")
 DEFAULT_TRIANGLE_PHASE_RAD = -math.pi / 2
 
 #: A manifest is a page of YAML; anything larger is refused unread (bytes).
@@ -97,7 +133,7 @@ CSV_DELIMITERS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'"}
 CSV_TAB_SPELLINGS = ("\\t", "tab")
 #: Decimal marks a ``csv`` block may declare.
 CSV_DECIMALS = (".", ",")
-CSV_KEYS = ("delimiter", "decimal")
+CSV_KEYS = ("format", "delimiter", "decimal", "encoding", "units_row")
 #: Upper bounds (inclusive) of positive sizes, campaign-level or per case. A value above its bound
 #: is a unit or typing error, or hostile: the campaign is refused. Lower bounds: > 0 as before.
 BOUNDS = {
@@ -116,16 +152,9 @@ SAFE_TAGS = frozenset("tag:yaml.org,2002:" + t for t in
                       ("null", "bool", "int", "float", "str", "seq", "map", "timestamp"))
 
 
-@dataclass(frozen=True)
-class CsvDialect:
-    """The case files' dialect declared by a manifest's ``csv`` block (format 1.1): field delimiter and
-    decimal mark. Quoting (``"``), line ends, comments and encoding are the format's, whatever the dialect."""
-
-    delimiter: str = ","
-    decimal: str = "."
-
-    def to_dict(self) -> dict:
-        return {"delimiter": self.delimiter, "decimal": self.decimal}
+#: The case files' format declared by a manifest's ``csv`` block: :class:`isokinetic.rawfile.FileFormat`
+#: (format 1.1: delimiter and decimal mark; 1.2: format, encoding, units row).
+CsvDialect = FileFormat
 
 
 class ManifestError(ValueError):
@@ -138,11 +167,14 @@ class ManifestError(ValueError):
 
 @dataclass(frozen=True)
 class Column:
-    """Where one channel lives in a case CSV: column name, unit as written, sign flip."""
+    """Where one channel lives in a case CSV: column name, unit as written, sign flip, and the sensor's full
+    scale in that unit (1.2, ``full_scale``; None: not declared): ingest refuses a sample beyond
+    ``FULL_SCALE_FACTOR`` times it."""
 
     name: str
     unit: str
     invert: bool = False
+    full_scale: float | None = None
 
 
 @dataclass(frozen=True)
@@ -155,9 +187,12 @@ class CaseSpec:
     keys: dict                       # the case entry exactly as written
     metadata: dict                   # the entry's keys the spec does not define
     problems: tuple[Problem, ...] = ()
-    gas_force_N: float | None = None  # the campaign's gas_force_N (1.1), subtracted from the force at ingest
+    gas_force_N: float | None = None  # the case's gas_force_N (1.2), else the campaign's (1.1); subtracted at ingest
     csv: CsvDialect | None = None    # the campaign's csv block (1.1); None: none declared, ',' and '.'
     temperature_C: float | None = None  # the case's temperature_C (1.1); None: not given on the case
+    time_range_s: tuple[float, float] | None = None  # (1.2) the case's slice [start, end) on the file's time axis
+    rows: tuple[int, int] | None = None  # (1.2) the case's slice [first, stop) of 0-based data rows
+    case_gas_force_N: float | None = None  # (1.2) the gas_force_N written on the case itself, None when not
 
     @property
     def id(self) -> str:
@@ -192,6 +227,9 @@ class Manifest:
     csv: CsvDialect | None = None
     #: The oil's viscosity-temperature law (format 1.1 ``damper.viscosity_law``); None when not given.
     viscosity_law: ViscosityLaw | None = None
+    #: Keys the format does not know but that lie close to one it does (1.2): "key 'x' is not a key of the
+    #: format; did you mean 'y'?" (:func:`near_miss_warnings`).
+    warnings: tuple[str, ...] = ()
 
 
 def number(value) -> float | None:
@@ -212,6 +250,46 @@ def bare_file_name(name) -> bool:
             and "\\" not in name and ".." not in name and ":" not in name and "\0" not in name)
 
 
+def relative_file_name(name) -> bool:
+    """True for a relative path inside the campaign folder (1.2): ``T01.csv`` or ``run1/T01.csv``, parts
+    separated by '/', each a :func:`bare_file_name` (no ``..``, not absolute, no backslash or drive)."""
+    return isinstance(name, str) and all(bare_file_name(part) for part in name.split("/"))
+
+
+def unit_from_text(text: str) -> str | None:
+    """The manifest unit a units-row cell means (``Sec`` -> s, ``[mm]`` -> mm, ``°C`` -> C, ``lbs`` -> lbf),
+    None for a text :data:`UNIT_TEXTS` does not know."""
+    key = text.strip().strip("[]()").strip().replace("°", "").replace("º", "").lower()
+    return UNIT_TEXTS.get(key)
+
+
+def canonical_unit(channel: str, unit):
+    """A manifest unit with its :data:`UNIT_ALIASES` spelling resolved (``Sec`` -> ``s``)."""
+    return UNIT_ALIASES.get(channel, {}).get(unit, unit) if isinstance(unit, str) else unit
+
+
+def near_miss(key, known) -> str | None:
+    """The known key an unknown ``key`` is probably a slip for (difflib, case ignored), or None."""
+    if not isinstance(key, str) or key in known:
+        return None
+    lowered = {k.lower(): k for k in known}
+    if key.lower() in lowered:
+        return lowered[key.lower()]
+    match = difflib.get_close_matches(key.lower(), list(lowered), n=1, cutoff=NEAR_MISS_RATIO)
+    return lowered[match[0]] if match else None
+
+
+def near_miss_warnings(where: str, entries: Mapping, known, prefix: str = "") -> list[str]:
+    """One warning per key of ``entries`` that is not in ``known`` but close to a key that is."""
+    out = []
+    for key in entries:
+        meant = near_miss(key, known)
+        if meant is not None:
+            out.append(f"{where}: key {prefix + str(key)!r} is not a key of the format, kept as metadata; "
+                       f"did you mean {meant!r}?")
+    return out
+
+
 def column_problems(channel: str, spec) -> list[Problem]:
     """Problems of one channel's ``{name, unit, invert}`` mapping.
 
@@ -228,16 +306,30 @@ def column_problems(channel: str, spec) -> list[Problem]:
     problems = []
     if "unit" not in spec:
         problems.append(Problem(f"{key}.unit", "missing", kind="key"))
-    elif unit not in UNITS[channel]:
+    elif canonical_unit(channel, unit) not in UNITS[channel]:
         problems.append(Problem(name.strip(), f"unknown unit {unit!r} for {channel}; expected one of "
                                               f"{', '.join(UNITS[channel])}"))
     if not isinstance(spec.get("invert", False), bool):
         problems.append(Problem(f"{key}.invert", f"must be true or false, got {spec['invert']!r}", kind="key"))
+    if spec.get("full_scale") is not None:
+        value = number(spec["full_scale"])
+        if channel not in FULL_SCALE_CHANNELS:
+            problems.append(Problem(f"{key}.full_scale", f"applies to {', '.join(FULL_SCALE_CHANNELS)} only",
+                                    kind="key"))
+        elif value is None or value <= 0:
+            problems.append(Problem(f"{key}.full_scale", f"must be a positive number (the sensor's full scale in the "
+                                                         f"column's unit), got {spec['full_scale']!r}", kind="key"))
     return problems
 
 
 def _column(spec: Mapping) -> Column:
-    return Column(name=spec["name"].strip(), unit=spec.get("unit"), invert=bool(spec.get("invert", False)))
+    return Column(name=spec["name"].strip(), unit=spec.get("unit"), invert=bool(spec.get("invert", False)),
+                  full_scale=number(spec.get("full_scale")))
+
+
+def _column_of(channel: str, spec: Mapping) -> Column:
+    """A channel's Column, its unit spelled as :data:`UNITS` does (:func:`canonical_unit`)."""
+    return replace(_column(spec), unit=canonical_unit(channel, spec.get("unit")))
 
 
 def _at(mark) -> str:
@@ -478,36 +570,72 @@ def _campaign_temperature(doc: Mapping, where: str) -> float | None:
 def _csv_delimiter(value, where: str) -> str:
     if isinstance(value, str) and value.strip().lower() in CSV_TAB_SPELLINGS:
         return "\t"
+    if isinstance(value, str) and value.strip().lower() == "whitespace":
+        return "whitespace"
     if not isinstance(value, str) or value not in CSV_DELIMITERS:
-        raise ManifestError(where, "csv.delimiter", f"must be one of ',', ';', \"\\t\" (tab) or '|', got {value!r}")
+        raise ManifestError(where, "csv.delimiter", f"must be one of ',', ';', \"\\t\" (tab), '|' or whitespace, "
+                                                    f"got {value!r}")
     return value
 
 
-def csv_dialect(block, where: str) -> CsvDialect | None:
-    """The optional ``csv`` block (format 1.1), e.g. ``{delimiter: ";", decimal: ","}`` (None when absent).
+def _csv_encoding(value, where: str) -> str:
+    """A Python codec name (``codecs.lookup``), as written."""
+    if not isinstance(value, str) or not value.strip():
+        raise ManifestError(where, "csv.encoding", f"must be a text encoding name (utf-8, cp1252, latin-1, utf-16, "
+                                                   f"...), got {value!r}")
+    try:
+        info = codecs.lookup(value.strip())
+    except LookupError:
+        raise ManifestError(where, "csv.encoding", f"unknown encoding {value!r} (for example utf-8, cp1252, latin-1, "
+                                                   "utf-16)") from None
+    if not info._is_text_encoding:
+        raise ManifestError(where, "csv.encoding", f"{value!r} is not a text encoding")
+    return value.strip()
 
-    Either key may be left out (defaults ',' and '.'). The tab delimiter is written ``"\\t"`` (double
-    quotes), ``'\\t'`` or ``tab``. Refused as a broken manifest, naming the key: a block that is not a
-    mapping, a key other than ``delimiter`` and ``decimal`` (a ``thousands`` or ``encoding`` key would
-    otherwise be silently ignored), a delimiter not in :data:`CSV_DELIMITERS`, a decimal mark not in
-    :data:`CSV_DECIMALS`, and the same character for both.
+
+def csv_dialect(block, where: str) -> CsvDialect | None:
+    """The optional ``csv`` block, e.g. ``{delimiter: ";", decimal: ","}`` (format 1.1) or ``{format: mts793,
+    encoding: cp1252}`` (1.2 additions); None when absent.
+
+    Any key may be left out (defaults: delimited, ',', '.', utf-8, no units row). The tab delimiter is written
+    ``"\\t"`` (double quotes), ``'\\t'`` or ``tab``; ``whitespace`` splits on runs of blanks. Refused as a broken
+    manifest, naming the key: a block that is not a mapping, a key not in :data:`CSV_KEYS` (a ``thousands`` key
+    would otherwise be silently ignored), a format not in :data:`isokinetic.rawfile.FORMATS`, a delimiter not in
+    :data:`CSV_DELIMITERS` (or whitespace), a decimal mark not in :data:`CSV_DECIMALS`, the same character for
+    both, an encoding ``codecs.lookup`` does not know, a ``units_row`` that is not true/false. An ``mts793``
+    file's delimiter (tab or whitespace) and decimal mark are the file's own: a delimiter declared with it must
+    be tab or whitespace.
     """
     if block is None:
         return None
     if not isinstance(block, Mapping):
-        raise ManifestError(where, "csv", f"expected a mapping with keys {' and '.join(CSV_KEYS)}, got {block!r}")
+        raise ManifestError(where, "csv", f"expected a mapping with keys {', '.join(CSV_KEYS)}, got {block!r}")
     unknown = [k for k in block if k not in CSV_KEYS]
     if unknown:
+        meant = near_miss(unknown[0], CSV_KEYS)
         raise ManifestError(where, f"csv.{unknown[0]}", f"unknown key: the csv block declares only "
-                                                        f"{' and '.join(CSV_KEYS)} (ingest reads nothing else)")
-    delimiter = _csv_delimiter(block.get("delimiter", ","), where)
+                                                        f"{', '.join(CSV_KEYS)} (ingest reads nothing else)"
+                            + (f"; did you mean {meant!r}?" if meant else ""))
+    fmt = block.get("format", "delimited")
+    if fmt not in FILE_FORMATS:
+        raise ManifestError(where, "csv.format", f"must be one of {', '.join(FILE_FORMATS)}, got {fmt!r}")
+    delimiter = _csv_delimiter(block.get("delimiter", "\t" if fmt == "mts793" else ","), where)
+    if fmt == "mts793" and delimiter not in ("\t", "whitespace"):
+        raise ManifestError(where, "csv.delimiter", f"an mts793 export is tab or whitespace separated, "
+                                                    f"got {delimiter!r}")
     decimal = block.get("decimal", ".")
     if decimal not in CSV_DECIMALS:
         raise ManifestError(where, "csv.decimal", f"must be '.' or ',', got {decimal!r}")
     if delimiter == decimal:
         raise ManifestError(where, "csv", f"delimiter and decimal mark are both {decimal!r}: numbers could not be "
                                           "told from fields (a decimal comma needs another delimiter, e.g. ';')")
-    return CsvDialect(delimiter=delimiter, decimal=decimal)
+    encoding = _csv_encoding(block.get("encoding", "utf-8"), where)
+    units_row = block.get("units_row", fmt == "mts793")
+    if not isinstance(units_row, bool):
+        raise ManifestError(where, "csv.units_row", f"must be true or false, got {units_row!r}")
+    if fmt == "mts793" and not units_row:
+        raise ManifestError(where, "csv.units_row", "an mts793 export always has a units row")
+    return FileFormat(format=fmt, delimiter=delimiter, decimal=decimal, encoding=encoding, units_row=units_row)
 
 
 def _case_id(entry, index: int, where: str) -> str:
@@ -555,7 +683,7 @@ def _case_columns(base: dict[str, Mapping], override) -> tuple[dict[str, Column]
     problems += [p for channel, spec in merged.items() for p in column_problems(channel, spec)]
     if problems:
         return {}, problems
-    return {channel: _column(spec) for channel, spec in merged.items()}, []
+    return {channel: _column_of(channel, spec) for channel, spec in merged.items()}, []
 
 
 def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[str, Mapping],
@@ -570,10 +698,11 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
     file = entry.get("file")
     if file is None:
         problems.append(Problem("file", "missing", kind="key"))
-    elif not bare_file_name(file):
+    elif not relative_file_name(file):
         raise ManifestError(where, f"cases.{case}.file",
-                            f"must be a bare file name inside the campaign folder, got {file!r}")
-    elif (folder / file).is_symlink() and not _inside(folder / file, folder):
+                            f"must be a bare file name inside the campaign folder, got {file!r} (or a path into a "
+                            "subfolder: run1/T01.csv, with '/' and no '..')")
+    elif _escapes(folder, file):
         raise ManifestError(where, f"cases.{case}.file", f"{file!r} is a symlink to "
                             f"{(folder / file).resolve().as_posix()}, outside the campaign folder")
     columns, column_issues = _case_columns(base_columns, entry.get("columns"))
@@ -591,7 +720,14 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
     elif waveform == "sine":
         plan["frequency_Hz"] = _positive(entry, "frequency_Hz", problems)
         plan["phase_rad"] = 0.0
+    elif waveform == "standstill":
+        problems += [Problem(key, "a standstill case has no motion: leave the key out", kind="key")
+                     for key in ("amplitude_mm", "period_s", "frequency_Hz", "phase_rad") if key in entry]
     duration = _positive(entry, "duration_s", problems, required=False)
+    time_range, rows = _case_slice(entry, problems)
+    gas_force_N, problem = _case_gas_force(entry)
+    if problem is not None:
+        problems.append(problem)
     case_temperature, problem = temperature_value(entry.get("temperature_C"), "temperature_C")
     if problem is not None:
         problems.append(problem)
@@ -614,7 +750,61 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
         plan=plan_,
         file=file, columns=columns, keys=dict(entry),
         metadata={k: v for k, v in entry.items() if k not in CASE_KEYS}, problems=tuple(problems),
-        temperature_C=case_temperature)
+        temperature_C=case_temperature, time_range_s=time_range, rows=rows, case_gas_force_N=gas_force_N)
+
+
+def _escapes(folder: Path, file: str) -> bool:
+    """True when the case file, or a folder on its way, is a symlink leading out of the campaign folder."""
+    path = folder
+    for part in file.split("/"):
+        path = path / part
+        if path.is_symlink() and not _inside(path, folder):
+            return True
+    return False
+
+
+def _case_slice(entry: Mapping, problems: list[Problem]) -> tuple[tuple[float, float] | None,
+                                                                  tuple[int, int] | None]:
+    """The case's slice of its file (1.2): ``time_range_s: [start, end)`` (seconds on the file's own time
+    axis, 0 <= start < end <= the duration bound) or ``rows: [first, stop)`` (0-based data rows, integers,
+    0 <= first < stop <= :data:`MAX_ROW`); not both. A malformed slice is the case's problem."""
+    if entry.get("time_range_s") is not None and entry.get("rows") is not None:
+        problems.append(Problem("rows", "give time_range_s or rows, not both", kind="key"))
+        return None, None
+    value = entry.get("time_range_s")
+    if value is not None:
+        pair = [number(v) for v in value] if isinstance(value, list) and len(value) == 2 else None
+        if pair is None or None in pair or not 0.0 <= pair[0] < pair[1] <= BOUNDS["duration_s"]:
+            problems.append(Problem("time_range_s", f"must be [start, end) in seconds, 0 <= start < end <= "
+                                                    f"{BOUNDS['duration_s']:g}, got {value!r}", kind="key"))
+            return None, None
+        return (pair[0], pair[1]), None
+    value = entry.get("rows")
+    if value is not None:
+        ok = (isinstance(value, list) and len(value) == 2
+              and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+              and 0 <= value[0] < value[1] <= MAX_ROW)
+        if not ok:
+            problems.append(Problem("rows", f"must be [first, stop) of 0-based data rows, integers, 0 <= first < "
+                                            f"stop <= {MAX_ROW}, got {value!r}", kind="key"))
+            return None, None
+        return None, (value[0], value[1])
+    return None, None
+
+
+def _case_gas_force(entry: Mapping) -> tuple[float | None, Problem | None]:
+    """A case's own ``gas_force_N`` (1.2; overrides the campaign's): a finite number within
+    :data:`MAX_GAS_FORCE_N` (None when absent)."""
+    value = entry.get("gas_force_N")
+    if value is None:
+        return None, None
+    out = number(value)
+    if out is None:
+        return None, Problem("gas_force_N", f"must be a number (N), got {value!r}", kind="key")
+    if abs(out) > MAX_GAS_FORCE_N:
+        return None, Problem("gas_force_N", f"|{out:g}| N is above the bound {MAX_GAS_FORCE_N:g} N (a unit error?)",
+                             kind="key")
+    return out, None
 
 
 def load_manifest(path: str | Path) -> Manifest:
@@ -672,6 +862,24 @@ def load_manifest(path: str | Path) -> Manifest:
         description=_optional(doc, "description", str, where), source=_optional(doc, "source", str, where),
         temperature_C=_campaign_temperature(doc, where), sample_rate_Hz=rate,
         gas_force_N=gas_force_N, csv=dialect, viscosity_law=law,
-        columns={ch: _column(spec) for ch, spec in base_columns.items()}, damper=damper,
-        cases=tuple(replace(c, gas_force_N=gas_force_N, csv=dialect) for c in cases), metadata=metadata,
-        sha256=hashlib.sha256(data).hexdigest())
+        columns={ch: _column_of(ch, spec) for ch, spec in base_columns.items()}, damper=damper,
+        cases=tuple(replace(c, gas_force_N=gas_force_N if c.case_gas_force_N is None else c.case_gas_force_N,
+                            csv=dialect) for c in cases), metadata=metadata,
+        sha256=hashlib.sha256(data).hexdigest(), warnings=tuple(_near_misses(doc, where)))
+
+
+def _near_misses(doc: Mapping, where: str) -> list[str]:
+    """Warnings for keys that look like slips of known ones: top level, columns, csv, damper, each case."""
+    out = near_miss_warnings(where, doc, TOP_KEYS)
+    if isinstance(doc.get("columns"), Mapping):
+        out += near_miss_warnings(where, doc["columns"], UNITS, "columns.")
+    if isinstance(doc.get("damper"), Mapping):
+        out += near_miss_warnings(where, doc["damper"], {f.name for f in fields(Damper)} | {"viscosity_law"},
+                                  "damper.")
+    for entry in doc.get("cases") or ():
+        if isinstance(entry, Mapping):
+            prefix = f"cases.{entry.get('id')}."
+            out += near_miss_warnings(where, entry, CASE_KEYS, prefix)
+            if isinstance(entry.get("columns"), Mapping):
+                out += near_miss_warnings(where, entry["columns"], UNITS, prefix + "columns.")
+    return out

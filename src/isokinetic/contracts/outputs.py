@@ -104,7 +104,7 @@ STAGE_OUTPUTS = {
     "validate": {"cases": "cases.parquet", "quarantine": "quarantine.parquet"},
     "windows": {"windows": "windows.parquet"},
     "repeatability": {"repeatability": "repeatability.parquet"},
-    "characteristic": {"characteristic": "characteristic.parquet"},
+    "characteristic": {"characteristic": "characteristic.parquet", "energy": "energy.parquet"},
     "nominal": {"nominal": "nominal_windows.parquet"},
     "design": {"plan_check": "design/plan_check.parquet"},
     "harmonic": {"table": "harmonic/harmonic.parquet"},

@@ -155,6 +155,20 @@ CASES = Schema(
         "temperature_span_C": Column("float64", Check.ge(0), nullable=True, required=False),
         "temperature_source": Column("str", Check.isin(("channel", "case", "campaign", "")), nullable=True,
                                      required=False),
+        # dropped samples (validate, measurement.sampling; NaN/NA for cases set aside before the check):
+        # samples missing from the record's grid, their fraction of the grid, the longest interval
+        # without a sample [s] (0 when none is missing)
+        "missing_samples": Column("Int64", Check.ge(0), nullable=True, required=False),
+        "missing_fraction": Column("float64", Check.ge(0), nullable=True, required=False),
+        "longest_gap_s": Column("float64", Check.ge(0), nullable=True, required=False),
+        # (ingest, manifest 1.2) a case sliced from its file (time_range_s / rows): the slice's first time on the
+        # file's own time axis [s] and its data rows [row_start, row_stop) (whole numbers, float64 so that a
+        # whole-file case has NaN, as trace compares them); NaN for a whole-file case
+        "slice_start_s": Column("float64", _not_inf, nullable=True, required=False),
+        "row_start": Column("float64", Check.ge(0), nullable=True, required=False),
+        "row_stop": Column("float64", Check.ge(0), nullable=True, required=False),
+        # (ingest) the gas force subtracted from the case's force samples [N] (case's, else campaign's); NaN: none
+        "gas_force_N": Column("float64", _not_inf, nullable=True, required=False),
     },
     strict=False,
     name="cases",
@@ -197,7 +211,10 @@ _WINDOW_COLUMNS = {
 
 #: One row per constant-velocity window (item 7): four per triangle case.
 WINDOWS = Schema(
-    _WINDOW_COLUMNS,
+    {**_WINDOW_COLUMNS,
+     # samples of the record's grid inside the window that the logger dropped (validate sets a case
+     # aside beyond validation.max_missing_fraction); absent in windows written before it existed
+     "missing_samples": Column("Int64", Check.ge(0), nullable=True, required=False)},
     checks=(Check("row_range", fn=lambda df: df["row_stop"] > df["row_start"]),),
     strict=False,
     name="windows",
@@ -220,11 +237,39 @@ REPEATABILITY = Schema(
     name="repeatability",
 )
 
-#: The steady characteristic (item 9): the windows with their repeatability flag.
+#: How a characteristic point was measured: a triangle case's constant-velocity window, a sine case's
+#: force at peak velocity (cycles averaged, half the steady cycles a period), a free record's velocity bin.
+CHARACTERISTIC_METHODS = ("triangle_window", "sine_peak", "free_bin")
+
+#: The steady characteristic (item 9): the windows with their repeatability flag, and (issue 19) the
+#: sine cases' peak-velocity points and the free records' bins (``method``; stages.characteristic).
+#: ``segment`` of a sine point: 1 (+) and 2 (-) of period 1, 3 and 4 of period 2; of a free bin: its
+#: 1-based number in the case. ``n_samples`` of a sine point counts cycles (force_std_N is their scatter).
 CHARACTERISTIC = Schema(
-    {**_WINDOW_COLUMNS, "repeatability_flagged": Column("bool")},
+    {**_WINDOW_COLUMNS, "segment": Column("int64", Check.ge(1)), "repeatability_flagged": Column("bool"),
+     "method": Column("str", Check.isin(CHARACTERISTIC_METHODS), required=False)},
     strict=False,
     name="characteristic",
+)
+
+#: Energy dissipated per cycle of each sine case (closed integral of F dx, steady cycles; stages.characteristic).
+ENERGY = Schema(
+    {
+        "campaign": Column("str"),
+        "case": Column("str"),
+        "frequency_Hz": Column("float64", Check.gt(0)),
+        "displacement_amplitude_m": Column("float64", Check.ge(0)),
+        "velocity_amplitude_m_s": Column("float64", Check.ge(0)),
+        "energy_J": Column("float64", _finite),
+        "energy_std_J": Column("float64", Check.ge(0), nullable=True),
+        "energy_se_J": Column("float64", Check.ge(0), nullable=True),
+        "n_cycles": Column("int64", Check.ge(1)),
+        "equivalent_damping_N_s_m": Column("float64", _not_inf, nullable=True),
+        "row_start": Column("int64", Check.ge(0)),
+        "row_stop": Column("int64", Check.ge(0)),
+    },
+    strict=False,
+    name="energy",
 )
 
 
@@ -280,8 +325,8 @@ STATIC_FORCE = Schema(
         "ci_low_N": Column("float64", _not_inf, nullable=True),
         "ci_high_N": Column("float64", _not_inf, nullable=True),
         "confidence": Column("float64", Check.gt(0)),
-        "source": Column("str", Check.isin(["characteristic", "harmonic_binned", "none"])),
-        "method": Column("str", Check.isin(["linear_fit", "two_speeds", "lowest_speed", "none"])),
+        "source": Column("str", Check.isin(["characteristic", "harmonic_binned", "standstill", "none"])),
+        "method": Column("str", Check.isin(["linear_fit", "two_speeds", "lowest_speed", "standstill_mean", "none"])),
         "n_speeds": Column("int64", Check.ge(0)),
         "n_matched": Column("int64", Check.ge(0)),
         "v_min_m_s": Column("float64", nullable=True),
@@ -290,6 +335,11 @@ STATIC_FORCE = Schema(
         "gas_force_N": Column("float64", nullable=True),
         "significant": Column("bool"),
         "note": Column("str"),
+        # (manifest 1.2) ok standstill cases; the declared gas forces checked against what is left after
+        # subtracting them (agrees | disagrees | not_checked) and one line per check (stages.static_force)
+        "n_standstill": Column("int64", Check.ge(0), required=False),
+        "gas_force_check": Column("str", Check.isin(["agrees", "disagrees", "not_checked"]), required=False),
+        "gas_force_cases": Column("str", required=False),
     },
     checks=(Check("one_row", fn=lambda df: pd.Series([len(df) == 1])),),
     strict=False,

@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from isokinetic.contracts.manifest import unit_from_text
+from isokinetic.init_campaign.steps import upward_crossings
 from isokinetic.measurement.motion import noise_level
 
 #: Channels in the order the manifest lists them.
@@ -49,13 +51,24 @@ UNIT_WORDS = {
     **dict.fromkeys(("kn", "kilonewton", "kilonewtons"), ("force", "kN")),
     **dict.fromkeys(("c", "degc", "°c", "celsius", "gradc"), ("temperature", "C")),
     **dict.fromkeys(("k", "kelvin"), ("temperature", "K")),
+    **dict.fromkeys(("in", "inch", "inches"), ("length", "in")),
+    **dict.fromkeys(("lbf", "lbs", "lb"), ("force", "lbf")),
+    **dict.fromkeys(("kgf", "kp"), ("force", "kgf")),
+    **dict.fromkeys(("degf", "°f", "fahrenheit"), ("temperature", "F")),
 }
+#: Words (a column name's last word, or its bracketed unit, or a units row's text) saying a column is in volts.
+VOLT_WORDS = {"v", "mv", "volt", "volts", "voltage", "millivolt", "millivolts", "vdc", "uv", "µv"}
 #: The dimension of each channel's unit.
 DIMENSION = {"time": "time", "displacement": "length", "command": "length", "force": "force",
              "temperature": "temperature"}
 #: Units of each dimension and their factor to SI (temperature: offset to kelvin is not needed here).
-FACTORS = {"time": {"s": 1.0, "ms": 1e-3}, "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6},
-           "force": {"N": 1.0, "kN": 1e3}, "temperature": {"C": 1.0, "K": 1.0}}
+FACTORS = {"time": {"s": 1.0, "ms": 1e-3}, "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},
+           "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605, "kgf": 9.80665},
+           "temperature": {"C": 1.0, "K": 1.0, "F": 1.0}}
+#: The dimension of each manifest unit.
+UNIT_DIMENSION = {unit: dimension for dimension, units in FACTORS.items() for unit in units}
+#: Units the magnitudes choose between (inches, pounds and kilograms-force only from a name or a units row).
+SCORED = {"time": ("s", "ms"), "length": ("m", "mm", "um"), "force": ("N", "kN"), "temperature": ("C", "K")}
 #: Typical values of a damper rig (decades away from them cost score) and physical bounds (outside: implausible).
 TYPICAL = {"rate_Hz": 300.0, "duration_s": 60.0, "amplitude_m": 1e-3, "speed_m_s": 1e-3, "force_N": 300.0}
 BOUNDS = {"rate_Hz": (5.0, 1e6), "duration_s": (0.05, 1e6), "amplitude_m": (1e-6, 1.0), "speed_m_s": (1e-8, 50.0),
@@ -91,6 +104,28 @@ def name_words(name: str) -> tuple[tuple[str, ...], str | None]:
     return tuple(words), None
 
 
+def says_volts(name: str, unit_text: str | None = None) -> bool:
+    """Whether a column name (``Force (V)``, ``disp_V``, ``Load [mV]``, ``LVDT volts``) or its units-row text says
+    the column holds a transducer's voltage rather than engineering units."""
+    if unit_text is not None and unit_text.strip().lower() in VOLT_WORDS:
+        return True
+    text = name.strip().lower()
+    for pattern in (_BRACKETS, _SLASH, _IN):
+        match = pattern.match(text)
+        if match and match.group(2).replace(" ", "") in VOLT_WORDS:
+            return True
+    words = [w for w in _SPLIT.split(text) if w]
+    return bool(words) and (words[-1] in VOLT_WORDS or any(w.startswith("volt") for w in words))
+
+
+def unit_from_units_row(text: str | None) -> tuple[str, str] | None:
+    """(dimension, manifest unit) of a units row's cell (``in``, ``lbf``, ``Sec``, ``mm``, ``kN``, ``°C``, ``F``),
+    read as ingest reads it (:func:`isokinetic.contracts.manifest.unit_from_text`); None when it names no
+    unit the format knows."""
+    unit = unit_from_text(text) if text and text.strip() else None
+    return None if unit is None else (UNIT_DIMENSION[unit], unit)
+
+
 def role_of(words: tuple[str, ...]) -> str | None:
     """The first role (in :data:`ROLE_WORDS` order) one of ``words`` names."""
     for role, vocabulary in ROLE_WORDS.items():
@@ -99,21 +134,31 @@ def role_of(words: tuple[str, ...]) -> str | None:
     return None
 
 
-def guess_from_name(name: str) -> NameGuess:
-    """Role and unit of a column from its name alone (either may be None)."""
+def guess_from_name(name: str, unit_text: str | None = None) -> NameGuess:
+    """Role and unit of a column from its name and its cell of a units row (the row's unit wins: ingest checks
+    the manifest's unit against it); either may be None."""
     words, unit_word = name_words(name)
     role = role_of(words)
-    if unit_word is None:
+    row_unit = unit_from_units_row(unit_text)          # what ingest checks the manifest's unit against
+    if unit_word is None and row_unit is None:
         return NameGuess(role, None, f"from header {name!r}" if role else "")
-    dimension, unit = UNIT_WORDS[unit_word]
+    if row_unit is not None:
+        dimension, unit = row_unit
+        name_said = f"{name!r} [{unit_text.strip()}]"
+        if unit_word is not None and UNIT_WORDS[unit_word] != row_unit:
+            name_said += f" (the units row's unit; CHECK: the name says {unit_word!r})"
+    else:
+        dimension, unit = UNIT_WORDS[unit_word]
+        name_said = repr(name)
+    name = name_said
     if role is None or DIMENSION[role] == dimension:
         role = role or {"time": "time", "length": "displacement", "force": "force",
                         "temperature": "temperature"}[dimension]
-        return NameGuess(role, unit, f"from header {name!r}")
+        return NameGuess(role, unit, f"from header {name}")
     if all(w in WEAK_WORDS for w in words if role_of((w,)) == role):
         role = {"time": "time", "length": "displacement", "force": "force", "temperature": "temperature"}[dimension]
-        return NameGuess(role, unit, f"from header {name!r} (its unit)")
-    return NameGuess(role, None, f"from header {name!r} (its unit word {unit_word!r} does not fit a {role}: "
+        return NameGuess(role, unit, f"from header {name} (its unit)")
+    return NameGuess(role, None, f"from header {name} (its unit {unit!r} does not fit a {role}: "
                                  "unit from magnitudes)")
 
 
@@ -157,14 +202,14 @@ def length_scores(y: np.ndarray, t_s: np.ndarray) -> dict[str, float]:
     amplitude, speed = robust_range(y) / 2.0, typical_speed(t_s, y)
     return {unit: _decades(amplitude * f, TYPICAL["amplitude_m"], BOUNDS["amplitude_m"])
             + 0.5 * _decades(speed * f, TYPICAL["speed_m_s"], BOUNDS["speed_m_s"])
-            for unit, f in FACTORS["length"].items()}
+            for unit, f in FACTORS["length"].items() if unit in SCORED["length"]}
 
 
 def force_scores(f: np.ndarray) -> dict[str, float]:
     """Score of N and kN for a force: its 99th percentile of |F| against a damper's tens to thousands of N."""
     peak = float(np.percentile(np.abs(f), 99.0))
     return {unit: _decades(peak * factor, TYPICAL["force_N"], BOUNDS["force_N"])
-            for unit, factor in FACTORS["force"].items()}
+            for unit, factor in FACTORS["force"].items() if unit in SCORED["force"]}
 
 
 def temperature_scores(values: np.ndarray) -> dict[str, float]:
@@ -255,6 +300,82 @@ def velocity_correlation(t: np.ndarray, displacement: np.ndarray, force: np.ndar
     if ok.sum() < 3 or np.std(v[ok]) == 0 or np.std(f[ok]) == 0:
         return 0.0
     return float(np.corrcoef(v[ok], f[ok])[0, 1])
+
+
+def velocity(t: np.ndarray, y: np.ndarray, k: int) -> np.ndarray:
+    """Central differences over ±k samples, at samples k .. n-k-1 (noise averaged over 2k samples)."""
+    return (y[2 * k:] - y[:-2 * k]) / (t[2 * k:] - t[:-2 * k])
+
+
+def temperature_C(values: np.ndarray, unit: str) -> np.ndarray:
+    """A temperature column in degrees Celsius from C, K or F."""
+    if unit == "K":
+        return values - 273.15
+    if unit == "F":
+        return (values - 32.0) * 5.0 / 9.0
+    return values
+
+
+@dataclass(frozen=True)
+class ForceVerdict:
+    """How a force follows the displacement's velocity: overall correlation, per-cycle correlations' signs,
+    the damping (least-squares slope of force over velocity, N s/m), and what is wrong ("" when nothing)."""
+
+    correlation: float
+    cycles: int
+    opposed_cycles: int
+    damping_N_s_m: float
+    problem: str = ""
+
+    @property
+    def opposed_everywhere(self) -> bool:
+        return self.cycles >= 1 and self.opposed_cycles == self.cycles and self.correlation < -WEAK_FOLLOW
+
+
+#: |correlation| of force and velocity under which a force does not follow the velocity as a damper's does.
+WEAK_FOLLOW = 0.3
+#: Plausible damping of a damper, force over velocity [N s/m]: a bicycle's shock at speed to a friction-dominated
+#: helicopter lag damper creeping at 0.05 mm/s (1e7 and more); outside, the force or the velocity is off by orders
+#: of magnitude (a wrong column, or units).
+DAMPING_RANGE_N_S_M = (1.0, 1.0e9)
+
+
+def plausible_damping(damping_N_s_m: float) -> bool:
+    return DAMPING_RANGE_N_S_M[0] <= abs(damping_N_s_m) <= DAMPING_RANGE_N_S_M[1]
+
+
+def cycle_bounds(t: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Sample indices of the upward mid-stroke crossings of a displacement (the cycles between them)."""
+    lo, hi = np.percentile(y, [1.0, 99.0])
+    crossings = upward_crossings(t, y, 0.5 * (lo + hi), max(5.0 * noise_level(y), 0.02 * (hi - lo)))
+    return np.searchsorted(t, crossings)
+
+
+def force_follows_velocity(t: np.ndarray, displacement_m: np.ndarray, force_N: np.ndarray) -> ForceVerdict:
+    """A damper's force follows its velocity (force resists velocity, raw-campaign spec): the correlation of
+    force and velocity, overall and in each cycle, and the damping (slope of force over velocity)."""
+    k = max(1, t.size // 2000)
+    v, f = velocity(t, displacement_m, k), force_N[k:-k]
+    ok = np.isfinite(v) & np.isfinite(f)
+    v, f, tc = v[ok], f[ok], t[k:-k][ok]
+    if v.size < 3 or np.std(v) == 0 or np.std(f) == 0:
+        return ForceVerdict(0.0, 0, 0, math.nan, "the force or the velocity is constant")
+    r = float(np.corrcoef(v, f)[0, 1])
+    damping = float(np.cov(v, f)[0, 1] / np.var(v))
+    signs = []
+    bounds = np.searchsorted(tc, t[cycle_bounds(t, displacement_m).clip(0, t.size - 1)])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if b - a >= 8 and np.std(v[a:b]) > 0 and np.std(f[a:b]) > 0:
+            signs.append(float(np.corrcoef(v[a:b], f[a:b])[0, 1]))
+    opposed = sum(c < 0 for c in signs)
+    problem = ""
+    if abs(r) < WEAK_FOLLOW:
+        problem = (f"the force does not follow the velocity as a damper's does (correlation {r:.2f}): is it the "
+                   "force, and the other the displacement?")
+    elif r < 0:
+        problem = (f"the force opposes the velocity overall (correlation {r:.2f}) but not in every cycle ({opposed} "
+                   f"of {len(signs)}): the sign convention is unclear, check it by hand (`invert: true`?)")
+    return ForceVerdict(r, len(signs), opposed, damping, problem)
 
 
 def roughness(values: np.ndarray) -> float:

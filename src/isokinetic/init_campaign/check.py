@@ -1,13 +1,17 @@
 """``init-campaign --check FOLDER``: a folder's case files against its existing manifest, case by case.
 
-Each case's file is read as ingest reads it (the manifest's dialect, columns, units, ``invert``), then the
-same detection as the draft (:mod:`.waveform`, :mod:`.channels`) is compared with the plan: waveform,
-period or frequency, amplitude, a triangle's phase, the sample rate, and each column's unit against its
-magnitudes (a column declared mm whose values look like m). Only clear disagreements count: a unit only
-when the magnitudes make every other unit implausible or far less plausible (``sure``), a period or
-frequency beyond :data:`PERIOD_TOLERANCE` and four standard errors, an amplitude beyond
-:data:`AMPLITUDE_TOLERANCE`, a sample rate beyond :data:`RATE_TOLERANCE`. Exit status 0 when every case
-agrees, 1 otherwise.
+Each case's file is read as ingest reads it (the manifest's file format, its slice ``time_range_s`` /
+``rows``, columns, units, ``invert``), then the same detection as the draft (:mod:`.waveform`,
+:mod:`.channels`, :mod:`.survey`) is compared with the plan: waveform (a standstill: no motion), period or
+frequency, amplitude, a triangle's phase, the sample rate, each column's unit against its magnitudes (a
+column declared mm whose values look like m), and the column choice itself: a column in volts declared as
+a force, displacement or temperature, a column other than the one the role choice takes (when that choice
+is not a guess), and the physics of the roles (the force follows the velocity as a damper's does, with the
+right sign after ``invert``; a plausible oil temperature; the displacement's range against the plan's
+amplitude). Only clear disagreements count: a unit only when the magnitudes make every other unit
+implausible or far less plausible (``sure``), a period or frequency beyond :data:`PERIOD_TOLERANCE` and
+four standard errors, an amplitude beyond :data:`AMPLITUDE_TOLERANCE`, a sample rate beyond
+:data:`RATE_TOLERANCE`. Exit status 0 when every case agrees, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -22,10 +26,12 @@ import numpy as np
 
 from isokinetic.contracts.manifest import MANIFEST_NAME, CaseSpec, load_manifest
 from isokinetic.init_campaign import channels as ch
+from isokinetic.init_campaign import survey as sv
 from isokinetic.init_campaign.sniff import parse_column
-from isokinetic.init_campaign.survey import case_files, sample_rate
+from isokinetic.init_campaign.survey import case_files, relative_name, sample_rate
 from isokinetic.init_campaign.waveform import SNAP_FRACTION, Waveform, detect_waveform
-from isokinetic.stages.ingest import CaseFileError, canonical_timeseries, read_case_csv
+from isokinetic.measurement.motion import noise_level
+from isokinetic.stages.ingest import CaseFileError, FileCache, canonical_timeseries, slice_rows
 
 #: A detected period or frequency further than this fraction (and four standard errors) from the plan disagrees:
 #: windows are cut from the planned period, and 1e-4 of it is under a sample interval at the end of a record.
@@ -34,6 +40,8 @@ PERIOD_TOLERANCE = 1e-4
 AMPLITUDE_TOLERANCE = 0.01
 #: A detected sample rate further than this fraction from the plan disagrees (validation allows 5 %).
 RATE_TOLERANCE = 0.005
+#: A standstill moves less than this [m] (or a few noise levels, :data:`STANDSTILL_SIGMAS`).
+STANDSTILL_RANGE_M, STANDSTILL_SIGMAS = 1.0e-4, 16.0
 
 
 @dataclass(frozen=True)
@@ -66,11 +74,15 @@ def _g(x: float) -> str:
 
 @dataclass
 class Record:
-    """One case's file as read under the manifest: its raw columns and its time in seconds."""
+    """One case's file as read under the manifest: its raw columns (the case's slice), the file's units row,
+    the decimal mark, its time in seconds, and the canonical SI series (``invert`` applied)."""
 
     spec: CaseSpec
-    raw: object                  # the CSV table of strings
+    raw: object                  # the table of strings
     t_s: np.ndarray
+    units: dict = field(default_factory=dict)
+    decimal: str = "."
+    df: object = None
 
 
 def unit_choices(records: list[Record]) -> dict[tuple[str, str, str], ch.UnitChoice]:
@@ -82,7 +94,7 @@ def unit_choices(records: list[Record]) -> dict[tuple[str, str, str], ch.UnitCho
         for channel, column in r.spec.columns.items():
             if channel not in ch.DIMENSION or column.unit == "datetime":
                 continue
-            data = parse_column(column.name, r.raw[column.name], r.spec.csv.decimal if r.spec.csv else ".")
+            data = parse_column(column.name, r.raw[column.name], r.decimal)
             if data.numbers is None:
                 continue
             key = (channel, column.name, column.unit)
@@ -95,9 +107,9 @@ def unit_findings(record: Record, choices: dict[tuple[str, str, str], ch.UnitCho
     out = []
     for channel, column in record.spec.columns.items():
         choice = choices.get((channel, column.name, column.unit))
-        if choice is not None and choice.unit not in (None, column.unit) and choice.sure == "sure":
-            data = parse_column(column.name, record.raw[column.name], record.spec.csv.decimal
-                                if record.spec.csv else ".")
+        scored = channel in ch.DIMENSION and column.unit in ch.SCORED[ch.DIMENSION[channel]]
+        if scored and choice is not None and choice.unit not in (None, column.unit) and choice.sure == "sure":
+            data = parse_column(column.name, record.raw[column.name], record.decimal)
             shown = ch.describe(channel, data.numbers[np.isfinite(data.numbers)], record.t_s)
             out.append(Finding(f"columns.{channel}", f"{column.name!r} in {column.unit}",
                                f"magnitudes that look like {choice.unit} ({shown}; {choice.why})", "declared"))
@@ -142,37 +154,121 @@ def summary(w: Waveform, rate: float) -> str:
     return f"{said}, {_g(rate)} Hz"
 
 
-def read_record(folder: Path, spec: CaseSpec) -> tuple[Record | None, list[Finding]]:
-    """A case's file read as ingest reads it, or what keeps it from being read."""
+def read_record(folder: Path, spec: CaseSpec, cache: FileCache | None = None) -> tuple[Record | None, list[Finding]]:
+    """A case's file read as ingest reads it (its format, its slice), or what keeps it from being read."""
     if spec.problems:
         return None, [Finding(p.column, "", f"manifest: {p.message}") for p in spec.problems]
+    cache = cache or FileCache()
     path = folder / spec.file
     if not path.is_file():
         return None, [Finding("file", spec.file, "file not found")]
     try:
-        raw = read_case_csv(path, [], spec.csv)
+        table = cache.table(path, spec.csv)
     except CaseFileError as exc:
         return None, [Finding("file", spec.file, f"ingest refuses it: {exc.problem.message}")]
-    df, problems = canonical_timeseries(raw, spec.columns, spec.csv.decimal if spec.csv else ".")
+    span, _, problem = slice_rows(spec, table, cache, path)
+    if problem is not None:
+        return None, [Finding(problem.column, "", f"ingest: {problem.message}")]
+    first, stop = span if span is not None else (0, len(table.frame))
+    raw = table.frame.iloc[first:stop].reset_index(drop=True)
+    df, problems = canonical_timeseries(raw, spec.columns, table.decimal)
     if problems:
         return None, [Finding(f"column {p.column!r}", "", f"ingest: {p.message}") for p in problems]
     t = df["time_s"].to_numpy()
     if t.size < 2 or not np.all(np.diff(t) > 0):
         return None, [Finding("columns.time", spec.columns["time"].name, "time does not increase")]
-    return Record(spec, raw, t), []
+    return Record(spec, raw, t, dict(table.units), table.decimal, df), []
+
+
+def role_choice(record: Record) -> sv.FileSurvey:
+    """The draft's role choice re-run on a case's columns (names, a units row, magnitudes)."""
+    data = {str(n): parse_column(str(n), record.raw[n], record.decimal) for n in record.raw.columns}
+    fs = sv.FileSurvey(str(record.spec.file), record.spec.id, data=data,
+                       units_row={k: v for k, v in record.units.items() if v})
+    sv.assign_by_name(fs)
+    sv.assign_by_magnitude(fs)
+    return fs
+
+
+def column_findings(record: Record) -> list[Finding]:
+    """The manifest's column choice against the draft's: a column in volts as a force, displacement, command or
+    temperature (its scaled twin named when there is one), and a column other than the one the role choice takes
+    by name or magnitudes (unless that choice is only a guess)."""
+    fs, out = role_choice(record), []
+    for channel, column in record.spec.columns.items():
+        chosen = fs.roles.get(channel)
+        if channel != "time" and ch.says_volts(column.name, record.units.get(column.name)):
+            twin = f"its scaled twin {chosen!r} is the {channel}" if chosen else "no scaled twin: scale it first"
+            out.append(Finding(f"columns.{channel}", f"{column.name!r} in {column.unit}",
+                               f"a column in volts, not in {column.unit} ({twin})", "declared"))
+        elif chosen is not None and chosen != column.name and fs.role_how[channel][1] != "guess":
+            out.append(Finding(f"columns.{channel}", repr(column.name),
+                               f"the role choice takes {chosen!r} ({fs.role_how[channel][0]})", "declared"))
+    return out
+
+
+def physics_findings(record: Record, motion: str) -> list[Finding]:
+    """The roles' physics under the manifest: a moving case's force follows its velocity as a damper's does
+    (positive correlation after ``invert``, a plausible damping), the temperature is plausible for oil, the
+    displacement's range is the plan's amplitude."""
+    spec, df, out = record.spec, record.df, []
+    plan = spec.plan
+    if "temperature_C" in df:
+        median = float(np.nanmedian(df["temperature_C"].to_numpy()))
+        if not sv.OIL_RANGE_C[0] <= median <= sv.OIL_RANGE_C[1]:
+            out.append(Finding("columns.temperature", repr(spec.columns["temperature"].name),
+                               f"a median of {median:.4g} C, not plausible for oil ({sv.OIL_RANGE_C[0]:g} to "
+                               f"{sv.OIL_RANGE_C[1]:g} C)", "declared"))
+    if plan.waveform not in ("triangle", "sine"):
+        return out
+    disp = df["displacement_m"].to_numpy()
+    verdict = ch.force_follows_velocity(record.t_s, disp, df["force_N"].to_numpy())
+    force = repr(spec.columns["force"].name) + (" inverted" if spec.columns["force"].invert else "")
+    if verdict.opposed_everywhere:
+        out.append(Finding("columns.force", force, f"a force opposing the velocity in all {verdict.cycles} cycles "
+                                                   f"(correlation {verdict.correlation:.2f}): `invert` is wrong, "
+                                                   "or the column", "declared"))
+    elif verdict.problem:
+        out.append(Finding("columns.force", force, verdict.problem, "declared"))
+    elif not ch.plausible_damping(verdict.damping_N_s_m):
+        out.append(Finding("columns.force", force, f"force over velocity {verdict.damping_N_s_m:.3g} N s/m, outside "
+                                                   f"a damper's {ch.DAMPING_RANGE_N_S_M[0]:g} to "
+                                                   f"{ch.DAMPING_RANGE_N_S_M[1]:g} N s/m", "declared"))
+    if motion == "command":
+        amplitude = ch.robust_range(disp) / 2.0
+        if abs(amplitude / plan.amplitude_m - 1.0) > sv.RANGE_TOLERANCE:
+            out.append(Finding("columns.displacement", repr(spec.columns["displacement"].name),
+                               f"a range of ±{amplitude * 1e3:.4g} mm against the plan's ±{plan.amplitude_m * 1e3:.4g} "
+                               "mm", "declared"))
+    return out
+
+
+def standstill_findings(record: Record, motion: str) -> list[Finding]:
+    """A standstill case whose motion channel moves (more than :data:`STANDSTILL_RANGE_M` and the noise)."""
+    y = record.df[f"{motion}_m"].to_numpy()
+    spread = ch.robust_range(y)
+    if spread > max(STANDSTILL_RANGE_M, STANDSTILL_SIGMAS * noise_level(y)):
+        return [Finding("waveform", "standstill", f"a {motion} that moves {spread * 1e3:.4g} mm")]
+    return []
 
 
 def check_case(record: Record, choices: dict[tuple[str, str, str], ch.UnitChoice]) -> CaseCheck:
-    """One case of the manifest against its file: sample rate, units, waveform and its plan."""
+    """One case of the manifest against its file: sample rate, units, columns, waveform and its plan."""
     spec, t = record.spec, record.t_s
     out = CaseCheck(spec.id, str(spec.file))
     rate = sample_rate(t).value
     if abs(rate / spec.plan.sample_rate_Hz - 1.0) > RATE_TOLERANCE:
         out.findings.append(Finding("sample_rate_Hz", _g(spec.plan.sample_rate_Hz),
-                                    f"{_g(rate)} (median time step {_g(1.0 / rate)} s)"))
+                                    f"{_g(rate)} (mean time step {_g(1.0 / rate)} s)"))
     out.findings += unit_findings(record, choices)
-    df, _ = canonical_timeseries(record.raw, spec.columns, spec.csv.decimal if spec.csv else ".")
+    out.findings += column_findings(record)
+    df = record.df
     motion = "command" if "command_m" in df else "displacement"
+    out.findings += physics_findings(record, motion)
+    if spec.plan.waveform == "standstill":
+        out.findings += standstill_findings(record, motion)
+        out.detected = f"standstill, {_g(rate)} Hz" if not out.findings else f"{_g(rate)} Hz"
+        return out
     w = detect_waveform(t, df[f"{motion}_m"].to_numpy())
     out.findings += plan_findings(spec, w, motion)
     out.detected = summary(w, rate)
@@ -183,12 +279,13 @@ def check_folder(folder: str | Path) -> tuple[list[CaseCheck], list[str]]:
     """Every case of ``folder/campaign.yaml`` checked; and the case files the manifest does not name."""
     folder = Path(folder)
     manifest = load_manifest(folder / MANIFEST_NAME)
-    read = [(spec, *read_record(folder, spec)) for spec in manifest.cases]
+    cache = FileCache()
+    read = [(spec, *read_record(folder, spec, cache)) for spec in manifest.cases]
     choices = unit_choices([record for _, record, _ in read if record is not None])
     checks = [check_case(record, choices) if record is not None
               else CaseCheck(spec.id, str(spec.file), findings) for spec, record, findings in read]
-    named = {spec.file for spec in manifest.cases}
-    return checks, [p.name for p in case_files(folder) if p.name not in named]
+    named = {str(spec.file) for spec in manifest.cases}
+    return checks, [relative_name(p, folder) for p in case_files(folder) if relative_name(p, folder) not in named]
 
 
 def print_check(folder: str | Path, out: TextIO | None = None) -> int:

@@ -19,8 +19,9 @@ import numpy as np
 import yaml
 
 from isokinetic.contracts.manifest import DEFAULT_TRIANGLE_PHASE_RAD, MANIFEST_NAME, CsvDialect
-from isokinetic.init_campaign.survey import RATE_FLOOR, FileSurvey, Survey, column_how, survey_folder
-from isokinetic.init_campaign.waveform import Estimate, round_to_uncertainty
+from isokinetic.init_campaign import channels as ch
+from isokinetic.init_campaign.survey import RATE_FLOOR, FileSurvey, StepCase, Survey, column_how, survey_folder
+from isokinetic.init_campaign.waveform import Estimate, Waveform, round_to_uncertainty
 from isokinetic.physics.damper import Damper
 
 #: Comments start at this column when the value leaves room.
@@ -63,8 +64,8 @@ def line(indent: int, body: str, note: str = "") -> str:
     return text
 
 
-def column_entry(name: str, unit: str | None) -> str:
-    return f"{{name: {scalar(name)}, unit: {scalar(unit)}}}"
+def column_entry(name: str, unit: str | None, invert: bool = False) -> str:
+    return f"{{name: {scalar(name)}, unit: {scalar(unit)}" + (", invert: true}" if invert else "}")
 
 
 def _pm(estimate: Estimate, scale: float, unit: str) -> str:
@@ -77,24 +78,41 @@ def _pm(estimate: Estimate, scale: float, unit: str) -> str:
 
 
 def header_lines(survey: Survey) -> list[str]:
-    n, bad = len(survey.usable), len(survey.files) - len(survey.usable)
+    n, bad = len(survey.case_kinds()), len(survey.files) - len(survey.usable)
     out = [f"# {MANIFEST_NAME} drafted by `python -m isokinetic init-campaign` from {len(survey.files)} files "
            f"in {comment(survey.folder.absolute().name)!s}/ ({n} cases" + (f", {bad} set aside below)" if bad else ")"),
-           "# (raw campaign format 1.1). Beside every guessed value: how it was found and how sure it is:",
+           "# (raw campaign format 1.2). Beside every guessed value: how it was found and how sure it is:",
            "#   sure: names and magnitudes agree, or nothing else fits; likely: check it; guess: check it by hand.",
            "# To do by hand: the description, temperature_C, the damper block, every 'likely' and 'guess'. Then run",
            f"#   python -m isokinetic init-campaign --check {comment(survey.folder.as_posix())}"]
     if survey.campaign_note:
         out.append(f"# WARNING: {comment(survey.campaign_note)}")
+    if survey.skipped:
+        out.append(f"# Passed over ({len(survey.skipped)}), not case files:")
+        out += [f"#   {comment(name)}: {comment(why)}" for name, why in survey.skipped]
     return out
 
 
+def csv_line(fmt: CsvDialect, how: str) -> str:
+    """The ``csv:`` block of a file format other than the default (only the keys that differ from it)."""
+    default = CsvDialect()
+    keys = {k: v for k, v in fmt.to_dict().items() if v != getattr(default, k) or k == "format" and v != "delimited"}
+    if fmt.format == "mts793":
+        keys.pop("units_row", None)          # an MTS 793 export always has one
+        keys.pop("delimiter", None) if fmt.delimiter == "\t" else None
+    said = ", ".join(f"{k}: {json.dumps(v) if isinstance(v, str) else scalar(v)}" for k, v in keys.items())
+    return line(0, f"csv: {{{said}}}", f"{how}, {'likely' if fmt.encoding == 'cp1252' else 'sure'}")
+
+
 def campaign_lines(survey: Survey) -> list[str]:
-    temps = [f.data[f.roles["temperature"]].numbers for f in survey.usable if "temperature" in f.roles]
+    temps = [ch.temperature_C(f.data[f.roles["temperature"]].numbers, survey.units[("temperature",
+                                                                                f.roles["temperature"])].unit)
+             for f in survey.usable if "temperature" in f.roles
+             and survey.units[("temperature", f.roles["temperature"])].unit is not None]
     out = [line(0, "format_version: 1"),
            line(0, f"campaign: {scalar(survey.campaign)}",
                 "the folder name" if not survey.campaign_note else "NOT the folder name: see the warning above"),
-           line(0, f"description: {scalar(f'{len(survey.usable)} cases drafted from CSV files')}",
+           line(0, f"description: {scalar(f'{len(survey.case_kinds())} cases drafted from the case files')}",
                 "replace: what was tested, on which damper"),
            line(0, "source: rig", "rig | simulation (informational)")]
     if temps:
@@ -106,15 +124,18 @@ def campaign_lines(survey: Survey) -> list[str]:
     if survey.sample_rate_Hz is not None:
         out.append(line(0, f"sample_rate_Hz: {scalar(survey.sample_rate_Hz)}", f"{survey.rate_how}, sure"))
     if survey.dialect != CsvDialect():
-        d = survey.dialect
-        out.append(line(0, f"csv: {{delimiter: {json.dumps(d.delimiter)}, decimal: {json.dumps(d.decimal)}}}",
-                        f"{survey.dialect_how}, sure"))
+        out.append(csv_line(survey.dialect, survey.dialect_how))
     out.append("columns:")
     for channel, choice in survey.columns.items():
-        out.append(line(2, f"{channel}: {column_entry(choice.name, choice.unit)}", f"{choice.how}, {choice.sure}"))
+        if choice.invert:
+            out.append(line(2, f"# {channel} inverted: {choice.invert_why}"))
+        out.append(line(2, f"{channel}: {column_entry(choice.name, choice.unit, choice.invert)}",
+                        f"{choice.how}, {choice.sure}"))
     extras = sorted({e for f in survey.usable for e in f.extras})
     if extras:
         out.append(line(2, f"# not used: {', '.join(repr(e) for e in extras)} (extra columns are ignored by ingest)"))
+    refused = sorted({why for f in survey.usable for why in f.refused.values()})
+    out += [line(2, f"# REFUSED: {why}") for why in refused]
     return out
 
 
@@ -126,8 +147,7 @@ def damper_lines() -> list[str]:
     return out
 
 
-def triangle_lines(f: FileSurvey) -> list[str]:
-    w = f.waveform
+def triangle_lines(w: Waveform, motion: str) -> list[str]:
     period = w.period_s.rounded
     rounded = "" if period == w.period_s.value else f", rounded to {scalar(period)}"
     out = [line(4, f"period_s: {scalar(period)}", f"mid-stroke crossings every T/2: {_pm(w.period_s, 1.0, 's')}"
@@ -135,9 +155,9 @@ def triangle_lines(f: FileSurvey) -> list[str]:
     amp = w.amplitude_m
     amp_mm = Estimate(amp.value * 1e3, amp.se * 1e3).rounded_amplitude
     speed = 4.0 * amp.value / period * 1e3
-    sure = "sure" if f.motion == "command" else "likely"
+    sure = "sure" if motion == "command" else "likely"
     out.append(line(4, f"amplitude_mm: {scalar(amp_mm)}",
-                    f"speed {speed:.4g} mm/s x T/4 = {_pm(amp, 1e3, 'mm')} from the {f.motion}, {sure}"))
+                    f"speed {speed:.4g} mm/s x T/4 = {_pm(amp, 1e3, 'mm')} from the {motion}, {sure}"))
     snapped = abs(w.phase_rad) == -DEFAULT_TRIANGLE_PHASE_RAD
     said = ("-pi/2, the spec's default" if w.phase_rad == DEFAULT_TRIANGLE_PHASE_RAD else "+pi/2" if snapped
             else "CHECK: the fitted phase")
@@ -148,29 +168,52 @@ def triangle_lines(f: FileSurvey) -> list[str]:
     return out
 
 
+def plan_lines(w: Waveform, motion: str) -> list[str]:
+    """The waveform's plan keys: a triangle's period, amplitude and phase, a sine's frequency and amplitude."""
+    if w.kind == "triangle":
+        return triangle_lines(w, motion)
+    if w.kind != "sine":
+        return []
+    freq, amp = w.frequency_Hz, w.amplitude_m
+    sure = "sure" if motion == "command" else "likely"
+    return [line(4, f"frequency_Hz: {scalar(freq.rounded)}", f"{_pm(freq, 1.0, 'Hz')}, {freq.sure}"),
+            line(4, f"amplitude_mm: {scalar(Estimate(amp.value * 1e3, amp.se * 1e3).rounded_amplitude)}",
+                 f"{_pm(amp, 1e3, 'mm')} from the {motion}" + (f"; {w.phase_note}" if w.phase_note else "")
+                 + f", {sure}")]
+
+
+def step_lines(f: FileSurvey, step: StepCase) -> list[str]:
+    """The entry of one step of a stepped record: id, file, its slice, waveform and plan."""
+    source = f.roles[f.motion]
+    return [line(2, f"- id: {scalar(step.case_id)}", f"{step.how}"),
+            line(4, f"file: {scalar(f.file)}"),
+            line(4, f"time_range_s: [{scalar(step.start_s)}, {scalar(step.end_s)}]",
+                 "the step's slice of the file's own time axis, transitions and settling cycles left out"),
+            line(4, f"waveform: {step.waveform.kind}",
+                 f"from {source!r} ({f.motion}): {step.waveform.how}, {step.waveform.sure}"),
+            *plan_lines(step.waveform, f.motion)]
+
+
 def case_lines(f: FileSurvey, survey: Survey) -> list[str]:
-    """One case entry: id, file, waveform and its keys, overrides (sample rate, columns)."""
+    """A file's case entries (one, or one per step of a stepped record): id, file, waveform and its keys,
+    overrides (sample rate, columns)."""
+    own = round_to_uncertainty(f.rate.value, f.rate.se, floor=RATE_FLOOR)
+    common = []
+    if own != survey.sample_rate_Hz:
+        common.append(line(4, f"sample_rate_Hz: {scalar(own)}", f"mean time step {1.0 / own:.6g} s, sure"))
+    common += override_lines(f, survey)
+    notes = [line(4, f"# NOTE: {w_}") for w_ in f.warnings]
+    if f.steps:
+        out = [line(2, f"# {comment(f.file)}: a stepped record, {len(f.steps)} cases (the whole record: "
+                       f"{f.waveform.kind}; {comment(f.waveform.how)})")]
+        for step in f.steps:
+            out += step_lines(f, step) + common
+        return out + notes
     w = f.waveform
     source = f.roles[f.motion]
     out = [line(2, f"- id: {scalar(f.case_id)}", f.id_note), line(4, f"file: {scalar(f.file)}")]
     out.append(line(4, f"waveform: {w.kind}", f"from {source!r} ({f.motion}): {w.how}, {w.sure}"))
-    if w.kind == "triangle":
-        out += triangle_lines(f)
-    elif w.kind == "sine":
-        freq = w.frequency_Hz
-        out.append(line(4, f"frequency_Hz: {scalar(freq.rounded)}", f"{_pm(freq, 1.0, 'Hz')}, {freq.sure}"))
-        amp = w.amplitude_m
-        sure = "sure" if f.motion == "command" else "likely"
-        out.append(line(4, f"amplitude_mm: {scalar(Estimate(amp.value * 1e3, amp.se * 1e3).rounded_amplitude)}",
-                        f"{_pm(amp, 1e3, 'mm')} from the {f.motion}" + (f"; {w.phase_note}" if w.phase_note else "")
-                        + f", {sure}"))
-    rate = f.rate
-    own = round_to_uncertainty(rate.value, rate.se, floor=RATE_FLOOR)
-    if own != survey.sample_rate_Hz:
-        out.append(line(4, f"sample_rate_Hz: {scalar(own)}", f"median time step {1.0 / own:.6g} s, sure"))
-    out += override_lines(f, survey)
-    out += [line(4, f"# NOTE: {w_}") for w_ in f.warnings]
-    return out
+    return out + plan_lines(w, f.motion) + common + notes
 
 
 def override_lines(f: FileSurvey, survey: Survey) -> list[str]:
@@ -183,10 +226,13 @@ def override_lines(f: FileSurvey, survey: Survey) -> list[str]:
                 entries.append(line(6, f"{channel}: null", f"this file has no {channel} column, sure"))
             continue
         unit = survey.units[(channel, name)]
-        if choice is None or (name, unit.unit) != (choice.name, choice.unit):
+        invert = channel == "force" and bool(f.invert)
+        if choice is None or (name, unit.unit, invert) != (choice.name, choice.unit, choice.invert):
             how, sure = f.role_how[channel]
             sure = max(sure, unit.sure, key=["sure", "likely", "guess"].index)
-            entries.append(line(6, f"{channel}: {column_entry(name, unit.unit)}",
+            if invert:
+                entries.append(line(6, f"# {channel} inverted: {f.invert}"))
+            entries.append(line(6, f"{channel}: {column_entry(name, unit.unit, invert)}",
                                 f"{column_how(how, unit)}, {sure}"))
     return [line(4, "columns:")] + entries if entries else []
 

@@ -1,4 +1,5 @@
-"""A case file's dialect, comment lines and header, sniffed from its first lines; its columns read as numbers.
+"""A case file's columns read as numbers or time stamps (:func:`parse_column`, used by the survey and the
+check); and the format 1.1 dialect sniffer (the survey now uses :func:`isokinetic.rawfile.sniff_format`).
 
 The delimiter is the one of :data:`isokinetic.contracts.manifest.CSV_DELIMITERS` (',' ';' tab '|') that splits
 the header and every sampled data row into the same number of fields (two or more; the most fields wins a
@@ -33,7 +34,7 @@ DECIMAL_COMMA = re.compile(r"[+-]?\d+,\d+(?:[eE][+-]?\d+)?")
 #: A number written with a decimal point: ``-0.25``, ``.5``, ``1.5e-3``.
 DECIMAL_POINT = re.compile(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?")
 #: Words used for each delimiter in the draft's comments.
-DELIMITER_WORDS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'"}
+DELIMITER_WORDS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'", "whitespace": "whitespace"}
 
 
 class SniffError(ValueError):
@@ -76,7 +77,7 @@ def sniff_delimiter(header: str, rows: list[str]) -> str:
         if counts[0] >= 2 and same >= len(rows) - ragged and counts[0] > best_fields:
             best, best_fields = delimiter, counts[0]
     if best is None:
-        tried = ", ".join(DELIMITER_WORDS.values())
+        tried = ", ".join(DELIMITER_WORDS[d] for d in CSV_DELIMITERS)
         raise SniffError(f"no delimiter ({tried}) splits the header {header[:80]!r} and the first rows into the "
                          "same number of fields (two or more)")
     return best
@@ -113,7 +114,7 @@ def sniff_text(text: str) -> Sniffed:
     delimiter = sniff_delimiter(lines[header_at], rows)
     decimal, note = sniff_decimal(rows, delimiter)
     header = tuple(name.strip() for name in next(csv.reader([lines[header_at]], delimiter=delimiter)))
-    return Sniffed(CsvDialect(delimiter, decimal), comments, header, len(rows), note)
+    return Sniffed(CsvDialect(delimiter=delimiter, decimal=decimal), comments, header, len(rows), note)
 
 
 def sniff_file(path: str | Path) -> Sniffed:

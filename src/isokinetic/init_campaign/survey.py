@@ -1,9 +1,19 @@
 """A folder of case files surveyed: each file sniffed, read, its columns given roles, units and a waveform;
-then the campaign-level choices (dialect, columns, units, sample rate) that the draft writes.
+then the campaign-level choices (file format, columns, units, sample rate) that the draft writes.
 
-Files are read only (ingest's reader). A file that cannot be used (unreadable, a dialect other than the
-campaign's, no time / displacement / force column, a symlink leading out of the folder, a name the manifest
-refuses) gets a ``problem``: the draft lists it commented out with that reason.
+Files are found in the folder and its subfolders (:data:`MAX_DEPTH` deep, hidden ones skipped; every file
+passed over is listed with why) and read only, by the format's reader (:mod:`isokinetic.rawfile`: delimited
+text with or without a units row, MTS 793 exports, any encoding). A file that cannot be used (unreadable,
+a format other than the campaign's, no time / displacement / force column, a symlink leading out of the
+folder, a name the manifest refuses) gets a ``problem``: the draft lists it commented out with that reason.
+
+Columns are never silently wrong: a column whose name or unit says volts is never a force, displacement,
+command or temperature while a scaled twin exists, nor without one (the role is refused, and said so); a
+role is ``sure`` only when no other column competes for it; and the roles are checked by physics
+(:func:`physics_checks`): the force follows the velocity as a damper's does (a force opposing it in every
+cycle is drafted with ``invert: true``), the temperature is plausible for oil, the displacement's range is
+the command's. A record holding several tests (a stepped sweep, standstills) becomes one case per step
+(:mod:`.steps`).
 """
 
 from __future__ import annotations
@@ -11,7 +21,7 @@ from __future__ import annotations
 import math
 import re
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -26,13 +36,18 @@ from isokinetic.contracts.manifest import (
     bare_file_name,
 )
 from isokinetic.init_campaign import channels as ch
-from isokinetic.init_campaign.sniff import DELIMITER_WORDS, ColumnData, SniffError, read_columns, sniff_file
+from isokinetic.init_campaign import steps as st
+from isokinetic.init_campaign.sniff import DELIMITER_WORDS, ColumnData, parse_column
 from isokinetic.init_campaign.waveform import Estimate, Waveform, detect_waveform, round_to_uncertainty
-from isokinetic.stages.ingest import CaseFileError
+from isokinetic.rawfile import FileFormat, RawFileError, read_raw_table, sniff_format
 from isokinetic.stages.validate import MIN_SAMPLES
 
 #: File name endings taken as case files (any case).
-CASE_SUFFIXES = (".csv", ".tsv")
+CASE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
+#: Subfolders searched below the campaign folder (its own files are depth 0).
+MAX_DEPTH = 3
+#: Files that are never case files and are passed over without a word.
+QUIET_FILES = ("campaign.yaml",)
 #: Larger files are not read (listed with the reason): 256 MB.
 MAX_FILE_BYTES = 256 * 1024 * 1024
 #: A sample rate is rounded to the fewest digits within this fraction (validation allows 5 %).
@@ -43,6 +58,12 @@ REQUIRED = ("time", "displacement", "force")
 LIKELY_CORRELATION = 0.8
 #: Correlation with the displacement above which another column is its command.
 COMMAND_CORRELATION = 0.98
+#: Plausible oil temperatures of a damper test [C].
+OIL_RANGE_C = (-40.0, 200.0)
+#: The displacement's range may differ from the command's by this fraction (servo error, compliance).
+RANGE_TOLERANCE = 0.2
+#: How sure, best first.
+SURENESS = ("sure", "likely", "guess")
 
 
 @dataclass
@@ -55,7 +76,8 @@ class FileSurvey:
     problem: str | None = None
     sniff_note: str = ""
     dialect: CsvDialect | None = None
-    comments: int = 0
+    ascii: bool = True
+    units_row: dict[str, str] = field(default_factory=dict)
     data: dict[str, ColumnData] = field(default_factory=dict)
     roles: dict[str, str] = field(default_factory=dict)       # channel -> column name
     role_how: dict[str, tuple[str, str]] = field(default_factory=dict)   # channel -> (how, sure)
@@ -65,21 +87,45 @@ class FileSurvey:
     waveform: Waveform | None = None
     motion: str | None = None        # the channel the waveform was detected on
     warnings: list[str] = field(default_factory=list)
+    volts: dict[str, str | None] = field(default_factory=dict)   # volts column -> the role its name says
+    refused: dict[str, str] = field(default_factory=dict)    # channel -> why no column was taken for it
+    invert: str = ""                 # why the force is drafted with `invert: true` ("" when it is not)
+    steps: list[StepCase] = field(default_factory=list)
 
     @property
     def ok(self) -> bool:
         return self.problem is None
 
+    @property
+    def cases(self) -> int:
+        """How many cases the file drafts: one per step of a stepped record, else one."""
+        return len(self.steps) if self.steps else 1
+
+
+@dataclass(frozen=True)
+class StepCase:
+    """One case cut from a stepped record: its id, its slice [start_s, end_s) of the file's own time axis,
+    its waveform measured on that slice, and how the step was found."""
+
+    case_id: str
+    start_s: float
+    end_s: float
+    waveform: Waveform
+    how: str
+
 
 @dataclass(frozen=True)
 class ColumnChoice:
-    """A campaign-level column: channel, CSV name, unit, and the comment (how it was found, how sure)."""
+    """A campaign-level column: channel, CSV name, unit, the comment (how it was found, how sure), and whether
+    (and why) it is inverted."""
 
     channel: str
     name: str
     unit: str | None
     how: str
     sure: str
+    invert: bool = False
+    invert_why: str = ""
 
 
 @dataclass
@@ -97,10 +143,16 @@ class Survey:
     units: dict[tuple[str, str], ch.UnitChoice]
     sample_rate_Hz: float | None
     rate_how: str
+    skipped: list[tuple[str, str]] = field(default_factory=list)     # (relative path, why not a case file)
 
     @property
     def usable(self) -> list[FileSurvey]:
         return [f for f in self.files if f.ok]
+
+    def case_kinds(self) -> list[str]:
+        """The waveform of every drafted case (a stepped record's steps one by one)."""
+        return [c.waveform.kind for f in self.usable for c in f.steps] + \
+            [f.waveform.kind for f in self.usable if not f.steps]
 
 
 def campaign_id(folder: Path) -> tuple[str, str]:
@@ -130,15 +182,48 @@ def case_ids(stems: list[str]) -> list[tuple[str, str]]:
     return out
 
 
+def walk_folder(folder: Path) -> tuple[list[Path], list[tuple[str, str]]]:
+    """(case files, [(relative path, why not)]) of ``folder`` and its subfolders up to :data:`MAX_DEPTH` deep,
+    sorted by relative path: files with a :data:`CASE_SUFFIXES` ending (symlinks included); hidden files and
+    folders, symlinked folders, deeper folders and other files are listed as passed over."""
+    found, skipped = [], []
+
+    def walk(here: Path, depth: int) -> None:
+        for p in sorted(here.iterdir(), key=lambda q: q.name):
+            rel = p.relative_to(folder).as_posix()
+            if p.name.startswith("."):
+                skipped.append((rel, "hidden " + ("folder" if p.is_dir() else "file")))
+            elif p.is_dir() and p.is_symlink():
+                skipped.append((rel, "a symlinked folder: not followed"))
+            elif p.is_dir():
+                if depth >= MAX_DEPTH:
+                    skipped.append((rel, f"a folder more than {MAX_DEPTH} levels deep: not searched"))
+                else:
+                    walk(p, depth + 1)
+            elif p.suffix.lower() in CASE_SUFFIXES:
+                found.append(p)
+            elif not (depth == 0 and p.name in QUIET_FILES):
+                skipped.append((rel, f"not a case file ({', '.join(CASE_SUFFIXES)})"))
+
+    walk(folder, 0)
+    return sorted(found, key=lambda p: p.relative_to(folder).as_posix()), skipped
+
+
 def case_files(folder: Path) -> list[Path]:
-    """The folder's case files (:data:`CASE_SUFFIXES`), sorted by name; symlinks included, folders not."""
-    return sorted(p for p in folder.iterdir() if p.suffix.lower() in CASE_SUFFIXES and not p.is_dir())
+    """The folder's case files (:func:`walk_folder`), sorted by relative path."""
+    return walk_folder(folder)[0]
+
+
+def relative_name(path: Path, folder: Path) -> str:
+    """A case file's ``file:`` entry: its path relative to the campaign folder, with '/'."""
+    return path.relative_to(folder).as_posix()
 
 
 def file_problem(path: Path, folder: Path) -> str | None:
     """Why a file cannot be a case before it is opened (None when it can be read)."""
-    if not bare_file_name(path.name):
-        return f"file name {path.name!r} is not one the manifest accepts (no ':', '..', '\\\\')"
+    rel = relative_name(path, folder)
+    if not all(bare_file_name(part) for part in rel.split("/")):
+        return f"file name {rel!r} is not one the manifest accepts (no ':', '..', '\\\\')"
     if path.is_symlink():
         try:
             path.resolve().relative_to(folder.resolve())
@@ -153,27 +238,29 @@ def file_problem(path: Path, folder: Path) -> str | None:
 
 
 def read_file(survey: FileSurvey, path: Path, folder: Path) -> None:
-    """Sniff and read one file into ``survey`` (or set its problem)."""
+    """Sniff the file's format (:func:`isokinetic.rawfile.sniff_format`) and read it with the format's reader
+    into ``survey`` (or set its problem)."""
     survey.problem = file_problem(path, folder)
     if survey.problem:
         return
+    notes: list[str] = []
     try:
-        sniffed = sniff_file(path)
-    except (SniffError, OSError) as exc:
+        fmt = sniff_format(path, notes)
+        table = read_raw_table(path, fmt)
+        survey.ascii = path.read_bytes().isascii()
+    except RawFileError as exc:
+        where = [f"column {exc.column!r}" if exc.kind != "key" else "", f"row {exc.row}" if exc.row is not None else ""]
+        survey.problem = f"cannot read: {exc.reason}" + (f" ({', '.join(w for w in where if w)})" if any(where) else "")
+        return
+    except (OSError, UnicodeError, LookupError) as exc:
         survey.problem = f"cannot read: {exc}"
         return
-    dup = sorted({n for n in sniffed.header if sniffed.header.count(n) > 1})
-    if dup:
-        survey.problem = f"duplicate column names {dup}: a column cannot be told by its name"
-        return
-    survey.dialect, survey.comments, survey.sniff_note = sniffed.dialect, len(sniffed.comments), sniffed.decimal_note
-    try:
-        survey.data = read_columns(path, sniffed.dialect, survey.warnings)
-    except CaseFileError as exc:
-        survey.problem = f"ingest would refuse it: {exc.problem.message}" + (
-            f" (row {exc.problem.row})" if exc.problem.row is not None else "")
-        return
-    rows = next(iter(survey.data.values())).rows
+    survey.dialect = fmt
+    survey.sniff_note = "; ".join(n.split(": ", 1)[-1] for n in notes)
+    survey.units_row = {name: unit for name, unit in table.units.items() if unit}
+    survey.warnings += table.warnings
+    survey.data = {str(name): parse_column(str(name), table.frame[name], table.decimal) for name in table.frame.columns}
+    rows = len(table.frame)
     if rows < MIN_SAMPLES:
         survey.problem = f"only {rows} samples, at least {MIN_SAMPLES} needed"
 
@@ -185,12 +272,37 @@ def _usable(data: ColumnData, role: str) -> bool:
 
 
 def assign_by_name(survey: FileSurvey) -> None:
-    """Roles from column names (the first column naming a role takes it)."""
+    """Roles from column names (and a units row's units). A column in volts (:func:`channels.says_volts`) takes no
+    role but time: its scaled twin does, and without one the role is refused (said in ``refused``). The first
+    column naming a role takes it: ``sure`` when no other column competes for it, else ``guess``, with the
+    competitors named."""
+    candidates: dict[str, list[tuple[str, ch.NameGuess]]] = {}
     for name, data in survey.data.items():
-        guess = ch.guess_from_name(name)
-        if guess.role and guess.role not in survey.roles and _usable(data, guess.role):
-            survey.roles[guess.role] = name
-            survey.role_how[guess.role] = (guess.how, "sure")
+        guess = ch.guess_from_name(name, survey.units_row.get(name))
+        if guess.role != "time" and ch.says_volts(name, survey.units_row.get(name)):
+            survey.volts[name] = guess.role          # no role from magnitudes either
+            continue
+        if guess.role is None or not _usable(data, guess.role):
+            continue
+        candidates.setdefault(guess.role, []).append((name, guess))
+    for role, found in candidates.items():
+        if role in survey.roles:
+            continue
+        name, guess = found[0]
+        how = guess.how
+        twins = [v for v, r in survey.volts.items() if r == role]
+        if twins:
+            how += f"; {', '.join(repr(v) for v in twins)} in volts, not taken"
+        if len(found) > 1:
+            others = ", ".join(repr(n) for n, _ in found[1:])
+            survey.role_how[role] = (f"{how}; CHECK: {others} also named like a {role} (the first is taken)", "guess")
+        else:
+            survey.role_how[role] = (how, "sure")
+        survey.roles[role] = name
+    for name, role in survey.volts.items():
+        if role is not None and role not in candidates and role not in survey.refused:
+            survey.refused[role] = (f"column {name!r} is in volts and has no scaled twin: not taken as the {role} "
+                                    f"(a {role} in engineering units is needed; scale it, or name the scaled column)")
 
 
 def assign_by_magnitude(survey: FileSurvey) -> None:
@@ -199,7 +311,7 @@ def assign_by_magnitude(survey: FileSurvey) -> None:
     taken = set(survey.roles.values())
     if "time" not in survey.roles:
         for name, data in survey.data.items():
-            if name not in taken and _usable(data, "time"):
+            if name not in taken and name not in survey.volts and _usable(data, "time"):
                 survey.roles["time"] = name
                 survey.role_how["time"] = (f"column {name!r} from magnitudes: it only increases", "likely")
                 taken.add(name)
@@ -209,7 +321,8 @@ def assign_by_magnitude(survey: FileSurvey) -> None:
     t_data = survey.data[survey.roles["time"]]
     t = t_data.stamps_s if t_data.stamps_s is not None else t_data.numbers
     free = {n: d.numbers for n, d in survey.data.items()
-            if d.numbers is not None and n not in taken and np.ptp(d.numbers[np.isfinite(d.numbers)]) > 0
+            if d.numbers is not None and n not in taken and n not in survey.volts
+            and np.ptp(d.numbers[np.isfinite(d.numbers)]) > 0
             and not ch.increasing(d.numbers) and ch.guess_from_name(n).role in (None, "displacement", "force")}
     named = {c: survey.data[survey.roles[c]].numbers for c in ("displacement", "force") if c in survey.roles}
     if len(named) < 2:
@@ -217,7 +330,7 @@ def assign_by_magnitude(survey: FileSurvey) -> None:
         d, f, r = ch.pair_by_velocity(t, pool, survey.roles.get("displacement"), survey.roles.get("force"))
         sure = "likely" if r >= LIKELY_CORRELATION else "guess"
         for channel, name in (("displacement", d), ("force", f)):
-            if channel not in survey.roles and name is not None and r > 0.3:
+            if channel not in survey.roles and channel not in survey.refused and name is not None and r > 0.3:
                 survey.roles[channel] = name
                 survey.role_how[channel] = (f"column {name!r} from magnitudes: the force follows the displacement's "
                                             f"velocity (correlation {r:.2f})", sure)
@@ -248,12 +361,13 @@ def assign_command(survey: FileSurvey, free: dict[str, np.ndarray]) -> None:
         return
 
 
-def survey_files(folder: Path) -> list[FileSurvey]:
-    """Every case file of ``folder`` read, with roles; at most MAX_CASES become cases."""
-    paths = case_files(folder)
+def survey_files(folder: Path) -> tuple[list[FileSurvey], list[tuple[str, str]]]:
+    """Every case file of ``folder`` (and its subfolders) read, with roles, at most MAX_CASES of them; and the
+    files passed over, with why."""
+    paths, skipped = walk_folder(folder)
     surveys = []
     for path, (case, note) in zip(paths, case_ids([p.stem for p in paths])):
-        survey = FileSurvey(file=path.name, case_id=case, id_note=note)
+        survey = FileSurvey(file=relative_name(path, folder), case_id=case, id_note=note)
         if sum(s.ok for s in surveys) >= MAX_CASES:
             survey.problem = f"more than the {MAX_CASES} cases a campaign may have"
         else:
@@ -263,23 +377,38 @@ def survey_files(folder: Path) -> list[FileSurvey]:
             assign_by_magnitude(survey)
             survey.extras = [n for n in survey.data if n not in survey.roles.values()]
         surveys.append(survey)
-    return surveys
+    return surveys, skipped
+
+
+def format_words(fmt: FileFormat) -> str:
+    """A file format in words: ``tabs between fields, '.' as the decimal mark, a units row, cp1252``."""
+    if fmt.format == "mts793":
+        words = f"an MTS 793 export ({DELIMITER_WORDS.get(fmt.delimiter, fmt.delimiter)}, '{fmt.decimal}')"
+    else:
+        words = (f"{DELIMITER_WORDS.get(fmt.delimiter, fmt.delimiter)} between fields, '{fmt.decimal}' as the "
+                 "decimal mark" + (", a units row under the header" if fmt.units_row else ""))
+    return words + ("" if fmt.encoding == "utf-8" else f", encoding {fmt.encoding}")
 
 
 def choose_dialect(files: list[FileSurvey]) -> tuple[CsvDialect, str]:
-    """The most common dialect of the readable files; files in another get a problem."""
-    counts = Counter(f.dialect for f in files if f.ok)
+    """The most common file format of the readable files (a file of ASCII bytes only fits any encoding); files
+    in another get a problem (the csv block is campaign-wide)."""
+    ok = [f for f in files if f.ok]
+    counts = Counter(replace(f.dialect, encoding="utf-8") for f in ok)
     if not counts:
         return CsvDialect(), ""
-    dialect, n = counts.most_common(1)[0]
-    for f in files:
-        if f.ok and f.dialect != dialect:
-            f.problem = (f"written with {DELIMITER_WORDS[f.dialect.delimiter]} between fields and "
-                         f"'{f.dialect.decimal}' as the decimal mark, the campaign's other files with "
-                         f"{DELIMITER_WORDS[dialect.delimiter]} and '{dialect.decimal}' (the csv block is "
-                         "campaign-wide)")
-    words = f"{DELIMITER_WORDS[dialect.delimiter]} between fields, '{dialect.decimal}' as the decimal mark"
-    return dialect, f"sniffed: {words} in {n} of {sum(counts.values())} files"
+    layout, n = counts.most_common(1)[0]
+    encodings = Counter(f.dialect.encoding for f in ok
+                        if not f.ascii and replace(f.dialect, encoding="utf-8") == layout)
+    dialect = replace(layout, encoding=encodings.most_common(1)[0][0] if encodings else "utf-8")
+    for f in ok:
+        if replace(f.dialect, encoding="utf-8") != layout or (not f.ascii and f.dialect.encoding != dialect.encoding):
+            f.problem = (f"written as {format_words(f.dialect)}, the campaign's other files as "
+                         f"{format_words(dialect)} (the csv block is campaign-wide)")
+    how = f"sniffed: {format_words(dialect)} in {n} of {len(ok)} files"
+    if dialect.encoding == "cp1252":
+        how += " (the bytes are not UTF-8: cp1252 assumed, the Windows default; check it)"
+    return dialect, how
 
 
 def _values(survey: FileSurvey, channel: str) -> np.ndarray | None:
@@ -298,13 +427,16 @@ def unit_for(channel: str, name: str, files: list[FileSurvey]) -> ch.UnitChoice:
     sample = with_it[0] if with_it else None
     shown = f"{sample.file}: {ch.describe(channel, sample.data[name].numbers, sample.time_s)}" \
         if sample is not None and sample.data[name].numbers is not None else ""
-    guess = ch.guess_from_name(name)
+    guess = ch.guess_from_name(name, sample.units_row.get(name) if sample is not None else None)
     if guess.unit is not None and guess.role is not None and ch.DIMENSION[guess.role] == ch.DIMENSION[channel]:
-        if magnitudes.unit not in (None, guess.unit) and magnitudes.sure == "sure":
-            return ch.UnitChoice(guess.unit, "likely", f"from header {name!r}; CHECK: the magnitudes look like "
+        said = guess.how.split(" (its unit)")[0]
+        scored = guess.unit in ch.SCORED[ch.DIMENSION[channel]]
+        if scored and magnitudes.unit not in (None, guess.unit) and magnitudes.sure == "sure":
+            return ch.UnitChoice(guess.unit, "likely", f"{said}; CHECK: the magnitudes look like "
                                                        f"{magnitudes.unit} ({shown})")
-        agree = "magnitudes agree" if magnitudes.unit == guess.unit else "magnitudes unclear"
-        return ch.UnitChoice(guess.unit, "sure", f"from header {name!r}; {agree} ({shown})")
+        agree = ("magnitudes agree" if magnitudes.unit == guess.unit else "magnitudes unclear" if scored
+                 else "magnitudes not scored in this unit")
+        return ch.UnitChoice(guess.unit, "likely" if "CHECK" in said else "sure", f"{said}; {agree} ({shown})")
     if magnitudes.unit is None:
         return magnitudes
     return ch.UnitChoice(magnitudes.unit, magnitudes.sure, f"from magnitudes ({shown}): {magnitudes.why}")
@@ -318,11 +450,14 @@ def time_in_seconds(survey: FileSurvey, unit: str | None) -> np.ndarray | None:
 
 
 def sample_rate(t_s: np.ndarray) -> Estimate:
-    """1 / the median sample interval, with a standard error from the intervals' spread [Hz]."""
+    """1 / the mean sample interval (intervals over 1.5 median ones, dropped samples, left out: time stamps
+    rounded to fewer digits than the interval has average out), with a standard error from the intervals'
+    spread [Hz]."""
     steps = np.diff(t_s)
-    step = float(np.median(steps))
-    spread = 1.4826 * float(np.median(np.abs(steps - step)))
-    return Estimate(1.0 / step, spread / step ** 2 / math.sqrt(steps.size))
+    regular = steps[steps < 1.5 * float(np.median(steps))]
+    step = float(np.mean(regular)) if regular.size else float(np.median(steps))
+    spread = float(np.std(regular)) if regular.size > 1 else 0.0
+    return Estimate(1.0 / step, spread / step ** 2 / math.sqrt(max(regular.size, 1)))
 
 
 def choose_units(files: list[FileSurvey]) -> dict[tuple[str, str], ch.UnitChoice]:
@@ -343,7 +478,8 @@ def choose_units(files: list[FileSurvey]) -> dict[tuple[str, str], ch.UnitChoice
 def column_how(role_how: str, unit: ch.UnitChoice) -> str:
     """How a column's role and unit were found, in one comment."""
     if role_how.startswith("from header") and unit.why.startswith("from header"):
-        return unit.why
+        extra = role_how.split("; ", 1)[1] if "; " in role_how else ""
+        return unit.why + (f"; {extra}" if extra else "")
     return f"{role_how}; unit {unit.why}" if role_how else unit.why
 
 
@@ -358,13 +494,16 @@ def campaign_columns(files: list[FileSurvey], units: dict[tuple[str, str], ch.Un
         name, n = names.most_common(1)[0]
         if channel not in REQUIRED and 2 * sum(names.values()) < len(ok):
             continue            # an optional channel most files lack: declared by the cases that have it
-        first = next(f for f in ok if f.roles.get(channel) == name)
+        having = [f for f in ok if f.roles.get(channel) == name]
+        first = max(having, key=lambda f: SURENESS.index(f.role_how[channel][1]))     # the least sure file's why
         how, sure = first.role_how[channel]
         choice = units[(channel, name)]
         said = column_how(how, choice)
         count = f" (in {n} of {len(ok)} files)" if n < len(ok) else ""
+        invert = channel == "force" and all(f.invert for f in having)
         columns[channel] = ColumnChoice(channel, name, choice.unit, said + count,
-                                        max(sure, choice.sure, key=["sure", "likely", "guess"].index))
+                                        max(sure, choice.sure, key=SURENESS.index), invert,
+                                        having[0].invert if invert else "")
     return columns
 
 
@@ -375,12 +514,18 @@ def measure_file(f: FileSurvey, units: dict[tuple[str, str], ch.UnitChoice]) -> 
     if missing or unknown:
         said = (f"no {' / '.join(missing)} column found" if missing else
                 f"no plausible unit for the {' / '.join(unknown)} column")
+        said += "".join(f"; {f.refused[c]}" for c in missing if c in f.refused)
         named = [n for n, d in f.data.items() if ch.guess_from_name(n).role == "time" and "time" in missing]
         if named:
             said += f" (column {named[0]!r} is named like time but does not increase from row to row)"
         f.problem = f"{said} (header: {', '.join(f.data)})"
         return
     for name in f.roles.values():
+        text = f.units_row.get(name, "")
+        if text and ch.unit_from_units_row(text) is None and f.data[name].stamps_s is None:
+            f.problem = (f"column {name!r}: the units row says {text!r}, a unit the format does not know (ingest "
+                         "would set the case aside)")
+            return
         values = f.data[name].numbers
         if values is not None and not np.isfinite(values).all():
             row = int(np.argmax(~np.isfinite(values)))
@@ -388,12 +533,94 @@ def measure_file(f: FileSurvey, units: dict[tuple[str, str], ch.UnitChoice]) -> 
             return
     f.rate = sample_rate(f.time_s)
     f.motion = "command" if "command" in f.roles else "displacement"
-    factor = ch.FACTORS["length"][units[(f.motion, f.roles[f.motion])].unit]
-    f.waveform = detect_waveform(f.time_s, _values(f, f.motion) * factor)
-    disp, force = _values(f, "displacement"), _values(f, "force")
-    if ch.velocity_correlation(f.time_s, disp, force) < -0.3:
-        f.warnings.append("the force opposes the displacement's velocity: the rig's sign convention may be the "
-                          "opposite of the spec's, add `invert: true` to the force (or displacement) column")
+    motion_m = si_values(f, f.motion, units)
+    f.waveform = detect_waveform(f.time_s, motion_m)
+    physics_checks(f, units)
+    found = st.find_steps(f.time_s, motion_m)
+    if st.is_stepped(found, f.time_s):
+        f.steps = step_cases(f, found, motion_m)
+
+
+def si_values(f: FileSurvey, channel: str, units: dict[tuple[str, str], ch.UnitChoice]) -> np.ndarray:
+    """A channel of a file in SI (temperature in C), by its chosen unit."""
+    unit = units[(channel, f.roles[channel])].unit
+    values = _values(f, channel)
+    if channel == "temperature":
+        return ch.temperature_C(values, unit)
+    return values * ch.FACTORS[ch.DIMENSION[channel]][unit]
+
+
+def _doubt(f: FileSurvey, channel: str, why: str) -> None:
+    """Mark a role a guess, saying why (the draft writes it beside the column)."""
+    how, _ = f.role_how.get(channel, ("", "guess"))
+    f.role_how[channel] = (f"{how}; CHECK: {why}" if how else f"CHECK: {why}", "guess")
+    f.warnings.append(f"{channel} column {f.roles[channel]!r}: {why}")
+
+
+def physics_checks(f: FileSurvey, units: dict[tuple[str, str], ch.UnitChoice]) -> None:
+    """The roles checked by physics: the force follows the velocity as a damper's does (sign in every cycle,
+    a plausible damping), the temperature is plausible for oil, the displacement's range is the command's.
+    A force opposing the velocity in every cycle sets ``invert``; other doubts make the role a guess."""
+    t, disp, force = f.time_s, si_values(f, "displacement", units), si_values(f, "force", units)
+    verdict = ch.force_follows_velocity(t, disp, force)
+    if verdict.opposed_everywhere:
+        f.invert = (f"the force opposes the displacement's velocity in all {verdict.cycles} cycles (correlation "
+                    f"{verdict.correlation:.2f}): the rig's sign is the opposite of the spec's (force positive "
+                    "resisting positive velocity), so the force is inverted")
+    elif verdict.problem:
+        _doubt(f, "force", verdict.problem)
+    elif not ch.plausible_damping(verdict.damping_N_s_m):
+        _doubt(f, "force", f"force over velocity {verdict.damping_N_s_m:.3g} N s/m, outside a damper's "
+                           f"{ch.DAMPING_RANGE_N_S_M[0]:g} to {ch.DAMPING_RANGE_N_S_M[1]:g} N s/m: check the force and "
+                           "displacement columns and their units")
+    if "temperature" in f.roles and units[("temperature", f.roles["temperature"])].unit is not None:
+        median = float(np.nanmedian(si_values(f, "temperature", units)))
+        if not OIL_RANGE_C[0] <= median <= OIL_RANGE_C[1]:
+            name = f.roles.pop("temperature")
+            f.role_how.pop("temperature", None)
+            f.refused["temperature"] = (f"column {name!r} read as a temperature gives a median of {median:.4g} C, "
+                                        f"not plausible for oil ({OIL_RANGE_C[0]:g} to {OIL_RANGE_C[1]:g} C): not "
+                                        "used")
+            f.warnings.append(f.refused["temperature"])
+            f.extras = [n for n in f.data if n not in f.roles.values()]
+    if "command" in f.roles:
+        ratio = ch.robust_range(disp) / ch.robust_range(si_values(f, "command", units))
+        if abs(ratio - 1.0) > RANGE_TOLERANCE:
+            _doubt(f, "displacement", f"its range is {ratio:.3g} times the command's: check the columns and units")
+
+
+def step_cases(f: FileSurvey, found: list[st.Step], motion_m: np.ndarray) -> list[StepCase]:
+    """One case per step of a stepped record (``<id>-S01`` ... for motion, ``<id>-Z01`` ... for standstills): its
+    slice rounded inwards, its waveform measured on the slice as ingest will cut it."""
+    t, out, counts = f.time_s, [], {"S": 0, "Z": 0}
+    for step in found:
+        if step.kind == "standstill":
+            a, b = step.start_s, step.end_s
+            sel = (t >= a) & (t < b)
+            spread = float(np.ptp(motion_m[sel])) * 1e3 if sel.any() else math.nan
+            w = Waveform("standstill", f"the {f.motion} stays within {spread:.3g} mm for {b - a:.4g} s", "sure")
+            how = "a standstill: the zero and static force"
+        else:
+            a, b = step.start_s, step.end_s
+            sel = (t >= a) & (t < b)
+            rounding = st.resolution(step.period_s)
+            if detect_waveform(t[sel], motion_m[sel]).kind == "triangle":
+                a, b = a - step.period_s / 4.0, b - step.period_s / 4.0     # from reversal to reversal
+                rounding = st.resolution(step.period_s / 10.0)                # the reversal within 0.1 % of T
+            a, b = st.rounded_inwards(a, b, rounding)
+            sel = (t >= a) & (t < b)
+            w = detect_waveform(t[sel], motion_m[sel]) if sel.sum() >= MIN_SAMPLES else None
+            how = (f"a step: {step.cycles} steady cycles of {1.0 / step.period_s:.4g} Hz kept, the "
+                   f"{step.settling} settling or transition cycle{'s' if step.settling != 1 else ''} before "
+                   "them left out")
+        if int(((t >= a) & (t < b)).sum()) < MIN_SAMPLES or w is None:
+            f.warnings.append(f"a stretch [{a:g}, {b:g}) s has fewer than {MIN_SAMPLES} samples: not drafted")
+            continue
+        letter = "Z" if step.kind == "standstill" else "S"
+        counts[letter] += 1
+        case = f"{f.case_id[:MAX_CASE_ID_LENGTH - 4]}-{letter}{counts[letter]:02d}"
+        out.append(StepCase(case, a, b, w, how))
+    return out
 
 
 def survey_folder(folder: str | Path) -> Survey:
@@ -402,9 +629,11 @@ def survey_folder(folder: str | Path) -> Survey:
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: not a folder")
     campaign, note = campaign_id(folder)
-    files = survey_files(folder)
+    files, skipped = survey_files(folder)
     if not files:
-        raise FileNotFoundError(f"{folder}: no case files ({', '.join('*' + s for s in CASE_SUFFIXES)})")
+        said = "; ".join(f"{name}: {why}" for name, why in skipped[:5])
+        raise FileNotFoundError(f"{folder}: no case files ({', '.join('*' + s for s in CASE_SUFFIXES)}, up to "
+                                f"{MAX_DEPTH} subfolders deep)" + (f"; passed over: {said}" if said else ""))
     dialect, dialect_how = choose_dialect(files)
     units = choose_units(files)
     for f in files:
@@ -416,6 +645,6 @@ def survey_folder(folder: str | Path) -> Survey:
     if rates:
         rate, n = rates.most_common(1)[0]
         usable = sum(rates.values())
-        rate_how = (f"median time step {1.0 / rate:.6g} s in {n} of {usable} files" +
+        rate_how = (f"mean time step {1.0 / rate:.6g} s in {n} of {usable} files" +
                     (" (the others get their own)" if n < usable else ""))
-    return Survey(folder, campaign, note, files, dialect, dialect_how, columns, units, rate, rate_how)
+    return Survey(folder, campaign, note, files, dialect, dialect_how, columns, units, rate, rate_how, skipped)

@@ -151,8 +151,9 @@ def harmonic_fit(tau: np.ndarray, y: np.ndarray, frequency_Hz: float, harmonics:
 
 
 def refine_frequency(tau: np.ndarray, y: np.ndarray, f0: float) -> float:
-    """The frequency that minimises the harmonic fit's residual: a grid over ±1 spectral bin around ``f0``,
-    then golden-section search (on block means of the record)."""
+    """The frequency that minimises the harmonic fit's residual: a grid over ±1 spectral bin around ``f0`` (above
+    0.75 f0: in a record of two periods f0/2 lies within a bin, and its second harmonic fits f0 as well), then
+    golden-section search (on block means of the record)."""
     tb, yb = block_means(tau, y)
     bin_Hz = 1.0 / (tau[-1] - tau[0])
 
@@ -160,7 +161,7 @@ def refine_frequency(tau: np.ndarray, y: np.ndarray, f0: float) -> float:
         return harmonic_fit(tb, yb, f)[1]
 
     grid = f0 + np.linspace(-1.0, 1.0, 41) * bin_Hz
-    grid = grid[grid > 0.25 * bin_Hz]
+    grid = grid[(grid > 0.25 * bin_Hz) & (grid > 0.75 * f0)]     # a short record: f0/2 would fit f0 as harmonic 2
     best = grid[int(np.argmin([rss(f) for f in grid]))]
     lo, hi = best - 0.05 * bin_Hz, best + 0.05 * bin_Hz
     g = (math.sqrt(5.0) - 1.0) / 2.0

@@ -18,6 +18,10 @@ the mid-stroke at the middle of its half-period, so rising and falling lines fix
 mid-stroke together. A shift within ``ZERO_DELAY_SIGMAS`` standard errors of the first time stamp
 is not distinguishable from it and is taken as the first time stamp exactly (a record that starts
 with its motion is windowed exactly as planned, whatever its noise).
+
+Every step works on the real time stamps (lines and spans by time, blocks averaged in time and
+displacement alike), so a record that dropped samples gives the same motion; the noise estimate
+(median second difference) is robust to the few differences a gap disturbs.
 """
 
 from __future__ import annotations
@@ -175,6 +179,22 @@ def noise_level(y) -> float:
     return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
+def planned_half_periods(plan: CasePlan) -> np.ndarray:
+    """The first four half-periods of a triangle plan (rows t_start, t_end, sign; plan time, Eq. 26),
+    the turning point within one sample interval of t = 0 counted, as the motion estimate uses them."""
+    dt = 1.0 / plan.sample_rate_Hz
+    phase = snapped_phase_rad(plan.period_s, plan.phase_rad, dt)
+    return half_periods(plan.period_s, phase, 3.0 * plan.period_s, tolerance_s=dt, max_count=4)
+
+
+def line_spans_s(plan: CasePlan, motion_start_s: float) -> np.ndarray:
+    """[start, end] on the record's axis of the line fit of each of the four half-periods (rows): the
+    motion start + the half-period's start + LINE_FRACTIONS·T/2. The measured speeds and the motion
+    start rest on the samples of these spans (a record's gaps there are judged by validate)."""
+    starts = planned_half_periods(plan)[:, :1]
+    return motion_start_s + starts + np.asarray(LINE_FRACTIONS) * (plan.period_s / 2.0)
+
+
 def estimate_motion(t_s, y_m, plan: CasePlan, iterations: int = 3) -> Motion:
     """Measured kinematics of a triangle case from its time stamps and displacement (Eq. 26).
 
@@ -190,7 +210,7 @@ def estimate_motion(t_s, y_m, plan: CasePlan, iterations: int = 3) -> Motion:
     dt = 1.0 / plan.sample_rate_Hz
     phase = snapped_phase_rad(period, plan.phase_rad, dt)
     half = period / 2.0
-    segments = half_periods(period, phase, 3.0 * period, tolerance_s=dt)[:4]
+    segments = planned_half_periods(plan)
     starts, signs = segments[:, 0], segments[:, 2]
     mids = starts + 0.5 * half
     s = coarse_shift(t, y, period, phase)

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-WAVEFORMS = ("triangle", "sine", "free")
+#: Waveforms of a case; ``standstill`` (format 1.2): a stretch with no motion, for the zero and static force.
+WAVEFORMS = ("triangle", "sine", "free", "standstill")
 
 
 @dataclass(frozen=True)
@@ -83,32 +84,45 @@ def snapped_phase_rad(period_s: float, phase_rad: float, tolerance_s: float | No
     return math.pi / 2 + k * math.pi if abs(t_turn) <= _tolerance_s(period_s, tolerance_s) else phase_rad
 
 
-def half_periods(period_s: float, phase_rad: float, duration_s: float, tolerance_s: float | None = None):
-    """The complete constant-velocity half-periods of a triangle record on [0, duration_s].
+#: Most half-periods :func:`half_periods` lists when no ``max_count`` bounds it: a record of a million
+#: half-periods lies far beyond any plan (a time stamp of 1e308 s, a year typo in an ISO stamp); longer
+#: spans raise ValueError instead of looping (and allocating) without bound.
+MAX_HALF_PERIODS = 1_000_000
+
+
+def half_periods(period_s: float, phase_rad: float, duration_s: float, tolerance_s: float | None = None,
+                 max_count: int | None = None):
+    """The complete constant-velocity half-periods of a triangle record on [0, duration_s], at most
+    ``max_count`` of them (the plan's need: the windows use four).
 
     Returns an array of rows (t_start_s, t_end_s, sign), sign = +1 for rising displacement.
     Turning points of Y tri(2πt/T + φ) lie where the argument is π/2 + kπ. A turning point within
     ``tolerance_s`` of t = 0 (one sample interval for a record, :func:`snapped_phase_rad`) lies at
-    t = 0: a rounded phase loses no half-period.
+    t = 0: a rounded phase loses no half-period. The work is bounded by ``max_count`` whatever the
+    record's last time stamp; without it, a span of more than :data:`MAX_HALF_PERIODS` half-periods
+    (or a non-finite one) raises ValueError.
     """
+    limit = MAX_HALF_PERIODS if max_count is None else int(max_count)
+    if max_count is None and not duration_s / period_s < 0.5 * MAX_HALF_PERIODS:
+        raise ValueError(f"a record of {duration_s:g} s holds more than {MAX_HALF_PERIODS} half-periods of "
+                         f"T = {period_s:g} s: bound it by the plan (max_count)")
     tol = _tolerance_s(period_s, tolerance_s)
     phase_rad = snapped_phase_rad(period_s, phase_rad, tol)
     half = period_s / 2.0
     k0 = math.ceil((phase_rad - math.pi / 2) / math.pi - 1e-9)  # first turning point at t >= 0
     rows = []
     k = k0
-    while True:
+    while len(rows) < limit and k <= k0 + limit + 1:     # at most one turning point before t = 0 skipped
         t0 = (math.pi / 2 + k * math.pi - phase_rad) * period_s / (2.0 * math.pi)
         t0 = max(t0, 0.0) if t0 > -1e-9 * period_s else t0
         t1 = t0 + half
-        if t1 > duration_s * (1 + 1e-9):
+        if not t1 <= duration_s * (1 + 1e-9):
             break
         if t0 >= -1e-9 * period_s:
             # between turning points k and k+1 the argument rises from π/2 + kπ: falling for even k
             rows.append((t0, t1, -1.0 if k % 2 == 0 else 1.0))
         k += 1
     return np.array(rows, dtype=float).reshape(-1, 3)
-
 
 
 def first_half_period(case: CasePlan) -> tuple[float, float]:
@@ -119,7 +133,7 @@ def first_half_period(case: CasePlan) -> tuple[float, float]:
     record starting at a turning point (phase ±π/2, the paper's -π/2); otherwise it is a guide.
     """
     duration = case.duration_s if math.isfinite(case.duration_s) else case.period_s
-    rows = half_periods(case.period_s, case.phase_rad, max(duration, case.period_s))
+    rows = half_periods(case.period_s, case.phase_rad, max(duration, case.period_s), max_count=1)
     direction = float(rows[0, 2]) if len(rows) else 1.0
     return -direction * case.amplitude_m, direction
 

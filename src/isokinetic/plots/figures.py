@@ -9,7 +9,7 @@ noise per segment).
 Every public function takes DataFrames in the pipeline's SI schemas (:mod:`isokinetic.contracts.tables`) and
 returns a :class:`matplotlib.figure.Figure` (:func:`isokinetic.plots.style.new_figure`). Units are
 converted only here, at the plot edge: time in s, displacement in mm, velocity in mm/s, force in N
-or kN (chosen from the magnitude of the data shown). Functions never raise on thin data: when a
+(as in every table; :func:`isokinetic.plots.style.force_unit`). Functions never raise on thin data: when a
 campaign has few or no usable cases, they draw what exists and say on the figure what is missing.
 
 The rule ``figures`` (:mod:`isokinetic.stages.figures`) reads a campaign's tables, chooses the
@@ -257,8 +257,54 @@ def window_selection(case_row, series: pd.DataFrame | None, windows_of_case: pd.
 # Fig. 9 / 10: the characteristic and its low-velocity detail
 # ----------------------------------------------------------------------------------------------
 
+#: Markers of the characteristic's non-triangle points: method -> (label, plot style).
+_METHOD_STYLE = {
+    "sine_peak": ("sine tests: force at peak velocity", {"color": "tab:green", "marker": "D", "ms": 5, "lw": 1.0,
+                                                         "mfc": "white", "mew": 1.1}),
+    "free_bin": ("free records: velocity bins", {"color": "tab:purple", "marker": ".", "ms": 5, "lw": 0.8}),
+}
+#: What each method's points are called in a title.
+_METHOD_WORDS = {"triangle_window": "triangle tests", "sine_peak": "sine tests, force at peak velocity",
+                 "free_bin": "free records, velocity bins"}
+
+
+def methods_of(char: pd.DataFrame | None) -> list[str]:
+    """The measuring methods of a characteristic's rows, in :data:`_METHOD_WORDS` order (triangle windows
+    when the table has no ``method`` column)."""
+    if char is None or char.empty:
+        return []
+    if "method" not in char:
+        return ["triangle_window"]
+    present = set(char["method"].astype(str))
+    return [m for m in _METHOD_WORDS if m in present]
+
+
+def _draw_other_methods(ax, char: pd.DataFrame, fs: float) -> None:
+    """Sine peak-velocity points and free-record bins, one line per case and direction (gid = the method)."""
+    for method, (label, style) in _METHOD_STYLE.items():
+        rows = char[char["method"] == method]
+        labelled = False
+        for (_case, d), g in rows.groupby(["case", "direction"], sort=True):
+            b = _branch(g, d)
+            if method == "sine_peak":                 # one point a direction: the periods' mean
+                b = pd.DataFrame({"velocity_m_s": [b["velocity_m_s"].mean()], "force_N": [b["force_N"].mean()]})
+            ax.plot(b["velocity_m_s"] * MM, b["force_N"] / fs, zorder=3, gid=method,
+                    label=None if labelled else label, **style)
+            labelled = True
+        if method == "sine_peak" and len(rows):     # the steps joined, per direction
+            for d in ("+", "-"):
+                m = _branch(rows, d).groupby("case")[["velocity_m_s", "force_N"]].mean().sort_values("velocity_m_s")
+                if len(m) > 1:
+                    ax.plot(m["velocity_m_s"] * MM, m["force_N"] / fs, color=style["color"], lw=0.8, zorder=2,
+                            gid="sine_peak-curve")
+
+
 def _draw_characteristic(ax, char: pd.DataFrame, fs: float) -> None:
-    """Period 2 as a thick grey line behind, period 1 as circles + line in front, flagged ringed."""
+    """Period 2 as a thick grey line behind, period 1 as circles + line in front, flagged ringed; sine and
+    free points (``method``) in their own markers (:func:`_draw_other_methods`)."""
+    if "method" in char:
+        _draw_other_methods(ax, char, fs)
+        char = char[char["method"] == "triangle_window"]
     p2, p1 = char[char["period"] == 2], char[char["period"] == 1]
     labelled = False
     for d in ("+", "-"):
@@ -292,17 +338,19 @@ def characteristic(char: pd.DataFrame, *, campaign: str | None = None) -> Figure
     name = campaign_name(campaign, char)
     fig = new_figure(8.0, 6.0)
     ax = fig.add_subplot()
-    fig.suptitle(f"{name}: steady damper characteristic (triangle tests)", fontsize=12)
+    how = "; ".join(_METHOD_WORDS[m] for m in methods_of(char)) or "triangle tests"
+    fig.suptitle(f"{name}: steady damper characteristic ({how})", fontsize=12)
     fs, fu = force_unit(char["force_N"] if char is not None and len(char) else [])
     ax.set_xlabel("Piston velocity v [mm/s]")
     ax.set_ylabel(f"Steady force F [{fu}]")
     if char is None or char.empty:
-        say_missing(ax, "no characteristic points (no usable triangle case)")
+        say_missing(ax, "no characteristic points (no usable triangle, sine or free case)")
         return fig
     _draw_characteristic(ax, char, fs)
     ax.legend(loc="upper left", fontsize=9)
     n = char["case"].nunique()
-    ax.set_title(f"{n} case(s), {len(char)} windows", fontsize=9, loc="right", color="0.3")
+    ax.set_title(f"{n} case(s), {len(char)} {'windows' if methods_of(char) == ['triangle_window'] else 'points'}",
+                 fontsize=9, loc="right", color="0.3")
     return fig
 
 
@@ -400,18 +448,26 @@ def loglog_characteristic(char: pd.DataFrame, *, campaign: str | None = None, n_
     fs, fu = force_unit(p1["force_N"] if len(p1) else [])
     ax.set_ylabel(f"Steady force |F| [{fu}]")
     pts = []
-    for d, style in (("+", {"color": "black", "ls": "-", "marker": "o", "ms": 6, "mfc": "white", "mew": 1.1,
-                                "label": "quadrant 1 (v > 0)"}),
-                     ("-", {"color": "tab:red", "ls": "--", "marker": "*", "ms": 9,
-                                "label": "quadrant 3 folded (|v|, |F|)"})):
-        b = _branch(p1, d) if len(p1) else pd.DataFrame(columns=["velocity_m_s", "force_N"])
-        v = np.abs(b["velocity_m_s"].to_numpy(float)) * MM
-        f = np.abs(b["force_N"].to_numpy(float)) / fs
-        keep = (v > 0) & (f > 0) & np.isfinite(v) & np.isfinite(f)
-        order = np.argsort(v[keep], kind="stable")
-        pts.append((v[keep][order], f[keep][order], int((~keep).sum())))
-        if keep.any():
-            ax.plot(v[keep][order], f[keep][order], lw=1.0, zorder=3, gid="q1" if d == "+" else "q3-folded", **style)
+    # triangle windows as lines (gids q1, q3-folded); sine and free points as markers of their own
+    groups = [(m, p1[p1["method"] == m]) for m in methods_of(p1)] if "method" in p1 else [("triangle_window", p1)]
+    for method, rows in groups or [("triangle_window", p1)]:
+        for d, style in (("+", {"color": "black", "ls": "-", "marker": "o", "ms": 6, "mfc": "white", "mew": 1.1,
+                                    "label": "quadrant 1 (v > 0)"}),
+                         ("-", {"color": "tab:red", "ls": "--", "marker": "*", "ms": 9,
+                                    "label": "quadrant 3 folded (|v|, |F|)"})):
+            gid = "q1" if d == "+" else "q3-folded"
+            if method != "triangle_window":
+                label, own = _METHOD_STYLE[method]
+                style = {**style, "color": own["color"], "ls": "none", "label": f"{label}, {style['label']}"}
+                gid = f"{gid}-{method}"
+            b = _branch(rows, d) if len(rows) else pd.DataFrame(columns=["velocity_m_s", "force_N"])
+            v = np.abs(b["velocity_m_s"].to_numpy(float)) * MM
+            f = np.abs(b["force_N"].to_numpy(float)) / fs
+            keep = (v > 0) & (f > 0) & np.isfinite(v) & np.isfinite(f)
+            order = np.argsort(v[keep], kind="stable")
+            pts.append((v[keep][order], f[keep][order], int((~keep).sum())))
+            if keep.any():
+                ax.plot(v[keep][order], f[keep][order], lw=1.0, zorder=3, gid=gid, **style)
     v_all = np.concatenate([p[0] for p in pts])
     f_all = np.concatenate([p[1] for p in pts])
     dropped = sum(p[2] for p in pts)
@@ -507,5 +563,39 @@ def noise(char: pd.DataFrame, *, campaign: str | None = None) -> Figure:
     return fig
 
 
-__all__ = ["ALPHAS", "campaign_name", "case_speed_m_s", "characteristic", "loglog_characteristic",
-           "low_velocity_detail", "noise", "time_and_loops", "window_selection"]
+# ----------------------------------------------------------------------------------------------
+# which figures apply to a campaign
+# ----------------------------------------------------------------------------------------------
+
+#: Figure name -> (the waveforms of which a status-ok case makes it apply, why it does not without one).
+_NEEDS = {
+    "fig07_time_and_loops": (("triangle",), "it shows triangle records"),
+    "fig08_window_selection": (("triangle",), "it shows the constant-velocity windows of a triangle record"),
+    "fig12_noise": (("triangle",), "it shows the force noise within triangle windows"),
+    "fig09_characteristic": (("triangle", "sine", "free"), "the characteristic needs a triangle, sine or free case"),
+    "fig10_low_velocity": (("triangle", "sine", "free"), "the characteristic needs a triangle, sine or free case"),
+    "fig11_loglog": (("triangle", "sine", "free"), "the characteristic needs a triangle, sine or free case"),
+    "fig13_comparison": (("triangle", "sine", "free"), "the models need a triangle, sine or free case"),
+    "fig14_comparison_loglog": (("triangle", "sine", "free"), "the models need a triangle, sine or free case"),
+    "fig15_harmonic_loops": (("sine", "free"), "it shows sine and free records"),
+}
+
+
+def applies(figure_name: str, cases: pd.DataFrame | None) -> str | None:
+    """None when the figure ``figure_name`` (e.g. 'fig07_time_and_loops') applies to a campaign with this
+    cases table, else one line saying why not (the report leaves the figure out with it). A figure drawn
+    from any campaign (Fig. 20, the design figures, ...) always applies."""
+    if figure_name not in _NEEDS:
+        return None
+    waveforms, why = _NEEDS[figure_name]
+    if cases is None or cases.empty or "waveform" not in cases:
+        return f"no cases: {why}"
+    ok = cases[cases["status"] == "ok"] if "status" in cases else cases
+    if ok["waveform"].isin(waveforms).any():
+        return None
+    names = " or ".join(waveforms)
+    return f"no status-ok {names} case: {why}"
+
+
+__all__ = ["ALPHAS", "applies", "campaign_name", "case_speed_m_s", "characteristic", "loglog_characteristic",
+           "low_velocity_detail", "methods_of", "noise", "time_and_loops", "window_selection"]

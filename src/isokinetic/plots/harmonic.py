@@ -44,7 +44,7 @@ def _axes_style(ax, xlabel: str, ylabel: str, title: str) -> None:
     ax.axvline(0.0, color="0.6", lw=0.5, zorder=0)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10, loc="left")
+    ax.set_title(title, fontsize=10, loc="center", pad=8)  # centred over its own panel: titles never run together
 
 
 def _case_label(row: Mapping, lp: pd.DataFrame) -> str:
@@ -188,8 +188,8 @@ def harmonic_figure(table: pd.DataFrame, loops: Mapping[str, pd.DataFrame], case
     free_ids = [c for c in case_ids if c not in sine_ids]
 
     ax_s, ax_f = axes[0]
-    _axes_style(ax_s, "Velocity v [mm/s]", f"Force F [{fu}]", "sine loops and peak-to-peak curve")
-    _axes_style(ax_f, "Velocity v [mm/s]", f"Force F [{fu}]", "free records: velocity-binned characteristic")
+    _axes_style(ax_s, "Velocity v [mm/s]", f"Force F [{fu}]", "All sine cases: loops, peak-to-peak curve")
+    _axes_style(ax_f, "Velocity v [mm/s]", f"Force F [{fu}]", "All free records: velocity-binned force")
     if not case_ids:
         msg = "no status-ok sine or free case in this campaign: nothing to show"
         for ax in (ax_s, ax_f):
@@ -200,8 +200,8 @@ def harmonic_figure(table: pd.DataFrame, loops: Mapping[str, pd.DataFrame], case
     for (ax_v, ax_y), c in zip(axes[1:], shown, strict=True):
         row = rows.get(c, {"case": c, "waveform": "sine" if c in sine_ids else "free"})
         label = _case_label(row, loops[c])
-        _axes_style(ax_v, "Velocity v [mm/s]", f"Force F [{fu}]", f"{label}: force\u2013velocity")
-        _axes_style(ax_y, "Displacement y [mm]", f"Force F [{fu}]", "force\u2013displacement")
+        _axes_style(ax_v, "Velocity v [mm/s]", f"Force F [{fu}]", f"{label}\nforce against velocity")
+        _axes_style(ax_y, "Displacement y [mm]", f"Force F [{fu}]", f"{c}\nforce against displacement")
         draw_row = _draw_sine_row if c in sine_ids else _draw_free_row
         draw_row(ax_v, ax_y, c, loops[c], table, colours[c], fs)
     if len(case_ids) > len(shown):

@@ -85,20 +85,33 @@ def _new_comparison(title: str, size: tuple[float, float], char: pd.DataFrame | 
     return fig, ax, fs
 
 
+#: What the legends' abbreviation stands for (the paper's term for its sine tests, Sec. 4).
+HE_NOTE = "HE: harmonic excitation (the sine tests, paper Sec. 4)"
+#: What the nominal families' labels stand for (Eq. 32).
+FAMILY_NOTE = "theory (Eq. 32): laminar-turbulent orifice flow solid, turbulent only dashed"
+
+
 def _finish(fig: Figure, ax, notes: list[str]) -> Figure:
-    ax.legend(loc="upper left", fontsize=7.5)
-    footnote(fig, "; ".join(notes), width=0, fontsize=8)
+    """The legend right of the axes (off the data), the notes and what its abbreviations mean under them."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside right center", fontsize=7.5, frameon=False)
+    if any(label.startswith("theory,") for label in labels):
+        notes = [FAMILY_NOTE, *notes]
+    if any("HE " in label for label in labels):
+        notes = [HE_NOTE, *notes]
+    footnote(fig, "; ".join(notes), fontsize=8)
     return fig
 
 
 def _draw_families(ax, families: pd.DataFrame, fs: float) -> None:
-    """The Eq. (32) nominal curves: 'T' dashed, 'L-T' solid, one colour per C_D."""
+    """The Eq. (32) nominal curves: 'T' dashed, 'L-T' solid, one colour (and one legend entry) per C_D."""
     for fam, ls in (("T", "--"), ("L-T", "-")):
         sub = families[families["family"] == fam]
         for i, (cd, g) in enumerate(sub.groupby("discharge_coefficient", sort=True)):
             g = g.sort_values("velocity_m_s")
             ax.plot(g["velocity_m_s"] * MM, g["force_N"] / fs, ls=ls, lw=0.9, color=_cd_colour(cd, i), zorder=2,
-                    gid=f"family-{fam}-{cd:g}", label=f"theoretic {fam.replace('-', '–')}, C_D = {cd:g} (Eq. 32)")
+                    gid=f"family-{fam}-{cd:g}", label=f"theory, C_D = {cd:g} (Eq. 32)" if fam == "L-T" else None)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -118,22 +131,43 @@ def _draw_fits(ax, models_df: pd.DataFrame, vx: np.ndarray, fs: float) -> None:
     fw = _fitted_force(models_df, "wallaschek", vx)
     if np.isfinite(fw).any():
         ax.plot(vx * MM, fw / fs, color="black", lw=1.3, zorder=4, gid="wallaschek",
-                label="Wallaschek fit (symmetric L–T + Coulomb)")
+                label="Wallaschek fit (L–T + Coulomb)")
     for dirn, sel in (("+", vx > 0), ("-", vx < 0)):
         fsur = _fitted_force(models_df, "surace", vx[sel])
         if np.isfinite(fsur).any():
             ax.plot(vx[sel] * MM, fsur / fs, color="tab:purple", lw=1.3, ls="-.", zorder=4, gid=f"surace{dirn}",
-                    label="Surace fit (one parameter set per direction)" if dirn == "+" else None)
+                    label="Surace fit (per direction)" if dirn == "+" else None)
+
+
+#: How each method's measured points are drawn (the characteristic's ``method``; a table without it is all
+#: triangle windows): name in the legend, colour, marker for v > 0 and for v < 0.
+METHOD_STYLE = {"triangle_window": ("triangle", "black", "o", "*"), "sine_peak": ("sine peak", "tab:green", "D", "d"),
+                "free_bin": ("free bin", "tab:blue", "s", "P")}
+
+
+def _by_method(char: pd.DataFrame):
+    """(method, its rows, its gid suffix, its legend name) per method of the characteristic, triangle first; the
+    triangle windows keep the plain gids measured+/measured- (and so does a single method)."""
+    methods = char["method"].fillna("triangle_window") if "method" in char else pd.Series("triangle_window",
+                                                                                         index=char.index)
+    present = [m for m in METHOD_STYLE if (methods == m).any()]
+    for m in present:
+        name = METHOD_STYLE[m][0]
+        plain = m == "triangle_window" or len(present) == 1
+        yield m, char[methods == m], "" if plain else f"-{m}", "" if len(present) == 1 else f" ({name})"
 
 
 def _draw_measured(ax, char: pd.DataFrame, fs: float) -> None:
-    for d, style in (("+", {"marker": "o", "ls": "-", "label": "damper curve, v > 0 (triangle tests)"}),
-                     ("-", {"marker": "*", "ls": "--", "ms": 8, "label": "damper curve, v < 0"})):
-        b = char[char["velocity_m_s"] > 0] if d == "+" else char[char["velocity_m_s"] < 0]
-        b = b.sort_values("velocity_m_s")
-        if len(b):
-            ax.plot(b["velocity_m_s"] * MM, b["force_N"] / fs, color="black", lw=0.8, mfc="white", zorder=6,
-                    gid=f"measured{d}", **{"ms": 5, **style})
+    """The measured points per method and direction, each method its own line (they are not one curve)."""
+    for m, rows, suffix, name in _by_method(char):
+        _, colour, up, down = METHOD_STYLE[m]
+        for d, style in (("+", {"marker": up, "ls": "-", "label": f"measured{name}, v > 0"}),
+                         ("-", {"marker": down, "ls": "--", "ms": 8, "label": f"measured{name}, v < 0"})):
+            b = rows[rows["velocity_m_s"] > 0] if d == "+" else rows[rows["velocity_m_s"] < 0]
+            b = b.sort_values("velocity_m_s")
+            if len(b):
+                ax.plot(b["velocity_m_s"] * MM, b["force_N"] / fs, color=colour, lw=0.8, mfc="white", zorder=6,
+                        gid=f"measured{suffix}{d}", **{"ms": 5, **style})
 
 
 def comparison_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, families: pd.DataFrame | None,
@@ -141,7 +175,7 @@ def comparison_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, 
                       loops: Mapping[str, pd.DataFrame] | None = None, *, campaign: str | None = None) -> Figure:
     """Fig. 13: measured characteristic, nominal model (through the plan and Eq. 32 families), fits, HE data.
 
-    Linear axes, velocity in mm/s, force in N or kN. ``families`` from
+    Linear axes, velocity in mm/s, force in N. ``families`` from
     :func:`isokinetic.stages.models.nominal_families` (None or empty: no damper block, said on the
     figure). Lines carry gids: measured+, measured-, nominal-plan, family-T-0.6 ..., wallaschek,
     surace+, surace-, peak-to-peak, loop-<case>. The axes span the measured data (characteristic,
@@ -149,7 +183,7 @@ def comparison_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, 
     """
     name = campaign or _campaign(char, nominal_windows, models_df)
     fig, ax, _ = _new_comparison(f"{name}: measured and modelled damper characteristics (cf. paper Fig. 13)",
-                                 (9.0, 6.5), char, "Piston velocity v [mm/s]", "Force F [{}]")
+                                 (10.5, 6.5), char, "Piston velocity v [mm/s]", "Force F [{}]")
     damper_missing = families is None or len(families) == 0
     notes = _notes(damper_missing, char, nominal_windows, models_df)
     if not _has_rows(char):
@@ -164,7 +198,7 @@ def comparison_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, 
     ylim = fmax * 1.15 / fs
     for i, (case, loop) in enumerate(loop_items):  # hysteresis loops (thin, behind)
         ax.plot(loop["velocity_m_s"].to_numpy(float) * MM, loop["force_N"].to_numpy(float) / fs, color="0.6", lw=0.5,
-                alpha=0.8, zorder=1, gid=f"loop-{case}", label="HE hysteresis loops (sine tests)" if i == 0 else None)
+                alpha=0.8, zorder=1, gid=f"loop-{case}", label="HE force-velocity loops" if i == 0 else None)
     vx = np.linspace(-vmax, vmax, 401)
     if not damper_missing:
         _draw_families(ax, families, fs)
@@ -176,7 +210,7 @@ def comparison_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, 
     if _has_rows(nominal_windows):
         ax.plot(nominal_windows["velocity_m_s"] * MM, nominal_windows["force_N"] / fs, ls="none", marker="x", ms=6,
                 color="tab:brown", zorder=5, gid="nominal-plan",
-                label="nominal model through the test plan (compressible, same windows)")
+                label="nominal model through the plan (same windows)")
     _draw_measured(ax, char, fs)
     ax.set_xlim(-vmax * MM, vmax * MM)
     ax.set_ylim(-ylim, ylim)
@@ -231,14 +265,18 @@ def _draw_nominal_folded(ax, nominal_windows: pd.DataFrame, fs: float, f_lo: flo
 
 
 def _draw_measured_folded(ax, char: pd.DataFrame, fs: float) -> None:
-    for d, style in (("+", {"marker": "o", "ls": "-", "ms": 5, "color": "black", "label": "quadrant 1 (v > 0)"}),
-                     ("-", {"marker": "*", "ls": "--", "ms": 8, "color": "tab:red",
-                            "label": "quadrant 3 folded (|v|, |F|)"})):
-        bv, bf = _folded(char[char["velocity_m_s"] > 0] if d == "+" else char[char["velocity_m_s"] < 0])
-        ok = (bv > 0) & (bf > 0)
-        o = np.argsort(bv[ok])
-        if ok.any():
-            ax.plot(bv[ok][o] * MM, bf[ok][o] / fs, lw=0.8, mfc="white", zorder=6, gid=f"measured{d}", **style)
+    for m, rows, suffix, name in _by_method(char):
+        _, colour, up, down = METHOD_STYLE[m]
+        for d, style in (("+", {"marker": up, "ls": "-", "ms": 5, "color": colour,
+                                "label": f"measured{name}, quadrant 1 (v > 0)"}),
+                         ("-", {"marker": down, "ls": "--", "ms": 8, "color": "tab:red" if suffix == "" else colour,
+                                "label": f"measured{name}, quadrant 3 folded (|v|, |F|)"})):
+            bv, bf = _folded(rows[rows["velocity_m_s"] > 0] if d == "+" else rows[rows["velocity_m_s"] < 0])
+            ok = (bv > 0) & (bf > 0)
+            o = np.argsort(bv[ok])
+            if ok.any():
+                ax.plot(bv[ok][o] * MM, bf[ok][o] / fs, lw=0.8, mfc="white", zorder=6, gid=f"measured{suffix}{d}",
+                        **style)
 
 
 def comparison_loglog_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, families: pd.DataFrame | None,
@@ -252,7 +290,7 @@ def comparison_loglog_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame |
     """
     name = campaign or _campaign(char, nominal_windows, models_df)
     fig, ax, fs = _new_comparison(f"{name}: damper characteristics in the logarithmic domain (cf. paper Fig. 14)",
-                                  (9.0, 7.0), char, "Piston velocity |v| [mm/s]", "Force |F| [{}]")
+                                  (10.5, 7.0), char, "Piston velocity |v| [mm/s]", "Force |F| [{}]")
     ax.set_xscale("log")
     ax.set_yscale("log")
     damper_missing = families is None or len(families) == 0

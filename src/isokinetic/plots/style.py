@@ -36,10 +36,11 @@ def new_figure(width_in: float, height_in: float) -> Figure:
 
 
 def force_unit(values) -> tuple[float, str]:
-    """(divisor, unit) for a set of forces [N]: kN once the largest finite magnitude reaches 1 kN."""
-    a = np.abs(np.asarray(values, dtype=float).ravel())
-    a = a[np.isfinite(a)]
-    return (1e3, "kN") if a.size and a.max() >= 1e3 else (1.0, "N")
+    """(divisor, unit) of the forces [N] of a figure: always newtons, the unit of every table and page, so
+    a number read off a figure is compared with the tables without a conversion (``values`` is accepted
+    for the callers' sake and must be numeric)."""
+    np.asarray(values, dtype=float)
+    return 1.0, "N"
 
 
 def say_missing(ax, text: str) -> None:

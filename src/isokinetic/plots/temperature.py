@@ -21,9 +21,37 @@ SOURCE_STYLE = {"channel": ("o", "tab:red", "temperature channel (mean; bar: spa
                 "campaign": ("D", "tab:gray", "campaign's temperature_C")}
 
 
+#: Case-label font size [pt] and the room one label needs along the axis, upright per character or rotated [pt].
+LABEL_PT = 7.0
+_CHAR_PT = 0.62 * LABEL_PT
+_ROTATED_PT = 1.5 * LABEL_PT
+
+
+def figure_width_in(n_cases: int) -> float:
+    """The figure's width [in]: 7 in, widened with the number of cases up to 14 in."""
+    return float(min(14.0, max(7.0, 1.6 + 0.16 * n_cases)))
+
+
+def case_ticks(names: list[str], axis_pt: float) -> tuple[list[int], list[str], int]:
+    """(positions, labels, rotation) of the case labels along an axis ``axis_pt`` points long, so that no two
+    labels overlap: upright when every label fits its slot, else rotated 90 degrees, and every k-th label
+    only when even rotated labels do not fit."""
+    n = len(names)
+    if n == 0:
+        return [], [], 0
+    slot = axis_pt / n
+    longest = max(len(name) for name in names) * _CHAR_PT
+    if longest <= 0.9 * slot:
+        return list(range(n)), list(names), 0
+    step = max(1, int(np.ceil(_ROTATED_PT / slot)))
+    at = list(range(0, n, step))
+    return at, [names[i] for i in at], 90
+
+
 def case_temperature(cases: pd.DataFrame | None, law: ViscosityLaw | None = None, *, campaign: str = ""):
     """Temperature per case in plan order, with the law's viscosity on a second axis."""
-    fig = new_figure(7.0, 3.4)
+    n_cases = 0 if cases is None else len(cases)
+    fig = new_figure(figure_width_in(n_cases), 3.4)
     ax = fig.add_subplot()
     ax.set_title(f"{campaign}: temperature of each case" if campaign else "temperature of each case", fontsize=10)
     if cases is None or cases.empty or "temperature_C" not in cases \
@@ -41,8 +69,12 @@ def case_temperature(cases: pd.DataFrame | None, law: ViscosityLaw | None = None
             continue
         half = np.where(np.isfinite(span[at]), span[at] / 2.0, 0.0)
         ax.errorbar(x[at], t[at], yerr=half, fmt=marker, color=colour, ms=5, capsize=3, label=label)
-    ax.set_xticks(x, cases["case"].astype(str).tolist(), rotation=90 if len(x) > 12 else 0, fontsize=7)
-    ax.set_xlabel("case (manifest order)")
+    names = cases["case"].astype(str).tolist()
+    at, labels, rotation = case_ticks(names, (fig.get_figwidth() - 1.6) * 72.0)
+    ax.set_xticks(at, labels, rotation=rotation, fontsize=LABEL_PT)
+    ax.set_xlim(-0.7, len(x) - 0.3)
+    shown = "" if len(at) == len(names) else f"; every {at[1] - at[0]}th label shown"
+    ax.set_xlabel(f"case (manifest order{shown})")
     ax.set_ylabel("temperature [°C]")
     ax.grid(alpha=0.3)
     if law is not None:
@@ -61,4 +93,4 @@ def case_temperature(cases: pd.DataFrame | None, law: ViscosityLaw | None = None
     return fig
 
 
-__all__ = ["SOURCE_STYLE", "case_temperature"]
+__all__ = ["LABEL_PT", "SOURCE_STYLE", "case_temperature", "case_ticks", "figure_width_in"]

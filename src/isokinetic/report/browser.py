@@ -19,6 +19,8 @@ import tempfile
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+import pandas as pd
+
 from isokinetic.contracts.outputs import COMPARE_DIR, FIGURES, figure, figures_in
 from isokinetic.report.embed import png_ok
 
@@ -37,9 +39,20 @@ def campaign_figure_paths() -> list[str]:
     return [f.path for f in FIGURES if f.section in CAMPAIGN_SECTIONS]
 
 
-def campaign_figure_files() -> list[str]:
-    """File names of the figures every campaign page embeds."""
-    return [Path(p).name for p in campaign_figure_paths()]
+def campaign_figure_files(cases: pd.DataFrame | None = None) -> list[str]:
+    """File names of the figures a campaign page embeds: all of them, or, given its cases table, those that
+    apply to it (:func:`isokinetic.plots.figures.applies`; the page says why it leaves out the others)."""
+    from isokinetic.plots.figures import applies  # matplotlib only when a cases table is given
+
+    return [Path(f.path).name for f in FIGURES if f.section in CAMPAIGN_SECTIONS
+            and (cases is None or applies(f.name, cases) is None)]
+
+
+def _cases_of(campaign_root: Path) -> pd.DataFrame | None:
+    try:
+        return pd.read_parquet(campaign_root / "cases.parquet")
+    except (OSError, ValueError):
+        return None
 
 
 def embedded_images(page_html: str) -> list[tuple[str, str]]:
@@ -149,7 +162,7 @@ def check_pages(results_root: str | os.PathLike, campaigns: Sequence[str], *, in
     ``browser``, decoded by headless Chromium."""
     results_root = Path(results_root)
     problems = []
-    pages = [(results_root / c / "report.html", campaign_figure_files()) for c in campaigns]
+    pages = [(results_root / c / "report.html", campaign_figure_files(_cases_of(results_root / c))) for c in campaigns]
     pages += [(results_root / COMPARE_DIR / name / "report.html", [Path(f.path).name for f in figures_in("compare")])
               for name in comparisons]
     if index:

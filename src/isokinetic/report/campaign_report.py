@@ -26,9 +26,10 @@ from markupsafe import Markup
 from isokinetic.contracts.campaign import viscosity_law
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in
 from isokinetic.io import write_text
+from isokinetic.plots.figures import applies as figure_applies
 from isokinetic.report.cells import Col, Table, badge, kv_table, table_view
 from isokinetic.report.diagnosis_section import diagnosis_section, viscosity_as_temperature
-from isokinetic.report.embed import FigureView, figure_views, read_captions
+from isokinetic.report.embed import FigureView, LeftOut, figure_views, read_captions
 from isokinetic.report.layout import footer, render
 from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, missing, short, text, yes_no
 from isokinetic.report.sources import Sources, lineage_of, lineage_rows, read_json, read_parquet, selector_of
@@ -89,9 +90,17 @@ class CampaignData:
                    diagnosis=read_json(root / "diagnosis.json"), provenance=provenance,
                    sources=Sources(root, provenance))
 
-    def figures(self, section: str, captions: Mapping[str, str]) -> list[FigureView]:
-        """The figures of a report section, embedded."""
-        return figure_views(self.sources, figures_in(section), captions)
+    def figures(self, section: str, captions: Mapping[str, str]) -> list[FigureView | LeftOut]:
+        """The figures of a report section, embedded; one that does not apply to the campaign's cases
+        (:func:`isokinetic.plots.figures.applies`) is left out with its reason."""
+        return figure_views(self.sources, figures_in(section), captions,
+                            applies=lambda name: figure_applies(name, self.cases))
+
+    def has_ok(self, waveform: str) -> bool:
+        """The campaign has a status-ok case of that waveform (cases.parquet)."""
+        c = self.cases
+        return c is not None and {"waveform", "status"} <= set(c.columns) and bool(
+            ((c["waveform"] == waveform) & (c["status"] == "ok")).any())
 
 
 # ----------------------------------------------------------------------------------------------
@@ -132,6 +141,7 @@ def _damper_table(d: CampaignData) -> Table | None:
 
 PROVENANCE_PROBLEMS = (("changed_raw_files", "raw files changed since ingest"),
                        ("missing_raw_files", "raw files missing"),
+                       ("raw_files_outside", "raw files leading outside the campaign folder (not read)"),
                        ("stale_stages", "stages whose inputs changed since they ran"),
                        ("inconsistent_stages", "stages whose outputs come from different runs"),
                        ("files_without_lineage", "files without lineage"))
@@ -147,8 +157,10 @@ def _provenance(prov: Mapping | None) -> dict | None:
     git = prov.get("git") or {}
     problems = [{"label": label, "files": (checks.get(key) or [])[:12], "more": max(len(checks.get(key) or []) - 12, 0)}
                 for key, label in PROVENANCE_PROBLEMS if checks.get(key)]
+    unused = [u for u in ((prov.get("raw") or {}).get("unused_files") or []) if isinstance(u, Mapping)]
     return {"checked": True, "ok": bool(checks.get("ok")), "made": prov.get("created_utc", "?"),
-            "commit": short(git.get("commit"), 12) if git.get("commit") else None, "problems": problems}
+            "commit": short(git.get("commit"), 12) if git.get("commit") else None, "problems": problems,
+            "unused": [u.get("path") or u.get("note") for u in unused[:12]], "unused_more": max(len(unused) - 12, 0)}
 
 
 def _summary_cards(d: CampaignData) -> list[dict]:
@@ -220,6 +232,9 @@ CASE_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text,
              Col("temperature_span_C", "T span [K]", lambda x: fmt(x, 3)),
              Col("temperature_source", "T from", text, False),
              Col("quality", "quality", text, False)]
+#: Dropped samples of each case (validate, measurement.sampling), shown when cases.parquet has them.
+GAP_COLS = [Col("missing_samples", "missing samples"), Col("missing_fraction", "missing", fmt_pct),
+            Col("longest_gap_s", "longest gap [ms]", lambda x: fmt(x, 3), scale=1e3)]
 
 
 def _plan_section(d: CampaignData) -> dict:
@@ -271,7 +286,8 @@ def _cases_section(d: CampaignData, captions: Mapping[str, str] | None = None) -
             cases[column] = np.nan      # a cases table written before the motion or temperature was recorded
     if "quality" not in cases:
         cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
-    return {"table": table_view(cases, CASE_COLS, src, ["case"], row_class=_case_row_class, table_id="cases-table"),
+    cols = CASE_COLS[:-1] + [c for c in GAP_COLS if c.key in cases] + CASE_COLS[-1:]
+    return {"table": table_view(cases, cols, src, ["case"], row_class=_case_row_class, table_id="cases-table"),
             "temperature": Markup(temperature_summary(d.meta, d.cases)),
             "figures": d.figures("cases", captions or {})}
 
@@ -280,8 +296,11 @@ def _cases_section(d: CampaignData, captions: Mapping[str, str] | None = None) -
 # characteristic and repeatability
 # ----------------------------------------------------------------------------------------------
 
+#: How each characteristic point was found (stages.characteristic; the table's ``method`` column).
+METHOD_LABELS = {"triangle_window": "triangle window", "sine_peak": "sine peak", "free_bin": "free bin"}
 CHARACTERISTIC_COLS = [
-    Col("case", "case", text, False), Col("direction", "dir", text, False),
+    Col("case", "case", text, False), Col("method", "method", lambda x: text(METHOD_LABELS.get(x, x)), False),
+    Col("direction", "dir", text, False),
     Col("period", "period"), Col("segment", "segment"),
     Col("velocity_m_s", "velocity [mm/s]", scale=1e3), Col("force_N", "force [N]"),
     Col("force_std_N", "force std [N]", lambda x: fmt(x, 3)), Col("n_samples", "samples"),
@@ -316,8 +335,11 @@ def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dic
         return {"figures": figures, "table": None, "lineage": lineage_of(src)}
     speed = char["velocity_m_s"].abs()
     char = char.assign(_speed=speed).sort_values(["direction", "_speed", "case", "period"]).reset_index(drop=True)
-    return {"figures": figures, "n": len(char), "csv": _export_link(d, "characteristic_csv"),
-            "table": table_view(char, CHARACTERISTIC_COLS, src, ["case", "segment"], row_extra=_point_origin,
+    cols = [c for c in CHARACTERISTIC_COLS if c.key != "method" or "method" in char]
+    methods = char["method"].map(lambda x: METHOD_LABELS.get(x, x)).value_counts() if "method" in char else None
+    by_method = None if methods is None else ", ".join(f"{n} {m}" for m, n in methods.items())
+    return {"figures": figures, "n": len(char), "csv": _export_link(d, "characteristic_csv"), "by_method": by_method,
+            "table": table_view(char, cols, src, ["case", "segment"], row_extra=_point_origin,
                                 row_class=lambda r: "flagged" if r.get("repeatability_flagged") else "",
                                 table_id="characteristic-points")}
 
@@ -325,6 +347,9 @@ def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dic
 def _repeatability_section(d: CampaignData) -> dict:
     rep = d.repeatability
     src = d.sources("repeatability.parquet")
+    if (rep is None or not len(rep)) and not d.has_ok("triangle"):
+        return {"all": None, "left_out": "no status-ok triangle case: the check compares the two periods of a "
+                                         "triangle case", "lineage": lineage_of(src)}
     if rep is None:
         return {"all": None, "lineage": lineage_of(src)}
     flagged = rep[rep["flagged"].astype(bool)]

@@ -11,7 +11,7 @@ import base64
 import os
 import re
 import struct
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -87,6 +87,22 @@ def figure_view(src: Source, fig: Figure, caption: str = "", href_prefix: str = 
                       vectors=vector_links(src, href_prefix + fig.path))
 
 
-def figure_views(sources: Sources, figures: tuple[Figure, ...], captions: Mapping[str, str]) -> list[FigureView]:
-    """The figures of a page section, each with its caption and lineage."""
-    return [figure_view(sources(fig.path), fig, captions.get(fig.name, "")) for fig in figures]
+@dataclass(frozen=True)
+class LeftOut:
+    """A figure that does not apply to the campaign: the ``figures`` macro says so in one line instead."""
+
+    id: str
+    title: str
+    reason: str
+
+
+def figure_views(sources: Sources, figures: tuple[Figure, ...], captions: Mapping[str, str],
+                 applies: Callable[[str], str | None] | None = None) -> list[FigureView | LeftOut]:
+    """The figures of a page section, each with its caption and lineage; with ``applies`` (figure name ->
+    None, or why it does not apply), a figure that does not apply is a :class:`LeftOut` line instead."""
+    out: list[FigureView | LeftOut] = []
+    for fig in figures:
+        reason = applies(fig.name) if applies is not None else None
+        out.append(LeftOut(fig.name, fig.title, reason) if reason else
+                   figure_view(sources(fig.path), fig, captions.get(fig.name, "")))
+    return out

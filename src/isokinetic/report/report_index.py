@@ -24,6 +24,8 @@ from isokinetic.report.numbers import esc, fmt, fmt_pct, text, yes_no
 from isokinetic.report.sources import Source, Sources, lineage_of, lineage_rows, read_json, read_parquet, trace_command
 
 COUNTED = ["counted by the index"]
+#: Cells of a campaign's row between its name and its page link (counts, residual scale, diagnosis).
+N_CAMPAIGN_CELLS = 11
 BLIND_FIGURE = figure("fig17_blind_confusion")
 SCORE_COLS = [Col("scenario", "scenario", text, False), Col("truth", "truth", lambda x: text(x or "(none)"), False),
               Col("verdict", "verdict", lambda x: text(x or "(none)"), False), Col("exact", "exact", yes_no, False),
@@ -85,14 +87,19 @@ def _verdict(root: Path, srcs: Sources) -> list[Cell]:
             number_cell(fmt(diag.get("shrink"), 3), src.title("shrink", "shrink"))]
 
 
-def _campaign_row(results_root: Path, campaign: str) -> tuple[dict, list[Source]]:
-    """A campaign's row of the index and the files it read."""
+def _campaign_row(results_root: Path, campaign: str, failure: str | None = None) -> tuple[dict, list[Source]]:
+    """A campaign's row of the index and the files it read; a failed campaign's row is its reason alone (its
+    files, if any, are from an earlier run and are not shown as this run's results)."""
     root = results_root / campaign
     srcs = Sources(root, read_json(root / "provenance.json"))
     meta = read_json(root / "ingest" / "campaign.json") or {}
+    if failure is not None:
+        cells = [Cell(f"{badge('failed', 'bad')} {esc(failure)}", cls="reason", colspan=N_CAMPAIGN_CELLS)]
+        return {"name": campaign, "source": meta.get("source") or "-", "cells": cells, "report": False,
+                "failed": True}, []
     cells = _counts(root, srcs) + [_residual_scale(root, srcs)] + _verdict(root, srcs)
     row = {"name": campaign, "source": meta.get("source") or "-", "cells": cells,
-           "report": (root / "report.html").is_file()}
+           "report": (root / "report.html").is_file(), "failed": False}
     return row, srcs.all()
 
 
@@ -217,14 +224,17 @@ def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[dict, 
 
 def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
                  blind_dir: str | os.PathLike | None = None, captions_dir: str | os.PathLike | None = None,
-                 lineage_record: Mapping | None = None, comparisons: Sequence[str] = ()) -> str:
-    """``results/index.html``: every campaign with its verdict and key numbers, each comparison (linked to
-    its page), and the blind-suite scores."""
+                 lineage_record: Mapping | None = None, comparisons: Sequence[str] = (),
+                 failures: Mapping[str, str] | None = None) -> str:
+    """``results/index.html``: every campaign with its verdict and key numbers, or, for a campaign in
+    ``failures`` (campaign -> reason, :func:`isokinetic.report.run_status.campaign_failures`), why it has
+    none; each comparison (linked to its page), and the blind-suite scores."""
     results_root = Path(results_root)
     captions = read_captions(captions_dir)
+    failures = dict(failures or {})
     rows, sources = [], []
     for c in campaigns:
-        row, srcs = _campaign_row(results_root, c)
+        row, srcs = _campaign_row(results_root, c, failures.get(c))
         rows.append(row)
         sources += srcs
     nav = [("campaigns", "Campaigns")]
@@ -242,7 +252,9 @@ def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
         nav.append(("blind", "Blind test"))
     nav.append(("lineage", "Lineage"))
     return render("report_index.html.j2", title="isokinetic - results", nav=nav, lineage_record=lineage_record,
-                  campaigns=rows, comparisons=compared, blind=blind, lineage_files=lineage_rows(sources),
+                  campaigns=rows, n_failed=sum(r["failed"] for r in rows),
+                  snakemake_report=(results_root / "report.html").is_file(), comparisons=compared, blind=blind,
+                  lineage_files=lineage_rows(sources),
                   footer=footer(lineage_record, sources))
 
 

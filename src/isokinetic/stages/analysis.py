@@ -57,7 +57,7 @@ def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSp
                                        phi=limits.convergence_fraction, max_amplitude_m=limits.max_amplitude_m,
                                        min_amplitude_m=limits.min_amplitude_m, start_fraction=spec.start_fraction)
     for line in plan_warnings(plan_check):
-        log.warning("plan check: %s", line)
+        log.info("plan check: %s", line)  # shown on the report page (plan check); info: not a failure
     nominal = nominal_stage(root, spec)
     written.append(write_parquet(nominal, root / STAGE_OUTPUTS["nominal"]["nominal"]))
     written += write_harmonic(root, root / _folder("harmonic", "table"))

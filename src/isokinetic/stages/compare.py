@@ -64,7 +64,7 @@ from isokinetic.io import write_json, write_parquet, write_text
 from isokinetic.plots.compare import Z_95, difference_figure, overlay_figure
 from isokinetic.plots.style import save_figure
 from isokinetic.stages.exports import csv_text
-from isokinetic.stages.models import MODEL_NAMES, PARAMETERS, design_matrix, standard_errors, wls
+from isokinetic.stages.models import MODEL_NAMES, PARAMETERS, design_matrix, fit_points, standard_errors, wls
 
 log = logging.getLogger(__name__)
 
@@ -123,6 +123,9 @@ def campaign_points(char: pd.DataFrame) -> pd.DataFrame:
     """
     cols = ["case", "direction", "velocity_m_s", "force_N", "n_windows", "window_se_N", "noise_se_N",
             "repeatability_se_N", "se_N"]
+    char = fit_points(char)   # the points the models fit (models.fit_points)
+    if char is not None and "method" in char:  # a free record's velocity bins are not one point a case
+        char = char[char["method"] != "free_bin"]
     if char is None or char.empty:
         return pd.DataFrame({c: pd.Series(dtype=object if c in ("case", "direction") else float) for c in cols})
     w = char.assign(_se2=char["force_std_N"].to_numpy(float) ** 2 / np.maximum(char["n_samples"].to_numpy(float), 1))
@@ -258,6 +261,7 @@ def model_curve(char: pd.DataFrame, points: pd.DataFrame, models_df: pd.DataFram
     mine = points[points["direction"] == direction]
     if not stored.size or mine.empty:
         return None
+    char = fit_points(char)   # the points the stored fit used
     v = char["velocity_m_s"].to_numpy(float)
     mask = np.ones(v.size, bool) if model == "wallaschek" else (v > 0 if direction == "+" else v < 0)
     f = char["force_N"].to_numpy(float)[mask]

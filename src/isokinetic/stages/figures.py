@@ -148,6 +148,11 @@ def _read_tables(root: Path) -> tuple[pd.DataFrame | None, pd.DataFrame, pd.Data
     return cases, windows, char, char_note
 
 
+def _triangle_rows(char: pd.DataFrame) -> pd.DataFrame:
+    """The triangle windows of a characteristic (all of it when it has no ``method`` column)."""
+    return char[char["method"] == "triangle_window"] if "method" in char else char
+
+
 def _status_note(cases: pd.DataFrame | None, char: pd.DataFrame | None) -> str:
     if cases is None or cases.empty:
         return "cases table missing: figures drawn from the characteristic table only"
@@ -161,9 +166,10 @@ def _status_note(cases: pd.DataFrame | None, char: pd.DataFrame | None) -> str:
     no_win = sorted(set(ok["case"].astype(str)) - with_windows)
     if no_win:
         parts.append(f"ok but without windows: {', '.join(no_win[:12])}{' ...' if len(no_win) > 12 else ''}")
-    other = cases[cases["waveform"] != "triangle"]
+    other = cases[cases["waveform"].isin(["sine", "free"])]
     if len(other):
-        parts.append(f"{len(other)} sine/free case(s): see {figure('fig15_harmonic_loops').path}")
+        parts.append(f"{len(other)} sine/free case(s): in Fig. 9-11 (force at peak velocity, velocity bins) and "
+                     f"{figure('fig15_harmonic_loops').path}")
     return "; ".join(parts)
 
 
@@ -205,6 +211,8 @@ def write_campaign_figures(campaign_root: str | os.PathLike, out_dir: str | os.P
         name = root.name
     note = "; ".join(x for x in (_status_note(cases, char), char_note) if x)
 
+    char_all, char = char, _triangle_rows(char)
+    windows = _triangle_rows(windows)
     picked = select_cases(cases, char) if cases is not None else []
     case_rows = {} if cases is None else {str(r["case"]): r for _, r in cases.iterrows()}
     series = {c: pd.read_parquet(p) for c in picked if (p := root / str(case_rows[c]["timeseries_file"])).is_file()}
@@ -217,8 +225,9 @@ def write_campaign_figures(campaign_root: str | os.PathLike, out_dir: str | os.P
         figs.append(window_selection(case_rows[f8_case], series.get(f8_case),
                                      windows[windows["case"].astype(str) == f8_case], campaign=name))
     footnote(figs[1], note)
-    for make in (characteristic, low_velocity_detail, loglog_characteristic, noise):
-        fig = make(char, campaign=name)
+    for make, rows in ((characteristic, char_all), (low_velocity_detail, char_all), (loglog_characteristic, char_all),
+                       (noise, char)):
+        fig = make(rows, campaign=name)
         footnote(fig, note)
         figs.append(fig)
     figs.insert(0, case_temperature(cases, _viscosity_law(root), campaign=name))  # Fig. 20 leads: the cases section

@@ -60,8 +60,6 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
-from isokinetic.plots.harmonic import harmonic_figure
-from isokinetic.plots.style import save_figure
 
 log = logging.getLogger("isokinetic")
 
@@ -671,6 +669,9 @@ def write_harmonic(campaign_root, out_dir) -> list[Path]:
     """Write ``harmonic.parquet`` and ``fig15_harmonic_loops.png`` of ``results/<campaign>/`` into
     ``out_dir``; returns the two paths. A campaign without sine/free cases gives an empty table
     and a figure that says so."""
+    from isokinetic.plots.harmonic import harmonic_figure  # matplotlib only where the figure is drawn
+    from isokinetic.plots.style import save_figure
+
     root, out = Path(campaign_root), Path(out_dir)
     table, loops, notes, name, ok = _harmonic(root)
     if not loops and not notes:

@@ -20,8 +20,14 @@ Fitted models (:func:`fit_models`)
     covariance is scaled by the residual variance (reduced chi-square) so the absolute noise level
     need not be right, only its window-to-window proportions: serial correlation of the noise, which
     inflates every standard error alike, and model error both widen the intervals. 95 % intervals
-    use Student's t with n - p degrees of freedom. The Surace directions are two separate fits
-    (own residual variance each). ``weighting='force_std'`` (1/s_i²) or ``'none'`` are available.
+    use Student's t with n - p degrees of freedom. The points fitted (:func:`fit_points`): the triangle
+    windows when the campaign has any, else every point of the characteristic (a sine-only or free-only
+    campaign): a sine case's force at peak velocity lies below the steady characteristic (the oil's
+    compressibility, paper Sec. 4), so the two are not fitted together. A sine point has n_i its cycles
+    and s_i their scatter, a free record's bin its samples and their spread, so s_i / sqrt(n_i) is each
+    point's standard error as a window's. The Surace directions are two separate fits (own residual
+    variance each). ``weighting='force_std'``
+    (1/s_i²) or ``'none'`` are available.
 
 Physical readings (rows with ``kind='derived'`` right after the parameter they come from)
     From D_L = A_p² c1: c1, the equivalent viscosity μ = c1 A_O² / (8π l_O) (nominal l_O, A_O) and the
@@ -352,6 +358,15 @@ def _empty_residuals() -> pd.DataFrame:
                                       "int64" if c == "segment" else float) for c in RESIDUAL_COLUMNS})
 
 
+def fit_points(char: pd.DataFrame | None) -> pd.DataFrame | None:
+    """The characteristic points the models fit (module doc): the triangle windows when the table has any,
+    else all of it (a table without a ``method`` column is all windows)."""
+    if char is None or "method" not in char:
+        return char
+    triangle = char["method"] == "triangle_window"
+    return char[triangle].reset_index(drop=True) if triangle.any() else char
+
+
 def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str = "standard_error",
                confidence: float = CONFIDENCE, source_file: str = "characteristic.parquet"
                ) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -366,6 +381,7 @@ def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str 
     Derived physical readings need ``damper``; without it only the fitted rows are written. A model
     (or Surace direction) with fewer than 4 points or a rank-deficient design is skipped (logged).
     """
+    char = fit_points(char)
     if char is None or char.empty:
         return tables.validate_table(_empty_models(), tables.MODELS), _empty_residuals()
     campaign = "+".join(sorted(set(char["campaign"].astype(str))))
@@ -585,7 +601,7 @@ def write_models(campaign_root, out_dir, spec: WindowSpec = WindowSpec(), figure
             log.info("campaign %s: %s %s %s = %.6g [%.6g, %.6g] %s", campaign, m, r.direction, r.parameter, r.estimate,
                      r.ci_low, r.ci_high, r.unit)
     for r in models_df[~models_df["plausible"]].itertuples():
-        log.warning("campaign %s: %s %s: implausible reading: %s", campaign, r.model, r.direction, r.plausibility)
+        log.info("campaign %s: %s %s: implausible reading: %s", campaign, r.model, r.direction, r.plausibility)
     paths = [write_parquet(models_df, out / TABLE_FILES[0]),
              write_parquet(residuals, out / TABLE_FILES[1]),
              write_parquet(comparison, out / TABLE_FILES[2])]

@@ -1,4 +1,9 @@
-"""Repeatability (Sec. 4.4-4.5): the steady force of period 1 against period 2."""
+"""Repeatability (Sec. 4.4-4.5): the steady force of period 1 against period 2.
+
+Triangle windows have two periods; a sine case's peak-velocity points (stages.characteristic) the
+first and second half of its steady cycles. A case and direction without both periods (a sine case of
+fewer than four steady cycles a direction) has no row.
+"""
 
 from __future__ import annotations
 
@@ -23,6 +28,9 @@ def repeatability(windows: pd.DataFrame, tolerance: float) -> pd.DataFrame:
     if windows.empty:
         return tables.empty(tables.REPEATABILITY)
     wide = windows.pivot_table(index=keys, columns="period", values=["force_N", "velocity_m_s"], aggfunc="first")
+    if ("force_N", 1) not in wide or ("force_N", 2) not in wide:
+        return tables.empty(tables.REPEATABILITY)
+    wide = wide[wide[("force_N", 1)].notna() & wide[("force_N", 2)].notna()]
     out = pd.DataFrame({
         "velocity_m_s": wide[("velocity_m_s", 1)].to_numpy() * 0.5 + wide[("velocity_m_s", 2)].to_numpy() * 0.5,
         "force_period1_N": wide[("force_N", 1)].to_numpy(),

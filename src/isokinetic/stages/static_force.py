@@ -27,7 +27,8 @@ Method (:func:`estimate_static_force`)
        (both periods averaged), each with the standard error of its mean: the larger of the window
        noise, sqrt(Σ σ_i²)/k with σ_i = s_i/sqrt(n_i) (s_i the window's force_std_N, n_i its samples,
        as :func:`isokinetic.stages.models.standard_errors`), and the period-to-period scatter
-       std(F_i)/sqrt(k). Without triangle windows in both directions, the free records' binned
+       std(F_i)/sqrt(k). Without triangle windows, the sine cases' peak-velocity points serve alike (a
+       point's n_i counts cycles, s_i is their scatter). Without either in both directions, the free records' binned
        characteristic (``harmonic.parquet``, kind ``binned``) serves instead, bins paired by rank.
     2. Matched speeds (:func:`matched_means`): a case's + and - windows run at the same planned
        speed; their mean m = (F+ + F-)/2 with σ_m = sqrt(σ+² + σ-²)/2 at the speed (|v+| + |v-|)/2.
@@ -53,6 +54,24 @@ Method (:func:`estimate_static_force`)
 A manifest's ``gas_force_N`` is subtracted at ingest, before all this: F_static is then what is
 left beyond the declared gas force (``gas_force_N`` is carried in the table for the report).
 
+Standstill cases (manifest 1.2, waveform ``standstill``)
+    A stretch of record with no motion gives the static force directly (:func:`standstill_points`): the
+    mean force over the stretch, with the standard error of the means of :data:`STANDSTILL_BLOCKS`
+    consecutive blocks (robust to correlated noise). When a campaign has standstill cases, their
+    inverse-variance weighted mean is F_static (source ``standstill``, method ``standstill_mean``); the
+    characteristic is not extrapolated then. At rest a rod held by Coulomb friction can sit anywhere
+    within ±F_C of its static force, so a standstill reading is the static force only as far as the
+    friction lets go of the rod (``note`` says so).
+
+Checking the declared gas forces (:func:`gas_force_check`)
+    What is left after ingest subtracted a case's ``gas_force_N`` (its own, else the campaign's) should be
+    about 0. Each standstill case that declares one is checked alone; the moving cases that declare one are
+    checked together through F_static of the characteristic (a moving case alone cannot tell a gas force
+    from the even part of the characteristic at its speed). A check agrees when |left| <= z·SE +
+    max(:data:`GAS_TOLERANCE_N`, :data:`GAS_TOLERANCE_REL`·|gas force|) (z of ``confidence``; the
+    tolerance covers a declaration rounded to a few N). ``gas_force_check`` (agrees | disagrees |
+    not_checked) and one line per check in ``gas_force_cases`` go into the table.
+
 Coordination with the diagnosis (:func:`offset_check`)
     The diagnosis fits F_meas = g·(m + F_C·s) + F_0 (:mod:`isokinetic.diagnosis.instrument`): its
     branch mean at v -> 0 is exactly F_0, so F_static and ``instrument.force_offset_N`` estimate the
@@ -67,7 +86,7 @@ import json
 import logging
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from statistics import NormalDist
 
@@ -83,8 +102,14 @@ log = logging.getLogger("isokinetic")
 #: Output file of :func:`write_static_force`, relative to the campaign's results folder.
 TABLE_PATH = STAGE_OUTPUTS["static_force"]["static_force"]
 CONFIDENCE = 0.95
-SOURCES = ("characteristic", "harmonic_binned", "none")
-METHODS = ("linear_fit", "two_speeds", "lowest_speed", "none")
+SOURCES = ("characteristic", "harmonic_binned", "standstill", "none")
+METHODS = ("linear_fit", "two_speeds", "lowest_speed", "standstill_mean", "none")
+#: Blocks a standstill stretch is cut into for the standard error of its mean force.
+STANDSTILL_BLOCKS = 20
+#: Gas-force check tolerance (module doc): absolute [N] and relative to the declared gas force.
+GAS_TOLERANCE_N = 2.0
+GAS_TOLERANCE_REL = 0.05
+GAS_CHECKS = ("agrees", "disagrees", "not_checked")
 #: Significance level of :func:`offset_check` when diagnosis.json does not give its own (``noise.alpha``):
 #: the diagnosis' default (isokinetic.diagnosis.candidate.ALPHA), at which it decides an offset is needed.
 DIAGNOSIS_ALPHA = 0.001
@@ -137,6 +162,9 @@ class StaticForce:
     source_file: str               # the table the points come from
     source_rows: str               # its rows the estimate used ('T01/1,T01/2,...')
     note: str                      # '' or why the estimate is missing or weaker
+    n_standstill: int = 0          # standstill cases (manifest 1.2) found ok
+    gas_force_check: str = "not_checked"   # GAS_CHECKS: the declared gas forces against what is left (module doc)
+    gas_force_cases: str = ""      # one '; '-joined line per check ('Z01: -0.3 ± 0.1 N left of 120 N: agrees')
 
     @property
     def significant(self) -> bool:
@@ -148,7 +176,7 @@ class StaticForce:
         row = asdict(self)
         row["significant"] = self.significant
         df = pd.DataFrame([row])
-        return df.astype({"n_speeds": "int64", "n_matched": "int64"})
+        return df.astype({"n_speeds": "int64", "n_matched": "int64", "n_standstill": "int64"})
 
 
 def _z(confidence: float) -> float:
@@ -186,6 +214,11 @@ def branch_points(char: pd.DataFrame) -> pd.DataFrame:
     Columns: key (the case: what pairs a + point with a - point), case, direction, speed_m_s (mean
     |v|), force_N (mean of the windows), std_error_N, n_windows, rows ('T01/1,T01/3').
     """
+    if char is not None and "method" in char:
+        # the triangle windows; without any, the sine cases' peak-velocity points (free records' bins are
+        # no point a case: binned_points pairs them)
+        tri = char["method"] == "triangle_window"
+        char = char[tri] if tri.any() else char[char["method"] == "sine_peak"]
     if char is None or char.empty:
         return pd.DataFrame(columns=_POINT_COLUMNS)
     char = char[np.isfinite(char["force_N"].to_numpy(float)) & np.isfinite(char["velocity_m_s"].to_numpy(float))]
@@ -350,6 +383,95 @@ def estimate_static_force(campaign: str, char: pd.DataFrame | None, harmonic: pd
                        source_file=source_file, source_rows=",".join(used["rows"]), note="; ".join(notes))
 
 
+def block_mean(force_N, n_blocks: int = STANDSTILL_BLOCKS) -> tuple[float, float]:
+    """(mean, standard error) of a force record: the SE from the scatter of the means of ``n_blocks``
+    consecutive blocks, std(block means)/sqrt(blocks), which holds for correlated noise too; fewer than
+    2 samples per block: std/sqrt(n)."""
+    f = np.asarray(force_N, dtype=float)
+    if f.size == 0:
+        return math.nan, math.nan
+    if f.size < 2 * n_blocks:
+        return float(f.mean()), float(f.std(ddof=1) / math.sqrt(f.size)) if f.size > 1 else math.nan
+    means = np.array([b.mean() for b in np.array_split(f, n_blocks)])
+    return float(f.mean()), float(means.std(ddof=1) / math.sqrt(n_blocks))
+
+
+def standstill_points(cases: pd.DataFrame | None, root: Path) -> pd.DataFrame:
+    """One row per ok standstill case: case, force_N (mean over the stretch, gas force already subtracted),
+    std_error_N (:func:`block_mean`), n_samples, gas_force_N (declared; NaN: none)."""
+    columns = ["case", "force_N", "std_error_N", "n_samples", "gas_force_N"]
+    if cases is None or cases.empty or "waveform" not in cases:
+        return pd.DataFrame(columns=columns)
+    ok = cases[(cases["waveform"] == "standstill") & (cases["status"] == "ok")]
+    rows = []
+    for _, case in ok.iterrows():
+        force = pd.read_parquet(root / case["timeseries_file"], columns=["force_N"])["force_N"].to_numpy(float)
+        mean, se = block_mean(force)
+        gas = float(case["gas_force_N"]) if "gas_force_N" in case and pd.notna(case["gas_force_N"]) else math.nan
+        rows.append({"case": str(case["case"]), "force_N": mean, "std_error_N": se, "n_samples": len(force),
+                     "gas_force_N": gas})
+    return pd.DataFrame(rows, columns=columns)
+
+
+def standstill_estimate(campaign: str, points: pd.DataFrame, gas_force_N: float | None,
+                        confidence: float = CONFIDENCE) -> StaticForce:
+    """F_static as the inverse-variance weighted mean of the standstill cases' means (module doc); the
+    standard error the larger of the weighted mean's and the cases' scatter about it."""
+    f = points["force_N"].to_numpy(float)
+    se = np.maximum(points["std_error_N"].to_numpy(float), 1e-9)
+    se = np.where(np.isfinite(se), se, np.nanmax(np.append(se[np.isfinite(se)], 1.0)))
+    w = 1.0 / se ** 2
+    mean = float(np.sum(w * f) / np.sum(w))
+    error = math.sqrt(1.0 / float(np.sum(w)))
+    if len(f) > 1:
+        error = max(error, float(np.std(f, ddof=1) / math.sqrt(len(f))))
+    half = _z(confidence) * error
+    gas = math.nan if gas_force_N is None else float(gas_force_N)
+    return StaticForce(campaign, mean, error, mean - half, mean + half, confidence, "standstill", "standstill_mean",
+                       0, 0, math.nan, math.nan, math.nan, error, math.nan, math.nan, math.nan, gas, "cases.parquet",
+                       ",".join(points["case"]), "from the standstill cases' mean force (at rest, friction may hold "
+                       "the rod anywhere within ±F_C of it)", n_standstill=len(f))
+
+
+def _agrees(left_N: float, se_N: float, gas_N: float, confidence: float) -> bool:
+    bound = _z(confidence) * (se_N if math.isfinite(se_N) else 0.0) + max(GAS_TOLERANCE_N,
+                                                                          GAS_TOLERANCE_REL * abs(gas_N))
+    return abs(left_N) <= bound
+
+
+def gas_force_check(cases: pd.DataFrame | None, standstill: pd.DataFrame, fitted: StaticForce | None,
+                    confidence: float = CONFIDENCE) -> tuple[str, str]:
+    """(GAS_CHECKS status, one line per check) of the declared gas forces (module doc): each standstill case
+    that declares one alone, the moving cases that declare one together through ``fitted`` (F_static of the
+    characteristic or the binned points; None: not estimated)."""
+    lines, verdicts = [], []
+    for _, p in standstill.iterrows():
+        if not math.isfinite(p["gas_force_N"]):
+            continue
+        ok = _agrees(p["force_N"], p["std_error_N"], p["gas_force_N"], confidence)
+        verdicts.append(ok)
+        lines.append(f"{p['case']}: {p['force_N']:+.2f} ± {p['std_error_N']:.2f} N left of the declared "
+                     f"{p['gas_force_N']:g} N: {'agrees' if ok else 'disagrees'}")
+    moving = pd.DataFrame()
+    if cases is not None and not cases.empty and "gas_force_N" in cases:
+        moving = cases[(cases["waveform"] != "standstill") & (cases["status"] == "ok")
+                       & cases["gas_force_N"].notna()]
+    if not moving.empty:
+        names = ",".join(moving["case"].astype(str))
+        gas = float(moving["gas_force_N"].abs().max())
+        if fitted is None or not math.isfinite(fitted.static_force_N):
+            lines.append(f"moving cases {names}: not checked (no static force from the characteristic)")
+        else:
+            ok = _agrees(fitted.static_force_N, fitted.std_error_N, gas, confidence)
+            verdicts.append(ok)
+            lines.append(f"moving cases {names}: static force {fitted.static_force_N:+.2f} ± "
+                         f"{fitted.std_error_N:.2f} N left of their declared gas forces: "
+                         f"{'agrees' if ok else 'disagrees'}")
+    if not verdicts:
+        return "not_checked", "; ".join(lines)
+    return ("agrees" if all(verdicts) else "disagrees"), "; ".join(lines)
+
+
 # ----------------------------------------------------------------------------------------------
 # coordination with the diagnosis' load-cell offset
 # ----------------------------------------------------------------------------------------------
@@ -442,15 +564,25 @@ def _read(path: Path) -> pd.DataFrame | None:
 
 
 def static_force_stage(campaign_root, spec: StaticForceSpec = StaticForceSpec()) -> StaticForce:
-    """The static force of ``results/<campaign>/`` from characteristic.parquet (else the harmonic
-    table's binned points), with the gas force ingest recorded in ingest/campaign.json."""
+    """The static force of ``results/<campaign>/``: from its standstill cases when it has any, else from
+    characteristic.parquet (else the harmonic table's binned points); with the gas force ingest recorded in
+    ingest/campaign.json and the check of every declared gas force (:func:`gas_force_check`). Cases: the
+    validated cases.parquet, else ingest's."""
     root = Path(campaign_root)
     meta_path = root / "ingest" / "campaign.json"
     meta = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.is_file() else {}
     harmonic_file = STAGE_OUTPUTS["harmonic"]["table"]
-    return estimate_static_force(meta.get("campaign") or root.name, _read(root / "characteristic.parquet"),
-                                 _read(root / harmonic_file), meta.get("gas_force_N"), spec,
-                                 harmonic_file=harmonic_file)
+    campaign = meta.get("campaign") or root.name
+    fitted = estimate_static_force(campaign, _read(root / "characteristic.parquet"), _read(root / harmonic_file),
+                                   meta.get("gas_force_N"), spec, harmonic_file=harmonic_file)
+    cases = _read(root / "cases.parquet")
+    if cases is None:
+        cases = _read(root / "ingest" / "cases.parquet")
+    standstill = standstill_points(cases, root)
+    check, lines = gas_force_check(cases, standstill, fitted, spec.confidence)
+    result = fitted if standstill.empty else standstill_estimate(campaign, standstill, meta.get("gas_force_N"),
+                                                                 spec.confidence)
+    return replace(result, n_standstill=len(standstill), gas_force_check=check, gas_force_cases=lines)
 
 
 def write_static_force(campaign_root, spec: StaticForceSpec = StaticForceSpec()) -> list[Path]:

@@ -6,12 +6,21 @@ column and row, e.g. ``campaign demo, case T03, column 'force_kN', row 17: non-n
 
 :func:`validate_campaign` checks every case an ingest left ``ok`` (raw or simulated alike):
 the canonical time-series schema (NaN/inf, time not strictly increasing), too few samples,
-a record shorter than the plan needs, a sample rate far from the manifest's; then gaps in time,
-saturated (flat-topped) force or displacement, and implausible magnitudes (a unit mix-up, checked
-against the plan and the nominal damper model). Gaps and saturation inside the analysed data (the
-windows of a triangle case; the whole record of a sine or free case) quarantine; a few missing
-samples or a flat top outside the windows are *flagged but usable*: warnings carried into the
-``quality`` column of ``cases.parquet`` ('ok' when there are none).
+a record shorter than the plan needs, a median sample interval far from the manifest's; then
+dropped samples, saturated (flat-topped) force or displacement, and implausible magnitudes (a unit
+mix-up, checked against the plan and the nominal damper model). Saturation inside the analysed data
+(the windows of a triangle case; the whole record of a sine or free case) quarantines; a flat top
+outside the windows is *flagged but usable*: warnings carried into the ``quality`` column of
+``cases.parquet`` ('ok' when there are none).
+
+Dropped samples (a busy logger's singles and bursts, :mod:`isokinetic.measurement.sampling`): the
+later stages use the real time stamps, so a few missing samples cost only precision. A case is set
+aside only when, in one of its analysed spans (a triangle case's four windows and the line fits of its
+measured motion, :func:`gap_spans`; a sine or free record as a whole), the missing fraction exceeds
+``GapTolerance.max_missing_fraction`` (5 %), or one gap lasts longer than ``GapTolerance.limit_s``
+(the larger of ``max_gap_s``, 0.1 s, and 2 % of the half-period); both are the config's
+``validation`` keys. Other gaps are flagged; every case's ``missing_samples``, ``missing_fraction``
+and ``longest_gap_s`` go into ``cases.parquet`` (:data:`SAMPLING_COLUMNS`).
 
 Timing from the record: the motion of a triangle case is measured from its displacement channel
 (:func:`motion.estimate_motion`) and its windows are placed at the measured motion start, not at
@@ -36,7 +45,8 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan, read_ingested
 from isokinetic.io import write_parquet
-from isokinetic.measurement.motion import Motion, estimate_motion
+from isokinetic.measurement.motion import Motion, estimate_motion, line_spans_s
+from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
 from isokinetic.physics.damper import Damper, nominal_force
 from isokinetic.physics.plan import CasePlan
 from isokinetic.stages.windows import WindowSpec, case_windows, windowed_half_periods
@@ -46,10 +56,6 @@ log = logging.getLogger("isokinetic")
 #: Fewer samples than this cannot describe a record (and leave no sample interval to check).
 MIN_SAMPLES = 10
 QUARANTINE_COLUMNS = tuple(tables.QUARANTINE.columns)
-#: A sample interval above GAP_FACTOR / sample_rate_Hz is a gap (missing samples).
-GAP_FACTOR = 1.5
-#: A gap outside the windows that misses more samples than this quarantines the case.
-MAX_GAP_SAMPLES = 10
 #: This many consecutive identical samples at a channel's maximum or minimum are a flat top.
 SATURATION_MIN_RUN = 10
 #: Median |force| of a triangle record against the nominal force (Eq. 31) at its planned
@@ -80,6 +86,39 @@ FORCE_SIGN_SIGMAS = 3.0
 INVERT_HINT = "the rig's sign convention looks opposite: add `invert: true`"
 #: cases.parquet columns of the measured motion (NaN unless a triangle case reached the motion check).
 MOTION_COLUMNS = ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m")
+#: cases.parquet columns of the dropped samples (NA unless the case reached the gap check).
+SAMPLING_COLUMNS = ("missing_samples", "missing_fraction", "longest_gap_s")
+
+
+@dataclass(frozen=True)
+class GapTolerance:
+    """How many dropped samples a case may miss (config ``validation``).
+
+    In any analysed span (:func:`gap_spans`) at most ``max_missing_fraction`` of the samples (5 %:
+    the window mean then rests on 95 % of its samples, its standard error up by under 3 %), and no
+    single gap longer than :meth:`limit_s`: the larger of ``max_gap_s`` (0.1 s) and
+    ``max_gap_half_period_fraction`` (2 %) of the half-period. The fraction guards short windows, the
+    duration long ones (2 % of T/2 is 4 % of a [0.45, 0.95] window): a longer hole in a steady
+    window could hide a transient the window mean would not show.
+    """
+
+    max_missing_fraction: float = 0.05
+    max_gap_s: float = 0.1
+    max_gap_half_period_fraction: float = 0.02
+
+    def __post_init__(self):
+        if not 0.0 <= self.max_missing_fraction < 1.0:
+            raise ValueError(f"max_missing_fraction must lie in [0, 1), got {self.max_missing_fraction}")
+        if not self.max_gap_s > 0.0 or not self.max_gap_half_period_fraction >= 0.0:
+            raise ValueError(f"max_gap_s must be > 0 and max_gap_half_period_fraction >= 0, got "
+                             f"{self.max_gap_s}, {self.max_gap_half_period_fraction}")
+
+    def limit_s(self, plan: CasePlan) -> float:
+        """The longest gap tolerated in an analysed span of this case [s]: max(max_gap_s, fraction·T/2);
+        a free record (no period) max_gap_s."""
+        half = {"triangle": plan.period_s / 2.0, "sine": 0.5 / plan.frequency_Hz}.get(plan.waveform, math.nan)
+        return max(self.max_gap_s, self.max_gap_half_period_fraction * half) if np.isfinite(half) else \
+            self.max_gap_s
 
 
 @dataclass(frozen=True)
@@ -196,28 +235,66 @@ def _inside(spans, a: float, b: float) -> str | None:
     return next((label for label, s0, s1 in spans if a <= s1 and b >= s0), None)
 
 
-def gap_problems(df: pd.DataFrame, plan: CasePlan, spans, max_gap_samples: int = MAX_GAP_SAMPLES
-                 ) -> tuple[list[Problem], list[str]]:
-    """Missing samples: a sample interval above GAP_FACTOR/sample_rate_Hz. A gap inside an analysed
-    span, or missing more than ``max_gap_samples``, is a problem (the first one, at the row after
-    the gap); other gaps are warnings."""
+def gap_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec = WindowSpec(),
+              motion: Motion | None = None) -> list[tuple[str, float, float]]:
+    """(label, start, end) of the spans whose dropped samples are judged: the analysed spans
+    (:func:`analysed_spans`), and for a triangle case with a measured motion the line fits of its four
+    half-periods (motion.line_spans_s), on which its speed and motion start rest."""
+    start_s = motion.motion_start_s if motion is not None else 0.0
+    spans = analysed_spans(plan, time_s, spec, start_s)
+    if motion is not None:
+        spans += [(f"the motion fit of half-period {k} (t = {a:.6g} .. {b:.6g} s)", float(a), float(b))
+                  for k, (a, b) in enumerate(line_spans_s(plan, start_s), 1)]
+    return spans
+
+
+def _pct(x: float) -> str:
+    return f"{x:+.1%}"
+
+
+def gap_problems(df: pd.DataFrame, plan: CasePlan, spans, tolerance: GapTolerance = GapTolerance()
+                 ) -> tuple[list[Problem], list[str], dict[str, float]]:
+    """Dropped samples (:func:`sampling.find_gaps` on the median interval): (problems, warnings, the
+    SAMPLING_COLUMNS values).
+
+    A span missing more than ``tolerance.max_missing_fraction`` of its samples (the first such span, at
+    the row after its first gap), else a gap longer than ``tolerance.limit_s`` whose missing samples
+    lie in a span (the first one, at the row after it), is a problem; any other missing samples are
+    one warning giving their count, share and the longest gap.
+    """
     t = df["time_s"].to_numpy()
     rows = df["row"].to_numpy()
-    dt_s = 1.0 / plan.sample_rate_Hz
-    warnings = []
-    for j in np.flatnonzero(np.diff(t) > GAP_FACTOR * dt_s):
+    dt_s = sample_interval_s(t)
+    gaps = find_gaps(t, dt_s)
+    missing = gaps.total_missing
+    summary = {"missing_samples": missing, "missing_fraction": missing / (t.size + missing),
+               "longest_gap_s": gaps.longest_s}
+    if missing == 0:
+        return [], [], summary
+    share = 0.0
+    for label, a, b in spans:
+        span = span_sampling(t, a, b, dt_s, gaps)
+        share = max(share, span.missing_fraction)
+        if span.missing_fraction > tolerance.max_missing_fraction:
+            return [Problem("time_s", f"{span.missing} of the {span.expected} samples ({span.missing_fraction:.1%}) "
+                                      f"missing inside {label}, more than the {tolerance.max_missing_fraction:.1%} "
+                                      "tolerated (validation.max_missing_fraction)",
+                            row=int(rows[span.first_after_gap]))], [], summary
+    limit_s = tolerance.limit_s(plan)
+    for j, m, interval in zip(gaps.before, gaps.missing, gaps.interval_s):
         ta, tb = float(t[j]), float(t[j + 1])
-        missing = max(int(round((tb - ta) / dt_s)) - 1, 1)
-        what = (f"gap in time: {missing} sample(s) missing between t = {ta:.6g} s and {tb:.6g} s "
-                f"(interval {tb - ta:.6g} s, 1/sample_rate_Hz = {dt_s:.6g} s)")
-        where = _inside(spans, ta, tb)
+        where = _inside(spans, ta + dt_s, tb - dt_s) if interval > limit_s else None
         if where is not None:
-            return [Problem("time_s", f"{what}, inside {where}", row=int(rows[j + 1]))], warnings
-        if missing > max_gap_samples:
-            return [Problem("time_s", f"{what}, more than the {max_gap_samples} tolerated outside the windows",
-                            row=int(rows[j + 1]))], warnings
-        warnings.append(f"{missing} sample(s) missing at t = {ta + dt_s:.6g} s (outside windows)")
-    return [], warnings
+            return [Problem("time_s", f"gap in time: {m} sample(s) missing between t = {ta:.6g} s and {tb:.6g} s "
+                                      f"(interval {interval:.6g} s, sample interval {dt_s:.6g} s), inside {where}: "
+                                      f"longer than the {limit_s:.6g} s tolerated (validation.max_gap_s, or "
+                                      f"{tolerance.max_gap_half_period_fraction:.0%} of the half-period)",
+                            row=int(rows[j + 1]))], [], summary
+    j = int(np.argmax(gaps.interval_s))
+    warning = (f"{missing} sample(s) missing in {gaps.missing.size} gap(s), {summary['missing_fraction']:.2%} of the "
+               f"record; longest gap {gaps.longest_s:.4g} s at t = {t[gaps.before[j]]:.6g} s; at most "
+               f"{share:.1%} of an analysed span (tolerance {tolerance.max_missing_fraction:.1%})")
+    return [], [warning], summary
 
 
 def saturation_problems(df: pd.DataFrame, spans, min_run: int = SATURATION_MIN_RUN
@@ -295,21 +372,20 @@ def plausibility_problems(df: pd.DataFrame, plan: CasePlan, damper: Damper | Non
             if column not in df:
                 continue
             y = df[column].to_numpy()
-            mid, amp = (y.max() + y.min()) / 2.0, (y.max() - y.min()) / 2.0
+            amp = (y.max() - y.min()) / 2.0
             ratio = amp / amplitude
             said = f"amplitude {amp * 1e3:.4g} mm is {_times(ratio)} x the planned {amplitude * 1e3:.4g} mm"
             if ratio > AMPLITUDE_RATIO:
+                # the row beyond the bound around the median position: one wild sample moves (max + min)/2 with
+                # it, and every row would lie 'beyond' (row 0 named for a bad value at row 500)
+                centre = float(np.median(y))
                 problems.append(Problem(column, f"{said}: implausibly large, a unit mix-up (e.g. values in um "
                                                 "declared as mm, or in mm declared as m)?",
-                                        row=_first_row(df, np.abs(y - mid) > AMPLITUDE_RATIO * amplitude)))
+                                        row=_first_row(df, np.abs(y - centre) > AMPLITUDE_RATIO * amplitude)))
             elif ratio < 1.0 / AMPLITUDE_RATIO:
                 problems.append(Problem(column, f"{said}: implausibly small, a unit mix-up (e.g. values in m "
                                                 "declared as mm, or in mm declared as um)?"))
     return problems
-
-
-def _pct(x: float) -> str:
-    return f"{x:+.1%}"
 
 
 def motion_problems(motion: Motion, plan: CasePlan) -> tuple[list[Problem], list[str]]:
@@ -387,16 +463,18 @@ def window_problems(df: pd.DataFrame, plan: CasePlan, motion: Motion, spec: Wind
 @dataclass(frozen=True)
 class CaseCheck:
     """What the checks of one case found: problems, flagged-but-usable warnings, the measured motion
-    (None unless a triangle case got as far as the motion check)."""
+    (None unless a triangle case got as far as the motion check), the SAMPLING_COLUMNS values (None
+    unless the case got as far as the gap check)."""
 
     problems: list[Problem]
     warnings: list[str]
     motion: Motion | None = None
+    sampling: dict[str, float] | None = None
 
 
 def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
-               window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES) -> CaseCheck:
+               window_spec: WindowSpec = WindowSpec(), gap_tolerance: GapTolerance = GapTolerance()) -> CaseCheck:
     """All checks of one canonical time series.
 
     The schema first, then the record (length, sample rate); then the measured motion of a triangle
@@ -414,8 +492,10 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
         motion = estimate_motion(t, df["displacement_m"].to_numpy(), plan)
         start_s = motion.motion_start_s
     spans = analysed_spans(plan, t, window_spec, start_s)
-    gaps, warnings = gap_problems(df, plan, spans, max_gap_samples)
+    gaps, warnings, sampling = gap_problems(df, plan, gap_spans(plan, t, window_spec, motion), gap_tolerance)
     flat, flat_warnings = saturation_problems(df, spans)
+    if plan.waveform == "standstill":   # (manifest 1.2) a rod at rest: a flat displacement is the point, not an LVDT
+        flat = [p for p in flat if p.column != "displacement_m"]   # at the end of its range
     found: dict[str, Problem] = {}
     later, motion_warnings = [], []
     if motion is not None:
@@ -426,15 +506,15 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
         later += [p for p in windows if not (inverted and p.column == "force_N")]
     for problem in gaps + flat + plausibility_problems(df, plan, damper) + later:
         found.setdefault(problem.column, problem)
-    return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings, motion)
+    return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings, motion, sampling)
 
 
 def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                 min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
-                window_spec: WindowSpec = WindowSpec(), max_gap_samples: int = MAX_GAP_SAMPLES
+                window_spec: WindowSpec = WindowSpec(), gap_tolerance: GapTolerance = GapTolerance()
                 ) -> tuple[list[Problem], list[str]]:
     """(problems, flagged-but-usable warnings) of :func:`check_case`."""
-    found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, max_gap_samples)
+    found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, gap_tolerance)
     return found.problems, found.warnings
 
 
@@ -458,13 +538,14 @@ def motion_columns(motion: Motion | None, plan: CasePlan) -> dict[str, float]:
 
 def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
                       min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
-                      max_gap_samples: int = MAX_GAP_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
+                      gap_tolerance: GapTolerance = GapTolerance()) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Check every ``ok`` case of ``<campaign_root>/ingest``.
 
     Returns (cases, quarantine): all cases with their final status and ``quality`` (the ingest's
     warnings followed by this stage's, 'ok' when none, 'quarantined') and the measured motion of
-    each triangle case (MOTION_COLUMNS, :func:`motion_columns`), and the ingest's
-    quarantine rows followed by this stage's (``stage="validate"``). Each warning is logged.
+    each triangle case (MOTION_COLUMNS, :func:`motion_columns`) and the dropped samples of each
+    checked case (SAMPLING_COLUMNS, :func:`gap_problems`), and the ingest's quarantine rows followed
+    by this stage's (``stage="validate"``). Each warning is logged.
     """
     ingested = read_ingested(campaign_root)
     campaign = ingested.meta["campaign"]
@@ -475,13 +556,18 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
     cases["quality"] = cases["quality"].fillna("ok").astype(str)
     for column in MOTION_COLUMNS:
         cases[column] = math.nan
+    cases["missing_samples"] = pd.array([pd.NA] * len(cases), dtype="Int64")
+    for column in SAMPLING_COLUMNS[1:]:
+        cases[column] = math.nan
     rows = []
     for i, row in cases[cases["status"] == "ok"].iterrows():
         df = pd.read_parquet(ingested.root / row["timeseries_file"])
         plan = case_plan(row)
-        found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, max_gap_samples)
+        found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, gap_tolerance)
         problems, warnings = found.problems, found.warnings
         for column, value in motion_columns(found.motion, plan).items():
+            cases.loc[i, column] = value
+        for column, value in (found.sampling or {}).items():
             cases.loc[i, column] = value
         if problems:
             cases.loc[i, ["status", "quality"]] = ["quarantined", "quarantined"]
@@ -501,10 +587,10 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
 
 def write_validated(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
                     min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
-                    max_gap_samples: int = MAX_GAP_SAMPLES) -> tuple[pd.DataFrame, pd.DataFrame]:
+                    gap_tolerance: GapTolerance = GapTolerance()) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Validate and write ``<campaign_root>/cases.parquet`` and ``quarantine.parquet``."""
     root = Path(campaign_root)
-    cases, quarantine = validate_campaign(root, sample_rate_tolerance, min_samples, window_spec, max_gap_samples)
+    cases, quarantine = validate_campaign(root, sample_rate_tolerance, min_samples, window_spec, gap_tolerance)
     write_parquet(tables.validate_table(quarantine, tables.QUARANTINE), root / "quarantine.parquet")
     write_parquet(tables.validate_table(cases, tables.CASES), root / "cases.parquet")
     return cases, quarantine

@@ -1,0 +1,216 @@
+"""The steps of a stepped record: where one record holds several tests (a sine sweep in steps of frequency or
+amplitude, a series of triangle ramps at different speeds) and standstill stretches between them.
+
+Standstill: the displacement stays within :data:`FLAT_FRACTION` of the record's range (or a few noise levels)
+over a sliding :data:`FLAT_WINDOW_S` window, for at least :data:`MIN_STANDSTILL_S`. Motion: the cycles
+between successive upward crossings of the mid-stroke (with a hysteresis of a few noise levels), each with
+its period and amplitude; consecutive cycles whose period and amplitude stay within :data:`STEP_TOLERANCE`
+of their group's median are one step. A group of fewer than :data:`MIN_GROUP_CYCLES` cycles is a
+transition and is left out, and so are a step's first :func:`settling_cycles` (less the cycles of motion
+since the last standstill, dwell or step: those settled it). A step's slice runs over
+whole kept cycles, from an upward mid-stroke crossing (a sine's phase 0) to the crossing that ends its last
+cycle; a triangle's slice is moved back a quarter period to start at the reversal (the spec's phase -π/2).
+The bounds are rounded inwards to :func:`resolution` (at most 1 % of the period).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from isokinetic.measurement.motion import noise_level
+
+#: Sliding window over which a standstill's displacement stays flat [s].
+FLAT_WINDOW_S = 1.0
+#: Flat: the window's range below this fraction of the record's range (and above the noise floor below).
+FLAT_FRACTION = 0.02
+#: ... or below this many noise levels (1σ) of the displacement.
+FLAT_SIGMAS = 8.0
+#: Shortest standstill drafted as a case [s] (its slice leaves out half a window at each end).
+MIN_STANDSTILL_S = 2.0
+#: A dwell: over this centred window [s] the range stays below this fraction of the record's range (or
+#: :data:`FLAT_SIGMAS` noise levels). A sine's turning point is flatter than that only below about 0.07 Hz.
+DWELL_WINDOW_S, DWELL_FRACTION = 0.25, 0.001
+#: Hysteresis of the mid-stroke crossings: this many noise levels, or this fraction of the half range.
+CROSSING_SIGMAS, CROSSING_FRACTION = 5.0, 0.01
+#: Cycles whose period and amplitude stay within this fraction of their group's median are one step.
+STEP_TOLERANCE = 0.05
+#: Fewest similar cycles of a step; fewer are a transition.
+MIN_GROUP_CYCLES = 2
+#: Fewest steady cycles a drafted step keeps.
+MIN_KEPT_CYCLES = 2
+
+
+@dataclass(frozen=True)
+class Step:
+    """One stretch of a record: ``standstill`` or ``cycles`` (a steady step of a sine or triangle), its slice
+    [start_s, end_s) on the file's own time axis, and for cycles the median period and amplitude of the kept
+    cycles, how many were kept, how many settling or transition cycles were left out before them, and the start
+    of the first of those (``onset_s``)."""
+
+    kind: str
+    start_s: float
+    end_s: float
+    period_s: float = math.nan
+    amplitude_m: float = math.nan
+    cycles: int = 0
+    settling: int = 0
+    onset_s: float = math.nan
+
+
+def resolution(period_s: float) -> float:
+    """The rounding step of a slice's bounds: the power of ten at most 1 % of the period, in [1e-4, 0.1] s."""
+    if not (math.isfinite(period_s) and period_s > 0):
+        return 0.1
+    return min(0.1, max(1e-4, 10.0 ** math.floor(math.log10(period_s / 100.0) + 0.01)))
+
+
+def rounded_inwards(start_s: float, end_s: float, step_s: float) -> tuple[float, float]:
+    """[start, end) with the start rounded up and the end rounded down to a multiple of ``step_s``."""
+    digits = max(0, -math.floor(math.log10(step_s)))
+    a = round(math.ceil(start_s / step_s - 1e-9) * step_s, digits)
+    b = round(math.floor(end_s / step_s + 1e-9) * step_s, digits)
+    return a, b
+
+
+def flat_mask(t_s: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
+    """True where the centred :data:`FLAT_WINDOW_S` window around a sample has a range below ``threshold``."""
+    step = float(np.median(np.diff(t_s)))
+    window = max(3, int(round(FLAT_WINDOW_S / step)) | 1)
+    series = pd.Series(y)
+    rolling = series.rolling(window, center=True, min_periods=window)
+    span = (rolling.max() - rolling.min()).to_numpy()
+    return np.nan_to_num(span, nan=np.inf) < threshold
+
+
+def still_runs(mask: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
+    """``mask`` keeping only the runs over which ``y`` as a whole stays within ``threshold``: a slow ramp is flat
+    in every short window, but not over the run."""
+    out = np.zeros_like(mask)
+    for a, b in runs(mask):
+        if np.ptp(y[a:b]) < threshold:
+            out[a:b] = True
+    return out
+
+
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges of the True runs of ``mask``."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist()))
+
+
+def dwell_mask(t_s: np.ndarray, y: np.ndarray, threshold: float) -> np.ndarray:
+    """True where the motion pauses (a dwell between two steps, shorter than a standstill): the centred
+    :data:`DWELL_WINDOW_S` window's range below ``threshold``. A dwell ends the cycle before it (its start is
+    a cycle boundary) and spoils the one it falls in."""
+    step = float(np.median(np.diff(t_s)))
+    window = max(5, int(round(DWELL_WINDOW_S / step)) | 1)
+    rolling = pd.Series(y).rolling(window, center=True, min_periods=window)
+    span = np.nan_to_num((rolling.max() - rolling.min()).to_numpy(), nan=np.inf)
+    return span < threshold
+
+
+def upward_crossings(t_s: np.ndarray, y: np.ndarray, mid: float, hysteresis: float) -> np.ndarray:
+    """Times at which ``y`` rises through ``mid`` (interpolated between samples), counted only when it has been
+    below mid - hysteresis before and goes above mid + hysteresis after (noise makes no extra crossing)."""
+    d = y - mid
+    state = np.where(d > hysteresis, 1, np.where(d < -hysteresis, -1, 0))
+    idx = np.arange(d.size)
+    last = np.maximum.accumulate(np.where(state != 0, idx, -1))
+    held = np.where(last >= 0, state[np.maximum(last, 0)], 0)
+    flips = np.flatnonzero((held[1:] == 1) & (held[:-1] == -1)) + 1
+    last_below = np.maximum.accumulate(np.where(d <= 0, idx, -1))
+    j = last_below[flips]
+    j = j[(j >= 0) & (j + 1 < d.size)]
+    frac = -d[j] / (d[j + 1] - d[j])
+    return t_s[j] + frac * (t_s[j + 1] - t_s[j])
+
+
+def settling_cycles(cycles: int) -> int:
+    """Cycles left out at the start of a step of ``cycles`` cycles: one, two when it has six or more."""
+    return 1 if cycles < 6 else 2
+
+
+def group_cycles(periods: np.ndarray, amplitudes: np.ndarray, valid: np.ndarray) -> list[tuple[int, int]]:
+    """[first, stop) cycle index ranges of consecutive valid cycles whose period and amplitude stay within
+    :data:`STEP_TOLERANCE` of their group's median."""
+    groups, start = [], None
+    for k in range(periods.size):
+        if start is not None and valid[k]:
+            p, a = np.median(periods[start:k]), np.median(amplitudes[start:k])
+            if abs(periods[k] / p - 1.0) <= STEP_TOLERANCE and abs(amplitudes[k] / a - 1.0) <= STEP_TOLERANCE:
+                continue
+        if start is not None:
+            groups.append((start, k))
+        start = k if valid[k] else None
+    if start is not None:
+        groups.append((start, periods.size))
+    return groups
+
+
+def find_steps(t_s: np.ndarray, y_m: np.ndarray) -> list[Step]:
+    """The standstills and steady steps of a record (time [s], motion channel [m]), in time order."""
+    ok = np.isfinite(t_s) & np.isfinite(y_m)
+    t, y = t_s[ok], y_m[ok]
+    if t.size < 20:
+        return []
+    lo, hi = np.percentile(y, [0.5, 99.5])
+    sigma = noise_level(y)
+    if hi - lo <= 2.0 * FLAT_SIGMAS * sigma:
+        return []
+    flat = still_runs(flat_mask(t, y, max(FLAT_FRACTION * (hi - lo), FLAT_SIGMAS * sigma)), y,
+                      max(FLAT_FRACTION * (hi - lo), FLAT_SIGMAS * sigma))
+    steps = []
+    for a, b in runs(flat):       # a run of flat windows: the flat stretch less half a window at each end
+        if t[b - 1] - t[a] >= MIN_STANDSTILL_S - FLAT_WINDOW_S:
+            start, end = rounded_inwards(t[a], t[b - 1], 0.1)
+            if end > start:
+                steps.append(Step("standstill", start, end))
+    moving = ~flat
+    if moving.sum() < 20:
+        return steps
+    m_lo, m_hi = np.percentile(y[moving], [0.5, 99.5])
+    mid = 0.5 * (m_lo + m_hi)
+    hysteresis = max(CROSSING_SIGMAS * sigma, CROSSING_FRACTION * 0.5 * (m_hi - m_lo))
+    dwell = still_runs(dwell_mask(t, y, max(FLAT_SIGMAS * sigma, DWELL_FRACTION * (hi - lo))), y,
+                       max(FLAT_SIGMAS * sigma, DWELL_FRACTION * (hi - lo)))
+    stops = np.array([t[a] - 0.5 * DWELL_WINDOW_S for a, _ in runs(dwell)])
+    crossings = np.unique(np.concatenate([upward_crossings(t, y, mid, hysteresis), stops]))
+    if crossings.size < MIN_GROUP_CYCLES + 1:
+        return sorted(steps, key=lambda s: s.start_s)
+    bounds = np.searchsorted(t, crossings)
+    periods = np.diff(crossings)
+    amplitudes = np.array([0.5 * np.ptp(y[a:b]) if b > a else 0.0 for a, b in zip(bounds[:-1], bounds[1:])])
+    still = flat | dwell
+    valid = np.array([b > a + 4 and not still[a:b].any() for a, b in zip(bounds[:-1], bounds[1:])]) & (amplitudes > 0)
+    idx = np.arange(t.size)
+    last_still = np.maximum.accumulate(np.where(still, idx, -1))
+    previous_end = -math.inf
+    for first, stop in group_cycles(periods, amplitudes, valid):
+        if stop - first < MIN_GROUP_CYCLES:
+            continue
+        period = float(np.median(periods[first:stop]))
+        k = last_still[min(bounds[first], t.size - 1)]
+        since = max(previous_end, t[k] if k >= 0 else t[0])      # the motion before the step: it settled it
+        before = max(0, int((crossings[first] - since) / period + 0.25))
+        skip = max(0, settling_cycles(stop - first) - before)
+        previous_end = float(crossings[stop])
+        if stop - first - skip < MIN_KEPT_CYCLES:
+            continue
+        kept = slice(first + skip, stop)
+        steps.append(Step("cycles", float(crossings[first + skip]), float(crossings[stop]),
+                          float(np.median(periods[kept])), float(np.median(amplitudes[kept])), stop - first - skip,
+                          skip + before, float(crossings[first]) - before * period))
+    return sorted(steps, key=lambda s: s.start_s)
+
+
+def is_stepped(steps: list[Step], t_s: np.ndarray) -> bool:
+    """Whether a record is several tests: more than one stretch found, and its steps cover at least a third of it
+    (a free record's chance groups of similar cycles do not make it stepped)."""
+    if len(steps) < 2 or not any(s.kind == "cycles" for s in steps):
+        return False
+    covered = sum(s.end_s - (s.start_s if s.kind == "standstill" else s.onset_s) for s in steps)
+    return covered >= (t_s[-1] - t_s[0]) / 3.0

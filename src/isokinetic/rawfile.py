@@ -1,0 +1,729 @@
+"""Readers of raw case files (docs/raw-campaign-format.md, "Case files"): text tables as rigs write them.
+
+:func:`read_raw_table` reads one file in a :class:`FileFormat` (the manifest's ``csv`` block) to a
+:class:`RawTable` of text cells; the decimal mark and the units are applied later, at ingest. Two formats:
+
+* ``delimited`` (the format's CSV): a header row, optionally a units row (``units_row``), data rows split on
+  ``,`` ``;`` tabs ``|`` or runs of whitespace; ``#`` comment lines and blank lines before the header;
+* ``mts793`` (MTS 793 / TestSuite text export): a first line ``MTS793|...`` whose sixth field is the decimal
+  mark, then blocks of a ``Data Acquisition ...`` line, a header row, a units row and the block's data rows,
+  tab (or whitespace) separated; the blocks are joined into one table.
+
+Every hostile-input check lives here: an empty file, bytes the declared encoding cannot decode (naming row and
+column, with the key to set), byte-order marks of another encoding, a header split by another delimiter, and a
+data row whose field count differs from the header's (a file cut off mid-row, decimal commas). Problems raise
+:class:`RawFileError` (column, reason, row); a last row without a line end is kept, with a warning. Files are
+only ever opened for reading. This module is a bottom layer: it imports nothing of isokinetic.
+
+Hostile input (issue 20): binary data (a gzip file renamed ``.csv``, NUL bytes) is refused as such, never quoted
+as a byte dump; a field longer than the csv module's limit names its row and column. Memory: a delimited file
+with a one-character delimiter, no quotes and an ASCII-compatible encoding takes the *fast path*
+(:func:`_read_fast`): the bytes are checked without a Python object per line (field counts and blank lines by
+numpy over the bytes, the encoding by an incremental decoder) and parsed by pandas' C parser, with
+``numeric=True`` straight to float64 columns. Peak memory is then a small multiple of the file size
+(docs/hostile-input.md); other files take the line-by-line path.
+"""
+
+from __future__ import annotations
+
+import codecs
+import csv
+import io
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+#: File formats :func:`read_raw_table` reads.
+FORMATS = ("delimited", "mts793")
+#: Field delimiters of the ``delimited`` format, with the words used in messages (``whitespace``: runs of
+#: spaces and tabs).
+DELIMITERS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'", "whitespace": "whitespace"}
+DECIMALS = (".", ",")
+#: Byte-order marks of encodings other than UTF-8, refused under a UTF-8 (default) encoding.
+FOREIGN_BOMS = {codecs.BOM_UTF32_LE: "UTF-32", codecs.BOM_UTF32_BE: "UTF-32",
+                codecs.BOM_UTF16_LE: "UTF-16", codecs.BOM_UTF16_BE: "UTF-16"}
+#: The fix named when a file is not in the declared encoding.
+ENCODING_HINT = "set `encoding:` in the manifest's csv block (for example cp1252)"
+MTS_MAGIC = "MTS793"
+MTS_BLOCK = "Data Acquisition"
+#: Longest cell text quoted in a reason.
+MAX_QUOTED = 40
+#: Leading bytes of binary formats a case file is sometimes mistaken for, with their names.
+BINARY_MAGIC = {b"\x1f\x8b": "gzip", b"PK\x03\x04": "zip (an .xlsx workbook?)", b"BZh": "bzip2",
+                b"\xfd7zXZ\x00": "xz", b"7z\xbc\xaf": "7-Zip", b"PAR1": "Parquet", b"\x89HDF": "HDF5",
+                b"\x89PNG": "PNG", b"%PDF": "PDF", b"\xd0\xcf\x11\xe0": "OLE (an .xls workbook?)"}
+#: Bytes decoded at a time when an encoding is checked without decoding the whole file at once.
+DECODE_CHUNK = 1 << 22
+_INTEGER = re.compile(r"[+-]?\d+")
+_DIGITS = re.compile(r"\d+(?:[eE][+-]?\d+)?")
+_WHITESPACE = re.compile(r"[ \t]+")
+
+
+@dataclass(frozen=True)
+class FileFormat:
+    """How a campaign's case files are written (the manifest's ``csv`` block): format, field delimiter,
+    decimal mark, text encoding (a Python codec name) and whether a units row follows the header. (Fields in
+    this order so that the 1.1 ``CsvDialect(delimiter, decimal)`` still reads; give the others by keyword.)"""
+
+    delimiter: str = ","
+    decimal: str = "."
+    encoding: str = "utf-8"
+    units_row: bool = False
+    format: str = "delimited"
+
+    def __post_init__(self):
+        """Refuse a format that no reader reads (a positional slip such as ``FileFormat("mts793")`` included)."""
+        if self.format not in FORMATS:
+            raise ValueError(f"FileFormat.format must be one of {FORMATS}, got {self.format!r}")
+        if self.delimiter not in DELIMITERS:
+            raise ValueError(f"FileFormat.delimiter must be one of {tuple(DELIMITERS)}, got {self.delimiter!r}")
+        if self.decimal not in DECIMALS or self.decimal == self.delimiter:
+            raise ValueError(f"FileFormat.decimal must be one of {DECIMALS} and differ from the delimiter, "
+                             f"got {self.decimal!r}")
+        codecs.lookup(self.encoding)            # LookupError for an unknown encoding
+        if not isinstance(self.units_row, bool):
+            raise ValueError(f"FileFormat.units_row must be true or false, got {self.units_row!r}")
+
+    def to_dict(self) -> dict:
+        return {"format": self.format, "delimiter": self.delimiter, "decimal": self.decimal,
+                "encoding": self.encoding, "units_row": self.units_row}
+
+
+@dataclass(frozen=True)
+class RawTable:
+    """One case file as text: ``frame`` (str cells, NaN for empty ones; columns: stripped header names),
+    ``units`` (column -> unit text of a units row, {} without one), ``rows`` (0-based data-row numbers of the
+    frame's rows in the file), ``warnings`` and ``decimal`` (the decimal mark to read the cells with)."""
+
+    frame: pd.DataFrame
+    units: dict[str, str]
+    rows: np.ndarray
+    warnings: list[str] = field(default_factory=list)
+    decimal: str = "."
+
+
+class RawFileError(Exception):
+    """A case file that cannot be read as a table. ``column``: the file's column name, or ``file`` (then
+    ``kind`` is ``key``: the manifest's ``file`` key); ``row``: 0-based data row, None when no row is at fault."""
+
+    def __init__(self, column: str, reason: str, row: int | None = None, kind: str = "column"):
+        super().__init__(reason)
+        self.column, self.reason, self.row, self.kind = column, reason, row, kind
+
+
+def _file_error(reason: str) -> RawFileError:
+    return RawFileError("file", reason, kind="key")
+
+
+def _quoted(raw: bytes) -> str:
+    return repr(raw if len(raw) <= MAX_QUOTED else raw[:MAX_QUOTED] + b"...")
+
+
+def _split(line: str, delimiter: str) -> list[str]:
+    """The fields of one line: csv quoting for a one-character delimiter, runs of blanks for ``whitespace``."""
+    if delimiter == "whitespace":
+        return _WHITESPACE.split(line.strip())
+    return next(csv.reader([line], delimiter=delimiter))
+
+
+def _header_index(lines: list[str]) -> int | None:
+    return next((i for i, line in enumerate(lines) if line.strip() and not line.startswith("#")), None)
+
+
+def _data_lines(lines: list[str], start: int) -> list[tuple[int, str]]:
+    """(data row, line) of the non-blank lines from ``start`` on: rows as pandas numbers them."""
+    out = []
+    for line in lines[start:]:
+        if line.strip():
+            out.append((len(out), line))
+    return out
+
+
+def _decode_problem(data: bytes, exc: UnicodeDecodeError, fmt: FileFormat) -> RawFileError:
+    """The row and column of the first byte ``fmt.encoding`` cannot decode (ASCII-compatible codecs; others
+    name the byte offset)."""
+    start, bad = exc.start, data[exc.start]
+    hint = f": {ENCODING_HINT}" if codecs.lookup(fmt.encoding).name == "utf-8" else ""
+    what = "not UTF-8" if hint else f"not {fmt.encoding}"
+    if codecs.lookup(fmt.encoding).name.startswith(("utf-16", "utf-32")) or fmt.format != "delimited":
+        line_no = data.count(b"\n", 0, start) + 1
+        return _file_error(f"{what}: byte 0x{bad:02x} in line {line_no}{hint}")
+    delimiter = "\t" if fmt.delimiter == "whitespace" else fmt.delimiter
+    line_start = data.rfind(b"\n", 0, start) + 1
+    line_end = data.find(b"\n", start)
+    line_end = len(data) if line_end < 0 else line_end
+    lines = data[:line_start].decode(fmt.encoding, errors="replace").split("\n")[:-1]
+    header = _header_index(lines)
+    if header is None:     # in a comment or the header itself
+        text = data[line_start:line_end].rstrip(b"\r")
+        return _file_error(f"{what}: byte 0x{bad:02x} in line {len(lines) + 1} ({_quoted(text)}), "
+                           f"before the data{hint}")
+    names = _split(lines[header].rstrip("\r"), fmt.delimiter)
+    row = len(_data_lines(lines, header + 1)) - (1 if fmt.units_row else 0)
+    if row < 0:             # in the units row
+        text = data[line_start:line_end].rstrip(b"\r")
+        return _file_error(f"{what}: byte 0x{bad:02x} in the units row ({_quoted(text)}){hint}")
+    if fmt.delimiter == "whitespace":
+        fields = _WHITESPACE.split(data[line_start:line_end].rstrip(b"\r").decode("latin-1").strip())
+        field_no = len(_WHITESPACE.split(data[line_start:start + 1].decode("latin-1").lstrip())) - 1
+        raw = fields[field_no].encode("latin-1") if field_no < len(fields) else data[start:start + 1]
+    else:
+        sep = delimiter.encode()
+        field_no = data.count(sep, line_start, start)
+        parts = data[line_start:line_end].rstrip(b"\r").split(sep)
+        raw = parts[field_no] if field_no < len(parts) else b""
+    if field_no < len(names):
+        return RawFileError(names[field_no].strip(), f"{what}: byte 0x{bad:02x} in {_quoted(raw)}{hint}", row=row)
+    return RawFileError("file", f"{what}: byte 0x{bad:02x} in {_quoted(raw)}{hint}", row=row, kind="key")
+
+
+def _field_count_problem(names: list[str], row: int, fields: list[str], last: bool, ends_in_newline: bool,
+                         delimiter: str) -> RawFileError:
+    """A data row whose field count differs from the header's (cut off, ragged, decimal commas when the
+    fields are separated by ',')."""
+    n, want = len(fields), len(names)
+    if n < want:
+        cut = last and not ends_in_newline
+        what = "the file is cut off mid-row" if cut else "a ragged row"
+        return RawFileError(names[n], f"row ends after {n} of {want} fields: {what}", row=row)
+    extra, i = n - want, 0
+    while delimiter == "," and extra > 0 and i < want and i + 1 < n:
+        if _INTEGER.fullmatch(fields[i].strip()) and _DIGITS.fullmatch(fields[i + 1].strip()):
+            return RawFileError(names[i], f"decimal comma in '{fields[i].strip()},{fields[i + 1].strip()}' (row "
+                                          f"has {n} fields, the header {want}): the format needs ',' between "
+                                          f"fields and '.' as the decimal mark", row=row)
+        i += 1
+    return RawFileError("file", f"row has {n} fields, the header {want}", row=row, kind="key")
+
+
+def _delimiter_problem(header: str, fmt: FileFormat | None) -> RawFileError | None:
+    """A one-field header that holds another delimiter than the file's: ';' or tabs without a ``csv``
+    block (the format's ','), any other of :data:`DELIMITERS` with one."""
+    if fmt is None:
+        for sep, label in ((";", "';'"), ("\t", "tabs")):
+            if sep in header:
+                return _file_error(f"fields are separated by {label}, not ',' (header {header!r}): the format "
+                                   "needs ',' between fields and '.' as the decimal mark")
+        return None
+    for sep, label in DELIMITERS.items():
+        if sep not in (fmt.delimiter, "whitespace") and sep in header:
+            return _file_error(f"fields are separated by {label}, not {DELIMITERS[fmt.delimiter]} as the "
+                               f"manifest's csv block declares (header {header[:80]!r})")
+    return None
+
+
+def _binary_problem(data: bytes, fmt: FileFormat) -> RawFileError | None:
+    """Binary data where text is expected: a known binary format by its leading bytes, or NUL bytes (under an
+    encoding other than UTF-16/32). The reason names the format, never the bytes."""
+    for magic, name in BINARY_MAGIC.items():
+        if data.startswith(magic):
+            return _file_error(f"binary data ({name}?), not a text table: unpack or export it as text first")
+    if not codecs.lookup(fmt.encoding).name.startswith(("utf-16", "utf-32")):
+        nul = data.find(b"\0", 0, 1 << 20)
+        if nul >= 0:
+            line_no = data.count(b"\n", 0, nul) + 1
+            return _file_error(f"binary data (a NUL byte in line {line_no}), not a text table (or UTF-16 without "
+                               "a byte-order mark: set `encoding: utf-16` in the manifest's csv block)")
+    return None
+
+
+def _read_bytes(path: Path, fmt: FileFormat) -> bytes:
+    """The file's bytes, a UTF-8 byte-order mark dropped; refuses an empty file, binary data and (under UTF-8)
+    byte-order marks of another encoding."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise _file_error(f"unreadable file: {exc}") from None
+    if not data:
+        raise _file_error("empty file (0 bytes)")
+    utf8 = codecs.lookup(fmt.encoding).name == "utf-8"
+    if utf8:
+        for bom, encoding in FOREIGN_BOMS.items():
+            if data.startswith(bom):
+                raise _file_error(f"{encoding} byte-order mark: the file is {encoding}, the format needs UTF-8 "
+                                  f"(or set `encoding: {encoding.lower()}` in the manifest's csv block)")
+        if data.startswith(codecs.BOM_UTF8):
+            data = data[len(codecs.BOM_UTF8):]
+    problem = _binary_problem(data, fmt)
+    if problem is not None:
+        raise problem
+    return data
+
+
+def _decoded(data: bytes, fmt: FileFormat) -> str:
+    try:
+        return data.decode(fmt.encoding)
+    except UnicodeDecodeError as exc:
+        raise _decode_problem(data, exc, fmt) from None
+    except UnicodeError as exc:     # e.g. utf-16 with an odd byte count
+        raise _file_error(f"not {fmt.encoding}: {str(exc)[:120]}") from None
+
+
+def _text(path: Path, fmt: FileFormat) -> tuple[str, list[str]]:
+    """The file's text in ``fmt.encoding`` (line ends kept), its byte-order mark dropped; checks emptiness,
+    binary data and foreign byte-order marks (under UTF-8)."""
+    text = _decoded(_read_bytes(path, fmt), fmt)
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    if "\n" not in text and "\r" in text:       # old Mac line ends
+        text = text.replace("\r", "\n")
+    lines = text.split("\n")
+    return text, lines
+
+
+def _lines(lines: list[str]) -> tuple[list[str], bool]:
+    """Lines without their CR, and whether the text ended in a line end."""
+    ends_in_newline = lines[-1] == ""
+    if ends_in_newline:
+        lines = lines[:-1]
+    return [line[:-1] if line.endswith("\r") else line for line in lines], ends_in_newline
+
+
+def _frame(data_lines: list[str], names: list[str], delimiter: str, numeric: bool = False,
+           decimal: str = ".") -> pd.DataFrame:
+    """The data lines as a DataFrame of text cells (NaN for empty and NA cells); ``numeric``: columns whose every
+    cell is a number in ``decimal`` as float64 (or int64) columns."""
+    if not data_lines:
+        return pd.DataFrame({name: pd.Series([], dtype=object) for name in names})
+    body = io.StringIO("\n".join(data_lines) + "\n")
+    sep = r"\s+" if delimiter == "whitespace" else delimiter
+    options = {"decimal": decimal} if numeric else {"dtype": str}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", pd.errors.DtypeWarning)
+            df = pd.read_csv(body, sep=sep, header=None, names=names, skipinitialspace=True,
+                             engine="python" if delimiter == "whitespace" else "c", **options)
+    except pd.errors.ParserError as exc:
+        raise _file_error(f"unreadable table: {str(exc)[:150]}") from None
+    return df
+
+
+def _units(names: list[str], line: str, delimiter: str) -> dict[str, str]:
+    """Column -> unit text of a units row (missing trailing cells are empty)."""
+    cells = [c.strip() for c in _split(line, delimiter)] if line.strip() else []
+    cells += [""] * (len(names) - len(cells))
+    if len(cells) > len(names):
+        raise _file_error(f"units row has {len(cells)} fields, the header {len(names)}")
+    return dict(zip(names, cells))
+
+
+def _check_names(names: list[str]) -> list[str]:
+    names = [name.strip() for name in names]
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise RawFileError(name, "column name appears twice in the header")
+        seen.add(name)
+    return names
+
+
+def _csv_problem(exc: csv.Error, names: list[str], row: int, line: str, delimiter: str) -> RawFileError:
+    """The csv module's refusal of a data row (a field beyond its length limit), naming row and column (the
+    longest field's) with its length, never the field itself."""
+    sep = None if delimiter == "whitespace" else delimiter
+    parts = line.split(sep)
+    longest = max(range(len(parts)), key=lambda i: len(parts[i])) if parts else 0
+    what = (f"a field of {len(parts[longest])} characters, more than the {csv.field_size_limit()} a field may have"
+            if "field limit" in str(exc) else f"unreadable row: {str(exc)[:120]}")
+    column = names[longest] if longest < len(names) else "file"
+    return RawFileError(column, what, row=row, kind="column" if column != "file" else "key")
+
+
+#: Text that is the same in ASCII and in an encoding the fast path reads byte by byte.
+_ASCII_PROBE = "azAZ09,;\t|\n\r.#-+eE\" :/"
+#: Bytes that make a line non-blank (anything but space, tab, CR, LF).
+_NONBLANK = np.ones(256, dtype=bool)
+_NONBLANK[[9, 10, 13, 32]] = False
+
+
+def ascii_compatible(encoding: str) -> bool:
+    """True when ``encoding`` writes ASCII text as ASCII bytes (UTF-8, cp1252, latin-1; not UTF-16)."""
+    try:
+        return _ASCII_PROBE.encode(encoding) == _ASCII_PROBE.encode("ascii")
+    except (UnicodeError, LookupError):
+        return False
+
+
+def fast_path(fmt: FileFormat) -> bool:
+    """Whether a file in ``fmt`` may take :func:`_read_fast` (the bytes decide the rest: no quotes, LF line ends)."""
+    return fmt.format == "delimited" and fmt.delimiter != "whitespace" and ascii_compatible(fmt.encoding)
+
+
+def _check_encoding(data: bytes, fmt: FileFormat) -> None:
+    """Raise the problem of the first byte ``fmt.encoding`` cannot decode, decoding :data:`DECODE_CHUNK` bytes at a
+    time (no copy of the whole text); ASCII bytes need no decoding."""
+    if data.isascii():
+        return
+    decoder = codecs.getincrementaldecoder(fmt.encoding)()
+    for start in range(0, len(data), DECODE_CHUNK):
+        pending = len(decoder.getstate()[0])
+        try:
+            decoder.decode(data[start:start + DECODE_CHUNK], final=start + DECODE_CHUNK >= len(data))
+        except UnicodeDecodeError as exc:
+            at = start - pending + exc.start
+            raise _decode_problem(data, UnicodeDecodeError(exc.encoding, data, at, at + 1, exc.reason), fmt) from None
+
+
+def _next_line(data: bytes, pos: int, encoding: str) -> tuple[str, int]:
+    """(the line at ``pos`` without its line end, the position after it)."""
+    end = data.find(b"\n", pos)
+    end = len(data) if end < 0 else end
+    line = data[pos:end].decode(encoding)
+    return (line[:-1] if line.endswith("\r") else line), end + 1
+
+
+def _line_checks(body: bytes, start: int, delimiter: str, n_fields: int,
+                 stop: int | None = None) -> tuple[int, tuple[int, int] | None]:
+    """(non-blank lines, (byte offset, data row) of the first one whose field count differs from ``n_fields``, or
+    None) of the data lines in ``body[start:stop]``, by numpy over :data:`DECODE_CHUNK` bytes at a time (whole
+    lines): no Python object per line, memory bounded by the chunk."""
+    pos, rows = start, 0
+    stop = len(body) if stop is None else stop
+    sep = ord(delimiter)
+    while pos < stop:
+        end = body.find(b"\n", min(pos + DECODE_CHUNK, stop) - 1, stop)
+        end = stop if end < 0 else end + 1
+        piece = np.frombuffer(body, dtype=np.uint8, count=end - pos, offset=pos)
+        starts = np.concatenate([[0], np.flatnonzero(piece == 10) + 1])
+        starts = starts[starts < piece.size]
+        nonblank = np.logical_or.reduceat(_NONBLANK[piece], starts)
+        seps = np.flatnonzero(piece == sep)
+        fields = np.diff(np.searchsorted(seps, np.append(starts, piece.size))) + 1
+        bad = np.flatnonzero(nonblank & (fields != n_fields))
+        if bad.size:
+            i = int(bad[0])
+            return rows + int(nonblank.sum()), (pos + int(starts[i]), rows + int(nonblank[:i].sum()))
+        rows += int(nonblank.sum())
+        pos = end
+    return rows, None
+
+
+def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric: bool) -> RawTable | None:
+    """:func:`read_delimited` without a Python object per line (module doc), or None when the bytes need the
+    line-by-line reader (quotes, CR without LF, a row count pandas reads otherwise). Same checks, same
+    messages, same cells. The bytes are checked in memory, then dropped, and pandas reads the data rows from
+    the file itself."""
+    data = _read_bytes(path, fmt)
+    skip = Path(path).stat().st_size - len(data)       # a byte-order mark dropped
+    if b'"' in data or data.count(b"\r") != data.count(b"\r\n"):
+        return None
+    _check_encoding(data, fmt)
+    pos, header = 0, None
+    while pos < len(data):
+        line, pos = _next_line(data, pos, fmt.encoding)
+        if line.strip() and not line.startswith("#"):
+            header = line
+            break
+    if header is None:
+        raise _file_error("no header row")
+    names = _split(header, fmt.delimiter)
+    if len(names) == 1:
+        problem = _delimiter_problem(header, declared)
+        if problem is not None:
+            raise problem
+    names = _check_names(names)
+    units: dict[str, str] = {}
+    if fmt.units_row:
+        line = ""
+        while pos < len(data) and not line.strip():
+            line, pos = _next_line(data, pos, fmt.encoding)
+        if not line.strip():
+            raise _file_error("no units row under the header (the manifest's csv block sets units_row: true)")
+        units = _units(names, line, fmt.delimiter)
+    ends_in_newline = data.endswith(b"\n") or pos >= len(data)
+    n_rows, bad = _line_checks(data, pos, fmt.delimiter, len(names))
+    if bad is not None:
+        line, after = _next_line(data, bad[0], fmt.encoding)
+        last = after >= len(data) or not data[after:].strip()
+        raise _field_count_problem(names, bad[1], _split(line, fmt.delimiter), last, ends_in_newline, fmt.delimiter)
+    del data
+    if n_rows == 0:
+        return RawTable(frame=_frame([], names, fmt.delimiter), units=units, rows=np.arange(0, dtype="int64"),
+                        decimal=fmt.decimal)
+    options = {"decimal": fmt.decimal} if numeric else {"dtype": str}
+    try:
+        with warnings.catch_warnings():      # a column numeric in one chunk, text in another: mixed, as documented
+            warnings.simplefilter("ignore", pd.errors.DtypeWarning)
+            with open(path, "rb") as handle:
+                handle.seek(skip + pos)
+                frame = pd.read_csv(handle, sep=fmt.delimiter, header=None, names=names, skipinitialspace=True,
+                                    engine="c", encoding=fmt.encoding, **options)
+    except (pd.errors.ParserError, ValueError, OSError):
+        return None
+    if len(frame) != n_rows:
+        return None
+    notes = []
+    if n_rows and not ends_in_newline:
+        notes.append(f"no line end after the last row ({n_rows - 1}): it may be cut off in its last value")
+    return RawTable(frame=frame, units=units, rows=np.arange(n_rows, dtype="int64"), warnings=notes,
+                    decimal=fmt.decimal)
+
+
+def read_delimited(path: Path, fmt: FileFormat | None = None, numeric: bool = False) -> RawTable:
+    """A delimited text file (``fmt=None``: the format's ',' and '.' with no ``csv`` block, as before 1.1)."""
+    declared = fmt
+    fmt = fmt or FileFormat()
+    _, lines = _text(path, fmt)
+    lines, ends_in_newline = _lines(lines)
+    header = _header_index(lines)
+    if header is None:
+        raise _file_error("no header row")
+    names = _split(lines[header], fmt.delimiter)
+    if len(names) == 1:
+        problem = _delimiter_problem(lines[header], declared)
+        if problem is not None:
+            raise problem
+    names = _check_names(names)
+    start, units = header + 1, {}
+    if fmt.units_row:
+        unit_at = next((i for i in range(start, len(lines)) if lines[i].strip()), None)
+        if unit_at is None:
+            raise _file_error("no units row under the header (the manifest's csv block sets units_row: true)")
+        units = _units(names, lines[unit_at], fmt.delimiter)
+        start = unit_at + 1
+    rows = _data_lines(lines, start)
+    if fmt.delimiter == "whitespace":
+        split_rows = (_split(line, "whitespace") for _, line in rows)
+    else:
+        split_rows = csv.reader([line for _, line in rows], delimiter=fmt.delimiter)
+    try:
+        for (row, _), fields in zip(rows, split_rows):
+            if len(fields) != len(names):
+                raise _field_count_problem(names, row, fields, row == len(rows) - 1, ends_in_newline, fmt.delimiter)
+    except csv.Error as exc:
+        at = min(max(getattr(split_rows, "line_num", 1) - 1, 0), len(rows) - 1)
+        raise _csv_problem(exc, names, at, rows[at][1], fmt.delimiter) from None
+    warnings = []
+    if rows and not ends_in_newline:
+        warnings.append(f"no line end after the last row ({rows[-1][0]}): it may be cut off in its last value")
+    frame = _frame([line for _, line in rows], names, fmt.delimiter, numeric, fmt.decimal)
+    return RawTable(frame=frame, units=units, rows=np.arange(len(frame), dtype="int64"), warnings=warnings,
+                    decimal=fmt.decimal)
+
+
+def mts_decimal(first_line: str) -> str:
+    """The decimal mark of an MTS 793 export: the sixth ``|`` field of its first line
+    (``MTS793|MPT|ENU|1|2|.|/|:|1|0|0|A`` -> ``.``)."""
+    fields = first_line.strip().split("|")
+    if len(fields) < 6 or fields[5] not in DECIMALS:
+        raise _file_error(f"MTS 793 first line {first_line[:80]!r} does not give the decimal mark "
+                          "(sixth '|' field: '.' or ',')")
+    return fields[5]
+
+
+class _BufferReader(io.RawIOBase):
+    """A read-only file over a bytearray, without the copy io.BytesIO makes of one."""
+
+    def __init__(self, buffer: bytearray):
+        self.view, self.at = memoryview(buffer), 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, out) -> int:
+        n = min(len(out), len(self.view) - self.at)
+        out[:n] = self.view[self.at:self.at + n]
+        self.at += n
+        return n
+
+
+def _read_mts793_fast(path: Path, fmt: FileFormat, numeric: bool) -> RawTable | None:
+    """:func:`read_mts793` without a Python object per line (as :func:`_read_fast`): the blocks are found and checked
+    on the bytes, their data rows joined and parsed by pandas' C parser. None when the file needs the line-by-line
+    reader: whitespace-separated, rows ending with a tab, quotes, lone CRs, or any problem (that reader names it)."""
+    data = _read_bytes(path, fmt)
+    if b'"' in data or data.count(b"\r") != data.count(b"\r\n") or b"\t\n" in data or b"\t\r\n" in data:
+        return None
+    _check_encoding(data, fmt)
+    first, pos = _next_line(data, 0, fmt.encoding)
+    if not first.startswith(MTS_MAGIC):
+        return None
+    decimal = mts_decimal(first)
+    marker = b"\n" + MTS_BLOCK.encode(fmt.encoding)
+    starts, at = [], data.find(marker, pos - 1)
+    while at >= 0:
+        starts.append(at + 1)
+        at = data.find(marker, at + 1)
+    names: list[str] | None = None
+    units: dict[str, str] = {}
+    regions, n_rows = [], 0
+    for k, start in enumerate(starts):
+        end = starts[k + 1] if k + 1 < len(starts) else len(data)
+        _, at = _next_line(data, start, fmt.encoding)           # the block's "Data Acquisition" line
+        line = ""
+        while at < end and not line.strip():
+            line, at = _next_line(data, at, fmt.encoding)
+        if at >= end or "\t" not in line:
+            return None
+        unit_line, at = _next_line(data, at, fmt.encoding)
+        if names is None:
+            names = _check_names(_split(line, "\t"))
+            units = _units(names, unit_line, "\t")
+        elif [c.strip() for c in _split(line, "\t")] != names or _units(names, unit_line, "\t") != units:
+            return None
+        rows, bad = _line_checks(data, min(at, end), "\t", len(names), end)
+        if bad is not None:
+            return None
+        regions.append((min(at, end), end))
+        n_rows += rows
+    if names is None:
+        return None
+    ends_in_newline = data.endswith(b"\n")
+    joined, at = bytearray(sum(b - a for a, b in regions)), 0       # the blocks' data rows, one copy
+    for a, b in regions:
+        joined[at:at + b - a] = memoryview(data)[a:b]
+        at += b - a
+    del data
+    options = {"decimal": decimal} if numeric else {"dtype": str}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", pd.errors.DtypeWarning)
+            frame = pd.read_csv(io.BufferedReader(_BufferReader(joined)), sep="\t", header=None, names=names,
+                                skipinitialspace=True, engine="c", encoding=fmt.encoding, **options)
+    except (pd.errors.ParserError, ValueError):
+        return None
+    if len(frame) != n_rows:
+        return None
+    notes = []
+    if n_rows and not ends_in_newline:
+        notes.append(f"no line end after the last row ({n_rows - 1}): it may be cut off in its last value")
+    return RawTable(frame=frame, units=units, rows=np.arange(n_rows, dtype="int64"), warnings=notes, decimal=decimal)
+
+
+def read_mts793(path: Path, fmt: FileFormat, numeric: bool = False) -> RawTable:
+    """An MTS 793 / TestSuite text export: its blocks (``Data Acquisition`` line, header, units row, data
+    rows) joined into one table; every block must repeat the first block's header and units."""
+    _, lines = _text(path, fmt)
+    lines, ends_in_newline = _lines(lines)
+    lines = [line.rstrip("\t ") for line in lines]     # a controller may end every row with a tab
+    if not lines or not lines[0].startswith(MTS_MAGIC):
+        raise _file_error(f"not an MTS 793 export: the first line is not {MTS_MAGIC}|... "
+                          f"(got {lines[0][:60]!r})" if lines else "no lines")
+    decimal = mts_decimal(lines[0])
+    names: list[str] | None = None
+    units: dict[str, str] = {}
+    delimiter = "\t"
+    data: list[str] = []
+    i, n = 1, len(lines)
+    while i < n and not lines[i].startswith(MTS_BLOCK):
+        i += 1
+    if i == n:
+        raise _file_error(f"MTS 793 export without a '{MTS_BLOCK}' block")
+    while i < n:
+        block_line = i + 1          # 1-based line number of the block's first line
+        i += 1
+        while i < n and not lines[i].strip():
+            i += 1
+        if i + 1 >= n:
+            raise _file_error(f"block at line {block_line}: no header and units rows")
+        if names is None:
+            delimiter = "\t" if "\t" in lines[i] else "whitespace"
+            names = _check_names(_split(lines[i], delimiter))
+            units = _units(names, lines[i + 1], delimiter)
+        else:
+            here = [c.strip() for c in _split(lines[i], delimiter)]
+            if here != names:
+                raise _file_error(f"block at line {block_line}: header {' | '.join(here)[:80]!r} differs from the "
+                                  f"first block's {' | '.join(names)[:80]!r}")
+            if _units(names, lines[i + 1], delimiter) != units:
+                raise _file_error(f"block at line {block_line}: units row {lines[i + 1].strip()[:60]!r} differs "
+                                  "from the first block's")
+        i += 2
+        while i < n and not lines[i].startswith(MTS_BLOCK):
+            line = lines[i]
+            if line.strip():
+                try:
+                    fields = _split(line, delimiter)
+                except csv.Error as exc:
+                    raise _csv_problem(exc, names, len(data), line, delimiter) from None
+                if len(fields) != len(names):
+                    raise _field_count_problem(names, len(data), fields, i == n - 1, ends_in_newline, delimiter)
+                data.append(line)
+            i += 1
+    warnings = []
+    if data and not ends_in_newline:
+        warnings.append(f"no line end after the last row ({len(data) - 1}): it may be cut off in its last value")
+    frame = _frame(data, names, delimiter, numeric, decimal)
+    return RawTable(frame=frame, units=units, rows=np.arange(len(frame), dtype="int64"), warnings=warnings,
+                    decimal=decimal)
+
+
+def read_raw_table(path: str | Path, fmt: FileFormat | None = None, numeric: bool = False) -> RawTable:
+    """One case file read in ``fmt`` (None: the format's default CSV, ',' and '.', as without a ``csv``
+    block); raises :class:`RawFileError` naming row and column. ``numeric``: columns whose every cell is a
+    number (in the file's decimal mark) come as float64 (or int64) columns instead of text, which needs a
+    fraction of the memory (the rest stay text); without it every cell is text."""
+    path = Path(path)
+    try:
+        if fmt is not None and fmt.format == "mts793":
+            table = _read_mts793_fast(path, fmt, numeric) if ascii_compatible(fmt.encoding) else None
+            return table if table is not None else read_mts793(path, fmt, numeric)
+        if fmt is None or fast_path(fmt):
+            table = _read_fast(path, fmt or FileFormat(), fmt, numeric)
+            if table is not None:
+                return table
+        return read_delimited(path, fmt, numeric)
+    except csv.Error as exc:
+        raise _file_error(f"unreadable table: {str(exc)[:150]}") from None
+
+
+def _numeric(cell: str) -> bool:
+    try:
+        float(cell.strip().replace(",", "."))
+    except ValueError:
+        return False
+    return True
+
+
+def sniff_format(path: str | Path, notes: list[str] | None = None) -> FileFormat:
+    """A guess at a file's :class:`FileFormat`: ``mts793`` from a first line ``MTS793|...``; encoding UTF-8
+    (UTF-16/32 from a byte-order mark), else cp1252 (with a note appended to ``notes``); the delimiter that
+    splits the header and the next lines into the same number (> 1) of fields (``whitespace`` last); a
+    decimal comma when numbers hold ',' and no '.'; a units row when the row under the header is text."""
+    data = Path(path).read_bytes()
+    encoding = "utf-8"
+    for bom, name in FOREIGN_BOMS.items():
+        if data.startswith(bom):
+            encoding = name.lower().replace("utf-", "utf-")
+            break
+    try:
+        text = data.decode(encoding)
+    except UnicodeDecodeError:
+        encoding = "cp1252"
+        text = data.decode(encoding, errors="replace")
+        if notes is not None:
+            notes.append(f"{Path(path).name}: not UTF-8; read as cp1252 (set `encoding:` in the csv block if "
+                         "it is another)")
+    text = text.lstrip("\ufeff")
+    lines = [line.rstrip("\r") for line in text.replace("\r\n", "\n").split("\n")]
+    if lines and lines[0].startswith(MTS_MAGIC):
+        try:
+            decimal = mts_decimal(lines[0])
+        except RawFileError:
+            decimal = "."
+        block = next((i for i, line in enumerate(lines) if line.startswith(MTS_BLOCK)), None)
+        header = next((line for line in lines[block + 1:] if line.strip()), "") if block is not None else ""
+        return FileFormat(format="mts793", delimiter="\t" if "\t" in header or not header else "whitespace",
+                          decimal=decimal, encoding=encoding, units_row=True)
+    content = [line for line in lines if line.strip() and not line.startswith("#")][:20]
+    if not content:
+        return FileFormat(encoding=encoding)
+    delimiter = ","
+    for candidate in (",", ";", "\t", "|", "whitespace"):
+        counts = {len(_split(line, candidate)) for line in content}
+        if len(counts) == 1 and counts.pop() > 1:
+            delimiter = candidate
+            break
+    names_n = len(_split(content[0], delimiter))
+    rows = [_split(line, delimiter) for line in content[1:]]
+    units_row = bool(rows) and not any(_numeric(c) for c in rows[0] if c.strip()) and any(c.strip() for c in rows[0])
+    cells = [c.strip() for r in rows[1 if units_row else 0:] for c in r if len(r) == names_n]
+    decimal = "."
+    if delimiter != "," and any(re.fullmatch(r"[+-]?\d+,\d+(?:[eE][+-]?\d+)?", c) for c in cells) \
+            and not any(re.fullmatch(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?", c) for c in cells):
+        decimal = ","
+    return FileFormat(delimiter=delimiter, decimal=decimal, encoding=encoding, units_row=units_row)

@@ -1,0 +1,321 @@
+"""The characteristic job on sine and free records (issue 19): peak-velocity points, free bins, the energy
+per cycle, and the consumers (models, static force, diagnosis) on a campaign without triangle cases.
+
+References come from the virtual rig's noise-free truth (physics.responses.true_response), not from the
+method under test; the triangle tables are checked against the windows joined by hand."""
+
+from __future__ import annotations
+
+import copy
+import io
+import math
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from isokinetic.contracts import tables
+from isokinetic.contracts.campaign import timeseries_relpath
+from isokinetic.io import write_parquet
+from isokinetic.physics.responses import true_response
+from isokinetic.stages.characteristic import assemble, record_points, write_characteristic
+from isokinetic.stages.diagnosis import prepare
+from isokinetic.stages.exports import csv_text
+from isokinetic.stages.figures import write_campaign_figures
+from isokinetic.stages.models import fit_models
+from isokinetic.stages.repeatability import repeatability
+from isokinetic.stages.static_force import write_static_force
+from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
+
+DAMPER = {"piston_area_m2": 4.0e-3, "chamber_volume_1_m3": 3.0e-4, "chamber_volume_2_m3": 3.0e-4,
+          "orifice_area_m2": 6.0e-8, "orifice_length_m": 5.0e-4, "discharge_coefficient": 0.6,
+          "density_kg_m3": 815.0, "viscosity_Pa_s": 0.03, "oil_compressibility_1_Pa": 3.8e-9}
+#: Four sine steps of the paper's harmonic tests, 12 periods each, noisy sensors.
+SINE = {
+    "description": "sine steps only", "seed": 5, "temperature_C": 40.0, "damper": DAMPER,
+    "effects": {"friction": {"coulomb_force_N": 90.0}, "leakage": {"conductance_m3_s_Pa": 2.2e-12}},
+    "measurement": {"force_noise_N": 5.0, "force_noise_rel": 0.01, "displacement_noise_m": 1.0e-6},
+    "plan": {"sine": {"frequency_Hz": 1.75, "amplitudes_mm": [0.23, 0.38, 0.64], "periods": 12,
+                      "sample_rate_Hz": 1000.0}},
+}
+TRIANGLE = {**SINE, "description": "triangle cases only",
+            "plan": {"triangle": {"velocities_mm_s": [0.05, 0.5, 1.5], "periods_s": [8, 8, 8],
+                                  "sample_rate_Hz": 50.0}}}
+
+
+def make(tmp_path_factory, name: str, spec: dict):
+    root = tmp_path_factory.mktemp(name) / name
+    vc = VirtualCampaign.from_config(name, spec)
+    write_campaign(vc, root)
+    return vc, root
+
+
+@pytest.fixture(scope="module")
+def sine_campaign(tmp_path_factory):
+    vc, root = make(tmp_path_factory, "sines", SINE)
+    write_characteristic(root)
+    return vc, root
+
+
+def truth_at_peak_velocity(vc: VirtualCampaign, case: str, skip_s: float) -> dict[str, float]:
+    """Mean noise-free force at the velocity peaks after ``skip_s`` (parabola through the three samples
+    around each peak, force interpolated at its vertex), per direction."""
+    truth = true_response(vc.case(case), vc.damper, vc.effects)
+    t, v, f = (truth[c].to_numpy(float) for c in ("time_s", "piston_velocity_m_s", "force_N"))
+    out = {}
+    for sign, d in ((1.0, "+"), (-1.0, "-")):
+        sv = sign * v
+        peaks = np.flatnonzero((sv[1:-1] > sv[:-2]) & (sv[1:-1] >= sv[2:]) & (sv[1:-1] > 0.5 * sv.max())) + 1
+        peaks = peaks[t[peaks] > skip_s]
+        forces = []
+        for i in peaks:
+            y0, y1, y2 = sv[i - 1:i + 2]
+            shift = 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)
+            forces.append(np.interp(t[i] + shift * (t[1] - t[0]), t, f))
+        out[d] = float(np.mean(forces))
+    return out
+
+
+def test_sine_only_campaign_gives_peak_velocity_points(sine_campaign):
+    _vc, root = sine_campaign
+    char = pd.read_parquet(root / "characteristic.parquet")
+    assert len(char) > 0 and set(char["method"]) == {"sine_peak"}
+    assert set(char["case"]) == {"H01", "H02", "H03"}
+    # two periods (halves of the steady cycles) per direction, so repeatability has a row per direction
+    assert sorted(char.groupby("case").size().unique()) == [4]
+    rep = pd.read_parquet(root / "repeatability.parquet")
+    assert len(rep) == 6
+
+
+def test_peak_velocity_force_matches_the_noise_free_force_within_1_percent(sine_campaign):
+    vc, root = sine_campaign
+    char = pd.read_parquet(root / "characteristic.parquet")
+    for case, rows in char.groupby("case"):
+        start = rows["window_start_s"].min()
+        truth = truth_at_peak_velocity(vc, case, start)
+        for d, g in rows.groupby("direction"):
+            measured = np.average(g["force_N"], weights=g["n_samples"])
+            assert measured == pytest.approx(truth[d], rel=0.01), (case, d)
+
+
+def test_sine_point_standard_error_is_the_cycle_scatter(sine_campaign):
+    _vc, root = sine_campaign
+    char = pd.read_parquet(root / "characteristic.parquet")
+    assert (char["n_samples"] >= 2).all()
+    # period 1 and period 2 agree within a few standard errors of their difference
+    for (_case, _d), g in char.groupby(["case", "direction"]):
+        se = np.hypot(*(g["force_std_N"] / np.sqrt(g["n_samples"])))
+        assert abs(g["force_N"].iloc[0] - g["force_N"].iloc[1]) < 5.0 * se + 0.005 * g["force_N"].abs().max()
+
+
+def test_energy_per_cycle_matches_the_noise_free_loop_area(sine_campaign):
+    vc, root = sine_campaign
+    energy = pd.read_parquet(root / "energy.parquet")
+    assert list(energy["case"]) == ["H01", "H02", "H03"]
+    for row in energy.itertuples():
+        truth = true_response(vc.case(row.case), vc.damper, vc.effects)
+        t, x, f = (truth[c].to_numpy(float) for c in ("time_s", "actuator_m", "force_N"))
+        period = 1.0 / row.frequency_Hz
+        last = (t >= t[-1] - 4 * period)
+        area = float(np.sum(0.5 * (f[last][1:] + f[last][:-1]) * np.diff(x[last]))) / 4.0   # 4 whole periods
+        assert row.energy_J == pytest.approx(area, rel=0.01)
+        assert row.energy_se_J < 0.01 * row.energy_J
+
+
+def test_models_fit_a_sine_only_characteristic(sine_campaign):
+    _vc, root = sine_campaign
+    models, residuals = fit_models(pd.read_parquet(root / "characteristic.parquet"))
+    wall = models[(models["model"] == "wallaschek") & (models["kind"] == "fitted")]
+    assert set(wall["parameter"]) == {"F_C", "D_L", "D_Q"}
+    assert np.isfinite(wall["estimate"]).all()
+    assert len(residuals[residuals["model"] == "wallaschek"]) == 12
+
+
+def test_static_force_uses_the_sine_points_without_triangle_cases(sine_campaign, tmp_path):
+    _vc, root = sine_campaign
+    work = tmp_path / "c"
+    shutil.copytree(root, work)
+    write_static_force(work)
+    sf = pd.read_parquet(work / "static_force.parquet").iloc[0]
+    assert sf["source"] == "characteristic" and sf["n_matched"] == 3
+
+
+def test_diagnosis_says_sine_records_are_not_diagnosed(sine_campaign):
+    _vc, root = sine_campaign
+    _c, _d, _cases, obs, reason = prepare(root)
+    assert obs is None
+    assert reason == "no triangle case: diagnosis of sine and free records not yet supported"
+
+
+def drop_rows(series: pd.DataFrame, fraction: float, seed: int) -> pd.DataFrame:
+    """The series with ``fraction`` of its rows gone: half in bursts of 5-40, half as single rows."""
+    rng = np.random.default_rng(seed)
+    n = len(series)
+    keep = np.ones(n, dtype=bool)
+    target = int(fraction * n)
+    while (~keep).sum() < target // 2:
+        i = int(rng.integers(20, n - 60))
+        keep[i:i + int(rng.integers(5, 41))] = False
+    keep[rng.choice(np.flatnonzero(keep[20:-20]) + 20, target - int((~keep).sum()), replace=False)] = False
+    return series[keep].reset_index(drop=True)
+
+
+def test_dropped_samples_give_the_same_characteristic_within_its_standard_errors(sine_campaign, tmp_path):
+    _vc, root = sine_campaign
+    full = pd.read_parquet(root / "characteristic.parquet")
+    work = tmp_path / "dropped"
+    shutil.copytree(root / "ingest", work / "ingest")
+    for case in full["case"].unique():
+        path = work / timeseries_relpath(case)
+        write_parquet(drop_rows(pd.read_parquet(path), 0.01, seed=len(case) + int(case[1:])), path)
+    thin = write_characteristic(work)
+    cases = pd.read_parquet(work / "cases.parquet")
+    assert (cases["status"] == "ok").all()
+    keys = ["case", "segment"]
+    both = full.merge(thin, on=keys, suffixes=("", "_thin"), validate="one_to_one")
+    assert len(both) == len(full)
+    se = np.hypot(both["force_std_N"] / np.sqrt(both["n_samples"]),
+                  both["force_std_N_thin"] / np.sqrt(both["n_samples_thin"]))
+    assert (np.abs(both["force_N"] - both["force_N_thin"]) <= 3.0 * se).all()
+
+
+@pytest.fixture(scope="module")
+def triangle_campaign(tmp_path_factory):
+    vc, root = make(tmp_path_factory, "tri", TRIANGLE)
+    write_characteristic(root)
+    return vc, root
+
+
+def test_triangle_campaign_table_is_the_windows_with_their_flag_and_method(triangle_campaign):
+    _vc, root = triangle_campaign
+    char = pd.read_parquet(root / "characteristic.parquet")
+    windows = pd.read_parquet(root / "windows.parquet")
+    rep = pd.read_parquet(root / "repeatability.parquet")
+    pd.testing.assert_frame_equal(rep, repeatability(windows, 0.05))
+    keys = ["campaign", "case", "direction"]
+    by_hand = windows.merge(rep[keys + ["flagged"]].rename(columns={"flagged": "repeatability_flagged"}), on=keys)
+    by_hand = by_hand.sort_values(["velocity_m_s", "case", "segment"], ignore_index=True)
+    assert list(char.columns) == [*windows.columns, "repeatability_flagged", "method"]
+    pd.testing.assert_frame_equal(char.drop(columns="method"), by_hand)
+    assert set(char["method"]) == {"triangle_window"}
+    assert pd.read_parquet(root / "energy.parquet").empty
+
+
+def test_free_record_gives_velocity_bins_with_their_standard_error():
+    t = np.arange(0.0, 8.0, 1e-3)
+    x = 0.01 * np.sin(2 * math.pi * 1.3 * t) + 0.004 * np.sin(2 * math.pi * 3.1 * t + 0.4)
+    v = np.gradient(x, t)
+    f = 2000.0 * v + 30000.0 * v * np.abs(v) + np.random.default_rng(3).normal(0.0, 2.0, t.size)
+    series = pd.DataFrame({"row": np.arange(t.size, dtype=np.int64), "time_s": t, "displacement_m": x, "force_N": f})
+    cases = pd.DataFrame([{"campaign": "c", "case": "F01", "waveform": "free", "status": "ok", "raw_file": "F01.csv",
+                           "raw_sha256": "0" * 64, "frequency_Hz": math.nan, "amplitude_m": math.nan}])
+    points, energy, notes = record_points(cases, lambda _case: series)
+    assert not notes and energy.empty
+    assert set(points["method"]) == {"free_bin"} and (points["period"] == 1).all()
+    assert list(points["segment"]) == list(range(1, len(points) + 1))
+    expected = 2000.0 * points["velocity_m_s"] + 30000.0 * points["velocity_m_s"] * points["velocity_m_s"].abs()
+    np.testing.assert_allclose(points["force_N"], expected, rtol=0.05, atol=3.0)
+    char = assemble(tables.empty(tables.WINDOWS), tables.empty(tables.REPEATABILITY), points)
+    assert len(char) == len(points) and not char["repeatability_flagged"].any()
+
+
+def test_a_sine_case_too_short_for_two_cycles_is_named_and_skipped():
+    spec = copy.deepcopy(SINE)
+    spec["plan"]["sine"].update(periods=2, amplitudes_mm=[0.3])
+    vc = VirtualCampaign.from_config("short", spec)
+    from isokinetic.stages.virtual_rig import simulate_case
+    series = simulate_case(vc.cases[0], vc.damper, vc.effects, vc.measurement, vc.seed)
+    cases = pd.DataFrame([{"campaign": "short", "case": vc.cases[0].case, "waveform": "sine", "status": "ok",
+                           "raw_file": "x", "raw_sha256": "0" * 64, "frequency_Hz": 1.75, "amplitude_m": 3e-4}])
+    points, _energy, notes = record_points(cases, lambda _case: series)
+    assert points.empty
+    assert len(notes) == 1 and notes[0].startswith("campaign short, case H01:")
+
+
+def test_csv_export_carries_the_sine_points_and_their_method(sine_campaign):
+    _vc, root = sine_campaign
+    char = pd.read_parquet(root / "characteristic.parquet")
+    back = pd.read_csv(io.StringIO(csv_text(char)), skiprows=[1], float_precision="round_trip")
+    assert len(back) == len(char) and set(back["method"]) == {"sine_peak"}
+    np.testing.assert_array_equal(back["force_N"], char["force_N"])
+
+
+def test_figures_of_a_sine_only_campaign_show_its_characteristic(sine_campaign, tmp_path):
+    _vc, root = sine_campaign
+    import matplotlib.image
+
+    from isokinetic.plots import figures
+
+    char = pd.read_parquet(root / "characteristic.parquet")
+    fig = figures.characteristic(char)
+    assert sum(len(ln.get_xdata()) for ln in fig.axes[0].get_lines() if ln.get_gid() == "sine_peak") == 6
+    paths = write_campaign_figures(root, tmp_path)
+    assert all(matplotlib.image.imread(p).size for p in paths)
+    cases = pd.read_parquet(root / "cases.parquet")
+    assert figures.applies("fig07_time_and_loops", cases) is not None
+    assert figures.applies("fig09_characteristic", cases) is None
+
+
+def test_a_short_steady_step_keeps_its_first_period():
+    # a slice of a sweep: 2.6 periods of a settled sine starting at its top, F = c v + noise
+    t = np.arange(0.0, 2.6, 1e-3)
+    x = 0.01 * np.cos(2 * math.pi * t)
+    v = -0.02 * math.pi * np.sin(2 * math.pi * t)
+    f = 3000.0 * v + np.random.default_rng(8).normal(0.0, 1.0, t.size)
+    series = pd.DataFrame({"row": np.arange(t.size, dtype=np.int64), "time_s": t, "displacement_m": x, "force_N": f})
+    cases = pd.DataFrame([{"campaign": "c", "case": "S01", "waveform": "sine", "status": "ok", "raw_file": "s.txt",
+                           "raw_sha256": "0" * 64, "frequency_Hz": 1.0, "amplitude_m": 0.01}])
+    points, energy, notes = record_points(cases, lambda _case: series)
+    assert not notes
+    assert list(points["n_samples"]) == [2, 2] and set(points["period"]) == {1}
+    np.testing.assert_allclose(points["force_N"].abs(), 3000.0 * 0.02 * math.pi, rtol=0.01)
+    assert energy["n_cycles"].tolist() == [1]
+    assert energy["energy_J"].iloc[0] == pytest.approx(math.pi * 3000.0 * 2 * math.pi * 0.01 ** 2, rel=0.01)
+
+
+def test_compare_and_static_force_take_a_free_records_bins_as_no_case_point(sine_campaign):
+    from isokinetic.stages.compare import campaign_points
+    from isokinetic.stages.static_force import branch_points
+
+    _vc, root = sine_campaign
+    char = pd.read_parquet(root / "characteristic.parquet")
+    bins = char[char["case"] == "H01"].assign(case="F01", method="free_bin", segment=[1, 2, 3, 4], period=1)
+    both = pd.concat([char, bins], ignore_index=True)
+    assert set(campaign_points(both)["case"]) == {"H01", "H02", "H03"}
+    pd.testing.assert_frame_equal(campaign_points(both), campaign_points(char))
+    assert set(branch_points(both)["case"]) == {"H01", "H02", "H03"}
+
+
+def test_trace_rederives_a_sine_point_from_the_raw_file(tmp_path):
+    import subprocess
+    import sys
+
+    import yaml
+
+    from isokinetic.stages.ingest import ingest_campaign
+    from isokinetic.stages.virtual_rig import export_raw_campaign
+
+    folder = tmp_path / "data" / "raw" / "sines"
+    export_raw_campaign(VirtualCampaign.from_config("sines", SINE), folder)
+    ingest_campaign(folder, tmp_path / "results" / "sines")
+    write_characteristic(tmp_path / "results" / "sines")
+    config = tmp_path / "config.yaml"
+    config.write_text(yaml.safe_dump({"windows": {"start_fraction": 0.45, "end_fraction": 0.95},
+                                      "repeatability": {"tolerance": 0.05},
+                                      "validation": {"sample_rate_tolerance": 0.05}}), encoding="utf-8")
+    run = subprocess.run([sys.executable, "-m", "isokinetic", "trace", "results/sines/characteristic.parquet",
+                          "case=H02,segment=3", "--config", str(config)], cwd=tmp_path, capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    assert "sine_peak point re-derived" in run.stdout and run.stdout.rstrip().endswith("MATCH")
+
+
+def test_models_of_a_campaign_with_triangle_cases_fit_its_windows_only(sine_campaign, triangle_campaign):
+    # sine peak-velocity forces lie below the steady characteristic (compressibility): not fitted with it
+    tri = pd.read_parquet(triangle_campaign[1] / "characteristic.parquet")
+    sine = pd.read_parquet(sine_campaign[1] / "characteristic.parquet").assign(campaign=tri["campaign"].iloc[0])
+    mixed = pd.concat([tri, sine], ignore_index=True)
+    models_mixed, residuals_mixed = fit_models(mixed)
+    models_tri, residuals_tri = fit_models(tri)
+    pd.testing.assert_frame_equal(models_mixed, models_tri)
+    pd.testing.assert_frame_equal(residuals_mixed, residuals_tri)
