@@ -402,6 +402,18 @@ def _line_checks(body: bytes, start: int, delimiter: str, n_fields: int,
     return rows, None
 
 
+
+def _whole_table(frame: pd.DataFrame, n_rows: int, ends_in_newline: bool, units: dict, decimal: str
+                 ) -> RawTable | None:
+    """The fast readers' table when it holds every data row (None: the careful reader must look), with the
+    note for a last row without a line end."""
+    if len(frame) != n_rows:
+        return None
+    notes = []
+    if n_rows and not ends_in_newline:
+        notes.append(f"no line end after the last row ({n_rows - 1}): it may be cut off in its last value")
+    return RawTable(frame=frame, units=units, rows=np.arange(n_rows, dtype="int64"), warnings=notes, decimal=decimal)
+
 def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric: bool) -> RawTable | None:
     """:func:`read_delimited` without a Python object per line (module doc), or None when the bytes need the
     line-by-line reader (quotes, CR without LF, a row count pandas reads otherwise). Same checks, same
@@ -454,13 +466,7 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
                                     engine="c", encoding=fmt.encoding, **options)
     except (pd.errors.ParserError, ValueError, OSError):
         return None
-    if len(frame) != n_rows:
-        return None
-    notes = []
-    if n_rows and not ends_in_newline:
-        notes.append(f"no line end after the last row ({n_rows - 1}): it may be cut off in its last value")
-    return RawTable(frame=frame, units=units, rows=np.arange(n_rows, dtype="int64"), warnings=notes,
-                    decimal=fmt.decimal)
+    return _whole_table(frame, n_rows, ends_in_newline, units, fmt.decimal)
 
 
 def read_delimited(path: Path, fmt: FileFormat | None = None, numeric: bool = False) -> RawTable:
@@ -586,12 +592,7 @@ def _read_mts793_fast(path: Path, fmt: FileFormat, numeric: bool) -> RawTable | 
                                 skipinitialspace=True, engine="c", encoding=fmt.encoding, **options)
     except (pd.errors.ParserError, ValueError):
         return None
-    if len(frame) != n_rows:
-        return None
-    notes = []
-    if n_rows and not ends_in_newline:
-        notes.append(f"no line end after the last row ({n_rows - 1}): it may be cut off in its last value")
-    return RawTable(frame=frame, units=units, rows=np.arange(n_rows, dtype="int64"), warnings=notes, decimal=decimal)
+    return _whole_table(frame, n_rows, ends_in_newline, units, decimal)
 
 
 def read_mts793(path: Path, fmt: FileFormat, numeric: bool = False) -> RawTable:

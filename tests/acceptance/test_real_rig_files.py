@@ -212,6 +212,10 @@ def test_sine_only_campaign_page_shows_its_characteristic_and_no_placeholder_fig
     # each left out with a line naming it (and why)
     assert all(name.strip() in text_of(page) for name in TRIANGLE_ONLY_FIGURES)
     assert "no status-ok triangle case to show" not in page
+    assert "no temperature known" not in "".join(captions)          # Fig. 20 left out too: the sweep has none
+    energy = pd.read_parquet(work / "results" / SWEEP / "energy.parquet")
+    table = next(t for t in re.findall(r"<table.*?</table>", page, re.S) if 'id="energy-per-cycle"' in t)
+    assert all(case in table for case in energy["case"])             # energy per cycle shown, every step
 
 
 @pytest.mark.slow

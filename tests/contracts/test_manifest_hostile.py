@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from conftest import CAMPAIGN
-from isokinetic.contracts import manifest as manifest_module
+from isokinetic.contracts import manifest_yaml as manifest_module
 from isokinetic.contracts.manifest import (
     MAX_CASES,
     MAX_MANIFEST_BYTES,

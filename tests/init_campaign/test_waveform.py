@@ -78,3 +78,19 @@ def test_anything_else_is_free(name, y):
     w = detect_waveform(TS, y)
     assert w.kind == "free", w.how
     assert w.period_s is None and w.frequency_Hz is None
+
+
+def test_line_fits_are_bounded_by_the_samples_whatever_the_last_time_stamp():
+    """A loop over half-periods up to the last stamp would not end for 1e308 (it ran until the record's end)."""
+    from isokinetic.init_campaign.waveform import line_fits
+
+    period, amplitude = 4.0, 1e-3
+    tau = np.arange(0.0, 8.0, 0.01)
+    phase = -np.pi / 2
+    y = amplitude * (2.0 / np.pi) * np.arcsin(np.sin(2.0 * np.pi * tau / period + phase))
+    good = line_fits(tau, y, period, phase)
+    for last in (1e308, 3.0e9):                  # a broken stamp; a year typo in seconds
+        broken = tau.copy()
+        broken[-1] = last
+        fits = line_fits(broken, y, period, phase)
+        np.testing.assert_array_equal(fits[:-1], good[:-1])

@@ -56,10 +56,12 @@ def _problem_set(hyd, rng, n=40):
 
 HYDRAULICS = [Hydraulics.from_damper(TABLE_1, dm.Effects()),
               Hydraulics.from_damper(TABLE_1, dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)),
-              dataclasses.replace(Hydraulics.from_damper(TABLE_1, dm.Effects(asymmetry=-0.2)), laminar_coefficient=0.0)]
+              dataclasses.replace(Hydraulics.from_damper(TABLE_1, dm.Effects(asymmetry=-0.2)), laminar_coefficient=0.0),
+              Hydraulics.from_damper(TABLE_1, dm.Effects(leakage_conductance_m3_s_Pa=1e-12, path_asymmetry=0.12))]
+IDS = ["nominal", "leakage+asymmetry", "turbulent only", "leakage+one-sided path"]
 
 
-@pytest.mark.parametrize("hyd", HYDRAULICS, ids=["nominal", "leakage+asymmetry", "turbulent only"])
+@pytest.mark.parametrize("hyd", HYDRAULICS, ids=IDS)
 def test_batched_tables_evaluate_every_sample_as_its_own_table(hyd):
     """relaxation_batch(): the tables of a batch are the tables built alone, and evaluating many tables' samples
     at once (in any order, or in runs) gives exactly what each table gives its own sorted samples."""
@@ -110,7 +112,7 @@ def _reference_nodes(u0, u_end, u_ref, step, special, graded_min):
     return np.concatenate([[u0], u[(u >= u_end) & (u < u0)][::-1]])
 
 
-@pytest.mark.parametrize("hyd", HYDRAULICS, ids=["nominal", "leakage+asymmetry", "turbulent only"])
+@pytest.mark.parametrize("hyd", HYDRAULICS, ids=IDS)
 def test_nodes_of_a_batch_are_the_per_problem_construction(hyd):
     """The vectorised node generation reproduces, bit for bit, the construction problem by problem:
     u from ln|q* - q0| down, the crossing piece, the ζ-graded piece, the 0.5 panels, the cluster at q = 0."""
@@ -142,3 +144,33 @@ def test_compressibility_times_is_compressibility_time_per_element():
     got = compressibility_times(np.concatenate(dt), v1, v2, hyd.piston_area_m2 * np.repeat(w, 50), hyd)
     expected = np.concatenate([compressibility_time(t, y, v, hyd) for t, y, v in zip(dt, y0, w)])
     np.testing.assert_array_equal(got, expected)
+
+
+def test_one_sided_path_scales_the_negative_steady_pressure_by_one_plus_b():
+    """path_asymmetry b: Δp = (1 + b)(c1 q + c2 q|q|) for q < 0 (Eq. 7), the positive direction nominal."""
+    b = 0.12
+    hyd = Hydraulics.from_damper(TABLE_1, dm.Effects(path_asymmetry=b))
+    nominal = Hydraulics.from_damper(TABLE_1, dm.Effects())
+    for qp in (1e-9, 4e-8, 2e-6):   # laminar to turbulent
+        assert steady_pressure(qp, hyd) == pytest.approx(steady_pressure(qp, nominal), rel=1e-13)
+        assert steady_pressure(-qp, hyd) == pytest.approx((1 + b) * steady_pressure(-qp, nominal), rel=1e-12)
+        assert hyd.flow(steady_pressure(-qp, hyd)) == pytest.approx(-qp, rel=1e-12)
+
+
+@pytest.mark.parametrize("dp0, w", [(0.0, -1e-3), (3e5, -5e-4), (-3e5, 8e-4), (2e4, -2e-5)],
+                         ids=["from rest", "reversal to -", "reversal to +", "slow reversal"])
+def test_one_sided_path_table_matches_an_ode_solution(dp0, w):
+    """The segment table of a one-sided path (c1 and c2 jump at q = 0) against solve_ivp of Eq. 13 itself."""
+    from scipy.integrate import solve_ivp
+
+    hyd = Hydraulics.from_damper(TABLE_1, dm.Effects(path_asymmetry=0.12, leakage_conductance_m3_s_Pa=1e-12))
+    qp = hyd.piston_area_m2 * w
+    t = np.linspace(0.0, 5.0, 300)
+    got = relaxation(dp0, qp, hyd).pressure(compressibility_time(t, 0.0, w, hyd))
+
+    def rate(tt, y):
+        return [(qp - hyd.flow(y[0])) / (hyd.compressibility_1_Pa * hyd.composite_volume(w * tt))]
+
+    sol = solve_ivp(rate, (0.0, 5.0), [dp0], t_eval=t, method="LSODA", rtol=1e-12, atol=1e-6)
+    scale = max(abs(steady_pressure(qp, hyd)), abs(dp0))
+    assert np.max(np.abs(got - sol.y[0])) < 1e-8 * scale

@@ -17,11 +17,12 @@ from scipy.optimize import brentq
 
 from isokinetic.physics import reference_rig as rr
 from isokinetic.physics import reference_rig_campaign as rrc
+from isokinetic.physics import reference_rig_motion as rrm
 from isokinetic.physics.damper import TABLE_1, Damper, Effects
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import true_response
 
-MODULES = (Path(rr.__file__), Path(rrc.__file__))
+MODULES = (Path(rr.__file__), Path(rrc.__file__), Path(rrm.__file__))
 SPEC_DAMPER_KEYS = {"piston_area_m2", "chamber_volume_1_m3", "chamber_volume_2_m3", "orifice_area_m2",
                     "orifice_length_m", "discharge_coefficient", "density_kg_m3", "viscosity_Pa_s",
                     "oil_compressibility_1_Pa"}
@@ -91,6 +92,22 @@ def test_backlash_with_hydraulic_gap_force_matches_virtual_rig(design):
     assert err < 1e-7 * np.max(np.abs(theirs["force_N"]))
 
 
+@pytest.mark.parametrize("w_m_s", [2e-5, 1e-3], ids=["laminar", "turbulent"])
+def test_one_sided_flow_path_matches_virtual_rig(design, w_m_s):
+    """The rig's path_resistance_neg r and the project's path_asymmetry b (Eq. 7's c1 and c2 times 1 + b for
+    dp < 0), two formulations of one effect, through both directions and the reversals."""
+    case = rr.TriangleCase("T01", w_m_s, 20.0, 50.0)
+    mine = rr.true_series(case, design, rr.TrueEffects(path_resistance_neg=0.12))
+    plan = CasePlan(case="T01", waveform="triangle", sample_rate_Hz=50.0, amplitude_m=case.amplitude_m,
+                    period_s=case.period_s, phase_rad=-math.pi / 2, duration_s=2 * case.period_s)
+    theirs = true_response(plan, Damper(**design.to_dict()), Effects(path_asymmetry=0.12))
+    nominal = true_response(plan, Damper(**design.to_dict()))
+    scale = np.max(np.abs(theirs["force_N"]))
+    err = np.max(np.abs(mine["force_N"].to_numpy() - theirs["force_N"].to_numpy()))
+    assert err < 1e-7 * scale
+    assert np.max(np.abs(theirs["force_N"] - nominal["force_N"])) > 0.05 * scale   # the effect is there
+
+
 # --------------------------------------------------------------------------------------------
 # 2. closed forms
 # --------------------------------------------------------------------------------------------
@@ -103,6 +120,18 @@ def test_steady_force_matches_incompressible_closed_form_with_leakage_and_asymme
     s = rr.true_series(case, design, effects)
     for segment, sign, factor in ((0, 1, 1 + a), (1, -1, 1 - a), (2, 1, 1 + a), (3, -1, 1 - a)):
         expected = steady_force_by_hand(sign * case.velocity_m_s, design, g, factor)
+        got = window(s, case, segment)["force_N"]
+        assert np.allclose(got, expected, rtol=1e-7, atol=0), (segment, got.mean(), expected)
+
+
+def test_one_sided_flow_path_scales_the_steady_force_of_one_direction_only(design):
+    """dp = (1 + r)(c1 q + c2 q|q|) for q < 0: without leakage the steady force of the - direction is
+    (1 + r) times the nominal, the + direction's is nominal."""
+    r = 0.12
+    case = rr.TriangleCase("T01", 4e-4, 80.0, 50.0)
+    s = rr.true_series(case, design, rr.TrueEffects(path_resistance_neg=r))
+    for segment, sign, factor in ((0, 1, 1.0), (1, -1, 1 + r), (2, 1, 1.0), (3, -1, 1 + r)):
+        expected = factor * steady_force_by_hand(sign * case.velocity_m_s, design)
         got = window(s, case, segment)["force_N"]
         assert np.allclose(got, expected, rtol=1e-7, atol=0), (segment, got.mean(), expected)
 
@@ -161,7 +190,8 @@ def test_catalogue_equivalents_and_their_inverses_round_trip(design):
     eq = rrc.catalogue_equivalent(design, effects)
     assert eq.pop("discharge_coefficient") is None
     assert eq == pytest.approx({"coulomb_force_N": 60.0, "leakage_conductance_m3_s_Pa": g, "asymmetry": -0.05,
-                                "viscosity_Pa_s": mu, "air_volume_fraction": phi_cat}, rel=1e-12)
+                                "path_asymmetry": 0.0, "viscosity_Pa_s": mu, "air_volume_fraction": phi_cat},
+                               rel=1e-12)
     assert effects.air_fraction_at_charge == pytest.approx(phi_cat * 5e6 * 9.9e-6)
     assert rrc.out_of_catalogue_effects(effects) == ()
     strange = rr.TrueEffects(coulomb_force_N=50, stribeck_force_N=80, backlash_m=1e-5,
@@ -396,11 +426,11 @@ def test_phase_can_be_omitted_from_the_manifest(tmp_path):
 # --------------------------------------------------------------------------------------------
 
 def test_reference_rig_imports_nothing_from_isokinetic():
-    """Both modules of the reference rig import the standard library and numpy/scipy/pandas/yaml only,
-    apart from the campaign module importing the rig module itself."""
+    """The modules of the reference rig import the standard library and numpy/scipy/pandas/yaml only, apart
+    from each other."""
     allowed = {"__future__", "ast", "dataclasses", "math", "os", "re", "collections", "pathlib", "typing",
                "numpy", "pandas", "yaml", "scipy"}
-    sibling = rr.__name__
+    siblings = {rr.__name__, rrc.__name__, rrm.__name__}
     for module in MODULES:
         for node in ast.walk(ast.parse(module.read_text())):
             if isinstance(node, ast.Import):
@@ -413,9 +443,61 @@ def test_reference_rig_imports_nothing_from_isokinetic():
             else:
                 continue
             for name in names:
-                assert name.split(".")[0] in allowed or (module != MODULES[0] and name == sibling), (module.name, name)
+                assert name.split(".")[0] in allowed or name in siblings, (module.name, name)
 
 
 def test_the_rigs_own_table_1_is_the_papers():
     """The rig keeps its own copy of Table 1 (it imports nothing from the package); it must not drift."""
     assert rr.TABLE1.to_dict() == TABLE_1.to_dict()
+
+
+# --- sensor-chain nuisances (issue 21): force low-pass, LVDT gain, zero drift, dropped samples ---
+
+def test_force_lowpass_delays_a_ramp_by_its_group_delay():
+    # a 2nd-order Butterworth passes a ramp a t with a lag of its DC group delay sqrt(2)/(2 pi f_c) once settled
+    rig = rr.RigImperfections(force_filter_Hz=5.0, force_filter_order=2)
+    t = np.arange(0.0, 2.0, 1e-3)
+    y = rrc.lowpass(t, 100.0 * t, rig.force_filter_Hz, rig.force_filter_order)
+    lag = math.sqrt(2.0) / (2.0 * math.pi * 5.0)
+    assert rig.force_group_delay_s() == pytest.approx(lag)
+    assert y[-1] == pytest.approx(100.0 * (t[-1] - lag), abs=1e-3)
+
+
+def test_first_order_force_lowpass_follows_its_closed_form_step_response():
+    t = np.arange(0.0, 1.0, 1e-3)
+    y = rrc.lowpass(t, np.where(t > 0, 1.0, 0.0), 2.0, 1)
+    # the input rises linearly over the first step, so compare after it with the step delayed half a step
+    tau = 1.0 / (2.0 * math.pi * 2.0)
+    assert np.allclose(y[10:], 1.0 - np.exp(-(t[10:] - 0.5e-3) / tau), atol=2e-4)
+
+
+def test_lvdt_gain_scales_the_displacement_and_leaves_the_command_true():
+    case = rr.TriangleCase("T1", 1e-3, 4.0, 50.0)
+    ideal = rrc.simulate_case(case, rig=rr.RigImperfections(displacement_resolution_m=1e-12))
+    scaled = rrc.simulate_case(case, rig=rr.RigImperfections(displacement_resolution_m=1e-12, displacement_gain=1.012))
+    assert np.allclose(scaled["displacement_meas_m"], 1.012 * ideal["actuator_m"], atol=2e-12)
+    assert np.array_equal(scaled["command_meas_m"], ideal["command_meas_m"])
+
+
+def test_zero_drift_is_linear_in_campaign_time(tmp_path):
+    cases = [rr.TriangleCase(f"T{i}", 1e-3, 4.0, 50.0) for i in (1, 2)]
+    rig = rr.RigImperfections(force_drift_N_s=0.5, force_resolution_N=1e-6)
+    drifted = rrc.write_campaign(tmp_path / "drift", cases, rig=rig)
+    clean = rrc.write_campaign(tmp_path / "clean", cases, rig=rr.RigImperfections(force_resolution_N=1e-6))
+    start_2 = cases[0].duration_s + 1.0 / 50.0
+    for case, start in zip(cases, (0.0, start_2), strict=True):
+        d, c = drifted[case.case_id], clean[case.case_id]
+        expected = 0.5 * (start + d["time_s"].to_numpy())
+        assert np.allclose(d["force_meas_N"] - c["force_meas_N"], expected, atol=2e-6)
+
+
+def test_dropped_samples_leave_gaps_and_the_rest_unchanged(tmp_path):
+    cases = [rr.TriangleCase("T1", 1e-3, 4.0, 50.0)]
+    full = rrc.write_campaign(tmp_path / "full", cases)["T1"]
+    gappy = rrc.write_campaign(tmp_path / "gappy", cases, rig=rr.RigImperfections(dropout_fraction=0.05))["T1"]
+    assert 0.9 * len(full) < len(gappy) < len(full)
+    merged = full.set_index("time_s").loc[gappy["time_s"]]
+    assert np.array_equal(merged["force_meas_N"].to_numpy(), gappy["force_meas_N"].to_numpy())
+    rows = (tmp_path / "gappy" / "T1.csv").read_text().count("\n") - 1
+    assert rows == len(gappy)
+

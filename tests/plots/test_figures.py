@@ -237,6 +237,14 @@ def test_applies_names_why_a_triangle_figure_does_not_apply():
     assert figures.applies("fig09_characteristic", None).startswith("no cases")
 
 
+def test_the_temperature_figure_applies_only_when_a_case_has_a_temperature():
+    cases = pd.DataFrame({"case": ["H01", "H02"], "waveform": ["sine", "sine"], "status": ["ok", "ok"],
+                          "temperature_C": [float("nan"), float("nan")]})
+    assert figures.applies("fig20_case_temperature", cases).startswith("no temperature known")
+    assert figures.applies("fig20_case_temperature", cases.assign(temperature_C=[40.0, float("nan")])) is None
+    assert figures.applies("fig20_case_temperature", cases.drop(columns="temperature_C")) is None
+
+
 def test_loglog_draws_sine_points_as_markers_apart_from_the_window_lines(camp):
     _, _, _, char = camp
     both = pd.concat([char.assign(method="triangle_window"), _sine_rows(char)], ignore_index=True)

@@ -45,3 +45,15 @@ def test_panel_titles_stay_apart_and_each_names_its_case(raw_campaign):
             assert abs((box.x0 + box.x1) / 2 - (frame.x0 + frame.x1) / 2) < 2.0 and frame.x0 <= box.x0
     for (left, right), case in zip(zip(axes[2::2], axes[3::2], strict=True), loops, strict=True):
         assert left.get_title().startswith(f"{case}:") and right.get_title().startswith(case)
+
+
+def test_a_campaign_of_one_kind_has_no_empty_overview_panel(raw_campaign):
+    cases, _ = raw_campaign.run()
+    table, loops = harmonic_stage(raw_campaign.root)
+    sine = {c: lp for c, lp in loops.items() if c == "H01"}
+    fig = harmonic_figure(table[table["case"] == "H01"], sine, cases, campaign="demo")
+    assert not any("no status-ok" in s for s in _texts(fig))
+    top = fig.axes[-1]                                   # the overview spans the top row
+    assert top.get_title() == "All sine cases: loops, peak-to-peak curve"
+    assert top.get_position().width > 1.8 * fig.axes[0].get_position().width
+    assert len(fig.axes) == 1 + 2 * len(sine)

@@ -237,3 +237,30 @@ def test_sine_only_campaign_leaves_out_the_triangle_figures_saying_why(results):
     rep_section = page[page.index('id="repeatability"'):page.index('id="models"')]
     assert "does not apply to this campaign (no status-ok triangle case" in rep_section
     assert "No pair of the 0" not in rep_section
+
+
+def test_a_status_ok_case_without_a_characteristic_point_is_named(results):
+    root = results / CAMPAIGN
+    cases = pd.read_parquet(root / "cases.parquet")
+    sine = cases[cases["waveform"] == "sine"].reset_index(drop=True)
+    write_parquet(pd.concat([sine, sine.assign(case="H02")], ignore_index=True), root / "cases.parquet")
+    write_parquet(characteristic().assign(method="sine_peak", case="H01"), root / "characteristic.parquet")
+    page = plain(render_campaign_report(root))
+    assert "1 status-ok case(s) gave no characteristic point: H02" in page
+    write_parquet(sine, root / "cases.parquet")
+    assert "gave no characteristic point" not in plain(render_campaign_report(root))
+
+
+def test_static_force_from_standstills_and_each_gas_force_check_are_shown(results):
+    root = results / CAMPAIGN
+    row = {"campaign": CAMPAIGN, "static_force_N": 0.31, "std_error_N": 0.05, "ci_low_N": 0.21, "ci_high_N": 0.41,
+           "confidence": 0.95, "source": "standstill", "method": "standstill_mean", "n_speeds": 0, "n_matched": 0,
+           "v_min_m_s": float("nan"), "v_max_m_s": float("nan"), "gas_force_N": float("nan"),
+           "note": "from the standstill cases' mean force", "n_standstill": 2, "gas_force_check": "disagrees",
+           "gas_force_cases": "Z01: +0.30 ± 0.05 N left of the declared 120 N: agrees; "
+                              "Z02: +9.80 ± 0.05 N left of the declared 80 N: disagrees"}
+    write_parquet(pd.DataFrame([row]), root / "static_force.parquet")
+    page = plain(render_campaign_report(root))
+    assert "static force at rest (standstill cases)" in page and "mean of 2 standstill case(s)" in page
+    assert "lowest speeds" not in page
+    assert "Z02: +9.80 ± 0.05 N left of the declared 80 N: disagrees" in page

@@ -73,3 +73,21 @@ def test_diagnosis_json_validates_against_the_repository_schema(tmp_path):
         assert key in written
     scores = [c["score"] for c in written["candidates"] if c["explained"] and len(c["effects"]) == 1]
     assert scores == sorted(scores)
+
+
+def test_campaign_times_put_the_cases_back_to_back_in_table_order():
+    import types
+
+    import numpy as np
+    import pandas as pd
+
+    cases = pd.DataFrame({"case": ["A", "B"], "sample_rate_Hz": [10.0, 10.0], "duration_s": [np.nan, np.nan],
+                          "period_s": [4.0, 4.0], "motion_start_s": [0.5, 1.25]})
+    plan = types.SimpleNamespace(sample_rate_Hz=10.0)
+    obs = types.SimpleNamespace(case=np.array(["A", "B"]), case_index=np.array([0, 1]), plans=(plan, plan),
+                                start=np.array([10, 10]), stop=np.array([20, 30]))
+    spans = {"A": (0.25, 99.9), "B": (1.0, 50.0)}  # (first time stamp, record length) of each record
+    times = dg.campaign_times(obs, cases, spans)
+    # A: starts at 0, motion 0.25 s after its first stamp, samples 10..19 -> middle 1.5 s
+    # B: starts after A's 99.9 s record and one sample, motion 0.25 s in, samples 10..29 -> middle 2.0 s
+    assert times == pytest.approx([0.25 + 1.5, 100.0 + 0.25 + 2.0])

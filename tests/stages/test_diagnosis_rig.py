@@ -125,3 +125,73 @@ def test_oil_more_viscous_than_its_law_is_found_as_viscosity_at_the_case_tempera
     result = diagnose_warming(tmp_path, "thick", effects=rr.TrueEffects(viscosity_Pa_s=0.036))
     assert "viscosity" in result["verdict"]
     assert result["params"]["viscosity_Pa_s"] == pytest.approx(0.036, rel=0.05)
+
+
+def test_a_one_sided_flow_path_resistance_is_found_as_path_asymmetry_not_as_cd_asymmetry(tmp_path):
+    # issue 21: the - direction's laminar and turbulent resistances 12 % higher (a second valve stack),
+    # behind coloured noise and a 10 ms actuator delay; C_D(1 ± a) cannot take it, path_asymmetry is its form
+    result = diagnose_rig(tmp_path, "one-sided", rr.TrueEffects(path_resistance_neg=0.12), delay_s=0.01)
+    validate_diagnosis(result)
+    assert result["verdict"] == ["path_asymmetry"]
+    assert result["explained"] is True
+    assert result["params"]["path_asymmetry"] == pytest.approx(0.12, abs=0.01)
+    assert result["instrument"]["delay_s"] == pytest.approx(0.01, abs=0.002)
+
+
+# issue 21, the sensor chain: each campaign with coloured noise and a 10 ms actuator delay
+CHAIN = {"delay_s": 0.01, "force_noise_rel": 0.015, "noise_corner_Hz": 0.2}
+
+
+def test_a_force_channel_low_pass_is_reported_as_a_lag_not_as_damper_physics(tmp_path):
+    rig = rr.RigImperfections(**{**QUIET, **CHAIN, "force_filter_Hz": 5.0, "force_filter_order": 2})
+    result = diagnose_rig(tmp_path, "lowpass", seed=11, **CHAIN, force_filter_Hz=5.0, force_filter_order=2)
+    assert result["verdict"] == []
+    assert result["instrument"]["force_lag_s"] == pytest.approx(rig.force_group_delay_s(), abs=0.005)
+    assert "transient mismatch is consistent with sensor dynamics" in result["sensor_note"]
+
+
+def test_without_a_force_lag_no_lag_is_reported(tmp_path):
+    result = diagnose_rig(tmp_path, "no-lag", seed=11, **CHAIN)
+    assert result["instrument"]["force_lag_s"] is None
+    assert result["instrument"]["displacement_scale"] is None
+    assert result["instrument"]["force_drift_N_s"] is None
+
+
+def test_an_lvdt_scale_error_is_measured_against_the_command_and_not_taken_for_damper_physics(tmp_path):
+    result = diagnose_rig(tmp_path, "lvdt", seed=11, **CHAIN, displacement_gain=1.012)
+    assert result["verdict"] == []
+    assert result["instrument"]["displacement_scale"] == pytest.approx(1.012, rel=0.003)
+    assert result["instrument"]["force_gain"] is None  # not the algebraic twin 1/k
+
+
+def test_without_a_command_channel_an_lvdt_scale_error_is_no_unstated_damper_effect(tmp_path):
+    raw = tmp_path / "raw" / "lvdt-nocmd"
+    rrc.write_campaign(raw, rig_cases(), rr.TABLE1, rr.NOMINAL_EFFECTS,
+                       rr.RigImperfections(**{**QUIET, **CHAIN, "displacement_gain": 1.012}), 11, write_phase=False)
+    manifest = yaml.safe_load((raw / "campaign.yaml").read_text(encoding="utf-8"))
+    del manifest["columns"]["command"]
+    (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    result = diagnose_raw_campaign(raw, tmp_path / "work")
+    assert result["instrument"]["displacement_scale"] is None
+    assert result["instrument_tests"]["displacement_scale"]["source"] == "no command channel"
+    # the scale shows as a load-cell gain 1/k (or as C_D·√k): whichever is claimed states the confounding
+    claimed = (set(result["verdict"]) & {"discharge", "viscosity"}) | (
+        {"force_gain"} if result["instrument"]["force_gain"] is not None else set())
+    assert claimed, result
+    assert any("displacement_scale" in g and claimed <= set(g) for g in result["confounded"]), result
+
+
+def test_a_load_cell_zero_drift_is_measured_and_the_nominal_model_explains_the_rest(tmp_path):
+    result = diagnose_rig(tmp_path, "drift", seed=11, **CHAIN, force_drift_N_s=0.02)
+    assert result["verdict"] == []
+    assert result["explained"] is True
+    assert result["instrument"]["force_drift_N_s"] == pytest.approx(0.02, rel=0.1)
+
+
+def test_friction_behind_a_force_low_pass_is_still_claimed(tmp_path):
+    # sensor or damper: the steady windows fail with the sensor terms alone, so the damper effect is claimed
+    result = diagnose_rig(tmp_path, "lowpass-friction", rr.TrueEffects(coulomb_force_N=15.0), seed=11, **CHAIN,
+                          force_filter_Hz=5.0, force_filter_order=2)
+    assert "friction" in result["verdict"]
+    assert result["params"]["coulomb_force_N"] == pytest.approx(15.0, rel=0.15)
+    assert result["instrument_tests"]["force_lag"]["chosen"] == "damper"

@@ -12,10 +12,10 @@ import yaml
 
 pytestmark = pytest.mark.slow     # a 40 MB record
 
-#: Peak memory of one ingest above the interpreter's (after its imports), in case-file sizes. Measured 4 x on a
-#: 40 MB file (18.8 x before issue 20); once 6.2 x in a full run on a loaded machine (cause not pinned down), hence
-#: the margin.
-MAX_PEAK_FACTOR = 8.0
+#: Peak memory an ingest needs per byte of case file (the peak's growth from a small file to a 40 MB one). About 3.3 x
+#: (18.8 x before issue 20); measured against the interpreter alone it varied up to 8.7 x with what the job
+#: imported on its way, hence the difference of two runs.
+MAX_PEAK_FACTOR = 6.0
 
 PROBE = """
 import json, os, resource, sys
@@ -47,10 +47,18 @@ def _big_campaign(raw, rows: int) -> int:
     return (raw / "C1.csv").stat().st_size
 
 
-def test_ingest_peak_memory_is_a_small_multiple_of_the_file(tmp_path):
-    size = _big_campaign(tmp_path / "data" / "raw" / "big", 950_000)           # about 40 MB
-    out = subprocess.run([sys.executable, "-c", PROBE, "data/raw/big", "results/big"], cwd=tmp_path,
+def _peak_bytes(work, rows: int) -> tuple[int, int]:
+    """(peak resident memory of one ingest in a fresh interpreter, the case file's size)."""
+    size = _big_campaign(work / "data" / "raw" / "big", rows)
+    out = subprocess.run([sys.executable, "-c", PROBE, "data/raw/big", "results/big"], cwd=work,
                          capture_output=True, text=True, timeout=300, check=True)
-    memory = json.loads(out.stdout.strip().splitlines()[-1])
-    factor = (memory["peak"] - memory["before"]) / size
-    assert factor < MAX_PEAK_FACTOR, f"peak {factor:.1f} x the file's {size / 1e6:.0f} MB"
+    return json.loads(out.stdout.strip().splitlines()[-1])["peak"], size
+
+
+def test_ingest_peak_memory_is_a_small_multiple_of_the_file(tmp_path):
+    """The growth of the peak from a small file to a 40 MB one, per byte of file: what the file costs, apart from
+    the interpreter and the modules a job imports on its way (the same for both files)."""
+    small_peak, small_size = _peak_bytes(tmp_path / "small", 20_000)
+    big_peak, big_size = _peak_bytes(tmp_path / "big", 950_000)                  # about 40 MB
+    factor = (big_peak - small_peak) / (big_size - small_size)
+    assert factor < MAX_PEAK_FACTOR, f"peak {factor:.1f} x the file's {big_size / 1e6:.0f} MB"

@@ -10,17 +10,23 @@ from pathlib import Path
 import pytest
 
 
-def write_protect(path: Path) -> None:
+def protect(path: Path) -> bool:
     """Make ``path`` unwritable for this process: ``chattr +i`` as root (root ignores file modes), else
-    ``chmod a-w``; skips the test where neither works."""
+    ``chmod a-w``; whether that worked."""
     if os.geteuid() == 0:
         if not shutil.which("chattr") or subprocess.run(["chattr", "+i", str(path)],
                                                          capture_output=True).returncode != 0:
-            pytest.skip("root without chattr +i: no way to write-protect a file")
+            return False
     else:
         path.chmod(0o555 if path.is_dir() else 0o444)
-    if os.access(path, os.W_OK):
-        pytest.skip(f"{path} stays writable for this process")
+    return not os.access(path, os.W_OK)
+
+
+def write_protect(path: Path) -> None:
+    """:func:`protect`, skipping the test where it cannot be done."""
+    if not protect(path):
+        release(path)
+        pytest.skip(f"{path} cannot be write-protected here (root without chattr +i?)")
 
 
 def release(path: Path) -> None:

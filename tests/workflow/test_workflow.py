@@ -247,6 +247,16 @@ def test_campaign_folder_leading_outside_the_raw_folder_is_refused_alone(project
     assert "leading outside" in index_row(work, "evil") and "failed" not in index_row(work, "tiny-export")
 
 
+def test_index_is_rebuilt_even_when_a_campaigns_tables_are_unreadable(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    # the jobs reading it fail, and so would the raw check after the run, which reads it too
+    (work / "results/tiny-export/cases.parquet").write_bytes(b"garbage")
+    proc = snakemake(work, check=False)
+    assert proc.returncode != 0
+    assert "index.html rebuilt" in proc.stdout + proc.stderr, (proc.stdout + proc.stderr)[-3000:]
+    assert "failed" in index_row(work, "tiny-export") and "failed" not in index_row(work, "tiny")
+
+
 def plain_text(page):
     """The visible text of a page: tags, the inline style sheet and script left out."""
     import re

@@ -346,7 +346,7 @@ def report_failed_run(snakemake_log):
         lines = rebuild_after_failure(
             snakemake_log,
             campaigns=CAMPAIGNS,
-            raw_dirs={campaign: str(RAW_DIR / campaign) for campaign in RAW_CAMPAIGNS},
+            raw_dirs={campaign: str(RAW_DIR / campaign) for campaign in RAW_CAMPAIGNS if campaign not in REFUSED},
             comparisons=list(COMPARISONS),
             blind_dir=BLIND_ROOT if BLIND else None,
             captions_dir=str(Path(FIGURES[0].caption).parent),

@@ -53,7 +53,7 @@ rule report_index:
         **rule_resources("report_index"),
     params:
         campaigns=CAMPAIGNS,
-        raw_dirs={campaign: str(RAW_DIR / campaign) for campaign in RAW_CAMPAIGNS},
+        raw_dirs={campaign: str(RAW_DIR / campaign) for campaign in RAW_CAMPAIGNS if campaign not in REFUSED},
         blind_dir=lambda wildcards, input: str(Path(input.blind[0]).parent) if input.blind else None,
         comparisons=list(COMPARISONS),
         refused=REFUSED,

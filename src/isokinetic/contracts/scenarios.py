@@ -5,6 +5,9 @@ from __future__ import annotations
 
 #: Effect names of the diagnosis contract, in their canonical order (verdict/truth text order).
 EFFECTS = ("friction", "leakage", "asymmetry", "discharge", "viscosity", "air")
+#: The diagnosis' catalogue, in canonical order: the suite's EFFECTS and effects the suite does not draw yet
+#: (path_asymmetry: a one-sided resistance of the whole flow path, issue 21).
+CATALOGUE = ("friction", "leakage", "asymmetry", "path_asymmetry", "discharge", "viscosity", "air")
 #: Out-of-catalogue effects of the suite (isokinetic.stages.blind_generate.out_of_catalogue_true_effects).
 OUT_OF_CATALOGUE = ("stribeck", "backlash", "relief")
 SCENARIO_PREFIX = "blind-"

@@ -8,6 +8,12 @@ characteristics from steady velocity inputs", Titurus et al.), is linear in the 
 profiled alongside. The actuator delay is measured, not fitted: the median over cases of
 ``delay_s`` (motion start minus the record's first time stamp, :func:`case_delays`). They are
 reported under ``instrument`` and never count as damper effects.
+
+The sensor chain (issue 21): the force channel's dynamics between the force and the displacement
+channels, fitted on the nominal model as a lag (:func:`fit_force_lag`: a delay, or a first- or
+second-order Butterworth low-pass, each by its low-frequency group delay), and the LVDT's scale,
+measured as its speed against the command channel's (:func:`case_speed_ratio`,
+:func:`displacement_scale`), the model then driven at the true speeds (:func:`rescaled_drives`).
 """
 
 from __future__ import annotations
@@ -80,3 +86,129 @@ def case_delays(cases: pd.DataFrame) -> dict:
         return {"delay_s": None}
     return {"delay_s": float(np.median(d)), "delay_min_s": float(d.min()), "delay_max_s": float(d.max()),
             "n_cases": int(d.size)}
+
+
+#: Largest force-channel lag searched [s] (a 2nd-order Butterworth anti-alias filter at 1 Hz lags ~0.23 s).
+LAG_MAX_S = 0.25
+#: Grid step of the force-lag search [s], refined by a parabola through the best three grid points.
+LAG_STEP_S = 0.0025
+#: Forms of the force channel's dynamics fitted: 0 a pure delay, 1 and 2 Butterworth low-passes of that order.
+LAG_FORMS = (0, 1, 2)
+
+
+def fit_force_lag(dg, forms: tuple[int, ...] = LAG_FORMS,
+                  instrument: tuple[str, ...] = INSTRUMENT) -> tuple[float, int, np.ndarray]:
+    """(lag [s], form, the nominal model as that force channel reads it): the force channel's dynamics
+    between the force and the displacement channels that minimise the χ² of the nominal model over
+    all observations (an instrument term, like the delay, measured on all the data) with the
+    load-cell terms profiled.
+
+    Forms (``forms``, of :data:`LAG_FORMS`): a pure delay, or a first- or second-order Butterworth low-pass (an
+    anti-alias filter), each parametrised by its low-frequency group delay, the lag reported:
+    1/(2π f_c) for a first-order, √2/(2π f_c) for a second-order low-pass of corner f_c
+    (:meth:`isokinetic.diagnosis.model.Evaluator.lagged`, :meth:`~isokinetic.diagnosis.model.Evaluator.filtered`).
+    ``dg``: a :class:`isokinetic.diagnosis.search.Diagnoser`.
+    """
+    from isokinetic.physics.damper import NOMINAL
+
+    obs = dg.obs
+    fm = np.ones(len(obs), dtype=bool)   # both periods: an instrument term, measured on all the data
+    terms = dg.terms(instrument)
+    force, sign, weight, sigma = obs.force_N[fm], obs.sign[fm], dg.weight[fm], obs.sigma_N[fm]
+
+    def chi2(pred: np.ndarray) -> float:
+        g, _c, o = terms.solve(force, pred[fm], sign, weight, False)
+        return float(np.sum(((force - g * pred[fm] - o) / sigma) ** 2))
+
+    def model(form: int, lags) -> np.ndarray:
+        return dg.evaluator.lagged(NOMINAL, lags) if form == 0 else dg.evaluator.filtered(NOMINAL, lags, form)
+
+    grid = np.arange(LAG_STEP_S, LAG_MAX_S + LAG_STEP_S / 2, LAG_STEP_S)
+    best = (math.inf, 0.0, 0, None)
+    for form in forms:
+        preds = model(form, grid)
+        costs = np.array([chi2(p) for p in preds])
+        i = int(np.argmin(costs))
+        if costs[i] < best[0]:
+            best = (float(costs[i]), float(grid[i]), form, preds[i])
+        if 0 < i < grid.size - 1:
+            c0, c1, c2 = costs[i - 1:i + 2]
+            curvature = c0 - 2.0 * c1 + c2
+            if curvature > 0:
+                lag = float(grid[i] + 0.5 * LAG_STEP_S * (c0 - c2) / curvature)
+                pred = model(form, [lag])[0]
+                cost = chi2(pred)
+                if cost < best[0]:
+                    best = (cost, lag, form, pred)
+    return best[1], best[2], best[3]
+
+
+#: Part of each half-period (after the measured motion start) over which the LVDT's speed is set
+#: against the command's: clear of the reversals and of a delay of up to 0.15 T/2 between them.
+SCALE_WINDOW = (0.3, 0.85)
+#: A displacement scale is applied only when it departs from 1 by more than this and by more than
+#: SCALE_SIGMAS standard errors (a calibrated LVDT is good to about 0.1 %).
+SCALE_MIN_DEPARTURE = 1e-3
+SCALE_SIGMAS = 4.0
+#: Largest LVDT scale error taken as one: beyond it the command channel is no measure of the motion (a
+#: servo that does not follow it, another unit), and the scale is not applied.
+SCALE_BOUND = 0.05
+
+
+def _slope(t: np.ndarray, y: np.ndarray) -> float:
+    """Least-squares slope of y(t) (NaN with fewer than three finite points)."""
+    ok = np.isfinite(t) & np.isfinite(y)
+    if ok.sum() < 3:
+        return math.nan
+    tc = t[ok] - t[ok].mean()
+    return float(np.dot(tc, y[ok] - y[ok].mean()) / np.dot(tc, tc))
+
+
+def case_speed_ratio(series: pd.DataFrame, period_s: float, motion_start_s: float) -> float:
+    """Median over the four half-periods of |speed of the LVDT| / |speed of the command| over the same
+    record times (SCALE_WINDOW of each half-period); NaN without a command channel."""
+    if "command_m" not in series or not np.isfinite(series["command_m"].to_numpy(dtype=float)).any():
+        return math.nan
+    t = series["time_s"].to_numpy(dtype=float)
+    x, c = series["displacement_m"].to_numpy(dtype=float), series["command_m"].to_numpy(dtype=float)
+    half = period_s / 2.0
+    ratios = []
+    for k in range(4):
+        a, b = motion_start_s + (k + SCALE_WINDOW[0]) * half, motion_start_s + (k + SCALE_WINDOW[1]) * half
+        sel = (t >= a) & (t < b)
+        sx, sc = _slope(t[sel], x[sel]), _slope(t[sel], c[sel])
+        if math.isfinite(sx) and math.isfinite(sc) and sc != 0.0:
+            ratios.append(abs(sx / sc))
+    return float(np.median(ratios)) if ratios else math.nan
+
+
+def displacement_scale(ratios: np.ndarray) -> dict:
+    """The LVDT's scale k (measured = k·true, the command taken as the truth of the motion) from the
+    cases' speed ratios (:func:`case_speed_ratio`): their median, its standard error (1.2533·sd/√n),
+    and whether it departs from 1 enough to apply (SCALE_MIN_DEPARTURE, SCALE_SIGMAS; never beyond
+    SCALE_BOUND). Without a
+    command channel (no finite ratio) the scale cannot be measured: where the servo closes on the
+    LVDT itself, the record shows the command, whatever the LVDT's scale."""
+    r = np.asarray(ratios, dtype=float)
+    r = r[np.isfinite(r) & (r > 0)]
+    if not r.size:
+        return {"estimate": None, "std_error": None, "n_cases": 0, "applied": False, "source": "no command channel"}
+    k = float(np.median(r))
+    se = float(1.2533 * np.std(r, ddof=1) / math.sqrt(r.size)) if r.size > 1 else math.inf
+    out = {"estimate": k, "std_error": se if math.isfinite(se) else None, "n_cases": int(r.size),
+           "applied": bool(abs(k - 1.0) > max(SCALE_MIN_DEPARTURE, SCALE_SIGMAS * se)),
+           "source": "LVDT speed against the command channel"}
+    if abs(k - 1.0) > SCALE_BOUND:
+        out.update(applied=False, note=f"the LVDT and the command differ by {k - 1.0:+.1%}, beyond ±{SCALE_BOUND:.0%}: "
+                                       "the command is no measure of the motion; not applied")
+    return out
+
+
+def rescaled_drives(obs, scale: float):
+    """Observations whose model is driven at the measured speeds divided by the LVDT scale (the true
+    speeds, when the LVDT reads ``scale`` times the motion)."""
+    from dataclasses import replace
+
+    drives = tuple(None if d is None else replace(d, speeds_m_s=tuple(v / scale for v in d.speeds_m_s))
+                   for d in obs.drives)
+    return replace(obs, drives=drives)

@@ -48,6 +48,8 @@ class Evaluator:
         self._lo = offsets[obs.case_index] + obs.start
         self._hi = offsets[obs.case_index] + obs.stop
         self._n = (obs.stop - obs.start).astype(float)
+        self._first = offsets[obs.case_index]   # each observation's case: the index of its leading zero
+        self._fs = np.array([p.sample_rate_Hz for p in obs.plans])[obs.case_index] if len(obs) else np.zeros(0)
         self._sums = np.empty(int(offsets[-1]))  # per case: 0, then the running sum of its samples
         self.calls = 0
 
@@ -55,13 +57,49 @@ class Evaluator:
         """Model mean force of every observation [N] (Eq. 8 with Δp from Eq. 13-14)."""
         return self._moments(effects, 1)[0]
 
+    def lagged(self, effects: Effects, lags_s) -> np.ndarray:
+        """Model mean force of every observation as a force channel lagging by each of ``lags_s`` would
+        read it [N], one row per lag: the mean over the observation's samples shifted back by lag·fs
+        (linear interpolation between whole samples; the model is at rest, force 0, before its first
+        sample). One simulation for all lags (a pure delay: the force channel's low-frequency group delay)."""
+        self._moments(effects, 1)
+        cs = self._sums
+        rows = []
+        for lag in np.atleast_1d(np.asarray(lags_s, dtype=float)):
+            shift = lag * self._fs
+            k = np.floor(shift).astype(np.int64)
+            frac = shift - k
+            means = [(cs[np.maximum(self._hi - j, self._first)] - cs[np.maximum(self._lo - j, self._first)]) / self._n
+                     for j in (k, k + 1)]
+            rows.append((1.0 - frac) * means[0] + frac * means[1])
+        return np.array(rows)
+
     def spread(self, effects: Effects = NOMINAL) -> np.ndarray:
         """Standard deviation of the model force over each observation's samples [N]: how far the
         window is from steady (a window that starts before convergence, Eq. 28-29, is not)."""
         mean, square = self._moments(effects, 2)
         return np.sqrt(np.maximum(square - mean * mean, 0.0))
 
-    def _moments(self, effects: Effects, order: int) -> list[np.ndarray]:
+    def filtered(self, effects: Effects, group_delays_s, order: int) -> np.ndarray:
+        """Model mean force of every observation as a force channel behind a Butterworth low-pass of
+        ``order`` (1 or 2) would read it [N], one row per low-frequency group delay L of ``group_delays_s``
+        (one simulation for all). The analog filter of group delay L has the corner Ω = c/L (c = 1, √2);
+        each case's digital filter is its bilinear transform at the case's sample rate (same DC group
+        delay), at rest before the record (scipy.signal ``butter``/``lfilter``)."""
+        from scipy import signal  # scipy.signal: only where a force channel's low-pass is fitted
+
+        c = 1.0 if order == 1 else math.sqrt(2.0)
+        forces = self.forces(effects)
+        rates = [p.sample_rate_Hz for p in self.obs.plans]
+        rows = []
+        for lag in np.atleast_1d(np.asarray(group_delays_s, dtype=float)):
+            out = [signal.lfilter(*signal.butter(order, fs / math.pi * math.atan(c / (2.0 * fs * lag)), fs=fs), f)
+                   for f, fs in zip(forces, rates, strict=True)]
+            rows.append(self._means(out, 1)[0])
+        return np.array(rows)
+
+    def forces(self, effects: Effects) -> list[np.ndarray]:
+        """The model force of every case on its sample grid [N] (Eq. 8 with Δp from Eq. 13-14)."""
         self.calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
         drives = self.obs.drives if self.obs.drives else None
@@ -74,6 +112,14 @@ class Evaluator:
             if friction:  # the search profiles friction linearly (LinearTerms): its runs carry none
                 force = force + friction_force(vel, effects)
             forces.append(force)
+        return forces
+
+    def _moments(self, effects: Effects, order: int) -> list[np.ndarray]:
+        return self._means(self.forces(effects), order)
+
+    def _means(self, forces: list[np.ndarray], order: int) -> list[np.ndarray]:
+        """Means of the forces' powers 1..order over every observation's samples (the running sums of
+        the last power stay in ``self._sums``)."""
         out = []
         cs = self._sums
         for k in range(order):

@@ -1,7 +1,8 @@
 """The diagnosis.json document: its versions, the document of a campaign not diagnosed, JSON-safe
 values, validation against the schema shipped with the package, and its row-level sources.
 
-Contract version 1.1; schema ``diagnosis.schema.json``, package data of :mod:`isokinetic.contracts`
+Contract ``docs/diagnosis-output.md``, version 1.2 (1.1 readers keep working: 1.2 only adds keys);
+schema ``diagnosis.schema.json``, package data of :mod:`isokinetic.contracts`
 (read through ``importlib.resources``, so a regular, non-editable install validates too).
 """
 
@@ -20,7 +21,7 @@ from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.diagnosis.observations import Observations
 
 FORMAT_VERSION = 1
-CONTRACT_VERSION = "1.1"
+CONTRACT_VERSION = "1.2"
 METRIC = "rms_z"
 #: The diagnosis.json schema, package data of isokinetic.contracts.
 SCHEMA_PACKAGE = "isokinetic.contracts"
@@ -56,7 +57,8 @@ def no_model(campaign: str, reason: str, status: str = "not_diagnosed") -> dict:
     return {"format_version": FORMAT_VERSION, "contract_version": CONTRACT_VERSION, "campaign": campaign,
             "status": status, "reason": reason, "metric": METRIC, "gap_before": None, "where": [],
             "candidates": [], "verdict": [], "explained": False,
-            "instrument": {"delay_s": None, "force_offset_N": None, "force_gain": None},
+            "instrument": {"delay_s": None, "force_offset_N": None, "force_gain": None, "force_lag_s": None,
+                           "displacement_scale": None, "force_drift_N_s": None},
             "gap_after": None, "holdout_gap_after": None, "shrink": None}
 
 

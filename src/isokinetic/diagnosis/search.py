@@ -1,6 +1,6 @@
 """Fitting candidate effect sets to a campaign's observations, and the search over the catalogue.
 
-Candidates. Each effect of the catalogue (:data:`isokinetic.contracts.scenarios.EFFECTS`) alone
+Candidates. Each effect of the catalogue (:data:`isokinetic.contracts.scenarios.CATALOGUE`) alone
 (one parameter each), every pair, then, while nothing explains, the :data:`BEAM` best candidates of
 the largest size extended by one more effect; a size is tried only while no smaller set explains
 (none when the nominal model does). Coulomb friction, like the load-cell terms, is linear in the
@@ -22,7 +22,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import optimize
 
-from isokinetic.contracts.scenarios import EFFECTS
+from isokinetic.contracts.scenarios import CATALOGUE
 from isokinetic.diagnosis.candidate import ALPHA, Candidate, consistent_with_noise, rms
 from isokinetic.diagnosis.instrument import INSTRUMENT, OFFSET_BOUND_REL, LinearTerms
 from isokinetic.diagnosis.model import Evaluator
@@ -122,11 +122,19 @@ class Diagnoser:
                                 "reason": f"scoring failed: {type(exc).__name__}: {exc}"})
             return None
 
+    def score_prediction(self, hydraulic: np.ndarray, instrument: Sequence[str] = INSTRUMENT,
+                         extra_k: int = 0) -> Candidate:
+        """The candidate of no damper effect for a given model prediction ``hydraulic`` (for example the
+        nominal model as a lagging force channel reads it), scored like any candidate with ``extra_k``
+        more fitted parameters (the instrument terms measured to make it)."""
+        return self._score((), (), np.empty(0), self.terms(instrument), hydraulic, extra_k)
+
     def _score(self, names: tuple[str, ...], nonlinear: tuple[str, ...], x: np.ndarray,
-               terms: LinearTerms) -> Candidate:
+               terms: LinearTerms, hydraulic: np.ndarray | None = None, extra_k: int = 0) -> Candidate:
         """The candidate of fitted values ``x``: instrument terms and friction profiled on period 1,
         χ² of fit, holdout and windows, the explained test and the score."""
-        hydraulic = self.evaluator.predict(self.param.effects(nonlinear, x)) if nonlinear else self.nominal
+        if hydraulic is None:
+            hydraulic = self.evaluator.predict(self.param.effects(nonlinear, x)) if nonlinear else self.nominal
         fm, sign = self.fit_mask, self.obs.sign
         g, fc, o = terms.solve(self.obs.force_N[fm], hydraulic[fm], sign[fm], self.weight[fm], "friction" in names)
         pred = hydraulic + fc * sign
@@ -135,7 +143,7 @@ class Diagnoser:
         chi2_fit = float(np.sum(z[fm] ** 2))
         chi2_hold = float(np.sum(z[self.hold_mask] ** 2))
         n_fit, n_hold = int(fm.sum()), int(self.hold_mask.sum())
-        k = len(names) + len(terms.free)
+        k = len(names) + len(terms.free) + extra_k
         eps = self.scale_rel_sd
         chi2_win = float(np.sum(z[win] ** 2))
         explained = (consistent_with_noise(chi2_fit, n_fit - k, self.alpha, eps)
@@ -183,16 +191,16 @@ class Diagnoser:
         of the largest size, each size only while no smaller set explains the gap (the verdict is the
         smallest explaining set, so larger ones cannot change it)."""
         singles = {e: self.fit((e,), [[s] for s in self.param.starts(e)] if e != "friction" else [[]])
-                   for e in EFFECTS}
+                   for e in CATALOGUE}
         found = [c for c in singles.values() if c is not None]
         start = {e: (c.x[0] if c is not None else self.param.starts(e)[0]) for e, c in singles.items()}
         if not any(c.explained for c in found):
-            for pair in itertools.combinations(EFFECTS, 2):
+            for pair in itertools.combinations(CATALOGUE, 2):
                 c = self.fit(pair, _warm_start(pair, start))
                 if c is not None:
                     found.append(c)
         size = 2
-        while found and not any(c.explained for c in found) and size < len(EFFECTS):
+        while found and not any(c.explained for c in found) and size < len(CATALOGUE):
             found += self._extend(found, size, start)
             size += 1
         return sorted(found, key=lambda c: (not c.explained, len(c.effects) if c.explained else 0, c.score))
@@ -202,8 +210,8 @@ class Diagnoser:
         bases = sorted((c for c in found if len(c.effects) == size), key=lambda c: c.score)[:BEAM]
         tried, out = set(), []
         for base in bases:
-            for e in EFFECTS:
-                names = tuple(n for n in EFFECTS if n in base.effects or n == e)
+            for e in CATALOGUE:
+                names = tuple(n for n in CATALOGUE if n in base.effects or n == e)
                 if e in base.effects or names in tried:
                     continue
                 tried.add(names)

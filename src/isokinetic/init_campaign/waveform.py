@@ -270,16 +270,16 @@ def line_fits(tau: np.ndarray, y: np.ndarray, period: float, phase: float) -> np
     (index k of the turning point that starts it, slope, value at mean time, mean time, se of the value,
     se of the slope)."""
     half = period / 2.0
-    k = math.floor((phase - math.pi / 2) / math.pi)
+    first = math.floor((phase - math.pi / 2) / math.pi)
+    # only the half-periods that hold samples: bounded by the record's samples, whatever its time stamps
+    with np.errstate(over="ignore", invalid="ignore"):      # a broken time stamp (1e308) holds no line
+        held = np.unique(np.floor((2.0 * math.pi * tau / period + phase - math.pi / 2) / math.pi))
     rows = []
-    while True:
+    for k in held[np.isfinite(held) & (held >= first) & (held < 2.0**53)].astype(np.int64).tolist():
         start = (math.pi / 2 + k * math.pi - phase) * period / (2.0 * math.pi)
-        if start > tau[-1]:
-            break
         a, b = np.searchsorted(tau, [start + LINE_FRACTIONS[0] * half, start + LINE_FRACTIONS[1] * half])
         if b - a >= MIN_LINE_SAMPLES:
             rows.append((k, *line_fit(tau[a:b], y[a:b])))
-        k += 1
     return np.array(rows, dtype=float).reshape(-1, 6)
 
 

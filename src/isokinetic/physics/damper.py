@@ -62,6 +62,11 @@ class Effects:
     asymmetry
         Direction-dependent discharge coefficient: C_D(1 + a) for positive flow (Δp > 0)
         and C_D(1 - a) for negative flow, a = ``asymmetry``.
+    path_asymmetry
+        One-sided resistance of the whole flow path (a second valve stack or a check valve in one
+        direction): for negative flow (Δp < 0, the − direction) both the laminar and the turbulent
+        coefficient of Eq. (7) are multiplied by (1 + b), b = ``path_asymmetry`` > -1, so that
+        Δp = (1 + b)(c1 Q + c2 Q|Q|) for Q < 0; positive flow keeps the nominal path.
     discharge, viscosity
         ``discharge_coefficient`` / ``viscosity_Pa_s`` replacing the nominal value.
     air
@@ -76,6 +81,7 @@ class Effects:
     stribeck_velocity_m_s: float = 1.0e-5
     leakage_conductance_m3_s_Pa: float = 0.0
     asymmetry: float = 0.0
+    path_asymmetry: float = 0.0
     discharge_coefficient: float | None = None
     viscosity_Pa_s: float | None = None
     air_volume_fraction: float = 0.0
@@ -90,6 +96,7 @@ class Effects:
         },
         "leakage": {"conductance_m3_s_Pa": "leakage_conductance_m3_s_Pa"},
         "asymmetry": {"asymmetry": "asymmetry"},
+        "path_asymmetry": {"path_asymmetry": "path_asymmetry"},
         "discharge": {"discharge_coefficient": "discharge_coefficient"},
         "viscosity": {"viscosity_Pa_s": "viscosity_Pa_s"},
         "air": {"volume_fraction": "air_volume_fraction"},
@@ -118,6 +125,8 @@ class Effects:
             names.append("leakage")
         if self.asymmetry:
             names.append("asymmetry")
+        if self.path_asymmetry:
+            names.append("path_asymmetry")
         if self.discharge_coefficient is not None:
             names.append("discharge")
         if self.viscosity_Pa_s is not None:
@@ -137,20 +146,26 @@ TABLE_1 = Damper(piston_area_m2=4.0e-3, chamber_volume_1_m3=3.0e-4, chamber_volu
                  density_kg_m3=815.0, viscosity_Pa_s=0.03, oil_compressibility_1_Pa=3.8e-9)
 
 
-def laminar_coefficient(damper: Damper, effects: Effects = NOMINAL) -> float:
-    """c1 = 8 π μ l_O / A_O² (Sec. 2.2, Table 1) [Pa s/m³]."""
+def laminar_coefficient(damper: Damper, effects: Effects = NOMINAL, direction: float = 0.0) -> float:
+    """c1 = 8 π μ l_O / A_O² (Sec. 2.2, Table 1) [Pa s/m³].
+
+    ``direction`` < 0 selects the negative-flow path, scaled by 1 + ``effects.path_asymmetry``.
+    """
     mu = damper.viscosity_Pa_s if effects.viscosity_Pa_s is None else effects.viscosity_Pa_s
-    return 8.0 * np.pi * mu * damper.orifice_length_m / damper.orifice_area_m2**2
+    c1 = 8.0 * np.pi * mu * damper.orifice_length_m / damper.orifice_area_m2**2
+    return c1 * (1.0 + effects.path_asymmetry) if direction < 0 and effects.path_asymmetry else c1
 
 
 def turbulent_coefficient(damper: Damper, effects: Effects = NOMINAL, direction: float = 0.0) -> float:
     """c2 = ρ / (2 C_D² A_O²) (Sec. 2.2, Table 1) [Pa s²/m⁶].
 
-    ``direction`` > 0 or < 0 selects the asymmetric C_D(1 ± a) of ``effects.asymmetry``.
+    ``direction`` > 0 or < 0 selects the asymmetric C_D(1 ± a) of ``effects.asymmetry``; < 0 also
+    the negative-flow path's factor 1 + ``effects.path_asymmetry``.
     """
     cd = damper.discharge_coefficient if effects.discharge_coefficient is None else effects.discharge_coefficient
     cd = cd * (1.0 + np.sign(direction) * effects.asymmetry)
-    return damper.density_kg_m3 / (2.0 * cd**2 * damper.orifice_area_m2**2)
+    c2 = damper.density_kg_m3 / (2.0 * cd**2 * damper.orifice_area_m2**2)
+    return c2 * (1.0 + effects.path_asymmetry) if direction < 0 and effects.path_asymmetry else c2
 
 
 def orifice_flow(dp_Pa, c1: float, c2: float):

@@ -7,7 +7,8 @@ Model (noise free)
     Single state Δp = p1 - p2 (Eq. 1/2): β_eff 𝒱(y) dΔp/dt + Q_N(Δp) = A_p dy/dt, with the chamber
     volumes V1 = V0,1 - A_p y, V2 = V0,2 + A_p y following the *piston* position y (Eq. 2), β_eff
     from Eq. (3) with entrained air, and Q_N the orifice of Eq. (7) (laminar c1, turbulent c2 with the
-    asymmetric C_D(1 ± a) chosen by the sign of Δp) in parallel with a laminar leakage Q_L = g Δp.
+    asymmetric C_D(1 ± a) chosen by the sign of Δp, and both scaled by 1 + b for Δp < 0 with a one-sided
+    flow-path resistance b) in parallel with a laminar leakage Q_L = g Δp.
     y = 0 is the position where the chamber volumes are V0,1 and V0,2 (the centre of the stroke).
 
 Segment solution: quadrature, not a time stepper
@@ -54,8 +55,9 @@ from isokinetic.physics.damper import (
 class Hydraulics:
     """Coefficients of the single-state model, Eq. (1)-(3), (7) plus leakage, SI.
 
-    ``turbulent_coefficient_pos``/``_neg`` are c2 for Δp > 0 / Δp < 0 (asymmetric C_D). c1 = 0
-    (pure turbulent) or c2 = 0 (pure laminar) are allowed, not both.
+    ``turbulent_coefficient_pos``/``_neg`` are c2 for Δp > 0 / Δp < 0 (asymmetric C_D);
+    ``laminar_coefficient_neg`` is c1 for Δp < 0 (None: ``laminar_coefficient``, the same both ways;
+    a one-sided flow path). c1 = 0 (pure turbulent) or c2 = 0 (pure laminar) are allowed, not both.
     """
 
     piston_area_m2: float
@@ -66,12 +68,17 @@ class Hydraulics:
     turbulent_coefficient_pos: float
     turbulent_coefficient_neg: float
     leakage_conductance_m3_s_Pa: float = 0.0
+    laminar_coefficient_neg: float | None = None
 
     def __post_init__(self):
-        if self.laminar_coefficient < 0 or self.turbulent_coefficient_pos < 0 or self.turbulent_coefficient_neg < 0:
+        if self.laminar_coefficient_neg == self.laminar_coefficient:
+            object.__setattr__(self, "laminar_coefficient_neg", None)   # one form of the symmetric path
+        c1_neg = self.c1(-1.0)
+        if min(self.laminar_coefficient, c1_neg, self.turbulent_coefficient_pos, self.turbulent_coefficient_neg) < 0:
             raise ValueError("hydraulics: c1 and c2 must be >= 0")
-        if self.laminar_coefficient == 0 and min(self.turbulent_coefficient_pos, self.turbulent_coefficient_neg) == 0:
-            raise ValueError("hydraulics: c1 = 0 needs c2 > 0 in both directions")
+        if ((self.laminar_coefficient == 0 and self.turbulent_coefficient_pos == 0)
+                or (c1_neg == 0 and self.turbulent_coefficient_neg == 0)):
+            raise ValueError("hydraulics: c1 = 0 needs c2 > 0 in that direction")
         if self.leakage_conductance_m3_s_Pa < 0:
             raise ValueError("hydraulics: leakage conductance must be >= 0")
 
@@ -85,7 +92,15 @@ class Hydraulics:
                    laminar_coefficient=float(laminar_coefficient(damper, effects)),
                    turbulent_coefficient_pos=float(turbulent_coefficient(damper, effects, +1.0)),
                    turbulent_coefficient_neg=float(turbulent_coefficient(damper, effects, -1.0)),
-                   leakage_conductance_m3_s_Pa=effects.leakage_conductance_m3_s_Pa)
+                   leakage_conductance_m3_s_Pa=effects.leakage_conductance_m3_s_Pa,
+                   laminar_coefficient_neg=float(laminar_coefficient(damper, effects, -1.0)))
+
+    def c1(self, sign):
+        """c1 of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
+        neg = self.laminar_coefficient if self.laminar_coefficient_neg is None else self.laminar_coefficient_neg
+        if isinstance(sign, (float, int)):
+            return self.laminar_coefficient if sign >= 0 else neg
+        return np.where(np.asarray(sign) >= 0, self.laminar_coefficient, neg)
 
     def c2(self, sign):
         """c2 of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
@@ -98,13 +113,18 @@ class Hydraulics:
         a = abs(dp_Pa)
         if a == 0.0:
             return 0.0
-        c1, c2 = self.laminar_coefficient, self.c2(float(dp_Pa))
+        pos = dp_Pa >= 0
+        c1 = self.laminar_coefficient if pos or self.laminar_coefficient_neg is None else self.laminar_coefficient_neg
+        c2 = self.turbulent_coefficient_pos if pos else self.turbulent_coefficient_neg
         orifice = math.copysign(2.0 * a / (c1 + math.sqrt(c1 * c1 + 4.0 * c2 * a)), dp_Pa)
         return orifice + self.leakage_conductance_m3_s_Pa * dp_Pa
 
     def flow_derivative(self, dp_Pa: float) -> float:
         """Scalar dQ_N/dΔp = 1/sqrt(c1² + 4 c2|Δp|) + g, for ODE Jacobians [m³/(s Pa)]."""
-        root = math.sqrt(self.laminar_coefficient**2 + 4.0 * self.c2(float(dp_Pa)) * abs(dp_Pa))
+        pos = dp_Pa >= 0
+        c1 = self.laminar_coefficient if pos or self.laminar_coefficient_neg is None else self.laminar_coefficient_neg
+        root = math.sqrt(c1**2 + 4.0 * (self.turbulent_coefficient_pos if pos else self.turbulent_coefficient_neg)
+                         * abs(dp_Pa))
         return (1.0 / root if root > 0 else 1e300) + self.leakage_conductance_m3_s_Pa
 
     def composite_volume(self, y_m):
@@ -114,16 +134,18 @@ class Hydraulics:
 
 
 def orifice_pressure_of_flow(q_m3_s, hyd: Hydraulics):
-    """Δp = c1 q + c2± q|q| for orifice flow q, Eq. (7) [Pa]."""
+    """Δp = c1± q + c2± q|q| for orifice flow q, Eq. (7) [Pa]."""
     q = np.asarray(q_m3_s, dtype=float)
-    return hyd.laminar_coefficient * q + hyd.c2(q) * q * np.abs(q)
+    c1 = hyd.laminar_coefficient if hyd.laminar_coefficient_neg is None else hyd.c1(q)
+    return c1 * q + hyd.c2(q) * q * np.abs(q)
 
 
 def orifice_flow_of_pressure(dp_Pa, hyd: Hydraulics):
     """Orifice flow q(Δp), Eq. (7) with the direction's c2, cancellation free [m³/s]."""
     dp = np.asarray(dp_Pa, dtype=float)
     a = np.abs(dp)
-    c1, c2 = hyd.laminar_coefficient, hyd.c2(dp)
+    c1 = hyd.laminar_coefficient if hyd.laminar_coefficient_neg is None else hyd.c1(dp)
+    c2 = hyd.c2(dp)
     with np.errstate(divide="ignore", invalid="ignore"):
         q = np.where(a > 0, 2.0 * a / (c1 + np.sqrt(c1 * c1 + 4.0 * c2 * a)), 0.0)
     return np.sign(dp) * q
@@ -140,7 +162,7 @@ def steady_orifice_flow(piston_flow_m3_s: float, hyd: Hydraulics) -> float:
     qp = float(piston_flow_m3_s)
     if qp == 0.0:
         return 0.0
-    g, c1, c2 = hyd.leakage_conductance_m3_s_Pa, hyd.laminar_coefficient, float(hyd.c2(qp))
+    g, c1, c2 = hyd.leakage_conductance_m3_s_Pa, hyd.c1(qp), float(hyd.c2(qp))
     b = 1.0 + g * c1
     return math.copysign(2.0 * abs(qp) / (b + math.sqrt(b * b + 4.0 * g * c2 * abs(qp))), qp)
 
@@ -283,15 +305,19 @@ def _problems(dp0: np.ndarray, qp: np.ndarray, hyd: Hydraulics):
 
     dist = |q* - q0|; a problem with dist 0 (or not finite) starts at its steady state.
     """
-    c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
-    c2 = _c2_table(hyd)
+    g = hyd.leakage_conductance_m3_s_Pa
+    c1, c2 = _c1_table(hyd), _c2_table(hyd)
+    one_c1 = hyd.laminar_coefficient_neg is None    # the same c1 both ways: the scalar (the old arithmetic)
     aqp = np.abs(qp)
-    b = 1.0 + g * c1                                # steady_orifice_flow, element by element
+    c1_q = hyd.laminar_coefficient if one_c1 else c1.take((qp >= 0).view(np.int8))
+    b = 1.0 + g * c1_q                              # steady_orifice_flow, element by element
     q_star = np.copysign(2.0 * aqp / (b + np.sqrt(b * b + 4.0 * g * c2.take((qp >= 0).view(np.int8)) * aqp)), qp)
     q_star[qp == 0.0] = 0.0
-    p_star = c1 * q_star + c2.take((q_star >= 0).view(np.int8)) * q_star * np.abs(q_star)   # Eq. (7)
+    c1_q = hyd.laminar_coefficient if one_c1 else c1.take((q_star >= 0).view(np.int8))
+    p_star = c1_q * q_star + c2.take((q_star >= 0).view(np.int8)) * q_star * np.abs(q_star)   # Eq. (7)
     a = np.abs(dp0)                                 # orifice_flow_of_pressure, element by element
-    q0 = np.divide(2.0 * a, c1 + np.sqrt(c1 * c1 + 4.0 * c2.take((dp0 >= 0).view(np.int8)) * a),
+    c1_q = hyd.laminar_coefficient if one_c1 else c1.take((dp0 >= 0).view(np.int8))
+    q0 = np.divide(2.0 * a, c1_q + np.sqrt(c1_q * c1_q + 4.0 * c2.take((dp0 >= 0).view(np.int8)) * a),
                    out=np.zeros(a.size), where=a > 0)
     q0 *= np.sign(dp0)
     dist = np.abs(q_star - q0)
@@ -308,7 +334,7 @@ def _node_sets(q_star: np.ndarray, q0: np.ndarray, dist: np.ndarray, hyd: Hydrau
     ``math`` and the ``np.linspace`` arithmetic (:func:`_linspaces`), so that each problem's nodes
     are those it has alone.
     """
-    c1 = hyd.laminar_coefficient
+    c1 = min(hyd.laminar_coefficient, hyd.c1(-1.0))     # the narrower transition of the two directions
     c2_max = max(hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg)
     n = q_star.size
     aqs = np.abs(q_star)
@@ -382,13 +408,16 @@ def _integrand(uu: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray
     On the side of q*: A_pW - Q_N = (q* - q)(1 + g c1 + g c2 (|q*| + |q|)), exactly; across q = 0
     from the other side the direct form.
     """
-    c1, g = hyd.laminar_coefficient, hyd.leakage_conductance_m3_s_Pa
+    g = hyd.leakage_conductance_m3_s_Pa
     e = np.exp(uu)
     q = s * e
     np.subtract(q_star, q, out=q)                   # q = q* - s e^u
     aq = np.abs(q)
     aqs = np.abs(q_star)
-    c2 = _c2_table(hyd).take((q >= 0).view(np.int8))
+    side = (q >= 0).view(np.int8)
+    c2 = _c2_table(hyd).take(side)
+    # c1 of q's side; on the side of q* (the factored forms below) it is also q*'s
+    c1 = hyd.laminar_coefficient if hyd.laminar_coefficient_neg is None else _c1_table(hyd).take(side)
     dpdq = 2.0 * c2
     dpdq *= aq
     dpdq += c1                                      # dΔp/dq = c1 + 2 c2 |q|, Eq. (7)
@@ -408,15 +437,21 @@ def _integrand(uu: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray
     if not same.all():
         o = (~same).nonzero()[0]
         qo, c2o, eo = q[o], c2[o], e[o]
-        f[o] = fo = qp[o] - qo - g * (c1 * qo + c2o * qo * aq[o])
+        c1o = c1 if np.isscalar(c1) else c1[o]
+        f[o] = fo = qp[o] - qo - g * (c1o * qo + c2o * qo * aq[o])
         dtau[o] = dpdq[o] * eo / np.abs(fo)
-        delta[o] = c1 * qo + c2o * qo * aq[o] - p_star[o]
+        delta[o] = c1o * qo + c2o * qo * aq[o] - p_star[o]
     return dtau, f, delta, dpdq
 
 
 def _c2_table(hyd: Hydraulics) -> np.ndarray:
     """[c2 for Δp < 0, c2 for Δp >= 0], to pick with a boolean index."""
     return np.array([hyd.turbulent_coefficient_neg, hyd.turbulent_coefficient_pos])
+
+
+def _c1_table(hyd: Hydraulics) -> np.ndarray:
+    """[c1 for Δp < 0, c1 for Δp >= 0], to pick with a boolean index."""
+    return np.array([hyd.c1(-1.0), hyd.laminar_coefficient])
 
 
 def _node_tau(panel_integrals: np.ndarray, hi: np.ndarray, sizes: np.ndarray, first: np.ndarray,
@@ -553,6 +588,10 @@ def _tables(u: np.ndarray, sizes: np.ndarray, q_star: np.ndarray, s: np.ndarray,
     dpdq, f = dpdq[:n], f[:n]
     # d²Δp/dτ² = f'(q) dq/dτ = -(1 + g dΔp/dq) f / (dΔp/dq); infinite where dΔp/dq = 0
     curv = np.divide(-(1.0 + g * dpdq) * f, dpdq, out=np.full(n, np.inf), where=dpdq > 0)
+    if hyd.laminar_coefficient_neg is not None:     # c1 jumps at q = 0: d²Δp/dτ² is one-sided there (cubic)
+        qs = q_star.take(prob)
+        q_nodes = qs - s.take(prob) * np.exp(u)
+        curv[np.abs(q_nodes) <= 1e-9 * np.abs(qs)] = np.inf
     delta = delta[:n]
     delta[first] = dp0 - p_star                      # exact start: Δp continuous across segments
     coef = _panel_coefficients(tau.take(hi + 1) - tau.take(hi), delta.take(hi), delta.take(hi + 1), f.take(hi),

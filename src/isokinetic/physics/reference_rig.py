@@ -47,6 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from isokinetic.physics.reference_rig_motion import PistonPiece, piston_pieces
+
 # ---------------------------------------------------------------------------------------------
 # Parameters
 # ---------------------------------------------------------------------------------------------
@@ -102,6 +104,9 @@ class TrueEffects:
         (drifting) viscosity.
     asymmetry
         C_D (1 + a) for dp > 0, C_D (1 - a) for dp < 0.
+    path_resistance_neg
+        r > -1: a one-sided flow path (a valve stack on one side): for dp < 0 both c1 and c2 of Eq. 7
+        are (1 + r) times their dp > 0 values.
     discharge_coefficient, viscosity_Pa_s
         Replace the design values (None: design value).
     air
@@ -126,6 +131,7 @@ class TrueEffects:
     leakage_gap_m: float = 0.0
     seal_length_m: float = 0.02
     asymmetry: float = 0.0
+    path_resistance_neg: float = 0.0
     discharge_coefficient: float | None = None
     viscosity_Pa_s: float | None = None
     air_fraction_at_charge: float = 0.0
@@ -150,6 +156,8 @@ class TrueEffects:
                 raise ValueError(f"TrueEffects.{name} must be > 0, got {v!r}")
         if not -1.0 < self.asymmetry < 1.0:
             raise ValueError(f"TrueEffects.asymmetry must lie in (-1, 1), got {self.asymmetry!r}")
+        if not (math.isfinite(self.path_resistance_neg) and self.path_resistance_neg > -1.0):
+            raise ValueError(f"TrueEffects.path_resistance_neg must be > -1, got {self.path_resistance_neg!r}")
         if not self.air_fraction_at_charge < 1.0:
             raise ValueError("TrueEffects.air_fraction_at_charge must be < 1")
         for name in ("discharge_coefficient", "viscosity_Pa_s", "relief_cracking_pressure_Pa"):
@@ -173,6 +181,14 @@ class RigImperfections:
     ``displacement_noise_m``: white LVDT noise on x. ``viscosity_drift_rel``: the viscosity of
     case i of n is mu (1 + drift (i/(n-1) - 1/2)). Resolutions: ADC steps of the channels
     (> 0; each must be a short decimal in the export unit: N for force, um for displacement).
+
+    Sensor chain (all off by default): ``force_filter_Hz`` f_f > 0 puts the force channel behind an
+    analog Butterworth low-pass of order ``force_filter_order`` (1 or 2) and corner f_f (an
+    anti-alias filter; low-frequency group delay 1/(2 pi f_f) or sqrt(2)/(2 pi f_f)), acting on
+    g F_true + F0 before the noise; ``displacement_gain`` k: the LVDT reads k x (the command channel
+    stays true); ``force_drift_N_s`` r: the load-cell zero drifts linearly in campaign time, F0 + r t_c
+    (t_c counts from the first sample of the first case, the cases back to back);
+    ``dropout_fraction``: that fraction of the samples is missing from the written record.
     """
 
     delay_s: float = 0.0
@@ -187,12 +203,25 @@ class RigImperfections:
     force_resolution_N: float = 0.01
     displacement_resolution_m: float = 1.0e-9
     command_resolution_m: float = 1.0e-9
+    force_filter_Hz: float = 0.0
+    force_filter_order: int = 2
+    displacement_gain: float = 1.0
+    force_drift_N_s: float = 0.0
+    dropout_fraction: float = 0.0
 
     def __post_init__(self):
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
             if not math.isfinite(v):
                 raise ValueError(f"RigImperfections.{f.name} must be finite, got {v!r}")
+        if self.force_filter_Hz < 0:
+            raise ValueError("RigImperfections.force_filter_Hz must be >= 0 (0: no filter)")
+        if self.force_filter_order not in (1, 2):
+            raise ValueError("RigImperfections.force_filter_order must be 1 or 2")
+        if self.displacement_gain <= 0:
+            raise ValueError("RigImperfections.displacement_gain must be > 0")
+        if not 0.0 <= self.dropout_fraction < 0.5:
+            raise ValueError("RigImperfections.dropout_fraction must lie in [0, 0.5)")
         for name in ("delay_s", "servo_lag_s", "force_noise_N", "force_noise_rel", "displacement_noise_m"):
             if getattr(self, name) < 0:
                 raise ValueError(f"RigImperfections.{name} must be >= 0")
@@ -202,6 +231,13 @@ class RigImperfections:
                 raise ValueError(f"RigImperfections.{name} must be > 0")
         if abs(self.viscosity_drift_rel) >= 2.0:
             raise ValueError("RigImperfections.viscosity_drift_rel must lie in (-2, 2)")
+
+    def force_group_delay_s(self) -> float:
+        """Low-frequency group delay of the force channel's low-pass: 1/(2 pi f_f) (1st order),
+        sqrt(2)/(2 pi f_f) (2nd-order Butterworth); 0 without a filter."""
+        if self.force_filter_Hz == 0.0:
+            return 0.0
+        return (1.0 if self.force_filter_order == 1 else math.sqrt(2.0)) / (2.0 * math.pi * self.force_filter_Hz)
 
     def noise_correlation(self, sample_rate_Hz: float) -> float:
         """rho = exp(-2 pi f_c / fs) of the coloured force noise."""
@@ -286,19 +322,22 @@ def turbulent_coefficient(density_kg_m3: float, discharge_coefficient: float, ar
     return density_kg_m3 / (2.0 * discharge_coefficient**2 * area_m2**2)
 
 
-def orifice_flow(dp_Pa, c1: float, c2_pos: float, c2_neg: float):
-    """Q(dp) solving dp = c1 Q + c2 Q|Q| (Eq. 7), c2 = c2_pos for dp > 0, c2_neg for dp < 0 [m^3/s].
+def orifice_flow(dp_Pa, c1: float, c2_pos: float, c2_neg: float, c1_neg: float | None = None):
+    """Q(dp) solving dp = c1 Q + c2 Q|Q| (Eq. 7), c2 = c2_pos for dp > 0, c2_neg for dp < 0, and
+    c1 = ``c1_neg`` for dp < 0 when given [m^3/s].
 
     Uses Q = 2 dp / (c1 + sqrt(c1^2 + 4 c2 |dp|)), free of cancellation for small dp (c1 > 0).
     """
     dp = np.asarray(dp_Pa, dtype=float)
     c2 = np.where(dp >= 0.0, c2_pos, c2_neg)
+    c1 = c1 if c1_neg is None else np.where(dp >= 0.0, c1, c1_neg)
     return 2.0 * dp / (c1 + np.sqrt(c1 * c1 + 4.0 * c2 * np.abs(dp)))
 
 
-def orifice_pressure(q_m3_s, c1: float, c2_pos: float, c2_neg: float):
-    """dp = c1 Q + c2 Q|Q| (Eq. 7) with the direction's c2 [Pa]."""
+def orifice_pressure(q_m3_s, c1: float, c2_pos: float, c2_neg: float, c1_neg: float | None = None):
+    """dp = c1 Q + c2 Q|Q| (Eq. 7) with the direction's c2 (and c1 = ``c1_neg`` for Q < 0 when given) [Pa]."""
     q = np.asarray(q_m3_s, dtype=float)
+    c1 = c1 if c1_neg is None else np.where(q >= 0.0, c1, c1_neg)
     return c1 * q + np.where(q >= 0.0, c2_pos, c2_neg) * q * np.abs(q)
 
 
@@ -386,11 +425,12 @@ class ChamberModel:
     relief_area_gradient_m2_Pa: float
     relief_discharge_coefficient: float
     density_kg_m3: float
+    c1_neg: float | None = None       # c1 for dp < 0 (a one-sided flow path); None: c1 both ways
 
     def total_flow(self, dp_Pa):
         """Q12(dp): orifice (Eq. 7) + annular leakage + relief valves [m^3/s]."""
         dp = np.asarray(dp_Pa, dtype=float)
-        return (orifice_flow(dp, self.c1, self.c2_pos, self.c2_neg) + self.leakage_m3_s_Pa * dp
+        return (orifice_flow(dp, self.c1, self.c2_pos, self.c2_neg, self.c1_neg) + self.leakage_m3_s_Pa * dp
                 + relief_flow(dp, self.relief_cracking_pressure_Pa, self.relief_area_gradient_m2_Pa,
                               self.relief_discharge_coefficient, self.density_kg_m3))
 
@@ -398,8 +438,9 @@ class ChamberModel:
         """Q12(dp) and dQ12/ddp for a float (fast path of the ODE right-hand side)."""
         a = abs(dp)
         c2 = self.c2_pos if dp >= 0.0 else self.c2_neg
-        root = math.sqrt(self.c1 * self.c1 + 4.0 * c2 * a)
-        q = 2.0 * dp / (self.c1 + root) + self.leakage_m3_s_Pa * dp
+        c1 = self.c1 if dp >= 0.0 or self.c1_neg is None else self.c1_neg
+        root = math.sqrt(c1 * c1 + 4.0 * c2 * a)
+        q = 2.0 * dp / (c1 + root) + self.leakage_m3_s_Pa * dp
         dq = 1.0 / root + self.leakage_m3_s_Pa            # d(dp)/dQ = c1 + 2 c2 |Q| = root
         pc = self.relief_cracking_pressure_Pa
         if pc is not None and a > pc and self.relief_area_gradient_m2_Pa > 0.0:
@@ -444,7 +485,10 @@ def chamber_model(damper, effects: TrueEffects = NOMINAL_EFFECTS, viscosity_Pa_s
         gas_2_Pa_m3=gas_amount_Pa_m3(effects.air_fraction_at_charge, damper.chamber_volume_2_m3, p0),
         c1=laminar_coefficient(mu, damper.orifice_length_m, a_o),
         c2_pos=turbulent_coefficient(damper.density_kg_m3, cd * (1.0 + effects.asymmetry), a_o),
-        c2_neg=turbulent_coefficient(damper.density_kg_m3, cd * (1.0 - effects.asymmetry), a_o),
+        c2_neg=(1.0 + effects.path_resistance_neg)
+        * turbulent_coefficient(damper.density_kg_m3, cd * (1.0 - effects.asymmetry), a_o),
+        c1_neg=((1.0 + effects.path_resistance_neg) * laminar_coefficient(mu, damper.orifice_length_m, a_o)
+                if effects.path_resistance_neg else None),
         leakage_m3_s_Pa=annular_leakage_conductance(damper.piston_area_m2, effects.leakage_gap_m, mu,
                                                     effects.seal_length_m),
         relief_cracking_pressure_Pa=effects.relief_cracking_pressure_Pa,
@@ -463,173 +507,12 @@ def steady_pressure_difference(piston_flow_m3_s: float, model: ChamberModel) -> 
     if qp == 0.0:
         return 0.0
     # Q12(dp) >= orifice flow, so the orifice's dp for A W (plus a margin for rounding) brackets the root
-    hi = 1.001 * abs(float(orifice_pressure(qp, model.c1, model.c2_pos, model.c2_neg))) + 1e-300
+    hi = 1.001 * abs(float(orifice_pressure(qp, model.c1, model.c2_pos, model.c2_neg, model.c1_neg))) + 1e-300
     f = lambda dp: model.scalar_flow(dp)[0] - qp  # noqa: E731
     lo, hi = (0.0, math.copysign(hi, qp)) if qp > 0 else (math.copysign(hi, qp), 0.0)
     from scipy.optimize import brentq  # scipy (~0.5 s) only where the rig runs: importers of this module need not
 
     return brentq(f, lo, hi, xtol=1e-300, rtol=8.9e-16, maxiter=500)
-
-
-# ---------------------------------------------------------------------------------------------
-# Kinematics: delayed command, first-order servo, play operator
-# ---------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class ActuatorPiece:
-    """x(t) on [t_start, t_end): x = c_s + v s - v tau + K exp(-s/tau), s = t - t_start.
-
-    The delayed command on the piece is c_s + v s; with tau = 0, x = c_s + v s exactly.
-    """
-
-    t_start_s: float
-    t_end_s: float
-    command_start_m: float
-    velocity_m_s: float
-    lag_s: float
-    transient_m: float
-
-    def position(self, t):
-        s = np.asarray(t, dtype=float) - self.t_start_s
-        x = self.command_start_m + self.velocity_m_s * (s - self.lag_s)
-        if self.lag_s > 0.0:
-            x = x + self.transient_m * np.exp(-s / self.lag_s)
-        return x
-
-    def velocity(self, t):
-        s = np.asarray(t, dtype=float) - self.t_start_s
-        if self.lag_s > 0.0:
-            return self.velocity_m_s - self.transient_m / self.lag_s * np.exp(-s / self.lag_s)
-        return np.full_like(s, self.velocity_m_s)
-
-
-def actuator_pieces(case: TriangleCase, rig: RigImperfections, t_end_s: float) -> list[ActuatorPiece]:
-    """Closed-form servo response to the delayed command, one piece per command segment.
-
-    The command holds -Y before t = 0; delayed by d its corners lie at d + k T/2 (k = 0..3).
-    x(0) = -Y at rest; x and (for tau_s > 0) dx/dt are continuous across pieces.
-    """
-    y_amp, w, half, d, tau = case.amplitude_m, case.velocity_m_s, case.period_s / 2.0, rig.delay_s, rig.servo_lag_s
-    starts = [(0.0, -y_amp, 0.0)] if d > 0.0 else []
-    for k in range(4):
-        t_k = d + k * half
-        if t_k < t_end_s:
-            starts.append((t_k, -y_amp if k % 2 == 0 else y_amp, w if k % 2 == 0 else -w))
-    pieces = []
-    x0 = -y_amp
-    for i, (ts, cs, v) in enumerate(starts):
-        te = starts[i + 1][0] if i + 1 < len(starts) else t_end_s
-        piece = ActuatorPiece(ts, te, cs, v, tau, (x0 - cs + v * tau) if tau > 0.0 else 0.0)
-        pieces.append(piece)
-        x0 = float(piece.position(te)) if tau > 0.0 else cs + v * (te - ts)
-    return pieces
-
-
-def _actuator_turning_times(pieces: Sequence[ActuatorPiece]) -> list[float]:
-    """Times where the actuator starts to move or reverses (dx/dt changes sign), sorted."""
-    out, moving = [], 0.0
-    for p in pieces:
-        v = p.velocity_m_s
-        if v == 0.0:
-            continue
-        v0 = float(p.velocity(p.t_start_s))
-        t_turn = p.t_start_s
-        if v0 * v < 0.0:   # still coasting the old way (tau_s > 0): dx/dt = v - (K/tau) e^(-s/tau) = 0 at s*
-            t_turn = p.t_start_s + p.lag_s * math.log(p.transient_m / (p.lag_s * v))
-        if t_turn < p.t_end_s and math.copysign(1.0, v) != moving:
-            out.append(t_turn)
-            moving = math.copysign(1.0, v)
-    return out
-
-
-@dataclass(frozen=True)
-class PistonPiece:
-    """One interval of smooth piston motion.
-
-    contact: y = x + offset (the actuator pushes, offset = -/+ b/2); else y = rest_m.
-    """
-
-    t_start_s: float
-    t_end_s: float
-    actuator: ActuatorPiece
-    contact: bool
-    offset_m: float
-    rest_m: float
-
-    def position(self, t):
-        if self.contact:
-            return self.actuator.position(t) + self.offset_m
-        return np.full_like(np.asarray(t, dtype=float), self.rest_m)
-
-    def velocity(self, t):
-        if self.contact:
-            return self.actuator.velocity(t)
-        return np.zeros_like(np.asarray(t, dtype=float))
-
-
-def _actuator_at(pieces: Sequence[ActuatorPiece], t: float) -> ActuatorPiece:
-    for p in pieces:
-        if p.t_start_s <= t < p.t_end_s:
-            return p
-    return pieces[-1]
-
-
-def _crossing_time(pieces: Sequence[ActuatorPiece], ta: float, tb: float, target: float) -> float | None:
-    """First t in [ta, tb] with x(t) = target, x monotone there; None if not reached."""
-    for p in pieces:
-        a, b = max(ta, p.t_start_s), min(tb, p.t_end_s)
-        if b <= a:
-            continue
-        fa, fb = float(p.position(a)) - target, float(p.position(b)) - target
-        if fa == 0.0:
-            return a
-        if fa * fb <= 0.0:
-            if p.lag_s == 0.0:
-                return min(max(a - fa / p.velocity_m_s, a), b)
-            from scipy.optimize import brentq
-
-            return brentq(lambda t, p=p: float(p.position(t)) - target, a, b, xtol=1e-13 * max(1.0, b), rtol=1e-15)
-    return None
-
-
-def piston_pieces(case: TriangleCase, effects: TrueEffects, rig: RigImperfections) -> list[PistonPiece]:
-    """Play operator of total gap b between actuator x and piston y, as smooth pieces.
-
-    Pushing upwards y = x - b/2, downwards y = x + b/2; at every actuator reversal the contact
-    is lost and the piston stands still until x has travelled b. The record starts at rest with
-    the piston at y = -Y + b/2 (as left by the downward stroke that brought it to -Y), so the
-    first upward motion crosses the whole gap too. Pieces break at the delayed command corners,
-    actuator reversals and contacts: the piston velocity is smooth inside each piece.
-    """
-    t_end = float(case.sample_times_s()[-1])
-    acts = actuator_pieces(case, rig, t_end)
-    b = effects.backlash_m
-    turns = [t for t in _actuator_turning_times(acts) if 0.0 <= t < t_end]
-    stretch_edges = sorted({0.0, *turns, t_end})
-    spans = []                                      # (ta, tb, contact, offset, rest)
-    y = -case.amplitude_m + b / 2.0
-    for ta, tb in zip(stretch_edges[:-1], stretch_edges[1:]):
-        mid = 0.5 * (ta + tb)
-        v_mid = float(_actuator_at(acts, mid).velocity(mid))
-        direction = 0.0 if v_mid == 0.0 else math.copysign(1.0, v_mid)
-        if direction == 0.0:
-            spans.append((ta, tb, b == 0.0, 0.0, y))
-            continue
-        tc = ta if b == 0.0 else _crossing_time(acts, ta, tb, y + direction * b / 2.0)
-        if tc is None:
-            tc = tb
-        if tc > ta:
-            spans.append((ta, tc, False, 0.0, y))
-        if tc < tb:
-            spans.append((tc, tb, True, -direction * b / 2.0, y))
-            y = float(_actuator_at(acts, tb).position(tb)) - direction * b / 2.0
-    out = []
-    for ta, tb, contact, offset, rest in spans:
-        for p in acts:
-            a, e = max(ta, p.t_start_s), min(tb, p.t_end_s)
-            if e > a:
-                out.append(PistonPiece(a, e, p, contact, offset, rest))
-    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -656,7 +539,8 @@ def _piece_system(model: ChamberModel, piece: PistonPiece):
     v01, v02, beta = model.chamber_volume_1_m3, model.chamber_volume_2_m3, model.oil_compressibility_1_Pa
     g1, g2 = model.gas_1_Pa_m3, model.gas_2_Pa_m3
     c1, leak = model.c1, model.leakage_m3_s_Pa
-    c1_c1, four_c2_pos, four_c2_neg = c1 * c1, 4.0 * model.c2_pos, 4.0 * model.c2_neg
+    c1_neg = c1 if model.c1_neg is None else model.c1_neg
+    c1_c1, c1n_c1n, four_c2_pos, four_c2_neg = c1 * c1, c1_neg * c1_neg, 4.0 * model.c2_pos, 4.0 * model.c2_neg
     pc, rho = model.relief_cracking_pressure_Pa, model.density_kg_m3
     relief = pc is not None and model.relief_area_gradient_m2_Pa > 0.0
     k_relief = model.relief_discharge_coefficient * model.relief_area_gradient_m2_Pa
@@ -689,8 +573,9 @@ def _piece_system(model: ChamberModel, piece: PistonPiece):
             c2_, d2 = beta * (vol - g2 / p) + g2 / (p * p), beta * g2 / (p * p) - 2.0 * g2 / (p * p * p)
         dp = u0 - u1
         ad = abs(dp)
-        root = math.sqrt(c1_c1 + (four_c2_pos if dp >= 0.0 else four_c2_neg) * ad)
-        q = 2.0 * dp / (c1 + root) + leak * dp
+        pos = dp >= 0.0
+        root = math.sqrt((c1_c1 if pos else c1n_c1n) + (four_c2_pos if pos else four_c2_neg) * ad)
+        q = 2.0 * dp / ((c1 if pos else c1_neg) + root) + leak * dp
         dq = 1.0 / root + leak
         if relief and ad > pc:
             sq = math.sqrt(2.0 * ad / rho)

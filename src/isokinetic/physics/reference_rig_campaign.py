@@ -10,7 +10,9 @@ yaml, the standard library and :mod:`isokinetic.physics.reference_rig`.
 Measurement
     Force channel F_meas = g F_true + F0 + sigma_w w_k + |F_true| sigma_rel c_k, with w white and c
     a unit-variance AR(1) sequence (rho = exp(-2 pi f_c / fs), stationary start); the LVDT measures
-    the actuator x with white noise; every channel is then quantised. Noise of case i is drawn from
+    the actuator x with white noise; every channel is then quantised. Optional sensor-chain
+    nuisances (:class:`RigImperfections`): a Butterworth low-pass on the force channel, a zero drift
+    linear in campaign time, an LVDT gain, and dropped samples. Noise of case i is drawn from
     ``SeedSequence([seed, i])``.
 
 Catalogue equivalents
@@ -94,12 +96,26 @@ def quantise(x, step: float) -> np.ndarray:
     return np.rint(np.asarray(x, dtype=float) / step) * step + 0.0
 
 
+def lowpass(t_s: np.ndarray, x: np.ndarray, corner_Hz: float, order: int) -> np.ndarray:
+    """x through an analog Butterworth low-pass (order 1 or 2, corner ``corner_Hz``, unit DC gain),
+    the input linearly interpolated between samples (scipy.signal.lsim), starting at rest at x[0]."""
+    from scipy import signal  # scipy.signal: only where a filtered force channel is simulated
+
+    b, a = signal.butter(order, 2.0 * math.pi * corner_Hz, btype="low", analog=True)
+    system = signal.StateSpace(*signal.tf2ss(b, a))
+    x0 = -np.linalg.solve(system.A, system.B[:, 0]) * x[0]     # the steady state at the first input
+    _, y, _ = signal.lsim(system, x, t_s - t_s[0], X0=x0)
+    return np.asarray(y, dtype=float)
+
+
 def measure(truth: pd.DataFrame, case: TriangleCase, rig: RigImperfections, seed: int,
-            case_index: int) -> pd.DataFrame:
+            case_index: int, campaign_time_s: float = 0.0) -> pd.DataFrame:
     """Measured channels of a true record: adds force_meas_N, displacement_meas_m, command_meas_m.
 
     The three noise streams (white force, AR(1) innovations, LVDT) are always drawn, in this
-    order, so that switching one noise source off leaves the others unchanged.
+    order, so that switching one noise source off leaves the others unchanged. The force channel
+    is g F + F0 + r (t_c + t) (zero drift; ``campaign_time_s`` t_c: the case's start in campaign
+    time), low-pass filtered when the rig has a force filter, plus noise; the LVDT reads k x.
     """
     n = len(truth)
     rng = case_rng(seed, case_index)
@@ -107,22 +123,41 @@ def measure(truth: pd.DataFrame, case: TriangleCase, rig: RigImperfections, seed
     coloured = ar1_sequence(rng.standard_normal(n), rig.noise_correlation(case.sample_rate_Hz))
     lvdt = rng.standard_normal(n)
     f = truth["force_N"].to_numpy()
-    force = (rig.force_gain * f + rig.force_offset_N + rig.force_noise_N * white
-             + np.abs(f) * rig.force_noise_rel * coloured)
+    t = truth["time_s"].to_numpy()
+    analog = rig.force_gain * f + rig.force_offset_N
+    if rig.force_drift_N_s != 0.0:
+        analog = analog + rig.force_drift_N_s * (campaign_time_s + t)
+    if rig.force_filter_Hz > 0.0:
+        analog = lowpass(t, analog, rig.force_filter_Hz, rig.force_filter_order)
+    force = analog + rig.force_noise_N * white + np.abs(f) * rig.force_noise_rel * coloured
     out = truth.copy()
     out["force_meas_N"] = quantise(force, rig.force_resolution_N)
-    out["displacement_meas_m"] = quantise(truth["actuator_m"].to_numpy() + rig.displacement_noise_m * lvdt,
-                                          rig.displacement_resolution_m)
+    x = truth["actuator_m"].to_numpy()
+    if rig.displacement_gain != 1.0:
+        x = rig.displacement_gain * x
+    out["displacement_meas_m"] = quantise(x + rig.displacement_noise_m * lvdt, rig.displacement_resolution_m)
     out["command_meas_m"] = quantise(truth["command_m"].to_numpy(), rig.command_resolution_m)
     return out
 
 
 def simulate_case(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
                   rig: RigImperfections = IDEAL_RIG, seed: int = 0, case_index: int = 0,
-                  n_cases: int = 1, rtol: float = 1e-10, viscosity_ratio: float = 1.0) -> pd.DataFrame:
+                  n_cases: int = 1, rtol: float = 1e-10, viscosity_ratio: float = 1.0,
+                  campaign_time_s: float = 0.0) -> pd.DataFrame:
     """:func:`true_series` followed by :func:`measure` (true and measured columns together)."""
     return measure(true_series(case, damper, effects, rig, case_index, n_cases, rtol, viscosity_ratio), case, rig,
-                   seed, case_index)
+                   seed, case_index, campaign_time_s)
+
+
+def dropped(series: pd.DataFrame, rig: RigImperfections, seed: int, case_index: int) -> pd.DataFrame:
+    """The record without its dropped samples: each sample but the first and last is missing with
+    probability ``rig.dropout_fraction`` (stream SeedSequence([seed, i, 11]), apart from the noise)."""
+    if rig.dropout_fraction == 0.0 or len(series) < 3:
+        return series
+    rng = np.random.default_rng(np.random.SeedSequence([int(seed), int(case_index), 11]))
+    keep = rng.random(len(series)) >= rig.dropout_fraction
+    keep[0] = keep[-1] = True
+    return series[keep].reset_index(drop=True)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -178,7 +213,8 @@ def catalogue_equivalent(damper, effects: TrueEffects) -> dict:
     """The catalogue-form parameters the project's diagnosis fits, from the physical effects.
 
     coulomb_force_N = F_C (the Stribeck excess has no catalogue form); leakage conductance
-    pi D h^3 / (12 mu L) at the campaign-mean true viscosity; asymmetry a; discharge coefficient
+    pi D h^3 / (12 mu L) at the campaign-mean true viscosity; asymmetry a; path_asymmetry the one-sided
+    path's r (``path_resistance_neg``, the same form); discharge coefficient
     and viscosity (None when not changed); air_volume_fraction phi_cat with
     phi_cat * 9.9e-6 = phi0 / p0, i.e. the gas term of the mixture compressibility at the
     charge pressure (:func:`chamber_capacitance`, neglecting its -phi0 beta_oil part) written
@@ -190,6 +226,7 @@ def catalogue_equivalent(damper, effects: TrueEffects) -> dict:
         "leakage_conductance_m3_s_Pa": annular_leakage_conductance(damper.piston_area_m2, effects.leakage_gap_m,
                                                                    mu, effects.seal_length_m),
         "asymmetry": float(effects.asymmetry),
+        "path_asymmetry": float(effects.path_resistance_neg),
         "discharge_coefficient": (None if effects.discharge_coefficient is None
                                   else float(effects.discharge_coefficient)),
         "viscosity_Pa_s": None if effects.viscosity_Pa_s is None else float(effects.viscosity_Pa_s),
@@ -415,9 +452,12 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[TriangleCase], dam
     series = {}
     if oil is not None and len(oil.case_temperatures_C) != len(cases):
         raise ValueError(f"oil: {len(oil.case_temperatures_C)} case temperatures for {len(cases)} cases")
+    campaign_time_s = 0.0
     for i, case in enumerate(cases):
         ratio = 1.0 if oil is None else oil.viscosity_ratio(i, temperature_C)
-        s = simulate_case(case, damper, effects, rig, seed, i, len(cases), rtol, ratio)
+        s = dropped(simulate_case(case, damper, effects, rig, seed, i, len(cases), rtol, ratio, campaign_time_s),
+                    rig, seed, i)
+        campaign_time_s += case.duration_s + 1.0 / case.sample_rate_Hz
         series[case.case_id] = s
         logged = None if oil is None else oil.logged_K(s["time_s"].to_numpy(), i, seed)
         with open(folder / f"{case.case_id}.csv", "w", encoding="utf-8", newline="\n") as fh:

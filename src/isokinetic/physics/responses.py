@@ -387,7 +387,10 @@ def triangle_responses_at(cases: Sequence[CasePlan], hyd: Hydraulics, viscosity_
 def scaled_viscosity(hyd: Hydraulics, scale: float) -> Hydraulics:
     """``hyd`` with the oil's viscosity multiplied by ``scale``: c1 = 8 π μ l_O / A_O² scales with it
     (Sec. 2.2); c2 does not hold μ."""
-    return hyd if scale == 1.0 else replace(hyd, laminar_coefficient=hyd.laminar_coefficient * scale)
+    if scale == 1.0:
+        return hyd
+    neg = None if hyd.laminar_coefficient_neg is None else hyd.laminar_coefficient_neg * scale
+    return replace(hyd, laminar_coefficient=hyd.laminar_coefficient * scale, laminar_coefficient_neg=neg)
 
 
 def _sine_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):

@@ -584,7 +584,12 @@ _NEEDS = {
 def applies(figure_name: str, cases: pd.DataFrame | None) -> str | None:
     """None when the figure ``figure_name`` (e.g. 'fig07_time_and_loops') applies to a campaign with this
     cases table, else one line saying why not (the report leaves the figure out with it). A figure drawn
-    from any campaign (Fig. 20, the design figures, ...) always applies."""
+    from any campaign (the design figures, ...) always applies; Fig. 20 applies when a case has a temperature."""
+    if figure_name == "fig20_case_temperature":
+        known = cases is None or "temperature_C" not in cases or np.isfinite(   # no column: a table of before 1.1
+            pd.to_numeric(cases["temperature_C"], errors="coerce").to_numpy(float)).any()
+        return None if known else ("no temperature known: neither a temperature channel nor a temperature_C in "
+                                   "the manifest")
     if figure_name not in _NEEDS:
         return None
     waveforms, why = _NEEDS[figure_name]

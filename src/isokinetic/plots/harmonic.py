@@ -188,14 +188,23 @@ def harmonic_figure(table: pd.DataFrame, loops: Mapping[str, pd.DataFrame], case
     free_ids = [c for c in case_ids if c not in sine_ids]
 
     ax_s, ax_f = axes[0]
-    _axes_style(ax_s, "Velocity v [mm/s]", f"Force F [{fu}]", "All sine cases: loops, peak-to-peak curve")
-    _axes_style(ax_f, "Velocity v [mm/s]", f"Force F [{fu}]", "All free records: velocity-binned force")
+    if case_ids and not (sine_ids and free_ids):   # one kind only: its overview spans the top row, no empty panel
+        grid = ax_s.get_gridspec()
+        ax_s.remove()
+        ax_f.remove()
+        ax_s = ax_f = fig.add_subplot(grid[0, :])
+    if sine_ids or not case_ids:
+        _axes_style(ax_s, "Velocity v [mm/s]", f"Force F [{fu}]", "All sine cases: loops, peak-to-peak curve")
+    if free_ids or not case_ids:
+        _axes_style(ax_f, "Velocity v [mm/s]", f"Force F [{fu}]", "All free records: velocity-binned force")
     if not case_ids:
         msg = "no status-ok sine or free case in this campaign: nothing to show"
         for ax in (ax_s, ax_f):
             _empty_panel(ax, msg)
-    _draw_sine_overview(ax_s, table, loops, rows, colours, sine_ids, fs, bool(case_ids))
-    _draw_free_overview(ax_f, table, colours, free_ids, fs, bool(case_ids))
+    if sine_ids or not case_ids:
+        _draw_sine_overview(ax_s, table, loops, rows, colours, sine_ids, fs, bool(case_ids))
+    if free_ids or not case_ids:
+        _draw_free_overview(ax_f, table, colours, free_ids, fs, bool(case_ids))
 
     for (ax_v, ax_y), c in zip(axes[1:], shown, strict=True):
         row = rows.get(c, {"case": c, "waveform": "sine" if c in sine_ids else "free"})

@@ -67,6 +67,7 @@ class CampaignData:
     models: pd.DataFrame | None
     comparison: pd.DataFrame | None
     harmonic: pd.DataFrame | None
+    energy: pd.DataFrame | None
     static_force: pd.DataFrame | None
     diagnosis: dict | None
     provenance: dict | None
@@ -86,6 +87,7 @@ class CampaignData:
                    models=read_parquet(root / "models" / "models.parquet"),
                    comparison=read_parquet(root / "models" / "comparison.parquet"),
                    harmonic=read_parquet(root / "harmonic" / "harmonic.parquet"),
+                   energy=read_parquet(root / "energy.parquet"),
                    static_force=read_parquet(root / "static_force.parquet"),
                    diagnosis=read_json(root / "diagnosis.json"), provenance=provenance,
                    sources=Sources(root, provenance))
@@ -327,6 +329,15 @@ def _export_link(d: CampaignData, name: str) -> str | None:
     return rel if (d.root / rel).is_file() else None
 
 
+def _cases_without_points(cases: pd.DataFrame | None, char: pd.DataFrame) -> list[str]:
+    """The status-ok cases that gave no characteristic point (a sine step with fewer than two steady cycles a
+    direction, a free record with no full velocity bin, a triangle case whose windows left the record)."""
+    if cases is None or not {"case", "status", "waveform"} <= set(cases.columns):
+        return []
+    ok = cases[(cases["status"] == "ok") & (cases["waveform"] != "standstill")]
+    return sorted(set(ok["case"].astype(str)) - set(char["case"].astype(str)))
+
+
 def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
     src = d.sources("characteristic.parquet")
     figures = d.figures("characteristic", captions)
@@ -339,6 +350,7 @@ def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dic
     methods = char["method"].map(lambda x: METHOD_LABELS.get(x, x)).value_counts() if "method" in char else None
     by_method = None if methods is None else ", ".join(f"{n} {m}" for m, n in methods.items())
     return {"figures": figures, "n": len(char), "csv": _export_link(d, "characteristic_csv"), "by_method": by_method,
+            "without_points": _cases_without_points(d.cases, char),
             "table": table_view(char, cols, src, ["case", "segment"], row_extra=_point_origin,
                                 row_class=lambda r: "flagged" if r.get("repeatability_flagged") else "",
                                 table_id="characteristic-points")}
@@ -482,19 +494,30 @@ def _static_force(d: CampaignData) -> dict | None:
     row = sf.iloc[0].to_dict()
     src = d.sources("static_force.parquet")
     sel = f"campaign={row['campaign']}"
+    standstill = row.get("method") == "standstill_mean"
     if missing(row["static_force_N"]):
         value = esc(row["note"])
     else:
-        value = (f"{fmt(row['static_force_N'], 3)} N &plusmn; {fmt(row['std_error_N'], 2)} N "
-                 f"(95 %: {fmt(row['ci_low_N'], 3)} to {fmt(row['ci_high_N'], 3)} N; "
+        basis = (f"mean of {int(row.get('n_standstill') or 0)} standstill case(s)" if standstill else
                  f"{int(row['n_speeds'])} lowest speeds, {fmt(row['v_min_m_s'] * 1e3, 3)}&ndash;"
-                 f"{fmt(row['v_max_m_s'] * 1e3, 3)} mm/s)")
+                 f"{fmt(row['v_max_m_s'] * 1e3, 3)} mm/s")
+        value = (f"{fmt(row['static_force_N'], 3)} N &plusmn; {fmt(row['std_error_N'], 2)} N "
+                 f"(95 %: {fmt(row['ci_low_N'], 3)} to {fmt(row['ci_high_N'], 3)} N; {basis})")
     gas = "none declared" if missing(row["gas_force_N"]) else f"{fmt(row['gas_force_N'])} N, subtracted at ingest"
+    gas_check = row.get("gas_force_check") or "not_checked"
+    if row.get("gas_force_cases"):
+        gas_lines = esc(row["gas_force_cases"]).replace("; ", "<br>")
+        gas_check_text = (badge("disagrees", "bad") + " " if gas_check == "disagrees" else "") + gas_lines
+    else:
+        gas_check_text = "no case declares a gas force"
     check = offset_check(row, d.diagnosis)
     verdict = esc(check.text) if check.status != "disagree" else f"{badge('disagree', 'bad')} {esc(check.text)}"
-    items = [("static force at v &rarr; 0 (mean of the + and &minus; branches)", value,
-              src.title(sel, "static_force_N,std_error_N,ci_low_N,ci_high_N")),
+    label = ("static force at rest (standstill cases)" if standstill else
+             "static force at v &rarr; 0 (mean of the + and &minus; branches)")
+    items = [(label, value, src.title(sel, "static_force_N,std_error_N,ci_low_N,ci_high_N")),
              ("gas force (manifest <code>gas_force_N</code>)", gas, src.title(sel, "gas_force_N")),
+             ("declared gas forces against what is left", gas_check_text,
+              src.title(sel, "gas_force_check,gas_force_cases")),
              ("against the diagnosis' load-cell offset", verdict,
               d.sources("diagnosis.json").title("instrument.force_offset_N", "force_offset_N"))]
     if row["note"] and not missing(row["static_force_N"]):
@@ -521,17 +544,36 @@ HARMONIC_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", t
                  Col("lag_s", "force lag [s]", lambda x: fmt(x, 3)), Col("n_points", "points")]
 
 
+ENERGY_COLS = [Col("case", "case", text, False), Col("frequency_Hz", "f [Hz]"),
+               Col("displacement_amplitude_m", "amplitude [mm]", scale=1e3),
+               Col("velocity_amplitude_m_s", "peak velocity [mm/s]", scale=1e3),
+               Col("energy_J", "energy per cycle [J]"), Col("energy_se_J", "standard error [J]"),
+               Col("n_cycles", "cycles"), Col("equivalent_damping_N_s_m", "equivalent damping [N s/m]")]
+
+
+def _energy_table(d: CampaignData) -> Table | None:
+    """Each sine case's energy dissipated per cycle (the force-displacement loop's area, energy.parquet)."""
+    e = d.energy
+    if e is None or not len(e):
+        return None
+    return table_view(e.reset_index(drop=True), ENERGY_COLS, d.sources("energy.parquet"), ["case"],
+                      table_id="energy-per-cycle")
+
+
 def _harmonic_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
     figures = d.figures("harmonic", captions)
     h = d.harmonic
     src = d.sources("harmonic/harmonic.parquet")
+    energy = _energy_table(d)
     if h is None or not len(h):
-        return {"figures": figures, "table": None, "empty": h is not None, "lineage": lineage_of(src)}
+        return {"figures": figures, "table": None, "empty": h is not None, "lineage": lineage_of(src),
+                "energy": energy}
     h = h.reset_index(drop=True)
     keys = ["case", "kind", "direction"]
     if h.duplicated(keys).any():  # binned points of free records: by position in the file
         h, keys = h.assign(row=h.index), ["row"]
-    return {"figures": figures, "table": table_view(h, HARMONIC_COLS, src, keys, table_id="harmonic-points")}
+    return {"figures": figures, "table": table_view(h, HARMONIC_COLS, src, keys, table_id="harmonic-points"),
+            "energy": energy}
 
 
 # ----------------------------------------------------------------------------------------------

@@ -22,7 +22,8 @@ from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, shor
 from isokinetic.report.sources import Source, lineage_of
 
 EFFECT_PARAM_UNITS = {"coulomb_force_N": "N", "leakage_conductance_m3_s_Pa": "m^3/(s Pa)", "asymmetry": "-",
-                      "discharge_coefficient": "-", "viscosity_Pa_s": "Pa s", "air_volume_fraction": "-"}
+                      "path_asymmetry": "-", "discharge_coefficient": "-", "viscosity_Pa_s": "Pa s",
+                      "air_volume_fraction": "-"}
 WHERE_COLS = [Col("direction", "dir", text, False), Col("v_min_m_s", "from [mm/s]", scale=1e3),
               Col("v_max_m_s", "to [mm/s]", scale=1e3), Col("n_cases", "cases"),
               Col("mean_rel_error", "mean signed rel. error", fmt_pct), Col("mean_z", "mean z", lambda x: fmt(x, 3)),
@@ -69,11 +70,15 @@ def _instrument(diag: Mapping, src: Source) -> Table | None:
         value = inst.get(key)
         return "not needed" if value is None else f"{fmt(value * scale)} {unit}".strip()
 
+    chain = [(label, key, scale, unit) for label, key, scale, unit in (  # the sensor chain, contract 1.2
+        ("force-channel lag (group delay)", "force_lag_s", 1e3, "ms"), ("LVDT scale", "displacement_scale", 1.0, ""),
+        ("load-cell zero drift", "force_drift_N_s", 1e3, "mN/s")) if key in inst]
     return kv_table([
         ("actuator delay (median over cases)", shown("delay_s", 1e3, "ms"), src.title("instrument.delay_s", "delay_s")),
         ("load-cell zero offset", shown("force_offset_N", 1.0, "N"),
          src.title("instrument.force_offset_N", "force_offset_N")),
-        ("load-cell gain", shown("force_gain"), src.title("instrument.force_gain", "force_gain"))])
+        ("load-cell gain", shown("force_gain"), src.title("instrument.force_gain", "force_gain")),
+        *[(label, shown(key, scale, unit), src.title(f"instrument.{key}", key)) for label, key, scale, unit in chain]])
 
 
 def _params(diag: Mapping, src: Source) -> Table | None:

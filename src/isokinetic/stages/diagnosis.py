@@ -19,11 +19,18 @@ import json
 import logging
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from isokinetic.contracts.campaign import viscosity_scales
 from isokinetic.diagnosis.candidate import ALPHA
-from isokinetic.diagnosis.instrument import INSTRUMENT, case_delays
+from isokinetic.diagnosis.instrument import (
+    INSTRUMENT,
+    case_delays,
+    case_speed_ratio,
+    displacement_scale,
+    rescaled_drives,
+)
 from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
 from isokinetic.diagnosis.observations import Observations, build_observations
 from isokinetic.diagnosis.result import (
@@ -37,6 +44,7 @@ from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.diagnosis.verdict import diagnose_observations
 from isokinetic.io import write_json
 from isokinetic.physics.damper import NOMINAL, Damper
+from isokinetic.stages.nominal import motion_start
 from isokinetic.stages.windows import WindowSpec
 
 log = logging.getLogger(__name__)
@@ -58,7 +66,20 @@ def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame
 
 def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
             alpha: float = ALPHA) -> tuple[str, Damper | None, pd.DataFrame, Observations | None, str]:
-    """(campaign, damper, cases, observations, reason) of a processed campaign folder.
+    """(campaign, damper, cases, observations, reason) of a processed campaign folder (:func:`prepare_sensor`
+    without the sensor chain's measurements)."""
+    return prepare_sensor(campaign_root, spec, n_bins, alpha)[:5]
+
+
+def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4, alpha: float = ALPHA
+                   ) -> tuple[str, Damper | None, pd.DataFrame, Observations | None, str, dict]:
+    """(campaign, damper, cases, observations, reason, sensor) of a processed campaign folder.
+
+    The LVDT's scale is measured first, from its speed against the command channel's
+    (:func:`isokinetic.diagnosis.instrument.displacement_scale`); where it departs from 1, the model is
+    driven at the measured speeds divided by it. ``sensor`` holds that scale and each observation's
+    campaign time (``obs_time_s``: the cases back to back in the order of cases.parquet), for the
+    load-cell zero drift.
 
     Observations are built twice: first to profile the load-cell offset against the nominal model,
     then with the noise model fitted to offset-free samples (the proportional noise scales with the
@@ -68,13 +89,13 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
     root = Path(campaign_root)
     campaign, damper, cases, char, scales = load_campaign(root)
     if damper is None:
-        return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model"
+        return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model", {}
     if char.empty:
         others = cases[(cases["status"] == "ok") & cases["waveform"].isin(["sine", "free"])]
         if len(others) and not ((cases["status"] == "ok") & (cases["waveform"] == "triangle")).any():
             return campaign, damper, cases, None, ("no triangle case: diagnosis of sine and free records "
-                                                   "not yet supported")
-        return campaign, damper, cases, None, "no status-ok triangle case: no characteristic to compare"
+                                                   "not yet supported"), {}
+        return campaign, damper, cases, None, "no status-ok triangle case: no characteristic to compare", {}
     cache: dict[str, pd.DataFrame] = {}
 
     def load(row):
@@ -83,17 +104,59 @@ def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 
             cache[key] = pd.read_parquet(root / key)
         return cache[key]
 
-    obs = build_observations(campaign, cases, char, load, spec, n_bins, viscosity_scales=scales)
+    ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
+    scale = displacement_scale(np.array([case_speed_ratio(load(row), float(row["period_s"]), motion_start(row))
+                                         for _, row in ok.iterrows()]))
+    if "velocity_ratio" in ok:  # the evidence against the plan (not applied: a real stroke error reads the same)
+        ratios = ok["velocity_ratio"].to_numpy(dtype=float)
+        scale["velocity_ratio_to_plan"] = float(np.median(ratios[np.isfinite(ratios)])) if np.isfinite(ratios).any() \
+            else None
+
+    def scaled(o: Observations) -> Observations:
+        return rescaled_drives(o, scale["estimate"]) if scale["applied"] and len(o) else o
+
+    obs = scaled(build_observations(campaign, cases, char, load, spec, n_bins, viscosity_scales=scales))
     if len(obs):
         dg0 = Diagnoser(obs, damper, alpha)
         first = dg0.refit((), INSTRUMENT)
         offset = 0.0 if first is None else first.offset_N
-        obs = build_observations(campaign, cases, char, load, spec, n_bins, offset,
-                                 unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
-                                 drive_input_variance(obs, damper, dg0.nominal), scales)
+        obs = scaled(build_observations(campaign, cases, char, load, spec, n_bins, offset,
+                                        unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
+                                        drive_input_variance(obs, damper, dg0.nominal), scales))
     if len(obs) == 0:
-        return campaign, damper, cases, None, "no triangle case with four windows: nothing to compare"
-    return campaign, damper, cases, obs, ""
+        return campaign, damper, cases, None, "no triangle case with four windows: nothing to compare", {}
+    spans = {row["case"]: record_span(load(row)) for _, row in ok.iterrows()}
+    return campaign, damper, cases, obs, "", {"displacement_scale": scale,
+                                              "obs_time_s": campaign_times(obs, cases, spans)}
+
+
+def record_span(series: pd.DataFrame) -> tuple[float, float]:
+    """(first time stamp, length) of a case's record [s]."""
+    t = series["time_s"].to_numpy(dtype=float)
+    return (float(t[0]), float(t[-1] - t[0])) if t.size else (0.0, 0.0)
+
+
+def campaign_times(obs: Observations, cases: pd.DataFrame, spans: dict[str, tuple[float, float]]) -> np.ndarray:
+    """Each observation's time in the campaign [s]: its case's start (the cases back to back, each its
+    record's length (``spans``: first time stamp and length; else ``duration_s``, else two periods) plus
+    one sample, in the order of cases.parquet) plus its motion start after the record's first time
+    stamp and the middle of its samples."""
+    rows = cases.to_dict("records")
+
+    def length(row: dict) -> float:
+        span = spans.get(row["case"])
+        recorded = None if span is None else span[1]
+        for value in (recorded, row.get("duration_s"), 2.0 * float(row.get("period_s") or 0.0)):
+            if value is not None and np.isfinite(float(value)):
+                return float(value)
+        return 0.0
+
+    durations = np.array([length(r) + 1.0 / float(r["sample_rate_Hz"]) for r in rows])
+    starts = dict(zip(cases["case"], np.concatenate([[0.0], np.cumsum(np.nan_to_num(durations))[:-1]]), strict=True))
+    begin = {c: starts[c] + motion_start(row) - spans.get(c, (0.0, 0.0))[0] for c, row in zip(cases["case"], rows,
+                                                                                       strict=True)}
+    fs = np.array([obs.plans[i].sample_rate_Hz for i in obs.case_index])
+    return np.array([begin[c] for c in obs.case]) + 0.5 * (obs.start + obs.stop) / fs
 
 
 def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
@@ -104,10 +167,10 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     cannot be diagnosed (no damper block, no triangle case). The dict's ``sources`` key lists the
     observations used (:func:`isokinetic.diagnosis.result.observation_sources`).
     """
-    campaign, damper, cases, obs, reason = prepare(campaign_root, spec, n_bins, alpha)
+    campaign, damper, cases, obs, reason, sensor = prepare_sensor(campaign_root, spec, n_bins, alpha)
     if obs is None:
         return {**no_model(campaign, reason), "sources": observation_sources(None, cases)}, None, {}
-    result, predictions = diagnose_observations(obs, damper, alpha, case_delays(cases))
+    result, predictions = diagnose_observations(obs, damper, alpha, case_delays(cases), sensor)
     result["sources"] = observation_sources(obs, cases)
     return result, obs, predictions
 

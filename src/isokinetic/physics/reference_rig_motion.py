@@ -1,0 +1,176 @@
+"""The reference rig's kinematics: the delayed command, a first-order servo and the play operator of
+backlash, as closed-form pieces of smooth motion (a sibling of :mod:`isokinetic.physics.reference_rig`,
+sharing its independence: it imports only the standard library, numpy and scipy)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from isokinetic.physics.reference_rig import RigImperfections, TriangleCase, TrueEffects
+
+
+# ---------------------------------------------------------------------------------------------
+# Kinematics: delayed command, first-order servo, play operator
+# ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ActuatorPiece:
+    """x(t) on [t_start, t_end): x = c_s + v s - v tau + K exp(-s/tau), s = t - t_start.
+
+    The delayed command on the piece is c_s + v s; with tau = 0, x = c_s + v s exactly.
+    """
+
+    t_start_s: float
+    t_end_s: float
+    command_start_m: float
+    velocity_m_s: float
+    lag_s: float
+    transient_m: float
+
+    def position(self, t):
+        s = np.asarray(t, dtype=float) - self.t_start_s
+        x = self.command_start_m + self.velocity_m_s * (s - self.lag_s)
+        if self.lag_s > 0.0:
+            x = x + self.transient_m * np.exp(-s / self.lag_s)
+        return x
+
+    def velocity(self, t):
+        s = np.asarray(t, dtype=float) - self.t_start_s
+        if self.lag_s > 0.0:
+            return self.velocity_m_s - self.transient_m / self.lag_s * np.exp(-s / self.lag_s)
+        return np.full_like(s, self.velocity_m_s)
+
+
+def actuator_pieces(case: TriangleCase, rig: RigImperfections, t_end_s: float) -> list[ActuatorPiece]:
+    """Closed-form servo response to the delayed command, one piece per command segment.
+
+    The command holds -Y before t = 0; delayed by d its corners lie at d + k T/2 (k = 0..3).
+    x(0) = -Y at rest; x and (for tau_s > 0) dx/dt are continuous across pieces.
+    """
+    y_amp, w, half, d, tau = case.amplitude_m, case.velocity_m_s, case.period_s / 2.0, rig.delay_s, rig.servo_lag_s
+    starts = [(0.0, -y_amp, 0.0)] if d > 0.0 else []
+    for k in range(4):
+        t_k = d + k * half
+        if t_k < t_end_s:
+            starts.append((t_k, -y_amp if k % 2 == 0 else y_amp, w if k % 2 == 0 else -w))
+    pieces = []
+    x0 = -y_amp
+    for i, (ts, cs, v) in enumerate(starts):
+        te = starts[i + 1][0] if i + 1 < len(starts) else t_end_s
+        piece = ActuatorPiece(ts, te, cs, v, tau, (x0 - cs + v * tau) if tau > 0.0 else 0.0)
+        pieces.append(piece)
+        x0 = float(piece.position(te)) if tau > 0.0 else cs + v * (te - ts)
+    return pieces
+
+
+def _actuator_turning_times(pieces: Sequence[ActuatorPiece]) -> list[float]:
+    """Times where the actuator starts to move or reverses (dx/dt changes sign), sorted."""
+    out, moving = [], 0.0
+    for p in pieces:
+        v = p.velocity_m_s
+        if v == 0.0:
+            continue
+        v0 = float(p.velocity(p.t_start_s))
+        t_turn = p.t_start_s
+        if v0 * v < 0.0:   # still coasting the old way (tau_s > 0): dx/dt = v - (K/tau) e^(-s/tau) = 0 at s*
+            t_turn = p.t_start_s + p.lag_s * math.log(p.transient_m / (p.lag_s * v))
+        if t_turn < p.t_end_s and math.copysign(1.0, v) != moving:
+            out.append(t_turn)
+            moving = math.copysign(1.0, v)
+    return out
+
+
+@dataclass(frozen=True)
+class PistonPiece:
+    """One interval of smooth piston motion.
+
+    contact: y = x + offset (the actuator pushes, offset = -/+ b/2); else y = rest_m.
+    """
+
+    t_start_s: float
+    t_end_s: float
+    actuator: ActuatorPiece
+    contact: bool
+    offset_m: float
+    rest_m: float
+
+    def position(self, t):
+        if self.contact:
+            return self.actuator.position(t) + self.offset_m
+        return np.full_like(np.asarray(t, dtype=float), self.rest_m)
+
+    def velocity(self, t):
+        if self.contact:
+            return self.actuator.velocity(t)
+        return np.zeros_like(np.asarray(t, dtype=float))
+
+
+def _actuator_at(pieces: Sequence[ActuatorPiece], t: float) -> ActuatorPiece:
+    for p in pieces:
+        if p.t_start_s <= t < p.t_end_s:
+            return p
+    return pieces[-1]
+
+
+def _crossing_time(pieces: Sequence[ActuatorPiece], ta: float, tb: float, target: float) -> float | None:
+    """First t in [ta, tb] with x(t) = target, x monotone there; None if not reached."""
+    for p in pieces:
+        a, b = max(ta, p.t_start_s), min(tb, p.t_end_s)
+        if b <= a:
+            continue
+        fa, fb = float(p.position(a)) - target, float(p.position(b)) - target
+        if fa == 0.0:
+            return a
+        if fa * fb <= 0.0:
+            if p.lag_s == 0.0:
+                return min(max(a - fa / p.velocity_m_s, a), b)
+            from scipy.optimize import brentq
+
+            return brentq(lambda t, p=p: float(p.position(t)) - target, a, b, xtol=1e-13 * max(1.0, b), rtol=1e-15)
+    return None
+
+
+def piston_pieces(case: TriangleCase, effects: TrueEffects, rig: RigImperfections) -> list[PistonPiece]:
+    """Play operator of total gap b between actuator x and piston y, as smooth pieces.
+
+    Pushing upwards y = x - b/2, downwards y = x + b/2; at every actuator reversal the contact
+    is lost and the piston stands still until x has travelled b. The record starts at rest with
+    the piston at y = -Y + b/2 (as left by the downward stroke that brought it to -Y), so the
+    first upward motion crosses the whole gap too. Pieces break at the delayed command corners,
+    actuator reversals and contacts: the piston velocity is smooth inside each piece.
+    """
+    t_end = float(case.sample_times_s()[-1])
+    acts = actuator_pieces(case, rig, t_end)
+    b = effects.backlash_m
+    turns = [t for t in _actuator_turning_times(acts) if 0.0 <= t < t_end]
+    stretch_edges = sorted({0.0, *turns, t_end})
+    spans = []                                      # (ta, tb, contact, offset, rest)
+    y = -case.amplitude_m + b / 2.0
+    for ta, tb in zip(stretch_edges[:-1], stretch_edges[1:]):
+        mid = 0.5 * (ta + tb)
+        v_mid = float(_actuator_at(acts, mid).velocity(mid))
+        direction = 0.0 if v_mid == 0.0 else math.copysign(1.0, v_mid)
+        if direction == 0.0:
+            spans.append((ta, tb, b == 0.0, 0.0, y))
+            continue
+        tc = ta if b == 0.0 else _crossing_time(acts, ta, tb, y + direction * b / 2.0)
+        if tc is None:
+            tc = tb
+        if tc > ta:
+            spans.append((ta, tc, False, 0.0, y))
+        if tc < tb:
+            spans.append((tc, tb, True, -direction * b / 2.0, y))
+            y = float(_actuator_at(acts, tb).position(tb)) - direction * b / 2.0
+    out = []
+    for ta, tb, contact, offset, rest in spans:
+        for p in acts:
+            a, e = max(ta, p.t_start_s), min(tb, p.t_end_s)
+            if e > a:
+                out.append(PistonPiece(a, e, p, contact, offset, rest))
+    return out

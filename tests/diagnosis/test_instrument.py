@@ -1,0 +1,94 @@
+"""Instrument terms of the sensor chain (isokinetic.diagnosis.instrument, issue 21): the LVDT's scale against
+the command channel, and the force channel's lag fitted on the nominal model."""
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from isokinetic.diagnosis import instrument as ins
+from isokinetic.diagnosis.model import Evaluator
+from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.physics import reference_rig as rr
+from isokinetic.physics.damper import NOMINAL
+
+
+def triangle_series(scale: float, delay_s: float, with_command: bool = True) -> pd.DataFrame:
+    t = np.arange(0.0, 40.0, 0.02)
+    c = rr.triangle_command(t, 5e-3, 20.0)
+    x = scale * rr.triangle_command(t - delay_s, 5e-3, 20.0)
+    frame = pd.DataFrame({"time_s": t, "displacement_m": x, "force_N": np.zeros_like(t)})
+    if with_command:
+        frame["command_m"] = c
+    return frame
+
+
+def test_the_speed_ratio_of_the_lvdt_to_the_command_is_its_scale():
+    assert ins.case_speed_ratio(triangle_series(1.012, 0.05), 20.0, 0.05) == pytest.approx(1.012, rel=1e-9)
+
+
+def test_without_a_command_channel_the_speed_ratio_is_not_a_number():
+    assert np.isnan(ins.case_speed_ratio(triangle_series(1.012, 0.05, with_command=False), 20.0, 0.05))
+
+
+def test_a_scale_departing_from_one_beyond_its_error_is_applied():
+    ratios = np.array([1.0119, 1.0121, 1.0120, 1.0122, 1.0118])
+    scale = ins.displacement_scale(ratios)
+    assert scale["estimate"] == pytest.approx(np.median(ratios))
+    assert scale["applied"] is True
+
+
+def test_a_scale_within_a_tenth_of_a_percent_is_not_applied():
+    scale = ins.displacement_scale(np.array([1.0004, 1.0005, 1.0006, 1.0005]))
+    assert scale["applied"] is False
+
+
+def test_a_command_far_from_the_lvdt_is_no_measure_of_its_scale():
+    scale = ins.displacement_scale(np.array([1.2, 1.2001, 1.1999]))
+    assert scale["applied"] is False
+
+
+def test_no_command_channel_gives_no_scale():
+    scale = ins.displacement_scale(np.array([np.nan, np.nan]))
+    assert scale["estimate"] is None and scale["applied"] is False
+
+
+def test_rescaled_drives_divide_every_measured_speed(campaign):
+    obs, _damper = campaign
+    scaled = ins.rescaled_drives(obs, 1.02)
+    for before, after in zip(obs.drives, scaled.drives, strict=True):
+        assert np.allclose(np.array(after.speeds_m_s) * 1.02, before.speeds_m_s)
+
+
+def test_lagged_model_means_are_the_means_of_the_model_force_shifted_back(campaign):
+    obs, damper = campaign
+    ev = Evaluator(obs, damper)
+    forces = ev.forces(NOMINAL)
+    k = 3  # whole samples at the plan's 50 Hz
+    lagged = ev.lagged(NOMINAL, [k / 50.0])[0]
+    by_hand = []
+    for case, lo, hi in zip(obs.case_index, obs.start, obs.stop, strict=True):
+        f = np.concatenate([np.zeros(k), forces[case]])  # at rest before the record
+        by_hand.append(f[lo:hi].mean())
+    assert np.allclose(lagged, by_hand, rtol=1e-12, atol=1e-9)
+
+
+def test_a_low_pass_moves_the_steady_windows_like_a_delay_of_its_group_delay(campaign):
+    obs, damper = campaign
+    ev = Evaluator(obs, damper)
+    win = obs.is_window
+    filtered = ev.filtered(NOMINAL, [0.045], 2)[0][win]
+    delayed = ev.lagged(NOMINAL, [0.045])[0][win]
+    assert np.allclose(filtered, delayed, rtol=1e-3)
+
+
+@pytest.mark.parametrize("form", [0, 2])
+def test_the_force_lag_of_a_lagging_channel_is_recovered(campaign, form):
+    obs, damper = campaign
+    ev = Evaluator(obs, damper)
+    truth = ev.lagged(NOMINAL, [0.03])[0] if form == 0 else ev.filtered(NOMINAL, [0.03], form)[0]
+    dg = Diagnoser(replace(obs, force_N=truth), damper)
+    lag, fitted_form, _pred = ins.fit_force_lag(dg)
+    assert fitted_form == form
+    assert lag == pytest.approx(0.03, abs=5e-4)
