@@ -1,7 +1,7 @@
 """Benchmark figures for the README: full rebuild, no-op rerun, a new raw campaign, the chain's job
 overhead against a plain script, where the time goes per rule, diagnosis and virtual-rig speed.
 
-    .venv/bin/python benchmark/run.py [--keep DIR]
+    .venv/bin/python benchmark/run.py [--keep DIR] [--diagnoses PROJECT]
 
 Everything runs in a scratch copy of the project (Snakefile, workflow/, config/, profiles/, data/),
 so the checkout's results/ are never touched. Prints measured figures next to the targets of
@@ -15,7 +15,9 @@ issue 11; asserts nothing. Run with the project's environment (.venv/bin/python)
 - chain: that campaign's ingest and characteristic jobs (Snakemake's ``benchmark:`` records: wall
   time of each job, interpreter start and imports included), against benchmark/plain_chain.py doing
   the same ingest -> characteristic in one plain process (also timed whole), best of three each;
-- per rule: the ``benchmark:`` records of the full rebuild, summed per rule.
+- per rule: the ``benchmark:`` records of the full rebuild, summed per rule;
+- diagnosis: each built campaign's diagnosis in a fresh process on one core (``--diagnoses PROJECT``:
+  only this, on a project already built, read-only).
 """
 
 from __future__ import annotations
@@ -105,7 +107,12 @@ def line(label: str, value: float, target: str) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--keep", type=Path, help="build in this folder and keep it (default: a temporary one)")
+    parser.add_argument("--diagnoses", type=Path, metavar="PROJECT",
+                        help="only time the diagnoses of the campaigns already built in PROJECT (read-only)")
     args = parser.parse_args()
+    if args.diagnoses:
+        print_diagnoses(args.diagnoses.resolve())
+        return
     work = scratch_project(args.keep or Path(tempfile.mkdtemp(prefix="isokinetic-bench-")))
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}; scratch project {work}")
@@ -126,21 +133,38 @@ def main() -> None:
     line("  whole snakemake command for it (start-up and DAG included)", whole, "")
     print_rules(rebuild_rows)
     sys.stdout.flush()
-    diag = diagnosis_seconds(work, "paper-lag-damper")
-    line("\ndiagnosis of paper-lag-damper (23 cases), one core", diag, "")
+    print_diagnoses(work)
     subprocess.run([sys.executable, str(ROOT / "benchmark" / "virtual_rig_throughput.py")], cwd=ROOT, check=True)
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
 
 
-def diagnosis_seconds(work: Path, campaign: str) -> float:
-    """Wall time of diagnosing a built campaign in a fresh process pinned to one core (imports excluded)."""
+def diagnosis_seconds(work: Path, campaign: str) -> tuple[float, int, int]:
+    """(wall time [s], cases diagnosed, model runs) of diagnosing a built campaign in a fresh process
+    pinned to one core (imports excluded); reads results/<campaign>/ and writes nothing."""
     code = ("import time, pathlib; from isokinetic.stages.diagnosis import diagnose; t = time.perf_counter(); "
-            f"diagnose(pathlib.Path('results/{campaign}')); print(time.perf_counter() - t)")
+            f"r, obs, _ = diagnose(pathlib.Path('results/{campaign}')); s = time.perf_counter() - t; "
+            "print(s, 0 if obs is None else len(obs.plans), r.get('model_evaluations') or 0)")
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    out = subprocess.run(["taskset", "-c", "0", sys.executable, "-c", code], cwd=work, check=True, env=env,
+    pin = ["taskset", "-c", "0"] if shutil.which("taskset") else []
+    out = subprocess.run([*pin, sys.executable, "-c", code], cwd=work, check=True, env=env,
                          capture_output=True, text=True)
-    return float(out.stdout.strip().splitlines()[-1])
+    seconds, cases, runs = out.stdout.strip().splitlines()[-1].split()
+    return float(seconds), int(cases), int(runs)
+
+
+def built_campaigns(work: Path) -> list[str]:
+    """The campaigns of a build that have a diagnosis (results/<campaign>/diagnosis.json), by name."""
+    return sorted(p.parent.name for p in (work / "results").glob("*/diagnosis.json"))
+
+
+def print_diagnoses(work: Path) -> None:
+    """The diagnosis time of every built campaign, one core each (issue 21: <= 3 s for paper-lag-damper)."""
+    print(f"\n{'diagnosis, one core':<26}{'cases':>6}{'model runs':>12}{'wall s':>9}")
+    for campaign in built_campaigns(work):
+        seconds, cases, runs = diagnosis_seconds(work, campaign)
+        target = "   target <= 3 s" if campaign == "paper-lag-damper" else ""
+        print(f"{campaign:<26}{cases:>6}{runs:>12}{seconds:>9.2f}{target}", flush=True)
 
 
 if __name__ == "__main__":

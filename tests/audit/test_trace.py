@@ -441,3 +441,16 @@ def test_an_edited_csv_export_is_a_mismatch_naming_line_and_field(project, tmp_p
     other = run(path, "row=0")  # an untouched line still matches; the edited one is pointed out
     assert other.status == tr.MATCH and "1 other line(s) of the file differ from their source rows (lines 4)" \
         in other.text, other.text
+
+
+def test_a_directory_or_fifo_is_named_as_what_it_is_not_as_missing(tmp_path):
+    from isokinetic.audit.trace import trace
+
+    folder = tmp_path / "results" / "c" / "characteristic.parquet"
+    folder.mkdir(parents=True)
+    fifo = tmp_path / "results" / "c" / "windows.parquet"
+    os.mkfifo(fifo)
+    for path, said in ((folder, "a directory, not a table file"), (fifo, "a named pipe (FIFO)"),
+                       (tmp_path / "results" / "c" / "none.parquet", "no such file")):
+        result = trace(path, root=tmp_path, stream=None)
+        assert result.status == "MISSING FILE" and said in result.text, result.text

@@ -21,7 +21,15 @@ from isokinetic.physics.damper import TABLE_1
 from isokinetic.physics.excitation import piston_segments, segment_index
 from isokinetic.physics.hydraulics import Hydraulics, compressibility_time, relaxation
 from isokinetic.physics.plan import CasePlan
-from isokinetic.physics.responses import Drive, drive_times, driven_segments, triangle_responses, true_response
+from isokinetic.physics.responses import (
+    Drive,
+    drive_times,
+    driven_segments,
+    triangle_pressure_sums,
+    triangle_responses,
+    triangle_responses_at,
+    true_response,
+)
 from isokinetic.physics.servo import servo_response
 from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, simulate_case
 
@@ -288,6 +296,30 @@ def test_repeated_batches_do_not_share_their_arrays():
     for x, y in zip(again, expected):
         for a, b in zip(x, y):
             np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("effects", [dm.Effects(), TRUTH, dm.Effects(air_volume_fraction=0.01, asymmetry=-0.1)],
+                         ids=["nominal", "truth", "air"])
+def test_pressure_sums_equal_the_sums_of_the_samples(effects):
+    """triangle_pressure_sums (Δp* summed in closed form after a table's end) gives the sums of
+    triangle_responses_at's samples over arbitrary ranges: within a segment, across segments, a whole
+    case, empty; with measured drives and per-case viscosity scales (two groups of coefficients)."""
+    hyd = Hydraulics.from_damper(TABLE_1, dataclasses.replace(effects, coulomb_force_N=0.0))
+    drives = [None, Drive((5.1e-6, 4.9e-6, 5.2e-6), grid_offset_s=0.0137), None, None]
+    scales = (1.0, 1.3, 1.0, 0.8)
+    runs = triangle_responses_at(BATCH, hyd, scales, 0.0, 0.06, drives)
+    rng = np.random.default_rng(4)
+    case, start, stop = [], [], []
+    for k, (t, _dp, _v) in enumerate(runs):
+        ends = np.sort(rng.integers(0, t.size + 1, size=(12, 2)), axis=1)
+        ends = np.vstack([ends, [[0, t.size], [3, 3], [t.size - 1, t.size]]])
+        case += [k] * len(ends)
+        start += ends[:, 0].tolist()
+        stop += ends[:, 1].tolist()
+    got = triangle_pressure_sums(BATCH, hyd, np.array(case), np.array(start), np.array(stop), scales, 0.0, 0.06,
+                                 drives)
+    expected = np.array([runs[k][1][a:b].sum() for k, a, b in zip(case, start, stop)])
+    np.testing.assert_allclose(got, expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
 
 
 # ---------------------------------------------------------------------------------- servo stiffness

@@ -28,7 +28,9 @@ def tree_hashes(folder: Path) -> dict[str, str]:
 # --------------------------------------------------------------------------------------------
 
 def test_small_blind_suite_attributes_every_effect(tmp_path):
-    scenarios = generate_scenarios(5, 1, 0, 1, **SMALL)
+    # the rig nuisances of issue 9 only: what the sensor chain (issue 21) does to attribution is measured by
+    # the suite's targets (results/blind/summary.json, README "Blind test of the diagnosis")
+    scenarios = generate_scenarios(5, 1, 0, 1, **SMALL, sensor_chain=False)
     assert sorted(s.truth for s in scenarios) == sorted([()] + [(e,) for e in EFFECTS])
     write_suite(scenarios, tmp_path / "raw", tmp_path / "truth")
     shutil.copytree(tmp_path / "raw", tmp_path / "raw-before")

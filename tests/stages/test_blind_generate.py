@@ -1,5 +1,6 @@
 """Rule blind_generate: scenario generation on the reference rig, detection levels, truth-free export."""
 
+import dataclasses
 import hashlib
 import json
 import math
@@ -62,6 +63,38 @@ def test_generation_is_deterministic_and_composed_as_asked(suite):
         assert 2 <= r.force_noise_N <= 10 and 0.005 <= r.force_noise_rel <= 0.015
         assert 0.1 <= r.noise_corner_Hz <= 5.0 and abs(r.force_gain - 1) <= 0.01 and r.force_offset_N != 0
         assert abs(r.force_offset_N) <= 0.02 * gen.full_scale_N(s.damper, s.cases)
+
+
+def test_sensor_chain_nuisances_are_drawn_in_every_scenario(suite):
+    lo, hi = gen.SENSOR_RANGES["force_filter_Hz"]
+    filtered = [s for s in suite if s.rig.force_filter_Hz > 0]
+    assert 0 < len(filtered) < len(suite)  # a low-pass in some scenarios, none in others
+    for s in suite:
+        r = s.rig
+        assert r.force_filter_Hz == 0 or (lo <= r.force_filter_Hz <= hi and r.force_filter_order in (1, 2))
+        assert 0 < abs(r.displacement_gain - 1) <= 0.015
+        duration = sum(c.duration_s + 1 / c.sample_rate_Hz for c in s.cases)
+        assert 0 < abs(r.force_drift_N_s) * duration <= 0.002 * gen.full_scale_N(s.damper, s.cases) * (1 + 1e-3)
+        assert 0 <= r.dropout_fraction <= 0.01
+
+
+def test_without_the_sensor_chain_the_same_scenarios_have_an_ideal_one(suite):
+    ideal = generate_scenarios(SEED, **SUITE, sensor_chain=False)
+    chain = {"force_filter_Hz": 0.0, "force_filter_order": 2, "displacement_gain": 1.0, "force_drift_N_s": 0.0,
+             "dropout_fraction": 0.0}
+    assert ideal == [dataclasses.replace(s, rig=dataclasses.replace(s.rig, **chain)) for s in suite]
+
+
+def test_truth_records_each_sensor_chain_nuisance(suite):
+    for s in suite:
+        inst, r = s.truth_record()["instrument"], s.rig
+        order = 1.0 if r.force_filter_order == 1 else math.sqrt(2.0)
+        lag = 0.0 if r.force_filter_Hz == 0 else order / (2 * math.pi * r.force_filter_Hz)
+        assert inst["force_lag_s"] == pytest.approx(lag, rel=1e-12, abs=0.0)
+        assert inst["displacement_scale"] == r.displacement_gain and inst["force_drift_N_s"] == r.force_drift_N_s
+        middle = sum(c.duration_s + 1 / c.sample_rate_Hz for c in s.cases) / 2  # the offset a campaign fit sees
+        assert inst["force_offset_N"] == pytest.approx(r.force_offset_N + r.force_drift_N_s * middle, rel=1e-12)
+        assert s.truth_record()["rig"]["dropout_fraction"] == r.dropout_fraction
 
 
 def test_magnitudes_lie_between_1_and_5_detection_levels(suite):
@@ -138,6 +171,8 @@ def test_export_holds_no_truth_and_is_byte_reproducible(suite, tmp_path):
         folder = raw / s.name
         assert sorted(p.name for p in folder.iterdir()) == sorted(["campaign.yaml"] + [f"{c.case}.csv"
                                                                                       for c in s.cases])
+        header = (folder / f"{s.cases[0].case}.csv").read_text(encoding="utf-8").splitlines()[0]
+        assert "command_um" in header.split(",")  # the command channel that makes the LVDT gain measurable
         text = (folder / "campaign.yaml").read_text(encoding="utf-8")
         manifest = yaml.safe_load(text)
         # the damper block is the nominal design data (checked below); everything else names no effect

@@ -104,3 +104,50 @@ def test_confusion_counts_and_figure(tmp_path):
     assert title.startswith("Blind test: 10 scenarios, 4 attributed exactly\n(a) FAIL")
     path = save_figure(confusion_figure(table, title), tmp_path / "fig.png")
     assert path.stat().st_size > 0
+
+
+def _sensor_truth(name, lag_s, scale, effects=()):
+    t = _truth(name, effects, 2.0 if effects else None)
+    t["instrument"] = {"delay_s": 0.01, "force_offset_N": 1.0, "force_gain": 1.0, "force_lag_s": lag_s,
+                       "displacement_scale": scale, "force_drift_N_s": 0.001}
+    return t
+
+
+def _sensor_diag(verdict, lag_s=None, lag_test=None, scale=None, scale_test=1.0, drift=None):
+    d = _diag(verdict)
+    d["instrument"] = {"delay_s": 0.01, "force_offset_N": 1.0, "force_gain": None, "force_lag_s": lag_s,
+                       "displacement_scale": scale, "force_drift_N_s": drift}
+    d["instrument_tests"] = {"force_lag": None if lag_test is None else {"estimate_s": lag_test},
+                             "displacement_scale": {"estimate": scale_test},
+                             "force_drift": {"estimate": 0.0015}}
+    return d
+
+
+def test_sensor_chain_errors_and_target_e():
+    cases = [(_sensor_truth("s00", 0.045, 1.012), _sensor_diag([], lag_s=0.041, scale=1.0135)),  # both within
+             (_sensor_truth("s01", 0.0225, 0.99), _sensor_diag([], lag_test=0.015, scale_test=0.9875)),  # lag off
+             (_sensor_truth("s02", 0.0, 1.004), _sensor_diag([], lag_test=0.03, scale_test=None)),  # scale off
+             (_sensor_truth("s03", 0.02, 1.001), _sensor_diag([])),  # no lag looked for: counts as 0
+             (_sensor_truth("s04", 0.0, 1.0), _sensor_diag([]))]  # neither nuisance: not judged
+    scores = score([t for t, _ in cases], {t["scenario"]: d for t, d in cases}).set_index("scenario")
+    assert np.allclose(scores["lag_error_s"], [0.004, 0.0075, 0.03, 0.02, 0.0])
+    assert np.allclose(scores["scale_error"], [0.0015, 0.0025, 0.004, 0.001, 0.0])
+    assert np.allclose(scores["drift_error_N_s"], 0.0005)  # the test's estimate where none is reported
+    e = summarize(scores.reset_index())["targets"]["e_parameters"]
+    assert (e["n_lag"], e["lag_misses"], e["lag_error_max_s"]) == (3, ["s01", "s03"], 0.02)
+    assert (e["n_scale"], e["scale_misses"]) == (4, ["s02"]) and e["pass"] is False
+    assert "lag misses s01, s03" in summary_text(summarize(scores.reset_index()))
+
+
+def test_target_f_counts_only_explained_claims_on_scenarios_without_effects():
+    cases = [(_truth("s00", [], None), _diag([], 1.0, 1.0)),
+             (_truth("s01", [], None), _diag(["viscosity", "air"], 5.0, 3.0, explained=False)),  # not explained
+             (_truth("s02", ["air"], 3.0), _diag(["air"])),
+             (_truth("s03", [], None, "relief"), _diag(["discharge"]))]  # out of catalogue: not judged by (f)
+    f = summarize(score([t for t, _ in cases], {t["scenario"]: d for t, d in cases}))["targets"]["f_none_explained"]
+    assert (f["n"], f["claimed"], f["pass"]) == (2, 0, True)
+    cases.append((_truth("s04", [], None), _diag(["discharge"], 5.0, 1.0)))
+    summary = summarize(score([t for t, _ in cases], {t["scenario"]: d for t, d in cases}))
+    f = summary["targets"]["f_none_explained"]
+    assert (f["n"], f["claimed"], f["pass"], f["misses"]) == (3, 1, False, ["s04"])
+    assert "(f) FAIL" in summary_text(summary) and summary["all_pass"] is False

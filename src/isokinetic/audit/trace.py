@@ -308,6 +308,21 @@ def show_comparisons(ctx: Context, comps: list[Comparison], primary: Sequence[st
 # entry point
 # ----------------------------------------------------------------------------------------------
 
+
+def what_is_there(path: Path) -> str:
+    """Why ``path`` is no table file trace can read: nothing there, a directory, a FIFO, a socket or a device."""
+    if path.is_dir():
+        return "a directory, not a table file (name a .parquet, .json or .csv file inside it)"
+    if not path.exists():
+        return "no such file"
+    import stat
+
+    mode = path.stat().st_mode
+    kinds = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a device"),
+             (stat.S_ISBLK, "a device"))
+    kind = next((name for test, name in kinds if test(mode)), "not a regular file")
+    return f"{kind}, not a table file: trace reads regular files only"
+
 def trace(table: str | os.PathLike, selector: str | None = None, *, root: str | os.PathLike | None = None,
           config: str | os.PathLike | None = None, rtol: float | None = None, stream="stdout") -> TraceResult:
     """Trace one row (or diagnosis key) of ``table`` back to the raw data and re-derive it.
@@ -330,7 +345,7 @@ def trace(table: str | os.PathLike, selector: str | None = None, *, root: str | 
                       scratch=Path(tmp), rtol=None if rtol is None else float(rtol))
         try:
             if not path.is_file():
-                raise MissingFile(f"{path}: no such file")
+                raise MissingFile(f"{path}: {what_is_there(path)}")
             export = csv_export_of(path)
             if export is not None:  # a CSV export: checked against its Parquet source, which is traced
                 selector = check_export(ctx, path, *export, selector)

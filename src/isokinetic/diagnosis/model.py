@@ -24,7 +24,7 @@ import numpy as np
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.hydraulics import Hydraulics
-from isokinetic.physics.responses import drive_times, triangle_responses_at
+from isokinetic.physics.responses import drive_times, triangle_pressure_sums, triangle_responses_at
 
 #: Panel width of the model's segment tables (isokinetic.physics.hydraulics.DEFAULT_STEP is 0.03): error ~1e-8 of the
 #: pressure scale, far below any window's noise, with about half the nodes.
@@ -54,8 +54,16 @@ class Evaluator:
         self.calls = 0
 
     def predict(self, effects: Effects = NOMINAL) -> np.ndarray:
-        """Model mean force of every observation [N] (Eq. 8 with Δp from Eq. 13-14)."""
-        return self._moments(effects, 1)[0]
+        """Model mean force of every observation [N] (Eq. 8 with Δp from Eq. 13-14); without friction
+        from the sums of Δp over the observations' samples (:func:`triangle_pressure_sums`: the samples
+        at steady state summed in closed form)."""
+        if effects.coulomb_force_N or effects.stribeck_force_N:
+            return self._moments(effects, 1)[0]
+        self.calls += 1
+        hyd = Hydraulics.from_damper(self.damper, effects)
+        sums = triangle_pressure_sums(self.obs.plans, hyd, self.obs.case_index, self.obs.start, self.obs.stop,
+                                      self.obs.viscosity_scale, 0.0, MODEL_STEP, self.obs.drives or None)
+        return hyd.piston_area_m2 * sums / self._n
 
     def lagged(self, effects: Effects, lags_s) -> np.ndarray:
         """Model mean force of every observation as a force channel lagging by each of ``lags_s`` would

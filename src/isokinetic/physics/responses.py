@@ -326,6 +326,81 @@ def _ranks(counts: np.ndarray) -> np.ndarray:
     return np.arange(int(counts.sum())) - (counts.cumsum() - counts).repeat(counts)
 
 
+def _segment_tables(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: float, step: float,
+                    drives: Sequence[Drive | None] | None) -> tuple[_Layout, RelaxationBatch, np.ndarray, np.ndarray]:
+    """The layout of (non-empty) ``cases``, the chained tables, each segment's table and its live samples
+    (those before the table's end; the rest are at Δp*)."""
+    drives = [None] * len(cases) if drives is None else list(drives)
+    if len(drives) != len(cases):
+        raise ValueError(f"{len(drives)} drives for {len(cases)} cases")
+    try:
+        lay = _layout(cases, drives, hyd, backlash_m)
+    except TypeError:                               # unhashable cases or drives: not remembered
+        lay = _build_layout(cases, drives, hyd, backlash_m)
+    tau_end = compressibility_times(lay.t1 - lay.t0, lay.v1, lay.v2, lay.qp, hyd)
+    tabs, table = _chain(lay, tau_end, hyd, step)
+    return lay, tabs, table, _live_counts(lay, tau_end, tabs.end_tau[table], hyd)
+
+
+def triangle_pressure_sums(cases: Sequence[CasePlan], hyd: Hydraulics, case_index: np.ndarray, start: np.ndarray,
+                           stop: np.ndarray, viscosity_scales: Sequence[float] = (), backlash_m: float = 0.0,
+                           step: float = DEFAULT_STEP, drives: Sequence[Drive | None] | None = None) -> np.ndarray:
+    """Σ Δp [Pa] of :func:`triangle_responses_at` over the samples ``start[k]:stop[k]`` of case ``case_index[k]``,
+    for every k, without evaluating the samples one by one where they need no evaluation: a segment's samples
+    after its table's end are all at Δp* (Eq. 13 steady state), their sum is count·Δp*. Equal to summing the
+    samples up to rounding (the partial sums run over each case, as a cumulative sum of its samples would)."""
+    case_index, start, stop = (np.asarray(a, dtype=np.int64) for a in (case_index, start, stop))
+    out = np.zeros(case_index.size)
+    if not len(cases):
+        return out
+    if viscosity_scales and len(viscosity_scales) != len(cases):
+        raise ValueError(f"{len(viscosity_scales)} viscosity scales for {len(cases)} cases")
+    drives = [None] * len(cases) if drives is None else list(drives)
+    groups: dict[Hydraulics, list[int]] = {}
+    for i, scale in enumerate(viscosity_scales or [1.0] * len(cases)):
+        groups.setdefault(scaled_viscosity(hyd, scale), []).append(i)
+    for group_hyd, idx in groups.items():
+        local = np.full(len(cases), -1, dtype=np.int64)
+        local[idx] = np.arange(len(idx))
+        mine = (local[case_index] >= 0).nonzero()[0]
+        group_drives = [drives[i] for i in idx]
+        lay, tabs, table, n_live = _segment_tables([cases[i] for i in idx], group_hyd, backlash_m, step,
+                                                   group_drives if any(d is not None for d in group_drives) else None)
+        out[mine] = _range_sums(lay, tabs, table, n_live, group_hyd, local[case_index[mine]], start[mine], stop[mine])
+    return out
+
+
+def _range_sums(lay: _Layout, tabs: RelaxationBatch, table: np.ndarray, n_live: np.ndarray, hyd: Hydraulics,
+                case: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+    """Σ Δp over samples [start, stop) of each ``case`` of the layout: the live samples evaluated
+    (:func:`_sample_pressures`), the rest count·Δp*."""
+    dp = np.empty(lay.times_all.size)
+    _sample_pressures(tabs, table, lay, n_live, hyd, dp)
+    live_at = lay.lo.repeat(n_live) + _ranks(n_live)
+    live_sum = np.concatenate([[0.0], np.cumsum(dp.take(live_at))])   # the live samples, segment after segment
+    live_first = np.cumsum(n_live) - n_live                            # each segment's first in live_sum
+    steady = tabs.steady_Pa[table]
+    totals = (live_sum[live_first + n_live] - live_sum[live_first]) + steady * (lay.count - n_live)
+    before = np.cumsum(totals) - totals                                # Σ of the segments before, all cases
+    n_seg = np.bincount(lay.case, minlength=len(lay.times))
+    first_seg = np.cumsum(n_seg) - n_seg
+    last_seg = first_seg + n_seg - 1
+    sizes = np.array([t.size for t in lay.times], dtype=np.int64)
+    case_first = np.cumsum(sizes) - sizes
+
+    def prefix(case_, local_at):
+        """Σ Δp of the case's samples before ``local_at``."""
+        at = case_first[case_] + local_at
+        seg = np.minimum(np.searchsorted(lay.lo, at, side="right") - 1, last_seg[case_])
+        seg = np.maximum(seg, first_seg[case_])
+        into = at - lay.lo[seg]
+        k = np.minimum(into, n_live[seg])
+        return (before[seg] - before[first_seg[case_]] + live_sum[live_first[seg] + k] - live_sum[live_first[seg]]
+                + steady[seg] * (into - k))
+
+    return prefix(case, stop) - prefix(case, start)
+
+
 def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: float = 0.0,
                        step: float = DEFAULT_STEP, drives: Sequence[Drive | None] | None = None
                        ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -340,18 +415,9 @@ def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: f
     (:class:`Drive`; no backlash). The sample grids and segments of the last few case sets are
     remembered (fits call this hundreds of times on the same cases).
     """
-    drives = [None] * len(cases) if drives is None else list(drives)
-    if len(drives) != len(cases):
-        raise ValueError(f"{len(drives)} drives for {len(cases)} cases")
-    try:
-        lay = _layout(cases, drives, hyd, backlash_m)
-    except TypeError:                               # unhashable cases or drives: not remembered
-        lay = _build_layout(cases, drives, hyd, backlash_m)
     if not cases:
         return []
-    tau_end = compressibility_times(lay.t1 - lay.t0, lay.v1, lay.v2, lay.qp, hyd)
-    tabs, table = _chain(lay, tau_end, hyd, step)
-    n_live = _live_counts(lay, tau_end, tabs.end_tau[table], hyd)
+    lay, tabs, table, n_live = _segment_tables(cases, hyd, backlash_m, step, drives)
     dp = np.repeat(tabs.steady_Pa[table], lay.count)
     _sample_pressures(tabs, table, lay, n_live, hyd, dp)
     vel = np.repeat(lay.w, lay.count)

@@ -160,10 +160,15 @@ def _target_result(target: Mapping) -> tuple[str, str, Mapping]:
                 f"&ge; {fmt_pct(target.get('threshold'))}", target)
     if "param_error_max" in target:
         misses = sorted({*target.get("param_misses", []), *target.get("delay_misses", []),
-                         *target.get("offset_misses", [])})
+                         *target.get("offset_misses", []), *target.get("lag_misses", []),
+                         *target.get("scale_misses", [])})
+        sensor = "n_lag" in target  # issue 21: the force-channel lag and the LVDT gain
         return (f"effect sizes within {fmt_pct(target.get('param_error_max'))}; delay within "
                 f"{fmt((target.get('delay_error_max_s') or 0) * 1e3, 3)} ms; offset within "
-                f"{fmt(target.get('offset_error_max_N'), 3)} N", "15 %; 2 ms; 2 N", {**target, "misses": misses})
+                f"{fmt(target.get('offset_error_max_N'), 3)} N"
+                + (f"; lag within {fmt((target.get('lag_error_max_s') or 0) * 1e3, 3)} ms; LVDT gain within "
+                   f"{fmt_pct(target.get('scale_error_max'))}" if sensor else ""),
+                "15 %; 2 ms; 2 N" + ("; 5 ms; 0.3 %" if sensor else ""), {**target, "misses": misses})
     return (f"median {fmt(target.get('median'), 3)} over {target.get('n', '?')}",
             f"&ge; {fmt(target.get('threshold'), 3)}", target)
 

@@ -18,7 +18,10 @@ Scenario
     the shortest period of {20, 80, 240} s whose amplitude Y = W T/4 reaches 0.3 mm (and Y <= 8 mm),
     50 Hz, acquisition 2T, in a random test order. Every scenario draws rig nuisances
     (:data:`RIG_RANGES`): actuator delay and servo lag, white plus proportional coloured force noise,
-    load-cell offset and gain error, LVDT noise and a slow viscosity drift over the campaign. It has
+    load-cell offset and gain error, LVDT noise and a slow viscosity drift over the campaign, and the
+    sensor chain's (:data:`SENSOR_RANGES`, issue 21): a force-channel low-pass (or none), an LVDT gain
+    error, a load-cell zero drift and sample dropouts; the export has a command channel, so the LVDT's
+    gain is measurable (its speed against the command's). It has
     zero, one or two of the catalogue effects :data:`EFFECTS` at 1x-5x their detection level, or one
     effect outside the catalogue (:data:`OUT_OF_CATALOGUE`: Stribeck friction, backlash, a relief
     valve; :func:`out_of_catalogue_true_effects`). The rig writes its own column names and units
@@ -110,6 +113,14 @@ STRIBECK_PEAK = 0.2
 RIG_RANGES = {"delay_s": (0.0, 0.025), "servo_lag_s": (0.002, 0.010), "force_noise_N": (2.0, 10.0),
               "force_noise_rel": (0.005, 0.015), "noise_corner_Hz": (0.1, 5.0), "force_offset_fs": 0.02,
               "force_gain_error": 0.01, "displacement_noise_m": 1.0e-6, "viscosity_drift_rel": 0.003}
+
+#: Ranges of the sensor-chain nuisances (issue 21), also drawn in every scenario: the force channel
+#: behind an anti-alias Butterworth low-pass with probability ``force_filter_p``, its corner
+#: log-uniform in ``force_filter_Hz`` and its order 1 or 2 (group delay 16-113 ms); the LVDT's gain
+#: error (either sign); the load-cell zero drift over the whole campaign (fraction of full scale,
+#: either sign); the fraction of samples dropped from the record.
+SENSOR_RANGES = {"force_filter_p": 0.5, "force_filter_Hz": (2.0, 10.0), "displacement_gain_error": 0.015,
+                 "force_drift_fs": 0.002, "dropout_fraction": (0.0, 0.01)}
 
 
 DESCRIPTION = "Blind-test scenario: simulated damper test campaign; its unmodelled effects are withheld."
@@ -268,9 +279,15 @@ class Scenario:
 
     def instrument_truth(self) -> dict[str, float]:
         """The rig's instrument terms as the diagnosis reports them: the delay of the piston behind the
-        command in a steady ramp (delay + servo lag), the load-cell offset and gain."""
-        return {"delay_s": self.rig.delay_s + self.rig.servo_lag_s, "force_offset_N": self.rig.force_offset_N,
-                "force_gain": self.rig.force_gain}
+        command in a steady ramp (delay + servo lag), the load-cell offset (at the campaign's middle: a
+        zero drift moves it), the load-cell gain, the force channel's lag (its low-pass' group delay, 0
+        without one), the LVDT's scale and the load-cell zero drift [N/s]."""
+        rig = self.rig
+        middle = 0.5 * campaign_duration_s(self.cases)
+        return {"delay_s": rig.delay_s + rig.servo_lag_s, "force_offset_N": rig.force_offset_N
+                + rig.force_drift_N_s * middle, "force_gain": rig.force_gain,
+                "force_lag_s": rig.force_group_delay_s(), "displacement_scale": rig.displacement_gain,
+                "force_drift_N_s": rig.force_drift_N_s, "force_offset_at_start_N": rig.force_offset_N}
 
     def truth_record(self) -> dict:
         """JSON-ready truth (results/blind/truth/<scenario>.json)."""
@@ -342,10 +359,31 @@ def full_scale_N(damper: Damper, cases: Sequence[CasePlan]) -> float:
     return next(m * 10.0**k for m in (1.0, 2.0, 5.0, 10.0) if m * 10.0**k >= peak)
 
 
-def draw_rig(rng: np.random.Generator, full_scale: float) -> rr.RigImperfections:
-    """Rig nuisances, drawn in every scenario (RIG_RANGES)."""
+def campaign_duration_s(cases: Sequence[CasePlan]) -> float:
+    """The campaign's length, its cases back to back (as the reference rig counts campaign time)."""
+    return float(sum(c.duration_s + 1.0 / c.sample_rate_Hz for c in cases))
+
+
+def draw_sensor_chain(rng: np.random.Generator, full_scale: float, duration_s: float) -> dict[str, float]:
+    """The sensor-chain nuisances of one scenario (SENSOR_RANGES), as RigImperfections fields."""
+    r = SENSOR_RANGES
+    filtered = bool(rng.random() < r["force_filter_p"])
+    corner = _sig(math.exp(rng.uniform(*np.log(r["force_filter_Hz"]))), 3)
+    order = int(rng.integers(1, 3))
+    gain = 1.0 + _sig(rng.uniform(-1.0, 1.0) * r["displacement_gain_error"], 3)
+    drift = _sig(rng.uniform(-1.0, 1.0) * r["force_drift_fs"] * full_scale / duration_s, 3)
+    dropout = _sig(rng.uniform(*r["dropout_fraction"]), 3)
+    return {"force_filter_Hz": corner if filtered else 0.0, "force_filter_order": order if filtered else 2,
+            "displacement_gain": gain, "force_drift_N_s": drift, "dropout_fraction": dropout}
+
+
+def draw_rig(rng: np.random.Generator, full_scale: float, duration_s: float = 1.0,
+             chain_rng: np.random.Generator | None = None) -> rr.RigImperfections:
+    """Rig nuisances, drawn in every scenario (RIG_RANGES), and the sensor chain's (SENSOR_RANGES, the zero
+    drift spread over ``duration_s``, the campaign's length) from their own stream ``chain_rng`` (None: an
+    ideal sensor chain), so that a scenario is the same with or without its sensor chain."""
     r = RIG_RANGES
-    return rr.RigImperfections(
+    rig = rr.RigImperfections(
         delay_s=_sig(rng.uniform(*r["delay_s"]), 3), servo_lag_s=_sig(rng.uniform(*r["servo_lag_s"]), 3),
         force_noise_N=_sig(rng.uniform(*r["force_noise_N"]), 3),
         force_noise_rel=_sig(rng.uniform(*r["force_noise_rel"]), 3),
@@ -355,6 +393,8 @@ def draw_rig(rng: np.random.Generator, full_scale: float) -> rr.RigImperfections
         displacement_noise_m=r["displacement_noise_m"],
         viscosity_drift_rel=_sig(rng.uniform(-1.0, 1.0) * r["viscosity_drift_rel"], 3),
         force_resolution_N=0.01, displacement_resolution_m=1e-8, command_resolution_m=1e-8)
+    return rig if chain_rng is None else dataclasses.replace(rig, **draw_sensor_chain(chain_rng, full_scale,
+                                                                                      duration_s))
 
 
 def charge_pressure_Pa(damper: Damper, cases: Sequence[CasePlan]) -> float:
@@ -444,20 +484,23 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
                   n_velocities: tuple[int, int] = N_VELOCITIES,
                   low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
                   high_end_mm_s: tuple[float, float] = HIGH_END_MM_S, out_of_catalogue: str = "",
-                  rig: rr.RigImperfections | None = None) -> Scenario:
+                  rig: rr.RigImperfections | None = None, sensor_chain: bool = True) -> Scenario:
     """Draw a scenario with the effects ``truth`` at ``multiples`` x their detection level.
 
     ``multiples`` missing an effect: drawn U[1, 5]. Damper, plan and rig are re-drawn (up to
     MAX_REDRAWS times) while an effect's 5x detection level exceeds its bound. ``rig`` overrides
-    the drawn nuisances (tests).
+    the drawn nuisances (tests); ``sensor_chain`` False leaves the sensor chain ideal (:func:`draw_rig`; its
+    own stream, child 21 of ``seed_seq``: everything else is drawn as without it).
     """
     rng = np.random.default_rng(seed_seq)
+    chain_rng = np.random.default_rng(np.random.SeedSequence(seed_seq.entropy, spawn_key=(*seed_seq.spawn_key, 21))) \
+        if sensor_chain else None
     truth = tuple(e for e in EFFECTS if e in set(truth))
     multiples = dict(multiples or {})
     for redraw in range(MAX_REDRAWS + 1):
         damper = draw_damper(rng)
         cases = tuple(draw_plan(rng, n_velocities, low_end_mm_s, high_end_mm_s))
-        drawn_rig = draw_rig(rng, full_scale_N(damper, cases))
+        drawn_rig = draw_rig(rng, full_scale_N(damper, cases), campaign_duration_s(cases), chain_rng)
         the_rig = drawn_rig if rig is None else rig
         noise_seed = int(rng.integers(0, 2**31 - 1))
         signs = {e: (float(rng.choice([-1.0, 1.0])) if e in SIGNED else 1.0) for e in truth}
@@ -513,13 +556,15 @@ def generate_scenarios(seed: int, n_per_effect: int, n_pairs: int, n_none: int, 
                        multiple: float | None = None, spec: WindowSpec = WindowSpec(),
                        n_velocities: tuple[int, int] = N_VELOCITIES,
                        low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
-                       high_end_mm_s: tuple[float, float] = HIGH_END_MM_S) -> list[Scenario]:
+                       high_end_mm_s: tuple[float, float] = HIGH_END_MM_S,
+                       sensor_chain: bool = True) -> list[Scenario]:
     """The blind suite: ``n_per_effect`` single-effect scenarios per effect, ``n_pairs`` with two
     effects, ``n_none`` without, ``n_out`` with an effect outside the catalogue; names blind-000...
     in a seeded random order.
 
     ``multiple`` fixes every effect's magnitude at that many detection levels (tests); the plan
-    ranges can be narrowed for small suites.
+    ranges can be narrowed for small suites; ``sensor_chain`` False draws the same suite with an ideal
+    sensor chain (the same scenarios otherwise).
     """
     composition = suite_composition(seed, n_per_effect, n_pairs, n_none, n_out)
     out = []
@@ -527,7 +572,7 @@ def generate_scenarios(seed: int, n_per_effect: int, n_pairs: int, n_none: int, 
         if multiple is not None:
             mult = {e: float(multiple) for e in truth}
         out.append(make_scenario(name, truth, np.random.SeedSequence([int(seed), k]), mult, spec,
-                                 n_velocities, low_end_mm_s, high_end_mm_s, kind))
+                                 n_velocities, low_end_mm_s, high_end_mm_s, kind, sensor_chain=sensor_chain))
     return out
 
 

@@ -3,9 +3,9 @@
 The only reader of the truth (``results/blind/truth/<scenario>.json``, written by
 :mod:`isokinetic.stages.blind_generate`). Each scenario is scored (:func:`score`): truth and verdict
 as effect sets, exact or not, the gap before and after, the fitted effect sizes and instrument
-terms against the truth. The suite is summarised (:func:`summarize`) per magnitude bin and against
-five targets, written as scores.parquet, summary.json and the confusion figure
-(:mod:`isokinetic.plots.blind_score`).
+terms (delay, load-cell offset and gain, force-channel lag, LVDT scale, zero drift) against the truth.
+The suite is summarised (:func:`summarize`) per magnitude bin and against six targets, written as
+scores.parquet, summary.json and the confusion figure (:mod:`isokinetic.plots.blind_score`).
 """
 
 from __future__ import annotations
@@ -30,13 +30,14 @@ from isokinetic.stages.blind_generate import MAGNITUDE_BINS, PARAM_KEYS, effect_
 SCORE_COLUMNS = ("scenario", "truth", "out_of_catalogue", "verdict", "exact", "exact_up_to_confounding",
                  "explained", "n_truth", "magnitude_x_detection", "magnitude_bin", "gap_before", "gap_after",
                  "shrink", "confounded", "param_error_max", "delay_error_s", "offset_error_N", "gain_error",
-                 "error")
+                 "true_lag_s", "lag_error_s", "true_scale", "scale_error", "drift_error_N_s", "error")
 #: A scenario's diagnosis, in its work folder (as rule diagnosis names it).
 DIAGNOSIS_FILE = STAGE_OUTPUTS["diagnosis"]["json"]
 #: Row-level lineage columns of scores.parquet (:func:`score_sources`), after SCORE_COLUMNS.
 SOURCE_COLUMNS = ("raw_dir", "truth_file", "diagnosis_file")
 _FLOAT_COLUMNS = ("magnitude_x_detection", "gap_before", "gap_after", "shrink", "param_error_max", "delay_error_s",
-                  "offset_error_N", "gain_error")
+                  "offset_error_N", "gain_error", "true_lag_s", "lag_error_s", "true_scale", "scale_error",
+                  "drift_error_N_s")
 
 TARGET_SINGLE_RATE = 0.95
 TARGET_SINGLE_MIN_MULTIPLE = 2.0
@@ -45,8 +46,11 @@ TARGET_OUT_OF_CATALOGUE_RATE = 0.90
 TARGET_PARAM_ERROR = 0.15
 TARGET_DELAY_ERROR_S = 0.002
 TARGET_OFFSET_ERROR_N = 2.0
+TARGET_LAG_ERROR_S = 0.005
+TARGET_SCALE_ERROR = 0.003
 #: The targets of the summary, in the order they are reported.
-TARGETS = ("a_single_at_2x", "b_none_clean", "c_out_of_catalogue", "d_median_shrink", "e_parameters")
+TARGETS = ("a_single_at_2x", "b_none_clean", "c_out_of_catalogue", "d_median_shrink", "e_parameters",
+           "f_none_explained")
 
 
 # --------------------------------------------------------------------------------------------
@@ -123,6 +127,35 @@ def instrument_errors(truth: Mapping, diagnosis: Mapping) -> tuple[float, float,
     return delay, offset, gain
 
 
+def sensor_chain_errors(truth: Mapping, diagnosis: Mapping) -> dict[str, float]:
+    """Errors of the sensor chain's estimates (issue 21) against the rig's truth: the force channel's lag
+    [s], the LVDT's scale (absolute, as a fraction) and the load-cell zero drift [N/s]; NaN where the truth
+    record predates them.
+
+    As :func:`instrument_errors`, the estimate is the reported value, else the estimate of the test that
+    dropped it (``instrument_tests``), else none at all (no lag, scale 1, no drift): a lag the diagnosis
+    never looked for counts as a lag of zero.
+    """
+    true = truth.get("instrument") or {}
+    inst = diagnosis.get("instrument") or {}
+    tests = diagnosis.get("instrument_tests") or {}
+
+    def estimate(key: str, test: str, field: str, default: float) -> float:
+        v = inst.get(key)
+        if v is None:
+            v = (tests.get(test) or {}).get(field)
+        return _float(default if v is None else v)
+
+    out = {}
+    for name, key, test, field, default in (("lag_error_s", "force_lag_s", "force_lag", "estimate_s", 0.0),
+                                            ("scale_error", "displacement_scale", "displacement_scale", "estimate",
+                                             1.0),
+                                            ("drift_error_N_s", "force_drift_N_s", "force_drift", "estimate", 0.0)):
+        t = _float(true.get(key))
+        out[name] = abs(estimate(key, test, field, default) - t) if math.isfinite(t) else math.nan
+    return out
+
+
 def score_row(t: Mapping, d: Mapping | None) -> dict:
     """The score of one scenario: its truth record ``t`` against its diagnosis ``d`` (None: failed)."""
     name = str(t["scenario"])
@@ -131,12 +164,15 @@ def score_row(t: Mapping, d: Mapping | None) -> dict:
     if not truth:
         mult = math.nan
     row = {"scenario": name, "truth": effect_text(truth), "out_of_catalogue": str(t.get("out_of_catalogue") or ""),
-           "n_truth": len(truth), "magnitude_x_detection": mult, "magnitude_bin": magnitude_bin(mult)}
+           "n_truth": len(truth), "magnitude_x_detection": mult, "magnitude_bin": magnitude_bin(mult),
+           "true_lag_s": _float((t.get("instrument") or {}).get("force_lag_s")),
+           "true_scale": _float((t.get("instrument") or {}).get("displacement_scale"))}
     if d is None or d.get("status") not in ("ok", None):
         row.update(verdict="error", exact=False, exact_up_to_confounding=False, explained=False,
                    gap_before=math.nan, gap_after=math.nan, shrink=math.nan, confounded="",
                    param_error_max=math.nan, delay_error_s=math.nan, offset_error_N=math.nan,
-                   gain_error=math.nan, error=True)
+                   gain_error=math.nan, lag_error_s=math.nan, scale_error=math.nan, drift_error_N_s=math.nan,
+                   error=True)
         return row
     verdict = set(d.get("verdict") or [])
     groups = _confounded_groups(d)
@@ -148,7 +184,8 @@ def score_row(t: Mapping, d: Mapping | None) -> dict:
                gap_before=_float(d.get("gap_before")), gap_after=_float(d.get("gap_after")),
                shrink=_float(d.get("shrink")), confounded=";".join("+".join(g) for g in groups),
                param_error_max=param_error(t, d) if exact and truth else math.nan,
-               delay_error_s=delay, offset_error_N=offset, gain_error=gain, error=False)
+               delay_error_s=delay, offset_error_N=offset, gain_error=gain, **sensor_chain_errors(t, d),
+               error=False)
     return row
 
 
@@ -239,17 +276,31 @@ def target_median_shrink(eff: pd.DataFrame) -> dict:
             "pass": None if median is None else bool(median >= TARGET_MEDIAN_SHRINK)}
 
 
+def _sensor_misses(inside: pd.DataFrame) -> tuple[pd.DataFrame, pd.Series, pd.DataFrame, pd.Series]:
+    """(scenarios with a force-channel lag, those whose lag misses TARGET_LAG_ERROR_S, scenarios with an LVDT
+    scale other than 1, those whose scale misses TARGET_SCALE_ERROR), among the diagnosed in-catalogue ones."""
+    ok = inside[~inside["error"]]
+    lagged = ok[ok["true_lag_s"] > 0]
+    scaled = ok[ok["true_scale"].notna() & (ok["true_scale"] != 1.0)]
+    return (lagged, lagged.loc[~(lagged["lag_error_s"] <= TARGET_LAG_ERROR_S), "scenario"],
+            scaled, scaled.loc[~(scaled["scale_error"] <= TARGET_SCALE_ERROR), "scenario"])
+
+
 def target_parameters(eff: pd.DataFrame, inside: pd.DataFrame) -> dict:
     """(e) every exact verdict's effect sizes within TARGET_PARAM_ERROR of the truth; on every
-    in-catalogue scenario the delay within TARGET_DELAY_ERROR_S and the offset within TARGET_OFFSET_ERROR_N."""
+    in-catalogue scenario the delay within TARGET_DELAY_ERROR_S and the offset within TARGET_OFFSET_ERROR_N;
+    where the truth has them, the force-channel lag within TARGET_LAG_ERROR_S and the LVDT scale within
+    TARGET_SCALE_ERROR (issue 21)."""
     exact = eff[eff["exact"] & ~eff["param_error_max"].isna()]   # NaN: a truth without parameters
     p_err = exact["param_error_max"].to_numpy(dtype=float)
     p_bad = exact.loc[~(exact["param_error_max"] <= TARGET_PARAM_ERROR), "scenario"]
     judged = inside[~inside["error"] & ~inside["delay_error_s"].isna()]
     d_bad = judged.loc[~(judged["delay_error_s"] <= TARGET_DELAY_ERROR_S), "scenario"]
     o_bad = judged.loc[~(judged["offset_error_N"] <= TARGET_OFFSET_ERROR_N), "scenario"]
+    lagged, l_bad, scaled, s_bad = _sensor_misses(inside)
     return {"description": "exact verdicts' effect sizes within 15 %; delay within 2 ms and "
-                           "offset within 2 N on every in-catalogue scenario",
+                           "offset within 2 N on every in-catalogue scenario; where the truth has them, a "
+                           "force-channel lag within 5 ms and an LVDT gain within 0.3 %",
             "n_exact": int(len(exact)),
             "param_error_max": _json_float(np.max(p_err)) if p_err.size else None,
             "param_error_median": _json_float(np.median(p_err)) if p_err.size else None,
@@ -257,8 +308,22 @@ def target_parameters(eff: pd.DataFrame, inside: pd.DataFrame) -> dict:
             "delay_error_max_s": _json_float(judged["delay_error_s"].max()) if len(judged) else None,
             "offset_error_max_N": _json_float(judged["offset_error_N"].max()) if len(judged) else None,
             "gain_error_max": _json_float(judged["gain_error"].max()) if len(judged) else None,
-            "pass": None if judged.empty else bool(p_bad.empty and d_bad.empty and o_bad.empty),
-            "param_misses": sorted(p_bad), "delay_misses": sorted(d_bad), "offset_misses": sorted(o_bad)}
+            "n_lag": int(len(lagged)),
+            "lag_error_max_s": _json_float(lagged["lag_error_s"].max()) if len(lagged) else None,
+            "n_scale": int(len(scaled)),
+            "scale_error_max": _json_float(scaled["scale_error"].max()) if len(scaled) else None,
+            "pass": None if judged.empty else bool(p_bad.empty and d_bad.empty and o_bad.empty and l_bad.empty
+                                                   and s_bad.empty),
+            "param_misses": sorted(p_bad), "delay_misses": sorted(d_bad), "offset_misses": sorted(o_bad),
+            "lag_misses": sorted(l_bad), "scale_misses": sorted(s_bad)}
+
+
+def target_none_explained(none: pd.DataFrame) -> dict:
+    """(f) no damper effect claimed with ``explained: true`` on any scenario whose truth has none."""
+    claimed = none[(none["verdict"] != "") & none["explained"] & ~none["error"]]
+    return {"description": "damper effects claimed as explained on scenarios without effects",
+            "n": int(len(none)), "claimed": int(len(claimed)),
+            "pass": None if none.empty else bool(claimed.empty), "misses": sorted(claimed["scenario"])}
 
 
 def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
@@ -271,7 +336,9 @@ def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
     (c) >= 90 % of out-of-catalogue scenarios reported ``explained: false``;
     (d) median shrink >= 5 over the scenarios with catalogue effects;
     (e) the fitted effect sizes of every exact verdict within 15 % of the truth, and on every
-        in-catalogue scenario the actuator delay within 2 ms and the load-cell offset within 2 N.
+        in-catalogue scenario the actuator delay within 2 ms and the load-cell offset within 2 N; where the
+        truth has them, the force-channel lag within 5 ms and the LVDT scale within 0.3 %;
+    (f) no damper effect claimed with ``explained: true`` on any scenario without one.
     A target without any scenario to judge is 'N/A' (pass: null).
     """
     alpha = ALPHA if alpha is None else alpha
@@ -282,7 +349,7 @@ def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
     out = scores[scores["out_of_catalogue"] != ""]
     targets = {"a_single_at_2x": target_single(singles), "b_none_clean": target_none_clean(none, alpha),
                "c_out_of_catalogue": target_out_of_catalogue(out), "d_median_shrink": target_median_shrink(eff),
-               "e_parameters": target_parameters(eff, inside)}
+               "e_parameters": target_parameters(eff, inside), "f_none_explained": target_none_explained(none)}
     passes = [targets[k]["pass"] for k in TARGETS]
     return {
         "format_version": 2,
@@ -327,7 +394,7 @@ def summary_text(summary: Mapping) -> str:
         rs = "  -  " if b["rate_single"] is None else f"{100 * b['rate_single']:5.1f} %"
         lines.append(f"  {name:>5}: {b['exact']:3d}/{b['n']:<3d} {rate}   (single effect {b['exact_single']}/"
                      f"{b['n_single']} {rs})")
-    a, bn, c, d, e = (t[k] for k in TARGETS)
+    a, bn, c, d, e, f = (t[k] for k in TARGETS)
     lines.append(f"(a) {pass_text(a['pass'])}: single effect at >= 2x detection exact {a['exact']}/{a['n']} "
                  f"= {_percent(a['rate'])} (target >= {100 * a['threshold']:.0f} %)" + _misses(a["misses"], "missed "))
     lines.append(f"(b) {pass_text(bn['pass'])}: effects claimed on {bn['claimed']}/{bn['n']} scenarios without "
@@ -343,9 +410,14 @@ def summary_text(summary: Mapping) -> str:
                  f"target 15 %); over {e['n_judged']} scenarios delay error <= "
                  f"{_number(e['delay_error_max_s'], 1e3, ' ms')} (target 2 ms), offset error <= "
                  f"{_number(e['offset_error_max_N'], 1, ' N')} (target 2 N), "
-                 f"gain error <= {_number(e['gain_error_max'], 100, ' %')}"
+                 f"gain error <= {_number(e['gain_error_max'], 100, ' %')}; over {e['n_lag']} with a force-channel "
+                 f"lag, lag error <= {_number(e['lag_error_max_s'], 1e3, ' ms')} (target 5 ms); over "
+                 f"{e['n_scale']} with an LVDT gain, its error <= {_number(e['scale_error_max'], 100, ' %')} "
+                 f"(target 0.3 %)"
                  + "".join(f"; {k.split('_')[0]} misses {', '.join(e[k])}" for k in
-                           ("param_misses", "delay_misses", "offset_misses") if e[k]))
+                           ("param_misses", "delay_misses", "offset_misses", "lag_misses", "scale_misses") if e[k]))
+    lines.append(f"(f) {pass_text(f['pass'])}: damper effects claimed as explained on {f['claimed']}/{f['n']} "
+                 f"scenarios without effects (target 0)" + _misses(f["misses"], ""))
     return "\n".join(lines)
 
 

@@ -576,8 +576,9 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
             earlier = [] if row["quality"] == "ok" else [row["quality"]]
             cases.loc[i, "quality"] = "; ".join(earlier + warnings)
         if not problems and cases.loc[i, "quality"] != "ok":
-            log.warning("flagged (usable) at validate: campaign %s, case %s: %s", campaign, row["case"],
-                        cases.loc[i, "quality"])
+            # usable: no action needed, so not a WARNING (the cases table and the report show it)
+            log.info("flagged (usable) at validate: campaign %s, case %s: %s", campaign, row["case"],
+                     cases.loc[i, "quality"])
     quarantine = ingested.quarantine
     if rows:
         new = quarantine_frame(rows)
