@@ -10,6 +10,7 @@ from scipy.signal import lfilter, lfilter_zi
 
 from isokinetic.measurement.motion import estimate_motion, triangle_shape
 from isokinetic.physics.plan import CasePlan, triangle_displacement, triangle_wave
+from rigfiles import dropout_rows
 
 
 def servo_lag(t, x, tau_s: float):
@@ -148,20 +149,10 @@ def test_only_triangle_cases_have_a_motion_to_estimate():
         estimate_motion(np.arange(100) / 100.0, np.zeros(100), sine)
 
 
-def dropouts(n: int, fraction: float = 0.01, seed: int = 7) -> np.ndarray:
-    """Mask of kept samples: ``fraction`` of ``n`` dropped, half in singles, half in bursts of 5-40 (seeded)."""
-    rng = np.random.default_rng(seed)
-    keep = np.ones(n, dtype=bool)
-    while (~keep).sum() < fraction * n:
-        length = 1 if rng.random() < 0.5 else int(rng.integers(5, 41))
-        start = int(rng.integers(1, n - length - 1))
-        keep[start:start + length] = False
-    return keep
-
-
 def test_dropped_samples_leave_the_motion_unchanged():
     t, y = triangle_record(delay_s=0.015, lag_s=0.010)
-    keep = dropouts(t.size)
+    keep = np.ones(t.size, dtype=bool)
+    keep[dropout_rows(t.size, seed=7)] = False
     full, thinned = estimate_motion(t, y, plan()), estimate_motion(t[keep], y[keep], plan())
     assert thinned.motion_start_s == pytest.approx(full.motion_start_s, abs=3 * full.delay_std_s)
     np.testing.assert_allclose(thinned.velocities_m_s, full.velocities_m_s, rtol=1e-3)

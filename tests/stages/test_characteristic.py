@@ -27,6 +27,7 @@ from isokinetic.stages.models import fit_models
 from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.static_force import write_static_force
 from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
+from rigfiles import dropout_rows
 
 DAMPER = {"piston_area_m2": 4.0e-3, "chamber_volume_1_m3": 3.0e-4, "chamber_volume_2_m3": 3.0e-4,
           "orifice_area_m2": 6.0e-8, "orifice_length_m": 5.0e-4, "discharge_coefficient": 0.6,
@@ -149,16 +150,8 @@ def test_diagnosis_says_sine_records_are_not_diagnosed(sine_campaign):
 
 
 def drop_rows(series: pd.DataFrame, fraction: float, seed: int) -> pd.DataFrame:
-    """The series with ``fraction`` of its rows gone: half in bursts of 5-40, half as single rows."""
-    rng = np.random.default_rng(seed)
-    n = len(series)
-    keep = np.ones(n, dtype=bool)
-    target = int(fraction * n)
-    while (~keep).sum() < target // 2:
-        i = int(rng.integers(20, n - 60))
-        keep[i:i + int(rng.integers(5, 41))] = False
-    keep[rng.choice(np.flatnonzero(keep[20:-20]) + 20, target - int((~keep).sum()), replace=False)] = False
-    return series[keep].reset_index(drop=True)
+    """The series with ``fraction`` of its rows gone, in singles and bursts of 5-40 (:func:`rigfiles.dropout_rows`)."""
+    return series.drop(index=series.index[dropout_rows(len(series), fraction, seed)]).reset_index(drop=True)
 
 
 def test_dropped_samples_give_the_same_characteristic_within_its_standard_errors(sine_campaign, tmp_path):

@@ -34,6 +34,7 @@ from isokinetic.stages.validate import (
 )
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
 from isokinetic.stages.windows import windows_stage
+from rigfiles import dropout_rows
 
 
 def _swap_rows(column, a, b):
@@ -285,18 +286,6 @@ VIRTUAL_CASES = ["T08", "T17", "T23", "H01"]
 RATE_HZ = 500.0
 
 
-def dropouts(n: int, seed: int, fraction: float = 0.01) -> np.ndarray:
-    """Sorted rows a busy logger drops from ``n``: ``fraction`` of them, about half in singles and half in
-    bursts of 5-40 (seeded), never the first or last sample."""
-    rng = np.random.default_rng(seed)
-    keep = np.ones(n, dtype=bool)
-    while (~keep).sum() < fraction * n:
-        length = 1 if rng.random() < 0.5 else int(rng.integers(5, 41))
-        start = int(rng.integers(1, n - length - 1))
-        keep[start:start + length] = False
-    return np.flatnonzero(~keep)
-
-
 def drop_data_rows(path: Path, rows) -> None:
     """Remove the data rows ``rows`` (0-based, after the header line) of a case CSV, as a logger that dropped them."""
     lines = path.read_text(encoding="utf-8").splitlines(keepends=True)
@@ -343,7 +332,7 @@ def test_one_percent_dropped_in_singles_and_bursts_sets_no_case_aside(lag_campai
     dropped = {}
     for k, case in enumerate(VIRTUAL_CASES):
         n = len(_series_time(lag_campaign, case))
-        dropped[case] = dropouts(n, seed=100 + k)
+        dropped[case] = dropout_rows(n, seed=100 + k)
         drop_data_rows(raw / f"{case}.csv", dropped[case])
     cases, quarantine = _run(raw, tmp_path / "results" / "lag")
     assert quarantine.empty
