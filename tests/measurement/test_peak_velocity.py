@@ -140,7 +140,7 @@ def test_steady_range_skips_the_start_up_drift():
 def test_crossings_alternate_and_ignore_noise_near_the_centre():
     t = np.linspace(0.0, 2.0, 4001)
     x = np.sin(2 * math.pi * t) + 0.02 * np.sin(2 * math.pi * 400 * t)
-    found = crossings(t, x, 0.0, 0.25)
+    found = crossings(x, 0.0, 0.25)
     signs = [s for _, s in found]
     assert signs == [-1.0, 1.0, -1.0]
 

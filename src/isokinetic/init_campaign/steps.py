@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from isokinetic.measurement.crossings import hysteresis_crossings
 from isokinetic.measurement.motion import noise_level
 
 #: Sliding window over which a standstill's displacement stays flat [s].
@@ -117,14 +118,8 @@ def upward_crossings(t_s: np.ndarray, y: np.ndarray, mid: float, hysteresis: flo
     """Times at which ``y`` rises through ``mid`` (interpolated between samples), counted only when it has been
     below mid - hysteresis before and goes above mid + hysteresis after (noise makes no extra crossing)."""
     d = y - mid
-    state = np.where(d > hysteresis, 1, np.where(d < -hysteresis, -1, 0))
-    idx = np.arange(d.size)
-    last = np.maximum.accumulate(np.where(state != 0, idx, -1))
-    held = np.where(last >= 0, state[np.maximum(last, 0)], 0)
-    flips = np.flatnonzero((held[1:] == 1) & (held[:-1] == -1)) + 1
-    last_below = np.maximum.accumulate(np.where(d <= 0, idx, -1))
-    j = last_below[flips]
-    j = j[(j >= 0) & (j + 1 < d.size)]
+    i, sign = hysteresis_crossings(d, hysteresis)
+    j = i[sign > 0] - 1                     # the last sample at or below mid before each rise
     frac = -d[j] / (d[j + 1] - d[j])
     return t_s[j] + frac * (t_s[j + 1] - t_s[j])
 

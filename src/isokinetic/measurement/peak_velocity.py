@@ -37,6 +37,8 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from isokinetic.measurement.crossings import hysteresis_crossings
+
 #: Columns of :func:`peak_points`.
 POINT_COLUMNS = ["direction", "time_s", "velocity_m_s", "force_N", "i_start", "i_stop"]
 #: Columns of :func:`summarise`.
@@ -132,27 +134,12 @@ def steady_range(time_s, force_N, period_s: float, spec: PeakSpec = PeakSpec()) 
     return float(t[0] + skip * period_s), float(t[0] + n_whole * period_s)
 
 
-def crossings(time_s, displacement_m, centre_m: float, hysteresis_m: float) -> list[tuple[int, float]]:
+def crossings(displacement_m, centre_m: float, hysteresis_m: float) -> list[tuple[int, float]]:
     """(i, sign) of each crossing of ``centre_m``: the sample crossing lies between samples i - 1 and i,
     sign +1 rising, -1 falling. The side changes only when x passes centre -/+ ``hysteresis_m``; the
-    crossing is the last change of side of x - centre before that."""
-    x = np.asarray(displacement_m, dtype=float) - centre_m
-    state = np.zeros(x.size)
-    state[x > hysteresis_m] = 1.0
-    state[x < -hysteresis_m] = -1.0
-    idx = np.flatnonzero(state)
-    if idx.size == 0:
-        return []
-    decided = state[idx]
-    change = np.flatnonzero(np.diff(decided) != 0) + 1
-    out = []
-    for c in change:
-        s = decided[c]
-        j = int(idx[c])
-        while j > 0 and np.sign(x[j - 1]) == s:     # back to the actual change of side
-            j -= 1
-        out.append((max(j, 1), float(s)))
-    return out
+    crossing is the last change of side of x - centre before that (:func:`hysteresis_crossings`)."""
+    i, sign = hysteresis_crossings(np.asarray(displacement_m, dtype=float) - centre_m, hysteresis_m)
+    return [(max(int(a), 1), float(b)) for a, b in zip(i, sign, strict=True)]
 
 
 def _fit_span(t: np.ndarray, t0: float, half_s: float, min_side: int) -> tuple[int, int] | None:
@@ -222,7 +209,7 @@ def _peak_points(t: np.ndarray, x: np.ndarray, f: np.ndarray, period_s: float, a
     dt = float(np.median(np.diff(t)))
     half_s = max(spec.fit_fraction * period_s, (spec.min_side + 0.5) * dt)
     rows = []
-    for i, s in crossings(t, x, centre_m, spec.hysteresis * amplitude):
+    for i, s in crossings(x, centre_m, spec.hysteresis * amplitude):
         xa, xb = x[i - 1] - centre_m, x[i] - centre_m
         t0 = t[i - 1] + (t[i] - t[i - 1]) * (xa / (xa - xb) if xa != xb else 0.5)
         if not (a <= t0 < b):

@@ -60,6 +60,7 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
+from isokinetic.measurement.crossings import hysteresis_crossings
 
 log = logging.getLogger("isokinetic")
 
@@ -381,26 +382,13 @@ def half_cycles(velocity_m_s, hysteresis: float = HYSTERESIS) -> list[tuple[int,
     h = hysteresis * float(np.percentile(np.abs(v), 99))
     if h == 0.0:
         return []
-    state = np.zeros(v.size)
-    state[v > h] = 1.0
-    state[v < -h] = -1.0
-    idx = np.flatnonzero(state)
-    if idx.size == 0:
+    decided = np.flatnonzero(np.abs(v) > h)
+    if decided.size == 0:
         return []
-    # forward fill the last decided sign
-    filled = state[idx][np.searchsorted(idx, np.arange(v.size), side="right") - 1]
-    filled[:idx[0]] = state[idx[0]]
-    change = np.flatnonzero(np.diff(filled) != 0) + 1          # first sample of the new sign state
-    bounds = []
-    for c in change:
-        s = filled[c]
-        j = c
-        while j > 0 and np.sign(v[j - 1]) == s:                  # back to the actual sign change
-            j -= 1
-        bounds.append(j)
-    edges = [0, *bounds, v.size]
-    return [(int(a), int(b), float(filled[min(b - 1, v.size - 1)] if b > a else filled[a]))
-            for a, b in zip(edges[:-1], edges[1:], strict=True) if b > a]
+    bounds, signs = hysteresis_crossings(v, h)
+    edges = [0, *bounds.tolist(), v.size]
+    run_signs = [float(np.sign(v[decided[0]])), *signs.tolist()]
+    return [(int(a), int(b), s) for a, b, s in zip(edges[:-1], edges[1:], run_signs, strict=True) if b > a]
 
 
 def _vertex(t: np.ndarray, y: np.ndarray, i: int, half: int) -> tuple[float, float]:
