@@ -169,6 +169,33 @@ def test_sniff_format_of_a_plain_csv_is_the_default(tmp_path):
     assert sniff_format(path) == FileFormat()
 
 
+SNIFF_ROWS = [["0.00", "-1.2200", "0.0836", "-1.220000"], ["0.01", "-1.2195", "0.0890", "-1.219878"],
+              ["0.02", "-1.2190", "0.1023", "-1.219756"]]
+SNIFF_HEADER = ["time_s", "disp_mm", "force_kN", "cmd_mm"]
+
+
+def sniff_text(delimiter: str, decimal: str, comments: str = "") -> str:
+    rows = [delimiter.join(cell.replace(".", decimal) for cell in row) for row in SNIFF_ROWS]
+    return comments + "\n".join([delimiter.join(SNIFF_HEADER), *rows]) + "\n"
+
+
+@pytest.mark.parametrize("delimiter, decimal", [(",", "."), (";", ","), (";", "."), ("\t", "."), ("\t", ","),
+                                                ("|", "."), ("|", ",")])
+def test_sniff_format_finds_delimiter_and_decimal_mark(tmp_path, delimiter, decimal):
+    path = tmp_path / "t.csv"
+    path.write_text(sniff_text(delimiter, decimal), encoding="utf-8")
+    assert sniff_format(path) == FileFormat(delimiter=delimiter, decimal=decimal)
+    assert read_raw_table(path, sniff_format(path)).frame.columns.tolist() == SNIFF_HEADER
+
+
+def test_sniff_format_passes_over_comment_lines_and_a_cut_off_last_row(tmp_path):
+    path = tmp_path / "t.csv"
+    path.write_text(sniff_text(";", ",", comments="# rig: bench 2\n\n# operator: x; y\n"), encoding="utf-8")
+    assert sniff_format(path) == FileFormat(delimiter=";", decimal=",")
+    path.write_text(sniff_text(",", ".") + "0.03,-1.21", encoding="utf-8")
+    assert sniff_format(path) == FileFormat()
+
+
 def test_cp1252_units_row_without_encoding_is_refused_with_the_hint(tmp_path):
     path = tmp_path / "t.csv"
     path.write_bytes("time,oil\ns,°C\n0.0,40.0\n".encode("cp1252"))

@@ -37,9 +37,9 @@ from isokinetic.contracts.manifest import (
 )
 from isokinetic.init_campaign import channels as ch
 from isokinetic.init_campaign import steps as st
-from isokinetic.init_campaign.sniff import DELIMITER_WORDS, ColumnData, parse_column
+from isokinetic.init_campaign.sniff import ColumnData, parse_column
 from isokinetic.init_campaign.waveform import Estimate, Waveform, detect_waveform, round_to_uncertainty
-from isokinetic.rawfile import FileFormat, RawFileError, read_raw_table, sniff_format
+from isokinetic.rawfile import DELIMITERS, FileFormat, RawFileError, read_raw_table, sniff_format
 from isokinetic.stages.validate import MIN_SAMPLES
 
 #: File name endings taken as case files (any case).
@@ -383,9 +383,9 @@ def survey_files(folder: Path) -> tuple[list[FileSurvey], list[tuple[str, str]]]
 def format_words(fmt: FileFormat) -> str:
     """A file format in words: ``tabs between fields, '.' as the decimal mark, a units row, cp1252``."""
     if fmt.format == "mts793":
-        words = f"an MTS 793 export ({DELIMITER_WORDS.get(fmt.delimiter, fmt.delimiter)}, '{fmt.decimal}')"
+        words = f"an MTS 793 export ({DELIMITERS.get(fmt.delimiter, fmt.delimiter)}, '{fmt.decimal}')"
     else:
-        words = (f"{DELIMITER_WORDS.get(fmt.delimiter, fmt.delimiter)} between fields, '{fmt.decimal}' as the "
+        words = (f"{DELIMITERS.get(fmt.delimiter, fmt.delimiter)} between fields, '{fmt.decimal}' as the "
                  "decimal mark" + (", a units row under the header" if fmt.units_row else ""))
     return words + ("" if fmt.encoding == "utf-8" else f", encoding {fmt.encoding}")
 
