@@ -10,7 +10,7 @@ where the force becomes SI, and recorded in ``campaign.json`` (``gas_force_N``, 
 stage downstream sees the damper's force alone.
 
 A manifest's ``csv`` block (format 1.1, e.g. ``{delimiter: ";", decimal: ","}``, a spreadsheet export)
-sets the delimiter every check of :func:`read_case_csv` splits on and the decimal mark :func:`to_si`
+sets the delimiter every check of :func:`read_case_table` splits on and the decimal mark :func:`to_si`
 reads; it is recorded in ``campaign.json`` (``csv``, null when none). The same data in either dialect
 gives the same SI series, bit for bit. With a decimal comma, a value holding a '.' is refused, naming
 row and column: ``1.234,5`` (thousands separator) or ``1.5`` (a '.' file declared ',') could otherwise
@@ -58,7 +58,6 @@ from isokinetic.contracts.manifest import (
     UNITS,
     CaseSpec,
     Column,
-    CsvDialect,
     Manifest,
     load_manifest,
     unit_from_text,
@@ -128,17 +127,6 @@ def read_case_table(path: str | Path, fmt: FileFormat | None = None, numeric: bo
         # a reader failure nobody foresaw costs this case, not the campaign (csv's field limit was one)
         raise CaseFileError(Problem("file", short(f"unreadable file ({type(exc).__name__}): {exc}"),
                                     kind="key")) from None
-
-
-def read_case_csv(path: str | Path, warnings: list[str] | None = None,
-                  dialect: CsvDialect | None = None) -> pd.DataFrame:
-    """A case file as strings (NaN for empty/NA cells), opened read-only: the frame of
-    :func:`read_case_table` (``dialect``: the manifest's ``csv`` block, None: ',' and '.'); its warnings (a
-    last row without a line end) are appended to ``warnings``. Raises :class:`CaseFileError`."""
-    table = read_case_table(path, dialect)
-    if warnings is not None:
-        warnings.extend(table.warnings)
-    return table.frame
 
 
 def decimal_point(raw: pd.Series) -> pd.Series:
