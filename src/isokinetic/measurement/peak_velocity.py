@@ -310,9 +310,3 @@ def cycle_energies(time_s, displacement_m, force_N, period_s: float, *, t_start:
                      "amplitude_m": 0.5 * float(seg.max() - seg.min()) if seg.size else math.nan,
                      "i_start": i0, "i_stop": i1})
     return pd.DataFrame(rows, columns=ENERGY_COLUMNS).astype({"i_start": "int64", "i_stop": "int64"})
-
-
-def binned_standard_error(force_std_N, n_points) -> np.ndarray:
-    """Standard error of a bin's mean force, std / sqrt(n) (an understatement for correlated samples)."""
-    n = np.maximum(np.asarray(n_points, dtype=float), 1.0)
-    return np.asarray(force_std_N, dtype=float) / np.sqrt(n)
