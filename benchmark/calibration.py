@@ -4,7 +4,7 @@
 
 For each noise kind (``white``: white plus white proportional force noise; ``coloured``: white
 plus proportional first-order noise with its corner drawn in [0.1, 5] Hz), N scenarios of the
-independent reference rig (isokinetic.physics.reference_rig) with every rig nuisance drawn as in the blind
+independent reference rig (isokinetic.reference.rig) with every rig nuisance drawn as in the blind
 suite (delay, servo lag, load-cell offset and gain, LVDT noise, viscosity drift) and no damper
 effect are taken through the real chain (ingest to characteristic) and the diagnosis'
 observations; the nominal test's p-value (nominal model plus the profiled instrument terms, χ²

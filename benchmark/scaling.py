@@ -9,7 +9,10 @@ copies of it under the ids campaign-0001, campaign-0002, ... (the id in each cam
 its folder's name). Printed per N: the job count (the total of Snakemake's dry-run job stats), the
 dry-run wall time on the unbuilt tree (building the DAG), the local build's wall and CPU time per
 campaign, the CPU time of the Snakemake process itself (DAG, scheduling), and the peak memory of that
-process. Then, on a built tree (N = 100 by default), one campaign is added and the jobs a dry run
+process; then where the CPU goes per campaign, per rule: the jobs' benchmark records, the import time of
+each rule's job and the rule's share of the critical path (benchmark/jobtimes.py, benchmark/imports.py).
+Compare CPU seconds and import times between runs: wall times move with the other load on the machine.
+Then, on a built tree (N = 100 by default), one campaign is added and the jobs a dry run
 would run are checked: only the new campaign's jobs and the global jobs (the jobs that name no
 campaign in the first dry run, such as the index) may run. Targets are compared in the printout
 (MISSED when one is missed); nothing is asserted, and the exit status is 0 unless the benchmark
@@ -37,11 +40,14 @@ import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from textwrap import indent
 
 import psutil
 import yaml
 
+from imports import rule_imports  # benchmark/imports.py and jobtimes.py, beside this script
 from isokinetic.physics.damper import TABLE_1
+from jobtimes import critical_path, job_records, rule_table
 
 ROOT = Path(__file__).resolve().parents[1]
 SNAKEMAKE = str(Path(sys.executable).parent / "snakemake")
@@ -226,11 +232,14 @@ def run_snakemake(project: Path, args: list[str], log: Path) -> Run:
 
 @dataclass(frozen=True)
 class Job:
-    """One job of a dry run: its rule, wildcards and outputs."""
+    """One job of a dry run: its rule, wildcards, outputs, inputs and benchmark record (benchmark/jobtimes.py
+    links jobs through their files for the critical path)."""
 
     rule: str
     wildcards: dict[str, str]
     outputs: tuple[str, ...]
+    inputs: tuple[str, ...] = ()
+    benchmark: str = ""
 
     def campaigns(self, known: set[str]) -> set[str]:
         """Known campaign ids this job names, in a wildcard value or a component of an output path."""
@@ -255,8 +264,8 @@ def parse_jobs(text: str) -> list[Job]:
     def close() -> None:
         if rule is not None:
             wildcards = dict(item.split("=", 1) for item in fields.get("wildcards", "").split(", ") if "=" in item)
-            outputs = tuple(p for p in fields.get("output", "").split(", ") if p)
-            jobs.append(Job(rule, wildcards, outputs))
+            outputs, inputs = (tuple(p for p in fields.get(key, "").split(", ") if p) for key in ("output", "input"))
+            jobs.append(Job(rule, wildcards, outputs, inputs, fields.get("benchmark", "")))
 
     for line in text.splitlines():
         header = JOB_HEADER.match(line)
@@ -385,6 +394,20 @@ def incremental_check(project: Path, seed: Path, n_campaigns: int, globals_: set
             f"its build {build.wall_s:.1f} s{status}")
 
 
+def where_it_goes(project: Path, row: Row, jobs: list[Job], imports: dict) -> str:
+    """A built N's CPU per campaign, split into the jobs' records per rule (with each rule's import time and
+    share of the critical path), Snakemake's own process and what the records do not catch."""
+    records = job_records(project)
+    n = row.n_campaigns
+    jobs_cpu = sum(r["cpu_s"] for r in records)
+    rest = row.build.cpu_s - row.build.main_cpu_s - jobs_cpu
+    return (f"  where the CPU goes at N={n}, per campaign: {row.cpu_per_campaign_s:.2f} s = jobs' records "
+            f"{jobs_cpu / n:.2f} + Snakemake's own process {row.build.main_cpu_s / n:.2f} + not in the records "
+            f"{rest / n:.2f} (the records sample a job's CPU every 0.5 s)\n"
+            + indent(rule_table(records, imports, critical_path(jobs, {r["path"]: r["s"] for r in records}),
+                                per=n, per_label=" per campaign"), "  "))
+
+
 def format_table(rows: list[Row]) -> str:
     """The per-N figures as a Markdown table (plain text, for the README)."""
     lines = ["| campaigns | jobs | dry run (DAG) | build | build per campaign | CPU per campaign "
@@ -478,6 +501,7 @@ def main(argv: list[str] | None = None) -> None:
     sys.stdout.flush()
     rows: list[Row] = []
     incremental_verdict = None
+    imports = None
     try:
         seed = export_seed(scratch / "seed")
         for n in sizes:
@@ -485,6 +509,9 @@ def main(argv: list[str] | None = None) -> None:
             row, jobs = measure(project, n, args.cores, extra, build=not args.dry_run_only)
             rows.append(row)
             print(f"{row.summary()}; load average {load_average()}")
+            if row.built:
+                imports = imports or rule_imports(args.source)
+                print(where_it_goes(project, row, jobs, imports))
             sys.stdout.flush()
             if n == incremental and row.built:
                 campaigns = {campaign_name(i) for i in range(1, n + 1)}

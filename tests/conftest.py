@@ -16,6 +16,8 @@ import yaml
 from isokinetic.physics.plan import sine_displacement, triangle_displacement
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.validate import write_validated
+from isokinetic.stages.virtual_rig import VirtualCampaign
+from testconfig import paper_campaign
 
 CAMPAIGN = "demo"
 FORCE_A_N = 150.0          # force = sign(v) (a + b|v|) + noise
@@ -236,3 +238,11 @@ def scale_column(column: str, factor: float):
         t[column] = (t[column].astype(float) * factor).map("{:.10g}".format)
         return t
     return edit
+
+
+# --- shared fixtures -----------------------------------------------------------------------------
+
+@pytest.fixture(scope="session")
+def default_plan():
+    """The virtual campaign paper-lag-damper of the test configuration (.test/config/config.yaml)."""
+    return VirtualCampaign.from_config("paper-lag-damper", paper_campaign())

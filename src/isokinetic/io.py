@@ -32,10 +32,13 @@ import tempfile
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+if TYPE_CHECKING:  # annotations only: a job that reads no table with pandas (raw_check) never loads it (issue 23)
+    import pandas as pd
 
 #: Key of the record: Parquet schema metadata, PNG text keyword.
 LINEAGE_KEY = "isokinetic.lineage"

@@ -33,9 +33,12 @@ import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas is imported where a table is read: the raw check's job, which reads the manifest's
+    import pandas as pd  # formats only, never loads it (issue 23)
 
 #: File formats :func:`read_raw_table` reads.
 FORMATS = ("delimited", "mts793")
@@ -287,6 +290,8 @@ def _frame(data_lines: list[str], names: list[str], delimiter: str, numeric: boo
            decimal: str = ".") -> pd.DataFrame:
     """The data lines as a DataFrame of text cells (NaN for empty and NA cells); ``numeric``: columns whose every
     cell is a number in ``decimal`` as float64 (or int64) columns."""
+    import pandas as pd
+
     if not data_lines:
         return pd.DataFrame({name: pd.Series([], dtype=object) for name in names})
     body = io.StringIO("\n".join(data_lines) + "\n")
@@ -419,6 +424,8 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
     line-by-line reader (quotes, CR without LF, a row count pandas reads otherwise). Same checks, same
     messages, same cells. The bytes are checked in memory, then dropped, and pandas reads the data rows from
     the file itself."""
+    import pandas as pd
+
     data = _read_bytes(path, fmt)
     skip = Path(path).stat().st_size - len(data)       # a byte-order mark dropped
     if b'"' in data or data.count(b"\r") != data.count(b"\r\n"):
@@ -541,6 +548,8 @@ def _read_mts793_fast(path: Path, fmt: FileFormat, numeric: bool) -> RawTable | 
     """:func:`read_mts793` without a Python object per line (as :func:`_read_fast`): the blocks are found and checked
     on the bytes, their data rows joined and parsed by pandas' C parser. None when the file needs the line-by-line
     reader: whitespace-separated, rows ending with a tab, quotes, lone CRs, or any problem (that reader names it)."""
+    import pandas as pd
+
     data = _read_bytes(path, fmt)
     if b'"' in data or data.count(b"\r") != data.count(b"\r\n") or b"\t\n" in data or b"\t\r\n" in data:
         return None

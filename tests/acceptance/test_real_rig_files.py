@@ -26,6 +26,9 @@ from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.ingest import ingest_campaign
 from scratch_project import SNAKEMAKE, TINY, make_project
 
+#: end-to-end runs on simulated vendor files (the sweep and the crank folders take seconds each)
+pytestmark = pytest.mark.slow
+
 #: A scratch project of raw campaigns only (no virtual campaign, no blind test, no comparison).
 RAW_ONLY = {key: TINY[key] for key in ("raw_dir", "windows", "repeatability", "validation", "design")}
 SWEEP = "mts-sweep"

@@ -38,6 +38,7 @@ def test_drop_rows_keeps_every_other_line_as_it_was(tmp_path):
     assert after == [before[0]] + [line for i, line in enumerate(before[1:]) if i not in set(drop.tolist())]
 
 
+@pytest.mark.slow
 def test_crank_folder_volts_are_affine_maps_of_the_scaled_columns(tmp_path):
     runs = rf.write_crank_folder(tmp_path / "crank")
     assert len(runs) == 5

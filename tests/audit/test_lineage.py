@@ -5,13 +5,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-import yaml
 
 from isokinetic import __version__
 from isokinetic.audit import lineage
 from isokinetic.io import canonical_json, lineage_context, read_lineage, sha256_file, write_json, write_parquet
 from isokinetic.stages.virtual_rig import VirtualCampaign
 from test_job import fake_job
+from testconfig import load_test_config
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -43,7 +43,7 @@ def test_from_snakemake_records_rule_params_inputs_config_and_git(tmp_path, monk
 
 def test_virtual_rig_spec_round_trips_through_the_record(tmp_path):
     """An auditor can rebuild the simulated campaign from the ingest files' lineage alone."""
-    config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text(encoding="utf-8"))
+    config = load_test_config()
     for name, spec in config["virtual_campaigns"].items():
         job = fake_job(tmp_path, rule="virtual_rig", params={"spec": spec}, wildcards={"campaign": name})
         with lineage_context(lineage.from_snakemake(job)):
@@ -51,14 +51,6 @@ def test_virtual_rig_spec_round_trips_through_the_record(tmp_path):
         recorded = read_lineage(path)["params"]["spec"]
         assert recorded == spec
         assert VirtualCampaign.from_config(name, recorded) == VirtualCampaign.from_config(name, spec)
-
-
-def test_row_keys_round_trip():
-    df = pd.DataFrame({"case": ["T01", "T01", "T2.b", "T01"], "segment": [1, 3, 2, 1]})
-    text = lineage.row_keys(df)
-    assert text == "T01/1,T01/3,T2.b/2"
-    assert lineage.parse_row_keys(text) == [("T01", 1), ("T01", 3), ("T2.b", 2)]
-    assert lineage.parse_row_keys("") == []
 
 
 @pytest.mark.parametrize("env, expected", [({"ISOKINETIC_GIT_COMMIT": "c0ffee", "ISOKINETIC_GIT_DIRTY": "0"},

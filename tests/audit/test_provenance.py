@@ -11,6 +11,7 @@ import pytest
 
 import isokinetic.io
 from isokinetic.audit import lineage, provenance
+from isokinetic.contracts.row_keys import parse_row_keys
 from isokinetic.io import canonical_json, hash_once, lineage_context, write_json
 from isokinetic.stages import blind_score
 from isokinetic.stages.analysis import write_analysis
@@ -18,6 +19,9 @@ from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.diagnosis import write_diagnosis
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign, write_campaign
+
+#: processes a whole raw campaign through every per-campaign stage once (~6 s)
+pytestmark = pytest.mark.slow
 
 #: A raw campaign exported by the virtual rig: three short triangle cases and one sine case.
 CAMPAIGN = "tiny"
@@ -207,7 +211,7 @@ def test_models_rows_name_the_characteristic_rows_they_were_fitted_to(project):
     char = pd.read_parquet(project / ROOT / "characteristic.parquet").set_index(["case", "segment"])
     assert len(models) and (models["source_file"] == "characteristic.parquet").all()
     for r in models.itertuples():
-        keys = lineage.parse_row_keys(r.source_rows)
+        keys = parse_row_keys(r.source_rows)
         assert len(keys) == r.n_points and set(keys) <= char_keys(project)
         if r.direction in "+-":
             assert set(char.loc[keys, "direction"]) == {r.direction}
@@ -219,7 +223,7 @@ def test_models_rows_name_the_characteristic_rows_they_were_fitted_to(project):
 def test_diagnosis_sources_point_to_real_rows(project):
     d = json.loads((project / ROOT / "diagnosis.json").read_text())
     src = d["sources"]
-    windows = lineage.parse_row_keys(src["windows"])
+    windows = parse_row_keys(src["windows"])
     assert windows and set(windows) <= char_keys(project) and len(windows) == d["noise"]["n_windows"]
     bins = [k.rsplit(":", 1) for k in src["transient_bins"].split(",")]
     assert sum(int(n) for _, n in bins) == d["noise"]["n_transient_bins"]

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -86,3 +88,12 @@ def test_help_lists_every_command_on_one_line(capsys):
     out = capsys.readouterr().out
     for name in ("export-virtual", "trace", "raw-check"):
         assert [line for line in out.splitlines() if line.split()[:1] == [name] and len(line.split()) > 2], out
+
+
+def test_the_raw_check_job_loads_no_pandas(raw_campaign):
+    # a job per campaign: pandas would cost it ~0.2 s of start-up for a table pyarrow reads alone (issue 23)
+    raw_campaign.run()
+    code = ("import sys; import isokinetic.job; from isokinetic.audit.raw_check import raw_changes; "
+            f"assert raw_changes({str(raw_campaign.root)!r}) == []; print('pandas' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

@@ -24,17 +24,20 @@ from isokinetic.audit import lineage, trace_core
 from isokinetic.audit import trace as tr
 from isokinetic.contracts.outputs import rule_of
 from isokinetic.io import lineage_context, write_json, write_parquet
+from isokinetic.measurement.model_fit import fit_models
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages import blind_diagnose, blind_score
-from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage
+from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage, windows_stage
 from isokinetic.stages.design import plan_check
 from isokinetic.stages.diagnosis import diagnose
 from isokinetic.stages.harmonic import harmonic_stage
 from isokinetic.stages.ingest import ingest_campaign
-from isokinetic.stages.models import fit_models
 from isokinetic.stages.nominal import nominal_stage
 from isokinetic.stages.validate import write_validated
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign, write_campaign
-from isokinetic.stages.windows import WindowSpec, windows_stage
+
+#: builds and re-derives a whole project's tables (~20 s)
+pytestmark = pytest.mark.slow
 
 DAMPER = {"piston_area_m2": 4.0e-3, "chamber_volume_1_m3": 3.0e-4, "chamber_volume_2_m3": 3.0e-4,
           "orifice_area_m2": 6.0e-8, "orifice_length_m": 5.0e-4, "discharge_coefficient": 0.6,

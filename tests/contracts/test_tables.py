@@ -80,6 +80,7 @@ def test_valid_tables_pass_both(name):
     assert tables.failure_cases(df, schema) is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", SCHEMAS)
 def test_fast_check_never_passes_what_pandera_rejects(name):
     schema = SCHEMAS[name]

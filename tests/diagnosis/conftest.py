@@ -2,8 +2,8 @@
 
 import pytest
 
-from isokinetic.physics import reference_rig as rr
-from isokinetic.physics import reference_rig_campaign as rrc
+from isokinetic.reference import campaign as rrc
+from isokinetic.reference import rig as rr
 from isokinetic.stages.blind_diagnose import process_raw_campaign
 from isokinetic.stages.diagnosis import prepare
 

@@ -10,8 +10,8 @@ import pytest
 from isokinetic.diagnosis import instrument as ins
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.physics import reference_rig as rr
-from isokinetic.physics.damper import NOMINAL
+from isokinetic.physics.damper import NOMINAL, Effects
+from isokinetic.reference import rig as rr
 
 
 def triangle_series(scale: float, delay_s: float, with_command: bool = True) -> pd.DataFrame:
@@ -92,3 +92,29 @@ def test_the_force_lag_of_a_lagging_channel_is_recovered(campaign, form):
     lag, fitted_form, _pred = ins.fit_force_lag(dg)
     assert fitted_form == form
     assert lag == pytest.approx(0.03, abs=5e-4)
+
+
+def test_linear_terms_give_the_offset_at_the_reference_time_and_the_drift():
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 600.0, 80))
+    model = rng.uniform(-500.0, 500.0, t.size)
+    force = 1.01 * model + 4.0 + 0.02 * (t - 300.0)
+    terms = ins.LinearTerms(free=(*ins.INSTRUMENT, ins.DRIFT), offset_bound_N=50.0, drift_bound_N_s=1.0)
+    g, _fc, offset, drift = terms.solve(force, model, np.sign(model), np.ones(t.size), False, t - 300.0)
+    assert (g, offset, drift) == pytest.approx((1.01, 4.0, 0.02), rel=1e-9)
+
+
+def test_without_campaign_times_no_drift_is_fitted():
+    terms = ins.LinearTerms(free=(*ins.INSTRUMENT, ins.DRIFT), offset_bound_N=50.0, drift_bound_N_s=1.0)
+    model = np.linspace(-100.0, 100.0, 20)
+    *_rest, drift = terms.solve(model + 3.0, model, np.sign(model), np.ones(20), False, None)
+    assert drift == 0.0
+
+
+def test_the_force_lag_is_profiled_on_a_candidates_effects(campaign):
+    obs, damper = campaign
+    effects = Effects(viscosity_Pa_s=1.3 * damper.viscosity_Pa_s)
+    truth = Evaluator(obs, damper).lagged(effects, [0.03])[0]
+    dg = Diagnoser(replace(obs, force_N=truth), damper)
+    lag, form, _pred = ins.fit_force_lag(dg, (0,), effects=effects)
+    assert (form, lag) == (0, pytest.approx(0.03, abs=5e-4))

@@ -1,5 +1,5 @@
 """Sensor or damper (isokinetic.diagnosis.verdict, issue 21): the force-lag hypothesis against the damper
-effects, and the load-cell zero drift."""
+effects, the force-channel lag and the load-cell zero drift fitted jointly with the effects."""
 
 from dataclasses import replace
 
@@ -7,63 +7,80 @@ import numpy as np
 import pytest
 
 from isokinetic.diagnosis import verdict as vd
+from isokinetic.diagnosis.candidate import Candidate, overdispersed_score
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.physics.damper import NOMINAL
+from isokinetic.physics.damper import NOMINAL, Effects
 
 
-class _Obs:
-    def __init__(self, force_N, sigma_N):
-        self.force_N, self.sigma_N = force_N, sigma_N
-
-    def __len__(self):
-        return self.force_N.size
+def viscous(damper, factor: float = 1.25) -> Effects:
+    return Effects(viscosity_Pa_s=factor * damper.viscosity_Pa_s)
 
 
-class _Fit:
-    def __init__(self, prediction):
-        self.prediction = self.measured_prediction = prediction
+def campaign_time(obs) -> np.ndarray:
+    return np.linspace(0.0, 400.0, len(obs))
 
 
-def drift_case(slope_N_s: float, seed: int = 4):
-    rng = np.random.default_rng(seed)
-    t = np.sort(rng.uniform(0.0, 500.0, 200))
-    sigma = np.full(t.size, 0.5)
-    force = 3.0 + slope_N_s * t + sigma * rng.standard_normal(t.size)
-    return type("DG", (), {"obs": _Obs(force, sigma), "alpha": 1e-3})(), _Fit(np.zeros(t.size)), t
-
-
-def test_a_zero_drift_is_the_slope_of_the_residuals_in_time():
-    dg, fit, t = drift_case(0.01)
-    drift = vd.zero_drift(dg, fit, t)
-    assert drift["needed"] is True
-    assert drift["estimate"] == pytest.approx(np.polyfit(t, dg.obs.force_N, 1)[0], rel=1e-9)
-
-
-def test_no_drift_is_needed_where_the_residuals_are_level():
-    dg, fit, t = drift_case(0.0)
-    assert vd.zero_drift(dg, fit, t)["needed"] is False
-
-
-def test_without_campaign_times_no_drift_is_tested():
-    dg, fit, _t = drift_case(0.01)
-    assert vd.zero_drift(dg, fit, None)["estimate"] is None
-
-
-def test_a_drift_that_the_nominal_model_then_explains_is_taken_off(campaign):
+def test_a_drift_beside_an_effect_is_fitted_with_it_not_absorbed(campaign):
     obs, damper = campaign
-    t = np.linspace(0.0, 200.0, len(obs))
-    dg = Diagnoser(replace(obs, force_N=Diagnoser(obs, damper).nominal + 0.05 * t), damper)
-    compensated, drift = vd.drift_compensated(dg, dg.refit((), vd.INSTRUMENT), t)
-    assert drift is not None and drift["estimate"] == pytest.approx(0.05, rel=0.05)  # the gain takes a little
-    assert compensated.nominal_explains()
+    t = campaign_time(obs)
+    force = Evaluator(obs, damper).predict(viscous(damper)) + 0.05 * (t - 150.0)
+    dg = Diagnoser(replace(obs, force_N=force), damper, time_s=t, time_ref_s=200.0)
+    fit = dg.refit(("viscosity",))
+    assert fit.params["viscosity_Pa_s"] == pytest.approx(1.25 * damper.viscosity_Pa_s, rel=1e-3)
+    assert fit.drift_N_s == pytest.approx(0.05, rel=1e-3)
+    assert fit.offset_N == pytest.approx(0.05 * (200.0 - 150.0), abs=0.05)   # at the reference time
+
+
+def test_the_nominal_model_with_a_drift_explains_a_drifting_campaign(campaign):
+    obs, damper = campaign
+    t = campaign_time(obs)
+    drifting = replace(obs, force_N=Diagnoser(obs, damper).nominal + 0.05 * t)
+    assert Diagnoser(drifting, damper, time_s=t).nominal_explains()
+    assert not Diagnoser(drifting, damper).nominal_explains()   # without campaign times: no drift term
+
+
+def test_a_lag_fitted_with_an_effect_recovers_both(campaign):
+    obs, damper = campaign
+    force = Evaluator(obs, damper).lagged(viscous(damper), [0.04])[0]
+    dg = Diagnoser(replace(obs, force_N=force), damper).with_channel((0, 0.02))
+    fit = dg.refit(("viscosity",))
+    assert fit.channel == (0, pytest.approx(0.04, abs=2e-4))
+    assert fit.params["viscosity_Pa_s"] == pytest.approx(1.25 * damper.viscosity_Pa_s, rel=1e-3)
+
+
+@pytest.mark.slow
+def test_an_effect_behind_a_lagging_channel_is_claimed_with_the_lag(campaign):
+    obs, damper = campaign
+    force = Evaluator(obs, damper).lagged(viscous(damper, 1.5), [0.04])[0]
+    t = campaign_time(obs)
+    result, _pred = vd.diagnose_observations(replace(obs, force_N=force), damper,
+                                             sensor={"obs_time_s": t, "time_ref_s": 200.0})
+    assert result["verdict"] == ["viscosity"]
+    assert result["instrument"]["force_lag_s"] == pytest.approx(0.04, abs=1e-3)
+
+
+def _cand(effects, explained, score):
+    return type("C", (), {"effects": effects, "explained": explained, "score": score})()
+
+
+def test_an_explaining_lag_candidate_beats_an_unexplaining_one_without():
+    assert vd.lag_preferred(_cand(("viscosity",), True, 50.0), _cand(("viscosity", "air"), False, 10.0))
+
+
+def test_of_two_explaining_candidates_the_smaller_set_is_preferred_whatever_the_score():
+    assert not vd.lag_preferred(_cand(("viscosity", "air"), True, 10.0), _cand(("viscosity",), True, 50.0))
+
+
+def test_where_neither_explains_the_lower_score_is_preferred():
+    assert vd.lag_preferred(_cand(("asymmetry",), False, 130.0), _cand(("asymmetry", "air"), False, 1700.0))
 
 
 def test_a_lagging_force_channel_is_preferred_to_no_damper_candidate(campaign):
     obs, damper = campaign
     lagged = Evaluator(obs, damper).lagged(NOMINAL, [0.04])[0]
     dg = Diagnoser(replace(obs, force_N=lagged), damper)
-    hyp = vd.sensor_hypothesis(dg, dg.refit((), vd.INSTRUMENT), [])
+    hyp = vd.sensor_hypothesis(dg, dg.refit(()), [])
     assert hyp["preferred"] and hyp["lag_needed"]
     assert hyp["lag_s"] == pytest.approx(0.04, abs=5e-4)
 
@@ -72,6 +89,68 @@ def test_a_damper_candidate_that_beats_the_lag_by_the_margin_is_preferred(campai
     obs, damper = campaign
     lagged = Evaluator(obs, damper).lagged(NOMINAL, [0.04])[0]
     dg = Diagnoser(replace(obs, force_N=lagged), damper)
-    sensor = vd.sensor_hypothesis(dg, dg.refit((), vd.INSTRUMENT), [])["candidate"]
+    sensor = vd.sensor_hypothesis(dg, dg.refit(()), [])["candidate"]
     better = replace(sensor, effects=("air",), score=sensor.score - 2 * vd.SENSOR_MARGIN, explained=True)
-    assert not vd.sensor_hypothesis(dg, dg.refit((), vd.INSTRUMENT), [better])["preferred"]
+    assert not vd.sensor_hypothesis(dg, dg.refit(()), [better])["preferred"]
+
+
+def friction_step(obs, chi2: float) -> float:
+    """A Coulomb force whose period-1 χ² against the nominal model is about ``chi2`` (friction moves every mean
+    by ±F_C)."""
+    fit = obs.period == 1
+    return float(np.sqrt(chi2 / np.sum(1.0 / obs.sigma_N[fit] ** 2)))
+
+
+def test_an_effect_the_omnibus_test_misses_is_found_by_its_own_test(campaign):
+    obs, damper = campaign
+    coulomb = friction_step(obs, 20.0)
+    force = Evaluator(obs, damper).predict(Effects(coulomb_force_N=coulomb))
+    dg = Diagnoser(replace(obs, force_N=force), damper)
+    assert dg.nominal_explains()   # the χ² of all observations alone sees nothing
+    result, _pred = vd.diagnose_observations(replace(obs, force_N=force), damper)
+    assert result["verdict"] == ["friction"]
+    assert result["params"]["coulomb_force_N"] == pytest.approx(coulomb, rel=0.01)
+
+
+def test_an_effect_the_held_out_period_does_not_confirm_is_not_claimed(campaign):
+    obs, damper = campaign
+    coulomb = friction_step(obs, 20.0)
+    nominal = Evaluator(obs, damper).predict(NOMINAL)
+    force = nominal + np.where(obs.period == 1, coulomb * obs.sign, 0.0)   # in the fitted period only
+    result, _pred = vd.diagnose_observations(replace(obs, force_N=force), damper)
+    assert result["effect_tests"]["friction"]["chi2_drop"] > result["effect_tests"]["friction"]["threshold"]
+    assert result["verdict"] == []
+
+
+def unexplained(effects, chi2_holdout):
+    return Candidate(effects=effects, x=np.zeros(len(effects)), params={}, prediction=np.zeros(1), chi2_fit=200.0,
+                     chi2_holdout=chi2_holdout, n_fit=100, n_holdout=100, gap_after=2.0, holdout_gap_after=2.0,
+                     score=chi2_holdout, explained=False)
+
+
+def test_of_partial_explanations_within_the_margin_the_smaller_set_is_chosen():
+    small, large = unexplained(("air",), 400.0), unexplained(("path_asymmetry", "air"), 380.0)
+    assert overdispersed_score(large, [small, large]) < overdispersed_score(small, [small, large])
+    assert vd.parsimonious([small, large]) is small
+
+
+def test_a_partial_explanation_better_by_more_than_the_margin_is_chosen_whatever_its_size():
+    small, large = unexplained(("air",), 400.0), unexplained(("path_asymmetry", "air"), 300.0)
+    assert vd.parsimonious([small, large]) is large
+
+
+def confounding_of(lag_correlation, drift_correlation):
+    out = {"instrument": {"force_gain": None, "force_lag_s": 0.04, "force_drift_N_s": 0.01},
+           "identifiability": {"lag_correlation": lag_correlation, "drift_correlation": drift_correlation}}
+    verdict = _cand(("air", "friction"), True, 0.0)
+    vd.instrument_confounding(out, None, verdict, [], list(verdict.effects), None, {"estimate": 1.0})
+    return out.get("confounded", [])
+
+
+def test_an_effect_the_fit_cannot_tell_from_the_lag_or_the_drift_is_listed_with_it():
+    groups = confounding_of({"air": -0.95, "friction": 0.1}, {"air": 0.0, "friction": 0.93})
+    assert ["air", "force_lag"] in groups and ["friction", "force_drift"] in groups
+
+
+def test_weakly_correlated_instrument_terms_are_not_listed():
+    assert confounding_of({"air": -0.8, "friction": 0.1}, {"air": 0.0, "friction": 0.5}) == []

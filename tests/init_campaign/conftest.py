@@ -13,8 +13,8 @@ import yaml
 from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
+from testconfig import TEST_CONFIG as CONFIG
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 #: Two triangle cases at T = 20 s (100 Hz, 4000 samples) and the first sine case (1000 Hz, 5714 samples).
 CASES = ("T16", "T22", "H01")
 CAMPAIGN = "lag"

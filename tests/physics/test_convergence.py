@@ -6,19 +6,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from isokinetic.physics import convergence as cv
 from isokinetic.physics.damper import TABLE_1, Effects
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import true_responses
-from isokinetic.stages.virtual_rig import VirtualCampaign
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 PHI = 0.999
 MM = 1e3
 
@@ -63,12 +59,6 @@ HAND_STROKE_MM = {  # W [m/s]: (laminar, turbulent, mixed)
 def triangle(case, y_m, period_s, rate_Hz=100.0, periods=2.0):
     return CasePlan(case=case, waveform="triangle", sample_rate_Hz=rate_Hz, amplitude_m=y_m, period_s=period_s,
                     phase_rad=-math.pi / 2, duration_s=periods * period_s)
-
-
-@pytest.fixture(scope="module")
-def default_plan():
-    mapping = yaml.safe_load(CONFIG.read_text())["virtual_campaigns"]["paper-lag-damper"]
-    return VirtualCampaign.from_config("paper-lag-damper", mapping)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -32,8 +31,8 @@ from isokinetic.physics.responses import (
 )
 from isokinetic.physics.servo import servo_response
 from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, simulate_case
+from testconfig import TEST_CONFIG as CONFIG
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 TRUTH = dm.Effects(coulomb_force_N=90.0, leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)
 
 

@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from isokinetic.physics import reference_rig as rr
 from isokinetic.physics.viscosity import (
     ViscosityLaw,
     case_viscosity_scales,
     equivalent_temperature_offset_C,
     law_from_mapping,
 )
+from isokinetic.reference import rig as rr
 
 DENSITY = 815.0
 LAW = ViscosityLaw("walther", ((40.0, 0.030), (100.0, 0.006)), DENSITY)

@@ -8,8 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isokinetic.plots.compare import Z_95, difference_figure, overlay_figure
+from isokinetic.plots.compare import difference_figure, overlay_figure
 from isokinetic.stages.compare import CompareSpec
+from isokinetic.stats import Z_95
 from stages.test_compare import SPEEDS_A, SPEEDS_B, characteristic, compare
 
 SPEC = CompareSpec("ab", ("a", "b"))

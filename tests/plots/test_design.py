@@ -3,22 +3,19 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from isokinetic.physics.convergence import stroke_to_converge
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.physics.plan import CasePlan
 from isokinetic.plots import design as design_plots
 from isokinetic.stages.design import plan_check
-from isokinetic.stages.virtual_rig import VirtualCampaign
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 PHI = 0.999
 MAX_AMP, MIN_AMP = 10.0e-3, 0.1e-3     # the workflow test's design block: 10 mm, 0.1 mm
+START = 0.45                          # the paper's window start, a fraction of T/2
 MM = 1e3
 
 
@@ -28,15 +25,8 @@ def triangle(case, y_m, period_s, rate_Hz=100.0, periods=2.0):
 
 
 def check(cases, damper=TABLE_1, **kw):
-    kw = {"max_amplitude_m": MAX_AMP, "min_amplitude_m": MIN_AMP, **kw}
+    kw = {"phi": PHI, "max_amplitude_m": MAX_AMP, "min_amplitude_m": MIN_AMP, "start_fraction": START, **kw}
     return plan_check("design-test", cases, damper, **kw).set_index("case")
-
-
-@pytest.fixture(scope="module")
-def default_plan():
-    mapping = yaml.safe_load(CONFIG.read_text())["virtual_campaigns"]["paper-lag-damper"]
-    return VirtualCampaign.from_config("paper-lag-damper", mapping)
-
 
 
 def _lines(ax, gid):
@@ -46,7 +36,7 @@ def _lines(ax, gid):
 def test_fig5_has_labelled_axes_curves_band_and_planned_strokes(default_plan):
     df = check(list(default_plan.cases), damper=default_plan.damper).reset_index()
     w = np.geomspace(1e-6, 1e-2, 60)
-    fig = design_plots.stroke_to_converge_figure(TABLE_1, w, planned=df, campaign="paper-lag-damper")
+    fig = design_plots.stroke_to_converge_figure(TABLE_1, w, phi=PHI, planned=df, campaign="paper-lag-damper")
     ax = fig.axes[0]
     assert ax.get_xscale() == "log"
     assert "[mm/s]" in ax.get_xlabel() and "[mm]" in ax.get_ylabel()
@@ -83,8 +73,9 @@ def test_fig6_has_log_axes_iso_velocity_points_and_constraint_boundaries(default
 
 
 def test_fig6_without_damper_has_no_boundary_and_says_why():
-    fig = design_plots.at_diagram_figure("camp-z", plan_check("camp-z", [triangle("T01", 2e-3, 80.0)], None,
-                                                        max_amplitude_m=MAX_AMP, min_amplitude_m=MIN_AMP),
+    fig = design_plots.at_diagram_figure("camp-z", plan_check("camp-z", [triangle("T01", 2e-3, 80.0)], None, phi=PHI,
+                                                        max_amplitude_m=MAX_AMP, min_amplitude_m=MIN_AMP,
+                                                        start_fraction=START),
                                None, MAX_AMP, MIN_AMP, 0.45, PHI)
     ax = fig.axes[0]
     assert not _lines(ax, "quasi-steady") and _lines(ax, "max-travel") and _lines(ax, "noise-floor")

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from isokinetic.measurement.model_fit import fit_models, nominal_families
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.plots.models import comparison_figure, comparison_loglog_figure
-from isokinetic.stages.models import fit_models, nominal_families
 from stages.test_models import nominal_characteristic
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+import pytest
 from PIL import Image
 
 from isokinetic.plots import figures, style
@@ -31,6 +32,7 @@ def test_save_figure_writes_metadata_as_png_text_without_software_stamp(tmp_path
         assert im_plain.size == (2 * style.DPI, int(1.5 * style.DPI))
 
 
+@pytest.mark.slow
 def test_save_figure_draws_the_pixels_savefig_draws(tmp_path):
     """Laid out once before saving (style.lay_out), a figure has the very pixels of a plain savefig:
     several axes, a shared axis, mathtext, an outside legend and a footnote."""

@@ -24,10 +24,10 @@ from isokinetic.contracts import tables
 from isokinetic.contracts.outputs import FIGURES
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.io import lineage_context, write_json, write_parquet
+from isokinetic.measurement.model_fit import comparison_table, fit_models
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.report.browser import CAMPAIGN_SECTIONS
 from isokinetic.report.embed import PNG_SIGNATURE
-from isokinetic.stages.models import comparison_table, fit_models
 
 CAMPAIGN = "demo"
 DAMPER = TABLE_1.to_dict()

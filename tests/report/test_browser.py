@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import base64
 
+import pytest
+
 from isokinetic.report import browser, layout
 
 from .fixture_results import CAMPAIGN, CAMPAIGN_FIGURES, tiny_png
@@ -28,6 +30,7 @@ def test_check_pages_reports_missing_pages(built):
         f"{built / 'other' / 'report.html'}: missing or empty"]
 
 
+@pytest.mark.slow
 def test_every_figure_loads_in_headless_chromium(built, chromium):
     campaign = browser.check_in_browser(built / CAMPAIGN / "report.html", chromium)
     assert campaign["total"] == len(CAMPAIGN_FIGURES) == campaign["loaded"], campaign
@@ -37,6 +40,7 @@ def test_every_figure_loads_in_headless_chromium(built, chromium):
     assert browser.check_pages(built, [CAMPAIGN], browser=True) == []
 
 
+@pytest.mark.slow
 def test_the_browser_check_sees_a_broken_figure(tmp_path, chromium):
     """Control: the check is not vacuous - an undecodable image is counted as not loaded."""
     good = base64.b64encode(tiny_png((9, 9, 9))).decode()

@@ -9,10 +9,16 @@ import pandas as pd
 import pytest
 
 from isokinetic.contracts.outputs import RULE_STAGES, campaign_path, rule_figures, rule_outputs_of
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.analysis import write_analysis
-from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage, write_characteristic
+from isokinetic.stages.characteristic import (
+    assemble,
+    paired_repeatability,
+    records_stage,
+    windows_stage,
+    write_characteristic,
+)
 from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
-from isokinetic.stages.windows import WindowSpec, windows_stage
 
 #: Three short triangle cases and a sine case (the fewest the model fit accepts, and a harmonic record).
 SPEC = {
@@ -49,12 +55,14 @@ def test_rules_run_their_stages_in_method_order():
     assert campaign_path("c", rule_outputs_of("characteristic")["windows"]) == "results/c/windows.parquet"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rule", ["characteristic", "analysis"])
 def test_job_writes_every_output_of_its_stages(campaign, rule):
     missing = [p for p in files_of(rule, campaign) if not p.is_file() or p.stat().st_size == 0]
     assert not missing
 
 
+@pytest.mark.slow
 def test_characteristic_job_equals_its_stages_run_one_by_one(campaign):
     spec = WindowSpec()
     windows = windows_stage(campaign, spec)
@@ -66,6 +74,7 @@ def test_characteristic_job_equals_its_stages_run_one_by_one(campaign):
     pd.testing.assert_frame_equal(pd.read_parquet(campaign / "energy.parquet"), energy)
 
 
+@pytest.mark.slow
 def test_analysis_job_reads_the_characteristic_job_outputs_only(campaign, tmp_path):
     # a folder with only what rule analysis takes as input gives the same tables
     copy = tmp_path / "small"
@@ -81,6 +90,7 @@ def test_analysis_job_reads_the_characteristic_job_outputs_only(campaign, tmp_pa
             pd.testing.assert_frame_equal(pd.read_parquet(copy / rel), pd.read_parquet(campaign / rel))
 
 
+@pytest.mark.slow
 def test_analysis_job_writes_the_static_force_of_the_campaign(campaign):
     # the simulated damper has friction but no static force: the interval holds 0
     table = pd.read_parquet(campaign / rule_outputs_of("analysis")["static_force"])
@@ -90,6 +100,7 @@ def test_analysis_job_writes_the_static_force_of_the_campaign(campaign):
     assert RULE_STAGES["analysis"].index("harmonic") < RULE_STAGES["analysis"].index("static_force")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("table", ["characteristic", "models"])
 def test_analysis_job_exports_the_characteristic_and_models_as_csv(campaign, table):
     # the CSV holds its Parquet table's numbers bit for bit, under a units row

@@ -6,6 +6,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
 import yaml
 
 from isokinetic.contracts.scenarios import EFFECTS
@@ -27,9 +28,10 @@ def tree_hashes(folder: Path) -> dict[str, str]:
 # end to end: one scenario per effect plus one without, each at 3x detection
 # --------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_small_blind_suite_attributes_every_effect(tmp_path):
     # the rig nuisances of issue 9 only: what the sensor chain (issue 21) does to attribution is measured by
-    # the suite's targets (results/blind/summary.json, README "Blind test of the diagnosis")
+    # the suite's targets (results/blind/summary.json, docs/diagnosis.md, "Blind test of the diagnosis")
     scenarios = generate_scenarios(5, 1, 0, 1, **SMALL, sensor_chain=False)
     assert sorted(s.truth for s in scenarios) == sorted([()] + [(e,) for e in EFFECTS])
     write_suite(scenarios, tmp_path / "raw", tmp_path / "truth")
@@ -50,6 +52,8 @@ def test_small_blind_suite_attributes_every_effect(tmp_path):
 # workflow wiring
 # --------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
+@pytest.mark.workflow
 def test_workflow_runs_blind_test_in_four_jobs(tmp_path):
     work = tmp_path / "project"
     work.mkdir()

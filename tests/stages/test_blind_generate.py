@@ -11,12 +11,12 @@ import pytest
 import yaml
 
 from isokinetic.contracts.scenarios import EFFECTS
-from isokinetic.physics import reference_rig_campaign as rrc
+from isokinetic.measurement.windows import case_windows
 from isokinetic.physics.damper import TABLE_1, Effects
+from isokinetic.reference import campaign as rrc
 from isokinetic.stages import blind_generate as gen
 from isokinetic.stages.blind_generate import BOUNDS, effect_fields, generate_scenarios, magnitude_bin, write_suite
 from isokinetic.stages.virtual_rig import Measurement, simulate_cases
-from isokinetic.stages.windows import case_windows
 
 SEED = 11
 SUITE = {"n_per_effect": 1, "n_pairs": 2, "n_none": 1, "n_out": 3}
@@ -36,6 +36,7 @@ def tree_hashes(folder: Path) -> dict[str, str]:
 # generation
 # --------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_generation_is_deterministic_and_composed_as_asked(suite):
     assert generate_scenarios(SEED, **SUITE) == suite
     assert generate_scenarios(SEED + 1, **SUITE) != suite
@@ -161,6 +162,7 @@ def test_undetectable_effect_gives_no_detection_level(suite):
 # export
 # --------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_export_holds_no_truth_and_is_byte_reproducible(suite, tmp_path):
     write_suite(suite, tmp_path / "a" / "raw", tmp_path / "a" / "truth")
     write_suite(generate_scenarios(SEED, **SUITE), tmp_path / "b" / "raw", tmp_path / "b" / "truth")

@@ -18,13 +18,13 @@ import pytest
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import timeseries_relpath
 from isokinetic.io import write_parquet
+from isokinetic.measurement.model_fit import fit_models
+from isokinetic.measurement.repeatability import repeatability
 from isokinetic.physics.responses import true_response
 from isokinetic.stages.characteristic import assemble, record_points, write_characteristic
 from isokinetic.stages.diagnosis import prepare
 from isokinetic.stages.exports import csv_text
 from isokinetic.stages.figures import write_campaign_figures
-from isokinetic.stages.models import fit_models
-from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.static_force import write_static_force
 from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
 from rigfiles import dropout_rows
@@ -142,11 +142,13 @@ def test_static_force_uses_the_sine_points_without_triangle_cases(sine_campaign,
     assert sf["source"] == "characteristic" and sf["n_matched"] == 3
 
 
-def test_diagnosis_says_sine_records_are_not_diagnosed(sine_campaign):
+def test_a_sine_only_campaign_is_diagnosed_from_its_phase_bins(sine_campaign):
     _vc, root = sine_campaign
-    _c, _d, _cases, obs, reason = prepare(root)
-    assert obs is None
-    assert reason == "no triangle case: diagnosis of sine and free records not yet supported"
+    _c, _d, cases, obs, reason = prepare(root)
+    assert obs is not None, reason
+    sines = cases.loc[(cases["status"] == "ok") & (cases["waveform"] == "sine"), "case"]
+    assert set(obs.case) == set(sines) and len(sines) > 0
+    assert {obs.plans[i].waveform for i in obs.case_index} == {"sine"}
 
 
 def drop_rows(series: pd.DataFrame, fraction: float, seed: int) -> pd.DataFrame:
@@ -234,6 +236,7 @@ def test_csv_export_carries_the_sine_points_and_their_method(sine_campaign):
     np.testing.assert_array_equal(back["force_N"], char["force_N"])
 
 
+@pytest.mark.slow
 def test_figures_of_a_sine_only_campaign_show_its_characteristic(sine_campaign, tmp_path):
     _vc, root = sine_campaign
     import matplotlib.image
@@ -268,8 +271,8 @@ def test_a_short_steady_step_keeps_its_first_period():
 
 
 def test_compare_and_static_force_take_a_free_records_bins_as_no_case_point(sine_campaign):
+    from isokinetic.measurement.static_force_fit import branch_points
     from isokinetic.stages.compare import campaign_points
-    from isokinetic.stages.static_force import branch_points
 
     _vc, root = sine_campaign
     char = pd.read_parquet(root / "characteristic.parquet")
@@ -280,6 +283,7 @@ def test_compare_and_static_force_take_a_free_records_bins_as_no_case_point(sine
     assert set(branch_points(both)["case"]) == {"H01", "H02", "H03"}
 
 
+@pytest.mark.slow
 def test_trace_rederives_a_sine_point_from_the_raw_file(tmp_path):
     import subprocess
     import sys

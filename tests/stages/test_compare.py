@@ -18,6 +18,7 @@ import pytest
 
 from isokinetic.contracts import tables
 from isokinetic.io import write_parquet
+from isokinetic.measurement.model_fit import design_matrix, fit_models
 from isokinetic.stages.compare import (
     CompareSpec,
     campaign_curves,
@@ -28,7 +29,6 @@ from isokinetic.stages.compare import (
     significance,
     write_compare,
 )
-from isokinetic.stages.models import design_matrix, fit_models
 
 SPEEDS_A = np.geomspace(1e-5, 1e-3, 9)
 SPEEDS_B = np.geomspace(1.3e-5, 0.8e-3, 7)     # none within 1 % of SPEEDS_A

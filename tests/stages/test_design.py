@@ -6,22 +6,19 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from pathlib import Path
 
 import pandas as pd
 import pytest
-import yaml
 
 from isokinetic.contracts import tables
 from isokinetic.contracts.outputs import figures_of
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.physics.plan import CasePlan
 from isokinetic.stages import design as ds
-from isokinetic.stages.virtual_rig import VirtualCampaign
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 PHI = 0.999
 MAX_AMP, MIN_AMP = 10.0e-3, 0.1e-3     # the workflow test's design block: 10 mm, 0.1 mm
+START = 0.45                          # the paper's window start, a fraction of T/2
 
 
 def triangle(case, y_m, period_s, rate_Hz=100.0, periods=2.0):
@@ -30,14 +27,8 @@ def triangle(case, y_m, period_s, rate_Hz=100.0, periods=2.0):
 
 
 def check(cases, damper=TABLE_1, **kw):
-    kw = {"max_amplitude_m": MAX_AMP, "min_amplitude_m": MIN_AMP, **kw}
+    kw = {"phi": PHI, "max_amplitude_m": MAX_AMP, "min_amplitude_m": MIN_AMP, "start_fraction": START, **kw}
     return ds.plan_check("design-test", cases, damper, **kw).set_index("case")
-
-
-@pytest.fixture(scope="module")
-def default_plan():
-    mapping = yaml.safe_load(CONFIG.read_text())["virtual_campaigns"]["paper-lag-damper"]
-    return VirtualCampaign.from_config("paper-lag-damper", mapping)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -112,8 +103,8 @@ def test_default_plan_flags_only_the_fast_20_s_cases(default_plan):
 
 def test_plan_warnings_name_campaign_and_case_one_line_per_flagged_case():
     df = ds.plan_check("camp-x", [triangle("T01", 2e-3, 80.0), triangle("T02", 7.5e-3, 20.0),
-                                  triangle("T03", 12e-3, 240.0)], TABLE_1, max_amplitude_m=MAX_AMP,
-                       min_amplitude_m=MIN_AMP)
+                                  triangle("T03", 12e-3, 240.0)], TABLE_1, phi=PHI, max_amplitude_m=MAX_AMP,
+                       min_amplitude_m=MIN_AMP, start_fraction=START)
     lines = ds.plan_warnings(df)
     assert len(lines) == 2
     assert lines[0].startswith("campaign camp-x, case T02 ") and "99.9 %" in lines[0]

@@ -17,7 +17,8 @@ from isokinetic.stages.design_summary import design_summary, write_design_summar
 def _check(campaign: str, *amplitudes_m: float) -> pd.DataFrame:
     cases = [CasePlan(case=f"T{i:02d}", waveform="triangle", sample_rate_Hz=50.0, amplitude_m=y, period_s=80.0,
                       phase_rad=-math.pi / 2, duration_s=160.0) for i, y in enumerate(amplitudes_m, start=1)]
-    return plan_check(campaign, cases, TABLE_1, max_amplitude_m=10e-3, min_amplitude_m=0.1e-3)
+    return plan_check(campaign, cases, TABLE_1, phi=0.999, max_amplitude_m=10e-3, min_amplitude_m=0.1e-3,
+                      start_fraction=0.45)
 
 
 def test_summary_stacks_the_campaigns_in_input_order(tmp_path):

@@ -6,14 +6,13 @@ import pytest
 
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.io import write_parquet
+from isokinetic.measurement.repeatability import repeatability
 from isokinetic.physics.damper import TABLE_1, Effects
 from isokinetic.physics.plan import CasePlan
 from isokinetic.stages import diagnosis as dg
-from isokinetic.stages.characteristic import assemble
-from isokinetic.stages.repeatability import repeatability
+from isokinetic.stages.characteristic import assemble, windows_stage
 from isokinetic.stages.validate import write_validated
 from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, write_campaign
-from isokinetic.stages.windows import windows_stage
 
 # speeds [mm/s] and periods [s]: across the laminar-turbulent transition, the fast ones short
 PLAN = [(0.01, 80.0), (0.05, 80.0), (0.2, 20.0), (0.5, 20.0), (1.0, 20.0), (1.5, 20.0)]
@@ -53,6 +52,7 @@ def test_leakage_is_attributed_and_its_conductance_recovered(tmp_path):
     assert result["where"] and all(b["mean_rel_error"] < 0 for b in result["where"])
 
 
+@pytest.mark.slow
 def test_air_is_told_apart_from_leakage_by_the_transients(tmp_path):
     result, _obs, _pred = dg.diagnose(process(tmp_path, Effects(air_volume_fraction=0.002)))
     assert result["verdict"] == ["air"]
@@ -61,6 +61,7 @@ def test_air_is_told_apart_from_leakage_by_the_transients(tmp_path):
     assert not leak["explained"]
 
 
+@pytest.mark.slow
 def test_diagnosis_json_validates_against_the_repository_schema(tmp_path):
     root = process(tmp_path, Effects(coulomb_force_N=20.0))
     out = dg.write_diagnosis(root, tmp_path / "diagnosis.json", tmp_path / "gap.png")

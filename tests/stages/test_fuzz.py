@@ -31,11 +31,10 @@ from hypothesis import strategies as st
 import conftest
 from conftest import CAMPAIGN, CASE_IDS, COMMENTS, MANIFEST, N_SAMPLES, build_campaign, tree_hashes
 from isokinetic.contracts.manifest import ManifestError
-from isokinetic.stages.characteristic import assemble
+from isokinetic.measurement.repeatability import repeatability
+from isokinetic.stages.characteristic import assemble, windows_stage
 from isokinetic.stages.ingest import ingest_campaign
-from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.validate import write_validated
-from isokinetic.stages.windows import windows_stage
 
 RAW = Path("data", "raw", CAMPAIGN)
 ROOT = Path("results", CAMPAIGN)
@@ -205,6 +204,7 @@ def fuzz_dir(tmp_path_factory):
 @settings(max_examples=MAX_EXAMPLES, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow,
                                  HealthCheck.data_too_large])
+@pytest.mark.slow
 @given(mutations=st.lists(mutation, min_size=1, max_size=3))
 def test_damaged_campaign_quarantines_or_processes_and_never_crashes(fuzz_dir, mutations):
     work, pristine, good = fuzz_dir

@@ -233,6 +233,7 @@ def test_backlash_with_servo_compliance_gives_lvdt_velocity_spikes_at_force_zero
 
 # ---------------------------------------------------------------------------------- stage
 
+@pytest.mark.slow
 def test_harmonic_stage_on_a_campaign_with_sine_and_free_cases(raw_campaign, tmp_path):
     cases, _ = raw_campaign.run()
     table, loops = harmonic_stage(raw_campaign.root)

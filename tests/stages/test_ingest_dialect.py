@@ -17,8 +17,8 @@ from conftest import CAMPAIGN, CASE_IDS, assert_quarantine, assert_rest_unchange
 from isokinetic.contracts.campaign import read_ingested
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
+from testconfig import TEST_CONFIG as CONFIG
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 EXPORTED_CASES = ("T22", "H01")
 W = "campaign demo, case"
 HINT = ": set `encoding:` in the manifest's csv block (for example cp1252)"

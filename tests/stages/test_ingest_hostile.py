@@ -172,6 +172,7 @@ def test_different_slices_of_one_file_are_not_warned(tmp_path):
     assert read_ingested(tmp_path / "results").meta["warnings"] == []
 
 
+@pytest.mark.slow
 def test_thousand_cases_naming_one_whole_file_are_warned(tmp_path):
     folder = _shared_file_campaign(tmp_path, [{}] * 1000)
     ingest_campaign(folder, tmp_path / "results")
@@ -222,6 +223,7 @@ def test_validate_runs_bounded_on_a_trimmed_record(raw_campaign):
     assert quarantine.empty and math.isfinite(cases.set_index("case").loc["T02", "motion_start_s"])
 
 
+@pytest.mark.slow
 def test_bad_cell_far_into_a_large_decimal_comma_file_is_named_at_its_row(tmp_path):
     """A large file is parsed in chunks: the chunk holding the bad cell is text, the others numbers. The bad cell's
     row is named, not the first parsed number."""

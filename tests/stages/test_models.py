@@ -17,22 +17,16 @@ import pandas as pd
 import pytest
 
 from isokinetic.contracts import tables
+from isokinetic.measurement.model_fit import PhysicalRange, comparison_table, fit_models, nominal_families, plausibility
+from isokinetic.measurement.repeatability import repeatability
+from isokinetic.measurement.windows import WindowSpec, extract_windows
 from isokinetic.physics import damper as dm
 from isokinetic.physics.damper import TABLE_1 as TABLE1
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import true_responses
 from isokinetic.stages.characteristic import assemble
-from isokinetic.stages.models import (
-    PhysicalRange,
-    comparison_table,
-    fit_models,
-    nominal_families,
-    plausibility,
-    write_models,
-)
-from isokinetic.stages.repeatability import repeatability
+from isokinetic.stages.models import write_models
 from isokinetic.stages.virtual_rig import Measurement, measure
-from isokinetic.stages.windows import extract_windows
 
 #: Sensor model of config/config.yaml (paper-lag-damper), with its ADC resolutions.
 SENSORS = Measurement(force_noise_N=5.0, force_noise_rel=0.01, displacement_noise_m=1.0e-6)
@@ -93,7 +87,7 @@ class VirtualTruth:
 
     def characteristic(self, seed: int) -> pd.DataFrame:
         series = {p.case: measure(p, t, SENSORS, seed) for p, t in zip(self.plans, self.truths, strict=True)}
-        windows = extract_windows(self.cases, lambda row: series[row["case"]])
+        windows = extract_windows(self.cases, lambda row: series[row["case"]], WindowSpec())
         return assemble(windows, repeatability(windows, 0.05))
 
 
@@ -314,7 +308,7 @@ def test_write_models_without_damper_block(tmp_path):
                                            window_start_s=1.0, window_end_s=2.0, row_start=10, row_stop=510,
                                            raw_file="x", raw_sha256="y")
     char.to_parquet(root / "characteristic.parquet", index=False)
-    paths = write_models(root, root / "models", figures_dir=root / "figures")
+    paths = write_models(root, root / "models", WindowSpec(), figures_dir=root / "figures")
     assert [p.name for p in paths] == ["models.parquet", "model_residuals.parquet", "comparison.parquet",
                                        "fig13_comparison.png", "fig14_comparison_loglog.png"]
     assert all(p.exists() and p.stat().st_size > 0 for p in paths)

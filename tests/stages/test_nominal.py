@@ -14,13 +14,18 @@ import pandas as pd
 import pytest
 
 from isokinetic.contracts import tables
+from isokinetic.measurement.model_windows import ModelPlan, model_windows
+from isokinetic.measurement.windows import WindowSpec, extract_windows
 from isokinetic.physics import damper as dm
+from isokinetic.physics.damper import NOMINAL
 from isokinetic.physics.damper import TABLE_1 as TABLE1
 from isokinetic.physics.plan import CasePlan
-from isokinetic.stages.nominal import ModelPlan, model_windows, nominal_stage
+from isokinetic.stages.nominal import nominal_stage
 from isokinetic.stages.validate import write_validated
 from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, simulate_case, write_campaign
-from isokinetic.stages.windows import WindowSpec, extract_windows
+
+#: The paper's window, [0.45, 0.95] T/2 (the configuration's default)
+PAPER = WindowSpec()
 
 
 def tri(case: str, w_m_s: float, period_s: float, rate_Hz: float = 100.0, periods: float = 2.0) -> CasePlan:
@@ -42,7 +47,7 @@ def cases_table(plans: list[CasePlan], campaign: str = "unit", extra: list[dict]
 
 def test_converged_windows_equal_incompressible_eq31():
     # 0.1 mm/s over T = 80 s: the compressibility transient (~0.1 s) is long over at 0.45 T/2 = 18 s
-    out = model_windows("unit", cases_table([tri("T01", 1.0e-4, 80.0)]), TABLE1)
+    out = model_windows("unit", cases_table([tri("T01", 1.0e-4, 80.0)]), TABLE1, NOMINAL, PAPER)
     assert len(out) == 4
     eq31 = dm.nominal_force(out["velocity_m_s"].to_numpy(), TABLE1)
     np.testing.assert_allclose(out["force_N"].to_numpy(), eq31, rtol=1e-4)
@@ -51,7 +56,7 @@ def test_converged_windows_equal_incompressible_eq31():
 
 def test_fast_short_case_falls_below_eq31():
     # 1.5 mm/s over T = 20 s (paper case 23): turbulent relaxation of ~2 s is not over at 4.5 s
-    out = model_windows("unit", cases_table([tri("T23", 1.5e-3, 20.0)]), TABLE1)
+    out = model_windows("unit", cases_table([tri("T23", 1.5e-3, 20.0)]), TABLE1, NOMINAL, PAPER)
     eq31 = dm.nominal_force(out["velocity_m_s"].to_numpy(), TABLE1)
     ratio = out["force_N"].to_numpy() / eq31
     assert np.all(ratio < 0.99), ratio          # every window short of the steady force by > 1 %
@@ -62,7 +67,7 @@ def test_fast_short_case_falls_below_eq31():
 def test_each_case_at_its_own_viscosity_follows_eq31_at_that_viscosity():
     # two converged cases, one at the damper's viscosity, one with the oil at 0.4 of it (a warm case)
     cases = cases_table([tri("T01", 1.0e-4, 80.0), tri("T02", 1.0e-4, 80.0)])
-    out = model_windows("unit", cases, TABLE1, viscosity_scales={"T02": 0.4})
+    out = model_windows("unit", cases, TABLE1, NOMINAL, PAPER, viscosity_scales={"T02": 0.4})
     thin = dm.Damper(**{**TABLE1.to_dict(), "viscosity_Pa_s": 0.4 * TABLE1.viscosity_Pa_s})
     for case, damper in (("T01", TABLE1), ("T02", thin)):
         w = out[out["case"] == case]
@@ -103,25 +108,26 @@ def test_unknown_record_length_falls_back_to_sample_count():
     plan = tri("T01", 2e-4, 40.0)
     known = cases_table([plan])
     unknown = known.assign(duration_s=math.nan)
-    pd.testing.assert_frame_equal(model_windows("unit", unknown, TABLE1), model_windows("unit", known, TABLE1))
+    pd.testing.assert_frame_equal(model_windows("unit", unknown, TABLE1, NOMINAL, PAPER),
+                                  model_windows("unit", known, TABLE1, NOMINAL, PAPER))
     short = unknown.assign(n_samples=int(1.9 * 40.0 * 100))      # 1.9 T recorded: segment 4 incomplete
     with pytest.raises(ValueError, match="case T01: record of .* holds the windows of 3 half-periods"):
-        model_windows("unit", short, TABLE1)
+        model_windows("unit", short, TABLE1, NOMINAL, PAPER)
 
 
 def test_quarantined_and_sine_cases_are_skipped():
     cases = cases_table([tri("T01", 2e-4, 40.0), tri("T02", 3e-4, 40.0)])
     cases.loc[cases["case"] == "T02", "status"] = "quarantined"
-    out = model_windows("unit", cases, TABLE1)
+    out = model_windows("unit", cases, TABLE1, NOMINAL, PAPER)
     assert set(out["case"]) == {"T01"}
 
 
 def test_model_plan_reused_with_other_effects_matches_one_shot():
     cases = cases_table([tri("T01", 2e-4, 40.0), tri("T02", 8e-4, 20.0)])
-    mp = ModelPlan.from_cases("unit", cases)
+    mp = ModelPlan.from_cases("unit", cases, PAPER)
     mp.forces(TABLE1)                                 # a first run must not leak into the next
     force, std = mp.forces(TABLE1, EFFECTS)
-    ref = model_windows("unit", cases, TABLE1, EFFECTS)
+    ref = model_windows("unit", cases, TABLE1, EFFECTS, PAPER)
     np.testing.assert_array_equal(force, ref["force_N"].to_numpy())
     np.testing.assert_array_equal(std, ref["force_std_N"].to_numpy())
 
@@ -145,12 +151,12 @@ def small_campaign(tmp_path_factory):
 
 
 def test_nominal_stage_simulates_the_validated_plan(small_campaign):
-    out = nominal_stage(small_campaign, WindowSpec())
+    out = nominal_stage(small_campaign, PAPER)
     tables.validate_table(out, tables.WINDOWS)
     assert sorted(set(out["case"])) == ["T01", "T02"] and len(out) == 8
     assert set(out["raw_file"]) == {"model:nominal"} and set(out["campaign"]) == {"mini"}
     measured = extract_windows(pd.read_parquet(small_campaign / "cases.parquet"),
-                               lambda row: pd.read_parquet(small_campaign / row["timeseries_file"]))
+                               lambda row: pd.read_parquet(small_campaign / row["timeseries_file"]), PAPER)
     # same windows as measured (rows, velocity); the nominal force lacks the 50 N friction
     assert out["row_start"].tolist() == measured["row_start"].tolist()
     np.testing.assert_allclose(out["velocity_m_s"], measured["velocity_m_s"], rtol=1e-3)
@@ -166,7 +172,7 @@ def test_nominal_stage_uses_measured_length_when_duration_is_unknown(small_campa
     cases["duration_s"] = math.nan
     cases["n_samples"] = 0                               # force the measured series to be read
     cases.to_parquet(root / "cases.parquet", index=False)
-    pd.testing.assert_frame_equal(nominal_stage(root), nominal_stage(small_campaign))
+    pd.testing.assert_frame_equal(nominal_stage(root, PAPER), nominal_stage(small_campaign, PAPER))
 
 
 def test_nominal_stage_without_damper_block_is_empty(small_campaign, tmp_path, caplog):
@@ -177,6 +183,6 @@ def test_nominal_stage_without_damper_block_is_empty(small_campaign, tmp_path, c
     meta["damper"] = None
     meta_path.write_text(json.dumps(meta))
     with caplog.at_level(logging.INFO, logger="isokinetic"):
-        out = nominal_stage(root)
+        out = nominal_stage(root, PAPER)
     assert out.empty and list(out.columns) == list(tables.empty(tables.WINDOWS).columns)
     assert "no damper block" in caplog.text

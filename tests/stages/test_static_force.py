@@ -11,21 +11,14 @@ import pandas as pd
 import pytest
 import yaml
 
-import isokinetic.physics.reference_rig as rr
-import isokinetic.physics.reference_rig_campaign as rrc
+import isokinetic.reference.campaign as rrc
+import isokinetic.reference.rig as rr
 from isokinetic.contracts import tables
+from isokinetic.measurement.static_force_fit import StaticForceSpec, estimate_static_force, intercept_fit, offset_check
 from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.harmonic import binned_characteristic, free_loop
 from isokinetic.stages.ingest import ingest_campaign
-from isokinetic.stages.static_force import (
-    DIAGNOSIS_ALPHA,
-    StaticForceSpec,
-    estimate_static_force,
-    intercept_fit,
-    offset_check,
-    static_force_stage,
-    write_static_force,
-)
+from isokinetic.stages.static_force import static_force_stage, write_static_force
 
 SPEEDS_M_S = np.geomspace(5e-6, 1.5e-3, 12)
 WINDOW_SE_N = 0.05
@@ -195,9 +188,6 @@ def test_offset_standard_error_from_the_diagnosis_profile_test_counts():
 def test_disagreement_is_judged_at_the_diagnosis_own_level():
     assert offset_check(_static(2.5, 1.0), _diagnosis(None)).status == "no_offset_fitted"      # 2.5 sigma at 0.001
     assert offset_check(_static(2.5, 1.0), _diagnosis(None, alpha=0.05)).status == "disagree"
-    from isokinetic.diagnosis.candidate import ALPHA
-
-    assert DIAGNOSIS_ALPHA == ALPHA
 
 
 @pytest.mark.parametrize("diagnosis", [None, {"status": "not_diagnosed", "reason": "no damper data"}])
@@ -227,6 +217,7 @@ def test_written_table_meets_its_contract_and_carries_the_gas_force(tmp_path):
     assert tables.failure_cases(pd.concat([table, table], ignore_index=True), tables.STATIC_FORCE) is not None
 
 
+@pytest.mark.slow
 def test_a_rig_load_cell_offset_is_found_and_a_declared_gas_force_takes_it_out(tmp_path):
     # the motivating case: a characteristic ~25 N below zero at v -> 0 (here a load-cell offset of the
     # independent reference rig, with coloured noise, friction and an asymmetric orifice)

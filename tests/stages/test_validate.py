@@ -16,10 +16,10 @@ from conftest import CAMPAIGN, assert_quarantine, set_cell
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
 from isokinetic.measurement.motion import Motion
+from isokinetic.measurement.repeatability import repeatability
 from isokinetic.physics.plan import CasePlan, triangle_displacement
-from isokinetic.stages.characteristic import assemble
+from isokinetic.stages.characteristic import assemble, windows_stage
 from isokinetic.stages.ingest import ingest_campaign
-from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.validate import (
     INVERT_HINT,
     MAX_MOTION_RMS_FRACTION,
@@ -33,8 +33,8 @@ from isokinetic.stages.validate import (
     write_validated,
 )
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
-from isokinetic.stages.windows import windows_stage
 from rigfiles import dropout_rows
+from testconfig import TEST_CONFIG as CONFIG
 
 
 def _swap_rows(column, a, b):
@@ -280,7 +280,6 @@ def test_small_motion_start_is_not_noted():
 
 # --- dropped samples -------------------------------------------------------------------------------
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 #: Triangle cases of periods 80 s and 20 s and a sine case of the paper's plan, recorded at 500 Hz.
 VIRTUAL_CASES = ["T08", "T17", "T23", "H01"]
 RATE_HZ = 500.0
@@ -327,6 +326,7 @@ def _series_time(lag_campaign: Path, case: str) -> np.ndarray:
     return pd.read_csv(lag_campaign / f"{case}.csv")["time_s"].to_numpy()
 
 
+@pytest.mark.slow
 def test_one_percent_dropped_in_singles_and_bursts_sets_no_case_aside(lag_campaign, lag_full, tmp_path):
     raw = _copy(lag_campaign, tmp_path)
     dropped = {}
@@ -402,6 +402,7 @@ def test_a_gap_longer_than_tolerated_sets_its_case_aside(lag_campaign, lag_full,
         "half-period)")
 
 
+@pytest.mark.slow
 def test_gap_tolerances_are_parameters(lag_campaign, lag_full, tmp_path):
     raw, _ = _long_gap(lag_campaign, lag_full, tmp_path)
     cases, quarantine = _run(raw, tmp_path / "results" / "lag", GapTolerance(max_gap_s=0.5))

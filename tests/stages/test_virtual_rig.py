@@ -6,7 +6,6 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import math
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -27,8 +26,8 @@ from isokinetic.stages.virtual_rig import (
     simulate_case,
     write_campaign,
 )
+from testconfig import TEST_CONFIG as CONFIG
 
-CONFIG = Path(__file__).resolve().parents[2] / "config" / "config.yaml"
 UNIT_SI = {"s": 1.0, "mm": 1e-3, "kN": 1e3}      # raw-campaign-format units used by the export
 
 

@@ -9,6 +9,9 @@ import pytest
 from scratch_project import TINY, export, make_project
 from workflow.test_workflow import snakemake
 
+#: Snakemake builds of a scratch project (quick loop: -m "not slow and not workflow")
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]
+
 NAME = "tiny-vs-export"
 #: The tiny config with one comparison: the simulated campaign against its own export (same data).
 COMPARED = {**copy.deepcopy(TINY), "comparisons": {NAME: {"campaigns": ["tiny", "tiny-export"],

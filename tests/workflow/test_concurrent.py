@@ -10,7 +10,12 @@ from __future__ import annotations
 import subprocess
 import time
 
+import pytest
+
 from scratch_project import SNAKEMAKE, kill_build, make_project
+
+#: Snakemake builds of a scratch project (quick loop: -m "not slow and not workflow")
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]
 
 
 def test_second_build_on_the_same_tree_is_refused(tmp_path):

@@ -23,10 +23,14 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
+import pytest
 from PIL import Image
 
 from isokinetic.io import read_lineage
 from scratch_project import SNAKEMAKE, export, kill_build, make_project
+
+#: Snakemake builds of a scratch project (quick loop: -m "not slow and not workflow")
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]
 
 #: Kill points, applied one after the other to the same tree: SIGKILL the process group
 #: ``delay`` seconds after the ``n``-th job of that run was started (so a job is mid-way).

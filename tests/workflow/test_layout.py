@@ -1,12 +1,14 @@
 """The house rules a newcomer relies on: a rule, its script and its module share one name, and so do
-a stage and its module; every module is listed in the README; every figure has its caption; facts
-have one source; no function or module outgrows what a reader can hold."""
+a stage and its module; every module is listed in docs/architecture.md; every figure has its caption; facts
+have one source; no function or module outgrows what a reader can hold; the README and docs/ name only
+files, links and modules that exist, and nothing outside the repository."""
 
 from __future__ import annotations
 
 import ast
 import json
 import re
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -16,7 +18,16 @@ from isokinetic.contracts.outputs import CAMPAIGN_ID_PATTERN, FIGURES, RULE_STAG
 
 ROOT = Path(__file__).resolve().parents[2]
 PACKAGE = ROOT / "src" / "isokinetic"
+DOCS = [ROOT / "README.md", ROOT / "config" / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+MAX_README_LINES = 200
+# a backticked name starting with one of these is a path in the repository
+REPO_DIRS = ("src/", "tests/", "workflow/", "benchmark/", "docs/", "config/", "profiles/", ".ci/", ".test/",
+             "data/raw/")
+PLACEHOLDER = re.compile(r"[<>{}*…|]|\.\.\.")
 RULE_MODULE_KINDS = ("stages", "audit", "report")
+# a stage that is pure method (windows, repeatability) has its module in measurement/ and its runner in its
+# rule's module
+STAGE_MODULE_KINDS = (*RULE_MODULE_KINDS, "measurement")
 MAX_FUNCTION_LINES = 80
 MAX_MODULE_LINES = 800
 
@@ -32,8 +43,8 @@ def modules() -> list[Path]:
     return sorted(p for p in PACKAGE.rglob("*.py") if "__pycache__" not in p.parts)
 
 
-def module_named(name: str) -> list[Path]:
-    return [p for kind in RULE_MODULE_KINDS for p in (PACKAGE / kind).rglob(f"{name}.py")]
+def module_named(name: str, kinds: tuple[str, ...] = RULE_MODULE_KINDS) -> list[Path]:
+    return [p for kind in kinds for p in (PACKAGE / kind).rglob(f"{name}.py")]
 
 
 def test_every_rule_has_a_script_and_one_module_of_its_name():
@@ -49,7 +60,8 @@ def test_every_stage_has_one_module_of_its_name_and_one_rule_that_runs_it():
     stages = [s for run in RULE_STAGES.values() for s in run]
     assert len(stages) == len(set(stages)), "a stage run by two rules"
     for stage in stages:
-        assert len(module_named(stage)) == 1, f"stage {stage}: modules {module_named(stage)}"
+        found = module_named(stage, STAGE_MODULE_KINDS)
+        assert len(found) == 1, f"stage {stage}: modules {found}"
     assert set(STAGE_OUTPUTS) <= set(stages)
 
 
@@ -59,14 +71,105 @@ def test_every_script_belongs_to_a_rule():
     assert scripts <= rules, f"scripts without a rule: {sorted(scripts - rules)}"
 
 
-def test_readme_layout_lists_every_module():
-    readme = (ROOT / "README.md").read_text(encoding="utf-8")
-    layout = readme.split("## Layout", 1)[1].split("\n## ", 1)[0]
+def architecture_layout() -> str:
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    assert "\n## Layout\n" in text, "docs/architecture.md has no '## Layout' section"
+    return text.split("\n## Layout\n", 1)[1].split("\n## ", 1)[0]
+
+
+def test_architecture_layers_are_those_of_the_import_contract():
+    contracts = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["importlinter"]
+    (layers,) = [c["layers"] for c in contracts["contracts"] if c["type"] == "layers"]
+    enforced = [sorted(re.findall(r"isokinetic\.(\w+)", layer)) for layer in layers]
+    text = (ROOT / "docs" / "architecture.md").read_text(encoding="utf-8")
+    section = text.split("\n## Layers\n", 1)[1].split("\n## ", 1)[0]
+    rows = [line.split("|")[2] for line in section.splitlines() if line.startswith("| ") and "---" not in line]
+    documented = [sorted(re.findall(r"`(\w+)`", row)) for row in rows[1:]]
+    assert documented == enforced, "docs/architecture.md's layers table differs from pyproject's [tool.importlinter]"
+
+
+def test_architecture_layout_lists_every_module():
+    layout = architecture_layout()
     for module in modules():
         rel = module.relative_to(PACKAGE.parent).as_posix()
         if module.name == "__init__.py":
             continue
-        assert rel in layout, f"README's layout section does not list {rel}"
+        assert rel in layout, f"docs/architecture.md's layout section does not list {rel}"
+
+
+def test_architecture_layout_lists_no_module_that_does_not_exist():
+    listed = re.findall(r"^src/(isokinetic/\S+\.py)\b", architecture_layout(), flags=re.M)
+    assert listed, "no module found in docs/architecture.md's layout section"
+    missing = [rel for rel in listed if not (ROOT / "src" / rel).is_file()]
+    assert not missing, f"docs/architecture.md lists modules that do not exist: {missing}"
+
+
+def test_readme_is_short():
+    lines = (ROOT / "README.md").read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= MAX_README_LINES, f"README.md: {len(lines)} lines; move details to docs/"
+
+
+def test_readme_holds_the_two_commands_ci_runs():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    for marker, last in (("main", ".venv/bin/snakemake --cores 2"), ("test", ".venv/bin/pytest -n 2")):
+        block = re.search(rf"^<!-- ci:{marker} -->\n```\n(.+)\n```$", readme, flags=re.M)
+        assert block, f"README.md: no fenced command after <!-- ci:{marker} -->"
+        assert block.group(1).startswith("python3.11 -m venv .venv && ") and block.group(1).endswith(last)
+
+
+def relative_links(doc: Path) -> list[str]:
+    links = re.findall(r"\[[^\]]*\]\(([^)\s]+)\)", doc.read_text(encoding="utf-8"))
+    return [link.split("#", 1)[0] for link in links if not re.match(r"[a-z]+:|#", link)]
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_relative_links_resolve(doc):
+    broken = [link for link in relative_links(doc) if not (doc.parent / link).exists()]
+    assert not broken, f"{doc.name}: links to files that do not exist: {broken}"
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_paths_named_in_the_docs_exist(doc):
+    names = re.findall(r"`([^`\s]+)`", doc.read_text(encoding="utf-8"))
+    paths = {n.split(":", 1)[0] for n in names if n.startswith(REPO_DIRS) and not PLACEHOLDER.search(n)}
+    missing = sorted(p for p in paths if not (ROOT / p).exists())
+    assert not missing, f"{doc.name} names paths that do not exist: {missing}"
+
+
+def names_something_in(module_path: str) -> bool:
+    """True if a dotted name (isokinetic.kind.module[.attribute]) is a module, or a name in one."""
+    parts = module_path.split(".")
+    for i in range(len(parts), 0, -1):
+        base = PACKAGE.parent.joinpath(*parts[:i])
+        source = base.with_suffix(".py") if base.with_suffix(".py").is_file() else base / "__init__.py"
+        if source.is_file():
+            rest = parts[i:]
+            return not rest or re.search(rf"\b{re.escape(rest[0])}\b", source.read_text(encoding="utf-8")) is not None
+    return False
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=lambda p: p.relative_to(ROOT).as_posix())
+def test_modules_named_in_the_docs_exist(doc):
+    text = doc.read_text(encoding="utf-8")
+    named = set(re.findall(r"\b(isokinetic(?:\.\w+)+)", text))
+    if doc != ROOT / "config" / "README.md":  # there `measurement.force_noise_N` is a config key
+        kinds = "|".join(p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file())
+        named |= {f"isokinetic.{ref}" for ref in re.findall(rf"`((?:{kinds})\.\w+(?:\.\w+)*)", text)}
+    missing = sorted(name for name in named if not names_something_in(name))
+    assert not missing, f"{doc.name} names modules or attributes that do not exist: {missing}"
+
+
+def test_every_registered_output_is_described_in_the_docs():
+    text = "".join((ROOT / "docs" / name).read_text(encoding="utf-8") for name in ("method.md", "diagnosis.md"))
+    undescribed = sorted({path for outputs in STAGE_OUTPUTS.values() for path in outputs.values() if path not in text})
+    assert not undescribed, f"outputs not described in docs/method.md or docs/diagnosis.md: {undescribed}"
+
+
+def test_nothing_cites_a_path_outside_the_repository():
+    """Neither the docs nor the package (the paper is cited by its title) name the shared/ folder of a checkout."""
+    texts = [*DOCS, *(p for p in PACKAGE.rglob("*") if p.is_file() and p.suffix in {".py", ".json", ".j2", ".md"})]
+    citing = [p.relative_to(ROOT).as_posix() for p in texts if "shared/" in p.read_text(encoding="utf-8")]
+    assert not citing, f"cite a path outside the repository (shared/): {citing}"
 
 
 def test_every_figure_has_a_caption_and_every_caption_a_figure():
@@ -95,9 +198,3 @@ def test_module_and_functions_stay_readable(module):
             if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
             and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES]
     assert not long, f"functions over {MAX_FUNCTION_LINES} lines: {long}"
-
-
-def test_package_cites_the_paper_by_title_not_by_a_path_outside_it():
-    for module in modules():
-        text = module.read_text(encoding="utf-8")
-        assert "shared/reference" not in text, f"{module.name} cites the paper by a path outside the package"

@@ -18,6 +18,9 @@ import yaml
 
 from scratch_project import ROOT, SNAKEMAKE, TINY, export, kill_build, make_project
 
+#: Snakemake builds of a scratch project (quick loop: -m "not slow and not workflow")
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]
+
 #: The test cluster's overrides of profiles/slurm (fast status polling).
 TEST_PROFILE = Path(__file__).resolve().parent / "slurm_profile"
 #: A build that has not ended by then has hung (e.g. job states unreadable without accounting).

@@ -14,6 +14,9 @@ from scratch_project import SNAKEMAKE, TINY, export, make_project
 
 from .hostile import release, write_protect
 
+#: Snakemake builds of a scratch project (quick loop: -m "not slow and not workflow")
+pytestmark = [pytest.mark.slow, pytest.mark.workflow]
+
 
 def snakemake(workdir, *args, check=True):
     proc = subprocess.run([SNAKEMAKE, "--cores", "2", *args], cwd=workdir, capture_output=True, text=True)

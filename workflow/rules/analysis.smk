@@ -7,10 +7,10 @@
 rule analysis:
     """Design check, nominal model, harmonic records, model fits and the campaign's figures."""
     input:
-        ingest="results/{campaign}/ingest",
-        cases="results/{campaign}/cases.parquet",
-        windows="results/{campaign}/windows.parquet",
-        characteristic="results/{campaign}/characteristic.parquet",
+        ingest=output_path("ingest", "ingest"),
+        cases=output_path("characteristic", "cases"),
+        windows=output_path("characteristic", "windows"),
+        characteristic=output_path("characteristic", "characteristic"),
     output:
         **rule_outputs("analysis"),
     log:

@@ -6,7 +6,7 @@ rule characteristic:
     """Per case checks (failing cases quarantined with their reason), the mean force and velocity of
     every constant-velocity window, period 1 against period 2, and the steady force-velocity points."""
     input:
-        "results/{campaign}/ingest",
+        output_path("ingest", "ingest"),
     output:
         **rule_outputs("characteristic"),
     log:

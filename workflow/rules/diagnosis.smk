@@ -1,10 +1,10 @@
 rule diagnosis:
     """Sim-to-real gap: where it lies, which effect causes it, how far it shrinks (diagnosis.json)."""
     input:
-        cases="results/{campaign}/cases.parquet",
-        ingest="results/{campaign}/ingest",
-        characteristic="results/{campaign}/characteristic.parquet",
-        windows="results/{campaign}/windows.parquet",
+        cases=output_path("characteristic", "cases"),
+        ingest=output_path("ingest", "ingest"),
+        characteristic=output_path("characteristic", "characteristic"),
+        windows=output_path("characteristic", "windows"),
     output:
         **rule_outputs("diagnosis"),
     log:

@@ -3,8 +3,8 @@ rule raw_check:
     (isokinetic.audit.raw_check; the same comparison as provenance.json's raw section)."""
     input:
         raw=raw_files,
-        cases="results/{campaign}/cases.parquet",
-        ingest="results/{campaign}/ingest",
+        cases=output_path("characteristic", "cases"),
+        ingest=output_path("ingest", "ingest"),
     output:
         **rule_outputs("raw_check"),
     log:

@@ -12,8 +12,8 @@ rule campaign_report:
     diagnosis and quarantine, every figure embedded, every number with its lineage."""
     input:
         outputs=lambda wildcards: campaign_outputs(wildcards.campaign),
-        ingest="results/{campaign}/ingest",
-        cases="results/{campaign}/cases.parquet",
+        ingest=output_path("ingest", "ingest"),
+        cases=output_path("characteristic", "cases"),
         comparison=output_path("analysis", "comparison"),
         plan_check=output_path("analysis", "plan_check"),
         captions=[f.caption for f in FIGURES if f.stage not in ("blind_score", "compare")],
@@ -36,8 +36,8 @@ rule report_index:
     suite; each comparison, linked to its page; and results/design/plan_check.parquet, every
     campaign's plan check in one table."""
     input:
-        reports=expand("results/{campaign}/report.html", campaign=ACTIVE),
-        diagnoses=expand("results/{campaign}/diagnosis.json", campaign=ACTIVE),
+        reports=expand(output_path("campaign_report", "page"), campaign=ACTIVE),
+        diagnoses=expand(output_path("diagnosis", "json"), campaign=ACTIVE),
         plan_checks=expand(output_path("analysis", "plan_check"), campaign=ACTIVE),
         blind=BLIND_OUTPUTS if config.get("blind") else [],
         comparisons=comparison_pages(),

@@ -2,8 +2,8 @@
 from pathlib import Path
 
 from isokinetic.job import job
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.analysis import DesignLimits, write_analysis
-from isokinetic.stages.windows import WindowSpec
 
 with job(snakemake) as j:
     p = snakemake.params

@@ -3,8 +3,8 @@ import time
 from pathlib import Path
 
 from isokinetic.job import job
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.blind_diagnose import diagnose_suite
-from isokinetic.stages.windows import WindowSpec
 
 with job(snakemake) as j:
     p = snakemake.params

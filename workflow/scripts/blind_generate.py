@@ -2,8 +2,8 @@
 import time
 
 from isokinetic.job import job
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.blind_generate import generate_scenarios, write_suite
-from isokinetic.stages.windows import WindowSpec
 
 with job(snakemake) as j:
     p = snakemake.params

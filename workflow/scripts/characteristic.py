@@ -2,9 +2,9 @@
 from pathlib import Path
 
 from isokinetic.job import job
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.validate import GapTolerance
-from isokinetic.stages.windows import WindowSpec
 
 with job(snakemake) as j:
     p = snakemake.params

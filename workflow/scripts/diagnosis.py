@@ -2,8 +2,8 @@
 from pathlib import Path
 
 from isokinetic.job import job
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.diagnosis import write_diagnosis
-from isokinetic.stages.windows import WindowSpec
 
 with job(snakemake) as j:
     spec = WindowSpec(snakemake.params.start_fraction, snakemake.params.end_fraction)

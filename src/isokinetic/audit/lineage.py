@@ -28,8 +28,7 @@ from pathlib import Path
 from isokinetic import __version__
 from isokinetic.io import canonical_json, sha256_file
 
-__all__ = ["sha256_text", "git_state", "read_head", "path_sha256", "stage_lineage", "from_snakemake", "row_keys",
-           "parse_row_keys"]
+__all__ = ["sha256_text", "git_state", "read_head", "path_sha256", "stage_lineage", "from_snakemake"]
 
 
 def sha256_text(text: str) -> str:
@@ -131,27 +130,3 @@ def from_snakemake(smk) -> dict:
 # ----------------------------------------------------------------------------------------------
 # row-level lineage: keys of the rows an aggregate was computed from
 # ----------------------------------------------------------------------------------------------
-
-def row_keys(frame, columns: Iterable[str] = ("case", "segment")) -> str:
-    """Compact explicit list of row keys: 'T01/1,T01/2,T02/1' (values joined by '/', rows by ',').
-
-    Case ids cannot hold '/' or ',' (manifest.CASE_ID_RULE), so the text parses back unambiguously
-    (:func:`parse_row_keys`). Rows keep the frame's order; duplicates are dropped.
-    """
-    columns = list(columns)
-    seen, keys = set(), []
-    for values in frame[columns].itertuples(index=False, name=None):
-        key = "/".join(str(v) for v in values)
-        if key not in seen:
-            seen.add(key)
-            keys.append(key)
-    return ",".join(keys)
-
-
-def parse_row_keys(text: str) -> list[tuple[str, int]]:
-    """(case, segment) pairs of a :func:`row_keys` text over ('case', 'segment')."""
-    out = []
-    for key in filter(None, (text or "").split(",")):
-        case, _, segment = key.rpartition("/")
-        out.append((case, int(segment)))
-    return out

@@ -38,7 +38,7 @@ import platform
 from collections.abc import Mapping
 from pathlib import Path
 
-import pandas as pd
+import pyarrow.parquet as pq
 
 from isokinetic import __version__
 from isokinetic.audit.lineage import git_state, path_sha256, sha256_text
@@ -100,11 +100,13 @@ def check_file(path: str, recorded: str, base: Path, folder: Path | None = None)
             "unchanged": (now == recorded) if exists and recorded else None}
 
 
-def _cases_table(root: Path) -> pd.DataFrame | None:
+def _case_rows(root: Path) -> list[dict]:
+    """The rows of the campaign's cases table (nulls as None; none without a table), read by pyarrow alone: the
+    raw check's job needs no pandas (issue 23)."""
     for p in (root / "cases.parquet", root / "ingest" / "cases.parquet"):
         if p.is_file():
-            return pd.read_parquet(p)
-    return None
+            return pq.ParquetFile(p).read().to_pylist()  # not read_table: its dataset layer loads pandas
+    return []
 
 
 def raw_sources(root: Path, base: Path = Path(".")) -> dict:
@@ -112,8 +114,7 @@ def raw_sources(root: Path, base: Path = Path(".")) -> dict:
     meta_path = root / "ingest" / "campaign.json"
     meta = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.is_file() else {}
     ingest_lineage = meta.get("lineage") or {}
-    cases = _cases_table(root)
-    case_rows = [] if cases is None else cases.to_dict("records")
+    case_rows = _case_rows(root)
     simulated = ingest_lineage.get("rule") == "virtual_rig" or (
         bool(case_rows) and all(str(r.get("raw_file", "")).startswith(VIRTUAL_PREFIX) for r in case_rows))
     out: dict = {"kind": "simulation" if simulated else "raw", "campaign_json": meta_path.as_posix(),

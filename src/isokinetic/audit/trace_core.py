@@ -20,7 +20,7 @@ import pandas as pd
 import yaml
 
 from isokinetic.io import read_lineage as read_record
-from isokinetic.stages.windows import WindowSpec
+from isokinetic.measurement.windows import WindowSpec
 
 MATCH = "MATCH"
 MISMATCH = "MISMATCH"

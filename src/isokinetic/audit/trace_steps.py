@@ -49,15 +49,15 @@ from isokinetic.audit.trace_evidence import (
 )
 from isokinetic.contracts.campaign import case_plan, timeseries_relpath
 from isokinetic.io import sha256_file, write_parquet
+from isokinetic.measurement.model_fit import fit_models
+from isokinetic.measurement.repeatability import relative_difference, repeatability
+from isokinetic.measurement.windows import WindowSpec, motion_start, windowed_half_periods
 from isokinetic.stages.blind_score import score
-from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage
+from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage, windows_stage
 from isokinetic.stages.design import plan_check
 from isokinetic.stages.diagnosis import diagnose
 from isokinetic.stages.harmonic import harmonic_stage
-from isokinetic.stages.models import fit_models
 from isokinetic.stages.nominal import nominal_stage
-from isokinetic.stages.repeatability import relative_difference, repeatability
-from isokinetic.stages.windows import WindowSpec, motion_start_of, windowed_half_periods, windows_stage
 
 DIAGNOSIS_DEFAULT_KEYS = ("gap_before", "gap_after", "verdict")
 
@@ -100,7 +100,7 @@ def _window_steps(ctx: Context, src: RawSource, scratch: Path, row: pd.Series, s
     cases = pd.read_parquet(scratch / "cases.parquet").set_index("case", drop=False)
     case_row = cases.loc[str(row["case"])]
     plan = case_plan(case_row)
-    start = motion_start_of(case_row)
+    start = motion_start(case_row)
     k = int(row["segment"])
     t = series["time_s"].to_numpy()
     segs = windowed_half_periods(plan, float(t[-1]), spec, start)

@@ -32,6 +32,10 @@ CAMPAIGN_KEYS = ("format_version", "campaign", "source", "description", "tempera
                  "damper", "manifest_file", "manifest_sha256", "metadata")
 
 TIMESERIES_DIR = "timeseries"
+#: The files of the ingest folder (``results/<campaign>/ingest/``).
+META_FILE = "campaign.json"
+CASES_FILE = "cases.parquet"
+QUARANTINE_FILE = "quarantine.parquet"
 
 
 def timeseries_relpath(case: str) -> str:
@@ -95,15 +99,15 @@ def write_ingested(ingest_dir: str | Path, meta: dict, cases: pd.DataFrame, quar
         raise KeyError(f"campaign.json: missing keys {sorted(missing)}")
     for case, df in series.items():
         write_parquet(tables.validate_table(df, tables.TIMESERIES), ingest_dir / TIMESERIES_DIR / f"{case}.parquet")
-    write_parquet(tables.validate_table(quarantine, tables.QUARANTINE), ingest_dir / "quarantine.parquet")
-    write_parquet(tables.validate_table(cases, tables.CASES), ingest_dir / "cases.parquet")
-    write_json(meta, ingest_dir / "campaign.json")
+    write_parquet(tables.validate_table(quarantine, tables.QUARANTINE), ingest_dir / QUARANTINE_FILE)
+    write_parquet(tables.validate_table(cases, tables.CASES), ingest_dir / CASES_FILE)
+    write_json(meta, ingest_dir / META_FILE)
 
 
 def read_ingested(campaign_root: str | Path) -> IngestedCampaign:
     """Read ``results/<campaign>/ingest`` written by :func:`write_ingested`."""
     root = Path(campaign_root)
-    meta = json.loads((root / "ingest" / "campaign.json").read_text(encoding="utf-8"))
+    meta = json.loads((root / "ingest" / META_FILE).read_text(encoding="utf-8"))
     return IngestedCampaign(root=root, meta=meta,
-                            cases=pd.read_parquet(root / "ingest" / "cases.parquet"),
-                            quarantine=pd.read_parquet(root / "ingest" / "quarantine.parquet"))
+                            cases=pd.read_parquet(root / "ingest" / CASES_FILE),
+                            quarantine=pd.read_parquet(root / "ingest" / QUARANTINE_FILE))

@@ -62,12 +62,12 @@ from isokinetic.contracts.manifest_yaml import (  # noqa: F401  (re-exported: th
     parse_yaml,
     read_manifest_bytes,
 )
+from isokinetic.contracts.problem import Problem
 from isokinetic.physics.damper import Damper
 from isokinetic.physics.plan import WAVEFORMS, CasePlan
 from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
 from isokinetic.rawfile import FORMATS as FILE_FORMATS
 from isokinetic.rawfile import FileFormat
-from isokinetic.stages.validate import Problem
 
 FORMAT_VERSION = 1
 MANIFEST_NAME = "campaign.yaml"

@@ -21,9 +21,7 @@ import numpy as np
 
 from isokinetic.diagnosis.instrument import INSTRUMENT
 from isokinetic.measurement.noise import scaled_chi2_sf
-
-#: Significance level: a χ² with a smaller p-value is not noise.
-ALPHA = 1e-3
+from isokinetic.stats import ALPHA  # the significance level, defined once
 
 
 @dataclass(frozen=True)
@@ -42,17 +40,20 @@ class Candidate:
     explained: bool
     instrument: tuple[str, ...] = INSTRUMENT   # instrument terms free in the fit
     gain: float = 1.0
-    offset_N: float = 0.0
+    offset_N: float = 0.0                      # at the diagnoser's reference time (time_ref_s)
+    drift_N_s: float = 0.0                     # load-cell zero drift (0 unless "force_drift" is free)
+    drift_N: np.ndarray | float = 0.0          # the drift's force at each observation
+    channel: tuple[int, float] | None = None   # the force channel's (form, lag [s]) the model is read through
 
     @property
     def k(self) -> int:
-        """Fitted parameters: damper effects plus free instrument terms."""
-        return len(self.effects) + len(self.instrument)
+        """Fitted parameters: damper effects plus free instrument terms (the channel's lag among them)."""
+        return len(self.effects) + len(self.instrument) + (self.channel is not None)
 
     @property
     def measured_prediction(self) -> np.ndarray:
-        """What the load cell would read: gain·F_model + offset."""
-        return self.gain * self.prediction + self.offset_N
+        """What the load cell would read: gain·F_model + offset + drift."""
+        return self.gain * self.prediction + self.offset_N + self.drift_N
 
     def to_dict(self) -> dict:
         return {"effects": list(self.effects), "params": self.params, "gap_after": self.gap_after,
@@ -60,7 +61,9 @@ class Candidate:
                 "chi2_fit": self.chi2_fit, "chi2_holdout": self.chi2_holdout, "n_fit": self.n_fit,
                 "n_holdout": self.n_holdout,
                 "instrument": {"force_gain": self.gain if "force_gain" in self.instrument else None,
-                               "force_offset_N": self.offset_N if "force_offset" in self.instrument else None}}
+                               "force_offset_N": self.offset_N if "force_offset" in self.instrument else None,
+                               "force_drift_N_s": self.drift_N_s if "force_drift" in self.instrument else None,
+                               "force_lag_s": None if self.channel is None else self.channel[1]}}
 
 
 def rms(z: np.ndarray) -> float:

@@ -41,16 +41,25 @@ def identifiability(dg: Diagnoser, candidate: Candidate) -> dict:
         corr = cov[:k, :k] / np.outer(d, d)
         out["correlation"] = {f"{a}~{b}": float(corr[i, j])
                               for (i, a), (j, b) in itertools.combinations(enumerate(candidate.effects), 2)}
+    d = np.sqrt(np.clip(np.diag(cov), 1e-300, None))
+    if candidate.channel is not None:   # the lag's column follows the effects'
+        k = len(candidate.effects)
+        out["lag_correlation"] = {name: float(cov[i, k] / (d[i] * d[k])) for i, name in enumerate(candidate.effects)}
+    if "force_drift" in candidate.instrument and dg.fit_time_s is not None:
+        out["drift_correlation"] = {name: float(cov[i, -1] / (d[i] * d[-1]))
+                                    for i, name in enumerate(candidate.effects)}
     return out
 
 
 def fit_jacobian(dg: Diagnoser, candidate: Candidate) -> np.ndarray:
     """Derivatives of the period-1 fit residuals: one column per effect parameter (optimiser units;
-    friction analytic, the others by forward differences), then the free gain and offset."""
+    friction analytic, the others by forward differences, through the candidate's force channel), then the
+    free gain, offset and zero drift (last)."""
     fm = dg.fit_mask
     sigma, sign = dg.obs.sigma_N[fm], dg.obs.sign[fm]
     g = candidate.gain
     cols = []
+    lag = None if candidate.channel is None else candidate.channel[1]
     nonlinear = [n for n in candidate.effects if n != "friction"]
     base = dict(zip(candidate.effects, candidate.x, strict=True))
     for name in candidate.effects:
@@ -59,11 +68,19 @@ def fit_jacobian(dg: Diagnoser, candidate: Candidate) -> np.ndarray:
             continue
         h = 1e-6 * max(1.0, abs(base[name]))
         shifted = dict(base, **{name: base[name] + h})
-        m = dg.evaluator.predict(dg.param.effects(nonlinear, [shifted[n] for n in nonlinear]))[fm]
+        m = dg.model(dg.param.effects(nonlinear, [shifted[n] for n in nonlinear]), lag=lag)[fm]
+        m0 = candidate.prediction[fm] - base.get("friction", 0.0) * dg.param.force_ref_N * sign
+        cols.append(-g * (m - m0) / h / sigma)
+    if lag is not None:   # the force channel's group delay, fitted with the effects
+        h = 1e-4
+        values = [base[n] for n in nonlinear]
+        m = dg.model(dg.param.effects(nonlinear, values), lag=lag + h)[fm]
         m0 = candidate.prediction[fm] - base.get("friction", 0.0) * dg.param.force_ref_N * sign
         cols.append(-g * (m - m0) / h / sigma)
     if "force_gain" in candidate.instrument:
         cols.append(-candidate.prediction[fm] / sigma)
     if "force_offset" in candidate.instrument:
         cols.append(-1.0 / sigma)
+    if "force_drift" in candidate.instrument and dg.fit_time_s is not None:
+        cols.append(-dg.fit_time_s / sigma)
     return np.column_stack(cols)

@@ -1,8 +1,9 @@
 """Instrument terms: load-cell gain and offset (and Coulomb friction) profiled in closed form; the delay.
 
-The load cell reads F_meas = g·F + F_0: a gain g (|g - 1| <= GAIN_BOUND) and a zero offset F_0
-(|F_0| <= OFFSET_BOUND_REL of the largest window force) are profiled out of every fit in closed
-form (bounded weighted least squares, :class:`LinearTerms`). Coulomb friction, sign(v)·F_C over a
+The load cell reads F_meas = g·F + F_0 + r·(t - t_ref): a gain g (|g - 1| <= GAIN_BOUND), a zero offset
+F_0 at the reference time t_ref (|F_0| <= OFFSET_BOUND_REL of the largest window force) and, where each
+observation's campaign time t is known, a zero drift r linear in campaign time, are profiled out of every
+fit in closed form (bounded weighted least squares, :class:`LinearTerms`). Coulomb friction, sign(v)·F_C over a
 constant-velocity segment (Eq. 8's F_f in "A method for the identification of hydraulic damper
 characteristics from steady velocity inputs", Titurus et al.), is linear in the means too and is
 profiled alongside. The actuator delay is measured, not fitted: the median over cases of
@@ -26,6 +27,9 @@ import pandas as pd
 
 #: Instrument terms profiled out of every fit (load cell): F_meas = gain·F + offset.
 INSTRUMENT = ("force_offset", "force_gain")
+#: The load-cell zero drift, linear in campaign time, profiled beside them where each observation's campaign
+#: time is known: F_meas = gain·F + offset + drift·(t - t_ref).
+DRIFT = "force_drift"
 #: Largest load-cell gain error |g - 1| a calibrated load cell is allowed.
 GAIN_BOUND = 0.02
 #: Largest load-cell zero offset, as a fraction of the largest window force |F|.
@@ -36,21 +40,25 @@ OFFSET_BOUND_REL = 0.05
 class LinearTerms:
     """Terms linear in the measured means, profiled out of every fit in closed form.
 
-    F_meas = g·(m + F_C·s) + F_0 with m the hydraulic model (Eq. 8 without friction), s = ±1 the
+    F_meas = g·(m + F_C·s) + F_0 + r·τ with m the hydraulic model (Eq. 8 without friction), s = ±1 the
     observation's direction (Coulomb friction, Eq. 8's F_f, is sign(v)·F_C over a constant-velocity
-    segment), g the load-cell gain, F_0 its zero offset. Solved as bounded weighted linear least
-    squares in (g, g·F_C, F_0) (scipy ``lsq_linear``). ``free`` names the instrument terms fitted
-    (others fixed at g = 1, F_0 = 0).
+    segment), g the load-cell gain, F_0 its zero offset at the reference time and r its zero drift
+    (τ: campaign time minus the reference time, ``time_s`` of :meth:`solve`). Solved as bounded weighted
+    linear least squares in (g, g·F_C, F_0, r) (scipy ``lsq_linear``). ``free`` names the instrument terms
+    fitted (others fixed at g = 1, F_0 = 0, r = 0; the drift only where ``time_s`` is given). The drift is
+    bounded so that it moves the zero by at most the offset bound at either end (``drift_bound_N_s``).
     """
 
     free: tuple[str, ...] = INSTRUMENT
     offset_bound_N: float = 0.0
     gain_bound: float = GAIN_BOUND
     friction_bound_N: float = math.inf
+    drift_bound_N_s: float = 0.0
 
     def solve(self, force_N: np.ndarray, model_N: np.ndarray, sign: np.ndarray, weight: np.ndarray,
-              friction: bool) -> tuple[float, float, float]:
-        """(gain, coulomb_force_N, offset_N) minimising Σ w (F - g (m + F_C s) - F_0)² within the bounds."""
+              friction: bool, time_s: np.ndarray | None = None) -> tuple[float, float, float, float]:
+        """(gain, coulomb_force_N, offset_N, drift_N_s) minimising Σ w (F - g (m + F_C s) - F_0 - r τ)² within
+        the bounds (τ = ``time_s``, relative to the reference time at which F_0 is the offset)."""
         root_w = np.sqrt(weight)
         y = force_N.copy()
         cols, lo, hi, names = [], [], [], []
@@ -64,15 +72,18 @@ class LinearTerms:
         if "force_offset" in self.free and self.offset_bound_N > 0:
             cols.append(np.ones_like(y)), lo.append(-self.offset_bound_N), hi.append(self.offset_bound_N)
             names.append("o")
+        if DRIFT in self.free and time_s is not None and self.drift_bound_N_s > 0:
+            cols.append(np.asarray(time_s, dtype=float)), lo.append(-self.drift_bound_N_s)
+            hi.append(self.drift_bound_N_s), names.append("r")
         if not cols:
-            return 1.0, 0.0, 0.0
+            return 1.0, 0.0, 0.0, 0.0
         a = np.column_stack(cols) * root_w[:, None]
         from scipy.optimize import lsq_linear  # scipy.optimize: only where the instrument is fitted
 
         sol = lsq_linear(a, y * root_w, bounds=(lo, hi), method="bvls").x
         v = dict(zip(names, sol, strict=True))
         g = float(v.get("g", 1.0))
-        return g, float(v.get("c", 0.0)) / g, float(v.get("o", 0.0))
+        return g, float(v.get("c", 0.0)) / g, float(v.get("o", 0.0)), float(v.get("r", 0.0))
 
 
 def case_delays(cases: pd.DataFrame) -> dict:
@@ -96,32 +107,33 @@ LAG_STEP_S = 0.0025
 LAG_FORMS = (0, 1, 2)
 
 
-def fit_force_lag(dg, forms: tuple[int, ...] = LAG_FORMS,
-                  instrument: tuple[str, ...] = INSTRUMENT) -> tuple[float, int, np.ndarray]:
-    """(lag [s], form, the nominal model as that force channel reads it): the force channel's dynamics
-    between the force and the displacement channels that minimise the χ² of the nominal model over
-    all observations (an instrument term, like the delay, measured on all the data) with the
-    load-cell terms profiled.
+def fit_force_lag(dg, forms: tuple[int, ...] = LAG_FORMS, instrument: tuple[str, ...] | None = None,
+                  effects=None) -> tuple[float, int, np.ndarray]:
+    """(lag [s], form, the model as that force channel reads it): the force channel's dynamics between the
+    force and the displacement channels that minimise the χ² of the model of ``effects`` (default the
+    nominal damper) over all observations (an instrument term, like the delay, measured on all the data)
+    with the load-cell terms (and the zero drift, where campaign times are known) profiled.
 
     Forms (``forms``, of :data:`LAG_FORMS`): a pure delay, or a first- or second-order Butterworth low-pass (an
     anti-alias filter), each parametrised by its low-frequency group delay, the lag reported:
     1/(2π f_c) for a first-order, √2/(2π f_c) for a second-order low-pass of corner f_c
     (:meth:`isokinetic.diagnosis.model.Evaluator.lagged`, :meth:`~isokinetic.diagnosis.model.Evaluator.filtered`).
-    ``dg``: a :class:`isokinetic.diagnosis.search.Diagnoser`.
+    ``dg``: a :class:`isokinetic.diagnosis.search.Diagnoser` (its unlagged ``evaluator``).
     """
     from isokinetic.physics.damper import NOMINAL
 
+    effects = NOMINAL if effects is None else effects
     obs = dg.obs
-    fm = np.ones(len(obs), dtype=bool)   # both periods: an instrument term, measured on all the data
-    terms = dg.terms(instrument)
-    force, sign, weight, sigma = obs.force_N[fm], obs.sign[fm], dg.weight[fm], obs.sigma_N[fm]
+    terms = dg.terms(dg.instrument if instrument is None else instrument)
+    force, sign, weight, sigma = obs.force_N, obs.sign, dg.weight, obs.sigma_N
 
     def chi2(pred: np.ndarray) -> float:
-        g, _c, o = terms.solve(force, pred[fm], sign, weight, False)
-        return float(np.sum(((force - g * pred[fm] - o) / sigma) ** 2))
+        g, _c, o, r = terms.solve(force, pred, sign, weight, False, dg.time_s)
+        drift = 0.0 if dg.time_s is None else r * dg.time_s
+        return float(np.sum(((force - g * pred - o - drift) / sigma) ** 2))
 
     def model(form: int, lags) -> np.ndarray:
-        return dg.evaluator.lagged(NOMINAL, lags) if form == 0 else dg.evaluator.filtered(NOMINAL, lags, form)
+        return dg.evaluator.lagged(effects, lags) if form == 0 else dg.evaluator.filtered(effects, lags, form)
 
     grid = np.arange(LAG_STEP_S, LAG_MAX_S + LAG_STEP_S / 2, LAG_STEP_S)
     best = (math.inf, 0.0, 0, None)
@@ -209,6 +221,7 @@ def rescaled_drives(obs, scale: float):
     speeds, when the LVDT reads ``scale`` times the motion)."""
     from dataclasses import replace
 
-    drives = tuple(None if d is None else replace(d, speeds_m_s=tuple(v / scale for v in d.speeds_m_s))
-                   for d in obs.drives)
+    # a sine's drive (no speeds_m_s) is scaled where its observations are built (build_observations)
+    drives = tuple(d if d is None or not hasattr(d, "speeds_m_s")
+                   else replace(d, speeds_m_s=tuple(v / scale for v in d.speeds_m_s)) for d in obs.drives)
     return replace(obs, drives=drives)

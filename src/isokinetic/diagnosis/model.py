@@ -7,7 +7,11 @@ means; a candidate adds damper effects with fitted parameters. With a viscosity 
 (format 1.1) each case runs at its temperature's viscosity, times the candidate's viscosity deviation. Simulation:
 :func:`isokinetic.physics.responses.triangle_responses` (Eq. 13-14 of "A method for the
 identification of hydraulic damper characteristics from steady velocity inputs", Titurus et al.),
-force from Eq. 8.
+force from Eq. 8. A sine case (:class:`isokinetic.physics.sine_drive.SineDrive`) is driven by its fitted
+measured sine, Eq. (1) integrated on the record's own sample times
+(:func:`isokinetic.physics.sine_drive.sine_drive_response`); its model forces join the triangle cases' on
+one sample grid, so every reduction below serves both. A campaign without sine cases keeps the closed-form
+sums of the triangle windows (:func:`triangle_pressure_sums`).
 
 Before the fits, the nominal model marks the windows that are still relaxing
 (:func:`unsteady_windows`, kept out of the noise fit) and the variance the measured drive speed's
@@ -24,11 +28,12 @@ import numpy as np
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.hydraulics import Hydraulics
-from isokinetic.physics.responses import drive_times, triangle_pressure_sums, triangle_responses_at
+from isokinetic.physics.responses import drive_times, scaled_viscosity, triangle_pressure_sums, triangle_responses_at
+from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
 
-#: Panel width of the model's segment tables (isokinetic.physics.hydraulics.DEFAULT_STEP is 0.03): error ~1e-8 of the
-#: pressure scale, far below any window's noise, with about half the nodes.
-MODEL_STEP = 0.06
+#: Panel width of the model's segment tables (isokinetic.physics.hydraulics.DEFAULT_STEP is 0.03): on the paper
+#: campaign the means differ from DEFAULT_STEP's by < 3e-5 of their standard errors, with about a third of the nodes.
+MODEL_STEP = 0.09
 #: Relative step of the drive speeds for the model's speed sensitivity (:func:`drive_input_variance`).
 SPEED_STEP = 1e-4
 #: A window whose nominal-model force varies by more than this fraction of the per-sample noise
@@ -43,7 +48,9 @@ class Evaluator:
         self.obs = obs
         self.damper = damper
         drives = obs.drives or (None,) * len(obs.plans)
-        sizes = np.array([drive_times(p, d).size for p, d in zip(obs.plans, drives, strict=True)], dtype=np.int64)
+        self._sine = [isinstance(d, SineDrive) for d in drives]
+        sizes = np.array([d.n_samples if isinstance(d, SineDrive) else drive_times(p, d).size
+                          for p, d in zip(obs.plans, drives, strict=True)], dtype=np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes + 1)])  # +1: a leading zero per case in the cumsum
         self._lo = offsets[obs.case_index] + obs.start
         self._hi = offsets[obs.case_index] + obs.stop
@@ -52,12 +59,23 @@ class Evaluator:
         self._fs = np.array([p.sample_rate_Hz for p in obs.plans])[obs.case_index] if len(obs) else np.zeros(0)
         self._sums = np.empty(int(offsets[-1]))  # per case: 0, then the running sum of its samples
         self.calls = 0
+        self._split = None   # triangles and sines: each part's own evaluator, the triangles' closed-form sums kept
+        if any(self._sine) and not all(self._sine):
+            rows = np.array([self._sine[i] for i in obs.case_index], dtype=bool)
+            self._split = (rows, Evaluator(obs.subset(~rows), damper), Evaluator(obs.subset(rows), damper))
 
     def predict(self, effects: Effects = NOMINAL) -> np.ndarray:
         """Model mean force of every observation [N] (Eq. 8 with Δp from Eq. 13-14); without friction
-        from the sums of Δp over the observations' samples (:func:`triangle_pressure_sums`: the samples
-        at steady state summed in closed form)."""
-        if effects.coulomb_force_N or effects.stribeck_force_N:
+        from the sums of Δp over the triangle observations' samples (:func:`triangle_pressure_sums`: the samples
+        at steady state summed in closed form), the sine cases' from their forces."""
+        friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
+        if self._split is not None and not friction:
+            self.calls += 1
+            rows, triangles, sines = self._split
+            out = np.empty(len(self.obs))
+            out[~rows], out[rows] = triangles.predict(effects), sines.predict(effects)
+            return out
+        if friction or any(self._sine):
             return self._moments(effects, 1)[0]
         self.calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
@@ -101,26 +119,48 @@ class Evaluator:
         rates = [p.sample_rate_Hz for p in self.obs.plans]
         rows = []
         for lag in np.atleast_1d(np.asarray(group_delays_s, dtype=float)):
-            out = [signal.lfilter(*signal.butter(order, fs / math.pi * math.atan(c / (2.0 * fs * lag)), fs=fs), f)
-                   for f, fs in zip(forces, rates, strict=True)]
+            design = {fs: signal.butter(order, fs / math.pi * math.atan(c / (2.0 * fs * lag)), fs=fs)
+                      for fs in set(rates)}   # one design per sample rate
+            out = [signal.lfilter(*design[fs], f) for f, fs in zip(forces, rates, strict=True)]
             rows.append(self._means(out, 1)[0])
         return np.array(rows)
 
     def forces(self, effects: Effects) -> list[np.ndarray]:
-        """The model force of every case on its sample grid [N] (Eq. 8 with Δp from Eq. 13-14)."""
+        """The model force of every case on its sample grid [N] (Eq. 8 with Δp from Eq. 13-14 for a
+        triangle, from Eq. 1 driven by the fitted sine for a sine case)."""
         self.calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
-        drives = self.obs.drives if self.obs.drives else None
         friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
         forces = []
-        # each case at its own temperature's viscosity (none given: all at the damper's)
-        for _t, dp, vel in triangle_responses_at(self.obs.plans, hyd, self.obs.viscosity_scale, 0.0, MODEL_STEP,
-                                                 drives):
+        for _t, dp, vel in self._responses(hyd):
             force = hyd.piston_area_m2 * dp
             if friction:  # the search profiles friction linearly (LinearTerms): its runs carry none
                 force = force + friction_force(vel, effects)
             forces.append(force)
         return forces
+
+    def _responses(self, hyd: Hydraulics) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """(t, Δp, piston velocity) of every case, in the order of the plans; each case at its own
+        temperature's viscosity (none given: all at the damper's)."""
+        obs = self.obs
+        drives = obs.drives if obs.drives else None
+        if not any(self._sine):
+            return list(triangle_responses_at(obs.plans, hyd, obs.viscosity_scale, 0.0, MODEL_STEP, drives))
+        scales = obs.viscosity_scale or (1.0,) * len(obs.plans)
+        tri = [i for i, sine in enumerate(self._sine) if not sine]
+        out: list = [None] * len(obs.plans)
+        if tri:
+            pick = tuple(obs.drives[i] for i in tri)
+            runs = triangle_responses_at([obs.plans[i] for i in tri], hyd,
+                                         tuple(scales[i] for i in tri) if obs.viscosity_scale else (), 0.0,
+                                         MODEL_STEP, pick if any(d is not None for d in pick) else None)
+            for i, run in zip(tri, runs, strict=True):
+                out[i] = run
+        for i, sine in enumerate(self._sine):
+            if sine:
+                out[i] = sine_drive_response(obs.drives[i], obs.plans[i].sample_rate_Hz,
+                                             scaled_viscosity(hyd, scales[i]))
+        return out
 
     def _moments(self, effects: Effects, order: int) -> list[np.ndarray]:
         return self._means(self.forces(effects), order)
@@ -145,7 +185,8 @@ def drive_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarra
     (∂F/∂ln v · se(v)/v)², ∂F/∂ln v from the nominal model with every speed scaled by 1 + SPEED_STEP."""
     if obs.speed_rel_se is None or not obs.drives or not any(obs.drives):
         return np.zeros(len(obs))
-    scaled = tuple(None if d is None else replace(d, speeds_m_s=tuple(v * (1.0 + SPEED_STEP) for v in d.speeds_m_s))
+    scaled = tuple(None if d is None else d.scaled(1.0 + SPEED_STEP) if isinstance(d, SineDrive)
+                   else replace(d, speeds_m_s=tuple(v * (1.0 + SPEED_STEP) for v in d.speeds_m_s))
                    for d in obs.drives)
     shifted = Evaluator(replace(obs, drives=scaled), damper).predict(NOMINAL)
     return ((shifted - nominal_N) / SPEED_STEP * obs.speed_rel_se) ** 2
@@ -155,7 +196,9 @@ def unsteady_windows(obs: Observations, model_spread_N: np.ndarray) -> frozenset
     """(case, segment) of the windows whose nominal-model force is not steady: its spread over the
     window exceeds UNSTEADY_FRACTION of the per-sample noise the first noise fit estimated (at most
     half of the windows, the least steady first, so that the noise fit keeps data)."""
-    win = np.flatnonzero(obs.is_window)
+    # the triangles' windows: a sine's bins vary by design, and its noise is fitted on other samples
+    win = np.flatnonzero(obs.is_window & np.array([obs.plans[i].waveform == "triangle" for i in obs.case_index],
+                                                  dtype=bool))
     models = obs.noise.get("objects") or {}
     rates = [obs.plans[obs.case_index[i]].sample_rate_Hz for i in win]
     per_sample = np.array([math.sqrt(max(models[fs].sample_variance_N2(obs.force_N[i] ** 2), 1e-300))

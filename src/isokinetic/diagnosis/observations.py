@@ -1,5 +1,9 @@
 """The observations a diagnosis compares with the model: window and transient-bin means, in plan time.
 
+Sine cases give phase bins of their steady cycles instead, in the plan time of their fitted motion, with
+their own noise model (:mod:`isokinetic.diagnosis.sine_observations`); the rest of this docstring is about
+triangle cases.
+
 Data. The *observations* of a campaign are, for every status-ok triangle case and each of its four
 half-periods, the steady window of the characteristic (mean force over [start, end]·T/2, the
 window of "A method for the identification of hydraulic damper characteristics from steady
@@ -28,18 +32,29 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts.campaign import case_plan
+from isokinetic.diagnosis.sine_observations import (
+    N_SINE_BINS,
+    SKIPPED_CYCLES,
+    SineFit,
+    between_case_scatter,
+    bin_variance_model,
+    fit_sine,
+    mean_speed,
+    phase_bins,
+)
+from isokinetic.measurement.drive import measured_drive
 from isokinetic.measurement.noise import between_period_scatter, fit_noise_model
+from isokinetic.measurement.windows import WindowSpec, motion_start, windowed_half_periods
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import Drive, drive_times
-from isokinetic.stages.nominal import measured_drive, motion_start
-from isokinetic.stages.windows import WindowSpec, windowed_half_periods
+from isokinetic.physics.sine_drive import SineDrive
 
 #: Per-observation columns gathered while the observations are built (:class:`_Collector`).
 COLUMNS = ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s", "start", "stop", "force_N",
-           "msq_N2", "n", "fs", "white_se2", "speed_rel_se")
+           "msq_N2", "n", "fs", "white_se2", "speed_rel_se", "slot", "cycle", "cycle_s")
 #: Columns of :class:`Observations` taken as they were gathered.
 KEPT_COLUMNS = ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s", "start", "stop", "force_N")
-_INT_COLUMNS = ("case_index", "segment", "period", "start", "stop", "n")
+_INT_COLUMNS = ("case_index", "segment", "period", "start", "stop", "n", "slot", "cycle")
 _TEXT_COLUMNS = ("case", "kind")
 
 
@@ -61,7 +76,7 @@ class Observations:
     force_N: np.ndarray
     sigma_N: np.ndarray
     rep_rel: float                # between-period relative scatter beyond the noise model
-    drives: tuple[Drive | None, ...] = ()
+    drives: tuple[Drive | SineDrive | None, ...] = ()
     noise: dict = field(default_factory=dict)   # the pooled noise model(s), for the report
     speed_rel_se: np.ndarray | None = None      # relative standard error of the drive's measured speed
     viscosity_scale: tuple[float, ...] = ()     # per plan, μ(T_case)/μ_nominal (viscosity law); empty: all 1
@@ -84,8 +99,12 @@ class Observations:
             rows = keep[self.case_index[keep] == old]
             plan = self.plans[old]
             drive = self.drives[old] if self.drives else None
-            offset = 0.0 if drive is None else drive.grid_offset_s
-            plans.append(replace(plan, duration_s=offset + (int(self.stop[rows].max()) - 1) / plan.sample_rate_Hz))
+            if isinstance(drive, SineDrive):   # its grid: n_samples from grid_start_s
+                drive = replace(drive, n_samples=int(self.stop[rows].max()))
+                plans.append(plan)
+            else:
+                offset = 0.0 if drive is None else drive.grid_offset_s
+                plans.append(replace(plan, duration_s=offset + (int(self.stop[rows].max()) - 1) / plan.sample_rate_Hz))
             drives.append(drive)
         fields_ = {name: getattr(self, name)[keep] for name in ("case", "kind", "segment", "period", "sign",
                                                                 "speed_m_s", "start", "stop", "force_N", "sigma_N")}
@@ -104,7 +123,8 @@ class CaseRecord:
     force_N: np.ndarray
     displacement_m: np.ndarray
     model_times_s: np.ndarray    # the driven model's sample times (plan time)
-    drive: Drive
+    drive: Drive | SineDrive
+    fit: SineFit | None = None   # a sine case's fitted motion
 
 
 @dataclass
@@ -123,9 +143,14 @@ class _Collector:
     scales: list = field(default_factory=list)           # per plan, μ(T_case)/μ_nominal
     window_samples: dict = field(default_factory=dict)   # sample rate -> steady windows' samples
     all_windows: dict = field(default_factory=dict)      # sample rate -> every window's samples
+    sine_model_means: Mapping = field(default_factory=dict)   # (case, model start sample) -> a model's bin mean
 
-    def add(self, rec: CaseRecord, kind: str, k: int, sign: float, a: float, b: float) -> int:
-        """Add the mean over plan times [a, b) of segment ``k``; the model's stop sample (0: too few samples)."""
+    def add(self, rec: CaseRecord, kind: str, k: int, sign: float, a: float, b: float, period: int | None = None,
+            speed_m_s: float | None = None, slot: int | None = None, cycle: int = -1) -> int:
+        """Add the mean over plan times [a, b) of segment ``k``; the model's stop sample (0: too few samples).
+        ``period`` (default: the triangle's (k + 1) // 2), ``speed_m_s`` (default: the planned speed),
+        ``slot`` (the place in a period matched across periods, default ``sign``) and ``cycle`` (-1: none)
+        for a sine's bins."""
         m0, m1 = np.searchsorted(rec.tau_s, [a, b], side="left")
         j0, j1 = np.searchsorted(rec.model_times_s, [a, b], side="left")
         if m1 - m0 < 2 or j1 - j0 < 2:
@@ -138,16 +163,19 @@ class _Collector:
         cols["case_index"].append(len(self.plans))
         cols["kind"].append(kind)
         cols["segment"].append(k)
-        cols["period"].append((k + 1) // 2)
+        cols["period"].append((k + 1) // 2 if period is None else period)
         cols["sign"].append(sign)
-        cols["speed_m_s"].append(plan.velocity_m_s)
+        cols["speed_m_s"].append(plan.velocity_m_s if speed_m_s is None else speed_m_s)
+        cols["slot"].append(int(sign) if slot is None else slot)
+        cols["cycle"].append(cycle)
+        cols["cycle_s"].append(1.0 / plan.frequency_Hz if cycle >= 0 else math.nan)
         cols["start"].append(int(j0))
         cols["stop"].append(int(j1))
         cols["force_N"].append(float(fw.mean()))
         cols["msq_N2"].append(float(np.mean(fn * fn)))
         cols["n"].append(int(m1 - m0))
         cols["fs"].append(fs)
-        if kind == "window":
+        if kind == "window" and plan.waveform == "triangle":   # a sine's noise: its difference windows
             self.all_windows.setdefault(fs, []).append(fn)
             if (plan.case, k) not in self.unsteady:
                 self.window_samples.setdefault(fs, []).append(fn)
@@ -174,6 +202,29 @@ class _Collector:
         self.drives.append(rec.drive)
         self.scales.append(float(viscosity_scale))
 
+    def add_sine_case(self, rec: CaseRecord, n_bins: int, viscosity_scale: float = 1.0) -> None:
+        """The ``n_bins`` phase bins of every steady cycle of a sine case (:mod:`sine_observations`; of the
+        last cycle, those the record holds), and its drive cut to the last model sample they need."""
+        fit = rec.fit
+        period = 1.0 / fit.frequency_Hz
+        end = float(rec.tau_s[-1]) + 1.0 / rec.plan.sample_rate_Hz    # a bin may lack its last sample
+        last = 0
+        for m in range(SKIPPED_CYCLES, int(math.ceil(end / period))):
+            steady = m - SKIPPED_CYCLES
+            for j, (fa, fb, sign, kind) in enumerate(phase_bins(n_bins)):
+                a, b = (m + fa) * period, (m + fb) * period
+                if b > end:    # the record ends inside the cycle: its complete bins only
+                    break
+                before = len(self.cols["case"])
+                last = max(last, self.add(rec, kind, 2 * steady + (1 if sign > 0 else 2), sign, a, b,
+                                          1 + steady % 2, mean_speed(fit, a, b), j, m))
+                self.cols["speed_rel_se"] += [fit.amplitude_rel_se] * (len(self.cols["case"]) - before)
+        if last == 0:
+            return
+        self.plans.append(rec.plan)
+        self.drives.append(replace(rec.drive, n_samples=last))
+        self.scales.append(float(viscosity_scale))
+
     def arrays(self) -> dict[str, np.ndarray]:
         return {k: np.asarray(v, dtype=np.int64 if k in _INT_COLUMNS else (object if k in _TEXT_COLUMNS else float))
                 for k, v in self.cols.items()}
@@ -194,12 +245,41 @@ def case_record(row: pd.Series, series: pd.DataFrame, win: pd.DataFrame) -> Case
                       displacement_m=series["displacement_m"].to_numpy(), model_times_s=tm, drive=drive)
 
 
+def sine_case_record(row: pd.Series, series: pd.DataFrame, displacement_scale: float = 1.0) -> CaseRecord | None:
+    """The record of a sine case of cases.parquet, in the plan time of its fitted motion (τ = 0 at the fitted
+    sine's cycle start nearest to the record's start), driven by that sine with its amplitude divided by
+    ``displacement_scale`` (an LVDT scale measured elsewhere); None for a record of under two cycles."""
+    plan = case_plan(row)
+    t = series["time_s"].to_numpy(dtype=float)
+    y = series["displacement_m"].to_numpy(dtype=float)
+    if t.size < 8 or not (plan.frequency_Hz > 0.0) or t[-1] - t[0] < (SKIPPED_CYCLES + 1) / plan.frequency_Hz:
+        return None
+    after = t >= t[0] + SKIPPED_CYCLES / plan.frequency_Hz
+    fit = fit_sine(t[after], y[after], plan.frequency_Hz)
+    if fit is None:
+        return None
+    fit = replace(fit, amplitude_m=fit.amplitude_m / displacement_scale)
+    start = fit.start_s(float(t[0]))
+    fs = plan.sample_rate_Hz
+    n = int(round((t[-1] - t[0]) * fs)) + 1
+    drive = SineDrive(fit.amplitude_m, fit.frequency_Hz, float(t[0]) - start, n)
+    return CaseRecord(plan=replace(plan, amplitude_m=fit.amplitude_m, frequency_Hz=fit.frequency_Hz), tau_s=t - start,
+                      force_N=series["force_N"].to_numpy(dtype=float), displacement_m=y,
+                      model_times_s=drive.times(fs), drive=drive, fit=fit)
+
+
 def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
                        load_series: Callable[[pd.Series], pd.DataFrame], spec: WindowSpec = WindowSpec(),
                        n_bins: int = 4, force_offset_N: float = 0.0,
                        unsteady: frozenset = frozenset(), input_var_N2: np.ndarray | None = None,
-                       viscosity_scales: Mapping[str, float] | None = None) -> Observations:
-    """Windows and transient bins of every triangle case, in plan time, with honest standard errors.
+                       viscosity_scales: Mapping[str, float] | None = None, sine_bins: int = N_SINE_BINS,
+                       displacement_scale: float = 1.0,
+                       sine_model_means: Mapping[tuple[str, int], float] | None = None) -> Observations:
+    """Windows and transient bins of every triangle case, in plan time, with honest standard errors, and
+    the phase bins of every status-ok sine case (:func:`sine_case_record`, :mod:`sine_observations`; its
+    drive's amplitude divided by ``displacement_scale``; ``sine_model_means``: (case, model start sample) -> a
+    model's bin mean, whose cycle-to-cycle change is taken off before the bins' noise model,
+    :func:`sine_observations.bin_variance_model`).
 
     Measured means are taken from the case's series over [a, b) in plan time (record time minus
     ``motion_start_s``), the model's over the same plan-time interval of its driven grid, so both
@@ -212,12 +292,16 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
     """
     by_case = {c: g.set_index("segment") for c, g in char.groupby("case")}
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle") & cases["case"].isin(by_case)]
-    collector = _Collector(force_offset_N, unsteady)
+    collector = _Collector(force_offset_N, unsteady, sine_model_means=sine_model_means or {})
     for _, row in ok.iterrows():
         series = load_series(row)
         rec = case_record(row, series, by_case[case_plan(row).case])
         if rec is not None:
             collector.add_case(rec, spec, n_bins, (viscosity_scales or {}).get(rec.plan.case, 1.0))
+    for _, row in cases[(cases["status"] == "ok") & (cases["waveform"] == "sine")].iterrows():
+        rec = sine_case_record(row, load_series(row), displacement_scale)
+        if rec is not None:
+            collector.add_sine_case(rec, sine_bins, (viscosity_scales or {}).get(rec.plan.case, 1.0))
     return _observations(campaign, collector, input_var_N2)
 
 
@@ -225,13 +309,14 @@ def _observations(campaign: str, collector: _Collector, input_var_N2: np.ndarray
     """The gathered means with their standard errors: noise model, floor, drive input, between-period scatter."""
     arrays = collector.arrays()
     se2, noise = _noise_variances({**collector.all_windows, **collector.window_samples}, arrays)
+    se2, noise = _sine_variances(arrays, se2, noise, collector.sine_model_means)
     # a floor where the noise model has nothing (constant, quantised windows): the samples' own scatter
     floor = np.maximum(arrays["white_se2"], (1e-9 * np.abs(arrays["force_N"]) + 1e-9) ** 2)
     se2 = np.where(se2 > 0.0, se2, floor)
     if input_var_N2 is not None and len(input_var_N2) == se2.size:
         se2 = se2 + input_var_N2
     force = arrays["force_N"]
-    rep_rel = _between_period(arrays, se2)
+    rep_rel = _between_period(arrays, se2, _sine_model(arrays, collector.sine_model_means))
     sigma = np.sqrt(se2 + (rep_rel * force) ** 2)
     keep = {k: arrays[k] for k in KEPT_COLUMNS}
     scales = tuple(collector.scales) if any(x != 1.0 for x in collector.scales) else ()
@@ -273,14 +358,50 @@ def _noise_variances(window_samples: Mapping[float, list], arrays: Mapping[str, 
     return se2, {"model": models, "objects": objects, "scale_rel_sd": scale}
 
 
-def _between_period(arrays: Mapping[str, np.ndarray], se2: np.ndarray) -> float:
-    """Between-period relative scatter of the window means beyond their noise variance."""
+def _sine_variances(arrays: Mapping[str, np.ndarray], se2: np.ndarray, noise: dict,
+                    model_means: Mapping[tuple[str, int], float]) -> tuple[np.ndarray, dict]:
+    """The sine bins' variances from their cycle-to-cycle differences (:func:`bin_variance_model`, the cases of
+    at least the median period), in place of the triangles' noise model; ``noise['sine']`` reports it."""
+    sine = arrays["cycle"] >= 0
+    if not sine.any():
+        return se2, noise
+    keys = np.array([f"{c}/{j}" for c, j in zip(arrays["case"][sine], arrays["slot"][sine], strict=True)])
+    period = arrays["cycle_s"][sine]
+    model = _sine_model(arrays, model_means)
+    model = None if model is None else model[sine]
+    force, n = arrays["force_N"][sine], arrays["n"][sine].astype(float)
+    a, b = bin_variance_model(keys, arrays["cycle"][sine], force, n, period >= float(np.median(period)), model)
+    out = se2.copy()
+    out[sine] = a / n + b * force**2
+    case_rel = 0.0
+    if model is not None:
+        case_rel = between_case_scatter(arrays["case"][sine], force - model, model, out[sine])
+        out[sine] += (case_rel * force) ** 2
+    return out, {**noise, "sine": {"white_var_N2": a, "rel_var": b, "between_case_rel": case_rel}}
+
+
+def _sine_model(arrays: Mapping[str, np.ndarray], model_means: Mapping[tuple[str, int], float]) -> np.ndarray | None:
+    """A model's mean of every sine bin (0 for the triangles' observations), None unless it has every one."""
+    if not model_means:
+        return None
+    sine = arrays["cycle"] >= 0
+    model = np.zeros(arrays["force_N"].size)
+    model[sine] = [model_means.get((c, int(k)), math.nan) for c, k in
+                   zip(arrays["case"][sine], arrays["start"][sine], strict=True)]
+    return model if np.all(np.isfinite(model)) else None
+
+
+def _between_period(arrays: Mapping[str, np.ndarray], se2: np.ndarray, model_N: np.ndarray | None = None) -> float:
+    """Between-period relative scatter of the window means beyond their noise variance (of the means less
+    ``model_N`` where given: a sine's modelled cycle-to-cycle convergence is no scatter)."""
     win = arrays["kind"] == "window"
-    df = pd.DataFrame({"case": arrays["case"][win], "sign": arrays["sign"][win], "period": arrays["period"][win],
-                       "force": arrays["force_N"][win], "se2": se2[win]})
-    wide = df.pivot_table(index=["case", "sign"], columns="period", values=["force", "se2"], aggfunc="first").dropna()
+    force = arrays["force_N"] - (0.0 if model_N is None else model_N)
+    df = pd.DataFrame({"case": arrays["case"][win], "slot": arrays["slot"][win], "period": arrays["period"][win],
+                       "force": force[win], "level": arrays["force_N"][win], "se2": se2[win]})
+    wide = df.pivot_table(index=["case", "slot"], columns="period", values=["force", "level", "se2"],
+                          aggfunc="first").dropna()
     if wide.empty:
         return 0.0
     d = (wide[("force", 2)] - wide[("force", 1)]).to_numpy()
-    mean = 0.5 * (wide[("force", 1)].abs() + wide[("force", 2)].abs()).to_numpy()
+    mean = 0.5 * (wide[("level", 1)].abs() + wide[("level", 2)].abs()).to_numpy()
     return float(between_period_scatter(d, (wide[("se2", 1)] + wide[("se2", 2)]).to_numpy(), mean))

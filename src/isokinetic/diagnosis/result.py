@@ -16,8 +16,8 @@ from importlib import resources
 import numpy as np
 import pandas as pd
 
-from isokinetic.audit.lineage import row_keys
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
+from isokinetic.contracts.row_keys import row_keys
 from isokinetic.diagnosis.observations import Observations
 
 FORMAT_VERSION = 1
@@ -52,7 +52,7 @@ def json_safe(obj):
 
 
 def no_model(campaign: str, reason: str, status: str = "not_diagnosed") -> dict:
-    """The diagnosis of a campaign that cannot be diagnosed (no damper data, no triangle case), or
+    """The diagnosis of a campaign that cannot be diagnosed (no damper data, no triangle or sine case), or
     whose diagnosis failed (``status`` 'failed', with the reason)."""
     return {"format_version": FORMAT_VERSION, "contract_version": CONTRACT_VERSION, "campaign": campaign,
             "status": status, "reason": reason, "metric": METRIC, "gap_before": None, "where": [],
@@ -78,18 +78,23 @@ def observation_sources(obs: Observations | None, cases: pd.DataFrame | None) ->
     """Row-level lineage of a diagnosis (its ``sources`` key; paths relative to results/<campaign>/).
 
     ``windows``: the characteristic rows used as window observations, as (case, segment) keys
-    'T01/1,T01/2,...' (:func:`isokinetic.audit.lineage.row_keys`); ``transient_bins``: 'case/segment:n'
-    per half-period with n transient bins taken from that case's time series; ``timeseries``: for
+    'T01/1,T01/2,...' (:func:`isokinetic.contracts.row_keys.row_keys`); ``transient_bins``: 'case/segment:n'
+    per half-period with n transient bins taken from that case's time series (both of triangle cases);
+    ``sine_bins``: 'case:n' per sine case with n phase bins (windows and transient bins of its steady cycles,
+    :mod:`isokinetic.diagnosis.sine_observations`) taken from its time series; ``timeseries``: for
     each case used, its time series file and raw file with sha256 (from ``cases.parquet``).
     """
     out = {"characteristic_file": CHARACTERISTIC_FILE, "cases_file": CASES_FILE, "windows": "",
-           "transient_bins": "", "timeseries": {}}
+           "transient_bins": "", "sine_bins": "", "timeseries": {}}
     if obs is None or len(obs) == 0:
         return out
+    sine = np.array([obs.plans[i].waveform == "sine" for i in obs.case_index], dtype=bool)
     frame = pd.DataFrame({"case": obs.case, "segment": obs.segment, "kind": obs.kind})
-    out["windows"] = row_keys(frame[frame["kind"] == "window"])
-    bins = frame[frame["kind"] == "transient"].groupby(["case", "segment"], sort=False).size()
+    triangle = frame[~sine]
+    out["windows"] = row_keys(triangle[triangle["kind"] == "window"])
+    bins = triangle[triangle["kind"] == "transient"].groupby(["case", "segment"], sort=False).size()
     out["transient_bins"] = ",".join(f"{c}/{k}:{n}" for (c, k), n in bins.items())
+    out["sine_bins"] = ",".join(f"{c}:{n}" for c, n in frame[sine].groupby("case", sort=False).size().items())
     used = list(dict.fromkeys(obs.case.tolist()))
     if cases is not None and len(cases):
         by_case = cases.set_index("case")

@@ -3,8 +3,10 @@
 Candidates. Each effect of the catalogue (:data:`isokinetic.contracts.scenarios.CATALOGUE`) alone
 (one parameter each), every pair, then, while nothing explains, the :data:`BEAM` best candidates of
 the largest size extended by one more effect; a size is tried only while no smaller set explains
-(none when the nominal model does). Coulomb friction, like the load-cell terms, is linear in the
-means and profiled in closed form (:class:`isokinetic.diagnosis.instrument.LinearTerms`); the other
+(none when the nominal model does). Coulomb friction, like the load-cell terms (gain, offset and, where
+each observation's campaign time is known, the zero drift), is linear in the means and profiled in closed
+form (:class:`isokinetic.diagnosis.instrument.LinearTerms`); a force channel's lag, where the diagnoser has
+one, is fitted with the effects as one more nonlinear parameter (:meth:`Diagnoser.model`); the other
 effects are fitted with bounded least squares (scipy ``least_squares``, 'trf') on the period-1
 observations (segments 1-2, windows and transient bins) and scored on period 2 (segments 3-4)
 (:mod:`isokinetic.diagnosis.candidate`). A fit that fails is recorded in ``Diagnoser.failed`` with
@@ -26,7 +28,7 @@ from scipy import optimize
 
 from isokinetic.contracts.scenarios import CATALOGUE
 from isokinetic.diagnosis.candidate import ALPHA, Candidate, consistent_with_noise, rms
-from isokinetic.diagnosis.instrument import INSTRUMENT, OFFSET_BOUND_REL, LinearTerms
+from isokinetic.diagnosis.instrument import DRIFT, INSTRUMENT, LAG_MAX_S, OFFSET_BOUND_REL, LinearTerms
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.parametrisation import Parametrisation
@@ -44,6 +46,8 @@ BEAM = 3
 FIT_ERRORS = (ValueError, FloatingPointError, ArithmeticError, np.linalg.LinAlgError)
 
 
+#: Bounds of a fitted force-channel group delay [s] per form (a low-pass needs a positive one).
+LAG_BOUNDS_S = {0: (0.0, LAG_MAX_S), 1: (1e-3, LAG_MAX_S), 2: (1e-3, LAG_MAX_S)}
 #: Relative step of the forward-difference Jacobian (scipy's ``diff_step``).
 DIFF_STEP = 1e-6
 
@@ -97,52 +101,110 @@ class SecantJacobian:
 
 
 class Diagnoser:
-    """Fits and scores candidate effect sets on one campaign's observations."""
+    """Fits and scores candidate effect sets on one campaign's observations.
 
-    def __init__(self, obs: Observations, damper: Damper, alpha: float = ALPHA):
+    ``time_s``: each observation's campaign time [s] (None: unknown; then no zero drift is fitted),
+    ``time_ref_s`` the reference time at which the load-cell offset is reported (default the middle of
+    the observations' span). ``channel``: the force channel's dynamics (form of
+    :data:`isokinetic.diagnosis.instrument.LAG_FORMS`, starting group delay [s]) every model prediction is
+    read through, its group delay fitted with the effects in every fit (one more parameter, bounds
+    LAG_BOUNDS_S; starts: the given one and ``lag_starts``); None: an ideal channel."""
+
+    def __init__(self, obs: Observations, damper: Damper, alpha: float = ALPHA, time_s: np.ndarray | None = None,
+                 time_ref_s: float | None = None, channel: tuple[int, float] | None = None,
+                 lag_starts: Sequence[float] = ()):
         self.obs = obs
-        self.evaluator = Evaluator(obs, damper)
+        self.evaluator = Evaluator(obs, damper)   # an ideal force channel (``model`` applies ``channel``)
         self.alpha = alpha
+        self.channel = channel
+        self.lag_starts = () if channel is None else (channel[1], *(s for s in lag_starts if s != channel[1]))
         windows = np.abs(obs.force_N[obs.is_window])
         self.param = Parametrisation(damper, float(np.median(windows)) if windows.size else 1.0)
-        self.linear = LinearTerms(offset_bound_N=OFFSET_BOUND_REL * float(windows.max()) if windows.size else 0.0,
+        offset_bound = OFFSET_BOUND_REL * float(windows.max()) if windows.size else 0.0
+        self.time_s, self.time_ref_s = None, None
+        if time_s is not None and len(time_s) == len(obs) and np.ptp(time_s) > 0:
+            t = np.asarray(time_s, dtype=float)
+            self.time_ref_s = float(0.5 * (t.min() + t.max()) if time_ref_s is None else time_ref_s)
+            self.time_s = t - self.time_ref_s
+        drift_bound = offset_bound / float(np.max(np.abs(self.time_s))) if self.time_s is not None else 0.0
+        self.instrument = INSTRUMENT + ((DRIFT,) if self.time_s is not None else ())
+        self.linear = LinearTerms(offset_bound_N=offset_bound, drift_bound_N_s=drift_bound,
                                   friction_bound_N=self.param.bounds("friction")[1] * self.param.force_ref_N)
         self.weight = 1.0 / obs.sigma_N**2
         self.fit_mask = obs.period == 1
         self.hold_mask = obs.period == 2
         self.fit_obs = obs.subset(self.fit_mask)   # period 1: simulated only up to its last sample
+        self.fit_time_s = None if self.time_s is None else self.time_s[self.fit_mask]
         self.fit_evaluator = Evaluator(self.fit_obs, damper)
-        self.nominal = self.evaluator.predict(NOMINAL)
+        self.nominal = self.model(NOMINAL)
         self.scale_rel_sd = float(obs.noise.get("scale_rel_sd", 0.0))
         self.failed: list[dict] = []
+
+    def with_channel(self, channel: tuple[int, float] | None, lag_starts: Sequence[float] = ()) -> Diagnoser:
+        """The same diagnoser with every model prediction read through the force channel ``channel``."""
+        t = None if self.time_s is None else self.time_s + self.time_ref_s
+        return Diagnoser(self.obs, self.evaluator.damper, self.alpha, t, self.time_ref_s, channel, lag_starts)
+
+    def model(self, effects, fit: bool = False, lag: float | None = None) -> np.ndarray:
+        """The model force of every observation (``fit``: of period 1) as the force channel reads it (its
+        group delay ``lag``, default the channel's starting one)."""
+        ev = self.fit_evaluator if fit else self.evaluator
+        if self.channel is None:
+            return ev.predict(effects)
+        form = self.channel[0]
+        lag = self.channel[1] if lag is None else lag
+        return ev.lagged(effects, [lag])[0] if form == 0 else ev.filtered(effects, [lag], form)[0]
+
+    def _split(self, nonlinear: Sequence[str], x) -> tuple[np.ndarray, float | None]:
+        """(effect values, the channel's lag or None) of an optimiser vector."""
+        x = np.asarray(x, dtype=float)
+        return (x[:-1], float(x[-1])) if self.channel is not None else (x, None)
+
+    @property
+    def calls(self) -> int:
+        """Model runs so far."""
+        return self.evaluator.calls + self.fit_evaluator.calls
 
     def z(self, prediction: np.ndarray) -> np.ndarray:
         return (self.obs.force_N - prediction) / self.obs.sigma_N
 
-    def terms(self, instrument: Sequence[str]) -> LinearTerms:
-        return replace(self.linear, free=tuple(instrument))
+    def terms(self, instrument: Sequence[str] | None = None) -> LinearTerms:
+        return replace(self.linear, free=tuple(self.instrument if instrument is None else instrument))
+
+    def drift(self, rate_N_s: float, fit: bool = False) -> np.ndarray | float:
+        """The zero drift's force at each observation (``fit``: of period 1) [N] for a rate [N/s]."""
+        t = self.fit_time_s if fit else self.time_s
+        return 0.0 if t is None else rate_N_s * t
 
     def _residuals(self, nonlinear: Sequence[str], friction: bool, terms: LinearTerms):
         obs, w = self.fit_obs, 1.0 / self.fit_obs.sigma_N**2
 
         def fun(x):
-            m = self.fit_evaluator.predict(self.param.effects(nonlinear, x))
-            g, fc, o = terms.solve(obs.force_N, m, obs.sign, w, friction)
-            return (obs.force_N - g * (m + fc * obs.sign) - o) / obs.sigma_N
+            eff, lag = self._split(nonlinear, x)
+            m = self.model(self.param.effects(nonlinear, eff), fit=True, lag=lag)
+            g, fc, o, r = terms.solve(obs.force_N, m, obs.sign, w, friction, self.fit_time_s)
+            return (obs.force_N - g * (m + fc * obs.sign) - o - self.drift(r, True)) / obs.sigma_N
         return fun
 
     def fit(self, names: Sequence[str], starts: Sequence[Sequence[float]],
-            instrument: Sequence[str] = INSTRUMENT, tol: float = FIT_TOL) -> Candidate | None:
+            instrument: Sequence[str] | None = None, tol: float = FIT_TOL,
+            lag_starts: Sequence[float] | None = None) -> Candidate | None:
         """Best of bounded least-squares fits of the nonlinear effects from the given starting points
         (one value per effect of ``names`` other than friction, which is profiled with the instrument
-        terms); None (and a record in ``failed``) when no fit succeeds."""
+        terms; with a force channel, each start once per lag of ``lag_starts``, default ``self.lag_starts``);
+        None (and a record in ``failed``) when no fit succeeds."""
         names = tuple(names)
         terms = self.terms(instrument)
+        instrument = terms.free
         nonlinear = tuple(n for n in names if n != "friction")
         friction = "friction" in names
-        if not nonlinear:
+        bounds = [self.param.bounds(n) for n in nonlinear]
+        if self.channel is not None:
+            bounds.append(LAG_BOUNDS_S[self.channel[0]])
+            starts = [[*x0, lag] for x0 in starts for lag in (lag_starts or self.lag_starts)]
+        if not bounds:
             return self._guarded(names, nonlinear, np.empty(0), terms)
-        lower, upper = zip(*(self.param.bounds(n) for n in nonlinear), strict=True)
+        lower, upper = zip(*bounds, strict=True)
         fun = self._residuals(nonlinear, friction, terms)
         best, errors = None, []
         for x0 in starts:
@@ -153,7 +215,7 @@ class Diagnoser:
                     res = optimize.least_squares(secant or fun, x0, jac=secant.jac if secant else "2-point",
                                                  bounds=(lower, upper), method="trf", x_scale="jac",
                                                  diff_step=DIFF_STEP, ftol=tol, xtol=tol,
-                                                 max_nfev=40 * len(nonlinear))
+                                                 max_nfev=40 * len(bounds))
             except FIT_ERRORS as exc:
                 errors.append(f"from {np.round(x0, 6).tolist()}: {type(exc).__name__}: {exc}")
                 continue
@@ -178,7 +240,7 @@ class Diagnoser:
                                 "reason": f"scoring failed: {type(exc).__name__}: {exc}"})
             return None
 
-    def score_prediction(self, hydraulic: np.ndarray, instrument: Sequence[str] = INSTRUMENT,
+    def score_prediction(self, hydraulic: np.ndarray, instrument: Sequence[str] | None = None,
                          extra_k: int = 0) -> Candidate:
         """The candidate of no damper effect for a given model prediction ``hydraulic`` (for example the
         nominal model as a lagging force channel reads it), scored like any candidate with ``extra_k``
@@ -189,17 +251,20 @@ class Diagnoser:
                terms: LinearTerms, hydraulic: np.ndarray | None = None, extra_k: int = 0) -> Candidate:
         """The candidate of fitted values ``x``: instrument terms and friction profiled on period 1,
         χ² of fit, holdout and windows, the explained test and the score."""
+        x, lag = self._split(nonlinear, x)
         if hydraulic is None:
-            hydraulic = self.evaluator.predict(self.param.effects(nonlinear, x)) if nonlinear else self.nominal
+            hydraulic = self.model(self.param.effects(nonlinear, x), lag=lag) if nonlinear or lag is not None \
+                else self.nominal
         fm, sign = self.fit_mask, self.obs.sign
-        g, fc, o = terms.solve(self.obs.force_N[fm], hydraulic[fm], sign[fm], self.weight[fm], "friction" in names)
+        g, fc, o, r = terms.solve(self.obs.force_N[fm], hydraulic[fm], sign[fm], self.weight[fm], "friction" in names,
+                                  self.fit_time_s)
         pred = hydraulic + fc * sign
-        z = self.z(g * pred + o)
+        z = self.z(g * pred + o + self.drift(r))
         win = self.obs.is_window
         chi2_fit = float(np.sum(z[fm] ** 2))
         chi2_hold = float(np.sum(z[self.hold_mask] ** 2))
         n_fit, n_hold = int(fm.sum()), int(self.hold_mask.sum())
-        k = len(names) + len(terms.free) + extra_k
+        k = len(names) + len(terms.free) + extra_k + (self.channel is not None)
         eps = self.scale_rel_sd
         chi2_win = float(np.sum(z[win] ** 2))
         explained = (consistent_with_noise(chi2_fit, n_fit - k, self.alpha, eps)
@@ -213,41 +278,48 @@ class Diagnoser:
                          prediction=pred, chi2_fit=chi2_fit, chi2_holdout=chi2_hold, n_fit=n_fit, n_holdout=n_hold,
                          gap_after=rms(z[win & fm]), holdout_gap_after=rms(z[win & self.hold_mask]),
                          score=chi2_hold + k * math.log(n_fit), explained=explained,
-                         instrument=tuple(terms.free), gain=g, offset_N=o)
+                         instrument=tuple(terms.free), gain=g, offset_N=o, drift_N_s=r,
+                         drift_N=np.broadcast_to(self.drift(r), pred.shape).copy(),
+                         channel=None if lag is None else (self.channel[0], lag))
 
-    def refit(self, names: Sequence[str], instrument: Sequence[str], warm: Candidate | None = None,
+    def refit(self, names: Sequence[str], instrument: Sequence[str] | None = None, warm: Candidate | None = None,
               tol: float = FIT_TOL) -> Candidate | None:
         """Fit ``names`` with the instrument terms ``instrument``, warm-started from ``warm``."""
         nonlinear = [n for n in names if n != "friction"]
         x0 = [warm.x[warm.effects.index(n)] if warm is not None and n in warm.effects else self.param.starts(n)[0]
               for n in nonlinear]
-        return self.fit(tuple(names), [x0], instrument, tol)
+        lags = [warm.channel[1]] if warm is not None and warm.channel is not None else None
+        return self.fit(tuple(names), [x0], instrument, tol, lags)
 
-    def nominal_p_value(self, instrument: Sequence[str] = INSTRUMENT) -> float:
+    def nominal_p_value(self, instrument: Sequence[str] | None = None) -> float:
         """p-value of the χ² tests of the nominal model with the instrument terms (fitted on all
         observations), over all observations and over the windows (the characteristic) alone:
         twice the smaller p-value (Bonferroni), the probability of such a χ² from noise alone."""
         terms = self.terms(instrument)
-        g, _fc, o = terms.solve(self.obs.force_N, self.nominal, self.obs.sign, self.weight, False)
-        z = self.z(g * self.nominal + o)
+        g, _fc, o, r = terms.solve(self.obs.force_N, self.nominal, self.obs.sign, self.weight, False, self.time_s)
+        z = self.z(g * self.nominal + o + self.drift(r))
         win = self.obs.is_window
-        k = len(terms.free)
+        k = len(terms.free) + (self.channel is not None)
         tests = [(float(np.sum(z**2)), len(z) - k), (float(np.sum(z[win] ** 2)), int(win.sum()) - k)]
         if any(dof <= 0 for _, dof in tests):
             return 0.0
         # the smaller of the two p-values, Bonferroni-corrected: the test of both at once
         return min(1.0, 2.0 * min(scaled_chi2_sf(c, dof, self.scale_rel_sd) for c, dof in tests))
 
-    def nominal_explains(self, instrument: Sequence[str] = INSTRUMENT) -> bool:
+    def nominal_explains(self, instrument: Sequence[str] | None = None) -> bool:
         """The nominal model with the instrument terms is within noise at level ``alpha``."""
         return self.nominal_p_value(instrument) >= self.alpha
 
+    def singles(self) -> dict[str, Candidate | None]:
+        """Each catalogue effect alone, fitted from its starting points."""
+        return {e: self.fit((e,), [[s] for s in self.param.starts(e)] if e != "friction" else [[]])
+                for e in CATALOGUE}
+
     def search(self) -> list[Candidate]:
-        """Singles, then pairs (warm-started from the singles), then greedy extension of the BEAM best
-        of the largest size, each size only while no smaller set explains the gap (the verdict is the
+        """Singles, then pairs (warm-started from the singles), then greedy extension of the BEAM best of
+        the largest size, each size only while no smaller set explains the gap (the verdict is the
         smallest explaining set, so larger ones cannot change it)."""
-        singles = {e: self.fit((e,), [[s] for s in self.param.starts(e)] if e != "friction" else [[]])
-                   for e in CATALOGUE}
+        singles = self.singles()
         found = [c for c in singles.values() if c is not None]
         start = {e: (c.x[0] if c is not None else self.param.starts(e)[0]) for e, c in singles.items()}
         if not any(c.explained for c in found):

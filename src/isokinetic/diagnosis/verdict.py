@@ -1,20 +1,23 @@
 """The verdict of a diagnosis, its instrument terms and confoundings, and the diagnosis dict.
 
 The verdict is the smallest explaining set with the best score (:mod:`isokinetic.diagnosis.search`);
-``[]`` when the nominal model (with the instrument terms) already explains all observations.
-Explaining candidates of the verdict's size whose score is within ``CONFOUNDED_SCORE`` of the best
-are listed as ``confounded``, and so is a load-cell gain that discharge and viscosity together
-explain as well (or the reverse). When no candidate explains the gap, the verdict is the candidate
-with the best overdispersed score (:func:`isokinetic.diagnosis.candidate.overdispersed_score`),
-``explained`` is false and a note says the gap lies outside the catalogue. An instrument term is
-reported (non-null) only where a likelihood-ratio test at ``alpha`` needs it. A fit that fails is
-listed under ``failed_fits`` with its reason.
+``[]`` when the nominal model (with the instrument terms) already explains all observations and no
+single effect is needed by a test of its own (:func:`single_effect_tests`). Explaining candidates of the
+verdict's size whose score is within ``CONFOUNDED_SCORE`` of the best are listed as ``confounded``, and so
+is a load-cell gain that discharge and viscosity together explain as well (or the reverse). When no
+candidate explains the gap, the verdict is the candidate with the best overdispersed score
+(:func:`isokinetic.diagnosis.candidate.overdispersed_score`), ``explained`` is false and a note says the
+gap lies outside the catalogue. An instrument term is reported (non-null) only where a likelihood-ratio
+test at ``alpha`` needs it. A fit that fails is listed under ``failed_fits`` with its reason.
 
-The sensor chain (contract 1.2, issue 21): when the nominal model fails, it is also read through a
-lagging force channel (:func:`sensor_hypothesis`); when the steady windows pass that way and no damper
-candidate beats it by ``SENSOR_MARGIN``, the verdict is ``[]`` with the lag (sensor or damper). A
-load-cell zero drift linear in campaign time is taken off where the nominal model then explains the
-data (:func:`drift_compensated`), else tested on the verdict's residuals (:func:`zero_drift`). The
+The sensor chain (contract 1.2, issue 21). The load-cell zero drift, linear in campaign time, is profiled
+in every fit beside the gain and offset (the offset reported at the campaign's middle), and listed as
+confounded with an effect its fit correlates with beyond DRIFT_CONFOUNDED_CORRELATION. The force
+channel's lag is profiled on the search's verdict and, where needed (or where the verdict claims air),
+fitted jointly with the effects in a second search (:func:`joint_lag`: "effect + lag" against "effect
+alone"). The nominal model read through a lagging force channel is the sensor hypothesis
+(:func:`sensor_hypothesis`); when the steady windows pass that way and no damper candidate (with or
+without a lag) beats it by ``SENSOR_MARGIN``, the verdict is ``[]`` with the lag (sensor or damper). The
 LVDT's scale comes from the stage (measured against the command channel); without one, a verdict
 with discharge or viscosity, or a reported load-cell gain, states its confounding with it.
 """
@@ -32,12 +35,12 @@ from isokinetic.contracts.scenarios import CATALOGUE
 from isokinetic.diagnosis.candidate import ALPHA, Candidate, consistent_with_noise, overdispersed_score, rms
 from isokinetic.diagnosis.gap import gap_bands
 from isokinetic.diagnosis.identifiability import identifiability
-from isokinetic.diagnosis.instrument import GAIN_BOUND, INSTRUMENT, displacement_scale, fit_force_lag
+from isokinetic.diagnosis.instrument import DRIFT, GAIN_BOUND, LAG_FORMS, displacement_scale, fit_force_lag
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import CONTRACT_VERSION, FORMAT_VERSION, METRIC, json_safe
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.measurement.noise import chi2_isf
 from isokinetic.physics.damper import Damper
+from isokinetic.stats import chi2_isf
 
 #: Score difference (χ² units) within which two explaining candidates count as confounded.
 CONFOUNDED_SCORE = 10.0
@@ -58,6 +61,14 @@ GAIN_CONFOUNDED_NOTE = (
 #: The zero drift is tested at alpha times this: it is tested after the verdict, on its residuals, where
 #: a slow drift of the oil's viscosity over the campaign also leaves a small slope in time.
 DRIFT_ALPHA_FACTOR = 0.01
+#: Correlation (Fisher information) between a claimed effect and the fitted zero drift (or force-channel lag)
+#: beyond which the two are reported as confounded: the instrument term then takes most of what the effect
+#: would explain, and the reverse.
+DRIFT_CONFOUNDED_CORRELATION = 0.9
+#: Second starting group delay [s] of a fitted force-channel lag (beside the one profiled with the effects held):
+#: a 2nd-order anti-alias low-pass at about 3.7 Hz, within the usual 2-10 Hz corners (16-113 ms); a lag that
+#: air has partly taken up is otherwise underestimated from the first start.
+LAG_SECOND_START_S = 0.06
 #: Names of the force channel's fitted dynamics (:data:`isokinetic.diagnosis.instrument.LAG_FORMS`).
 LAG_FORM_NAMES = {0: "delay", 1: "low-pass, 1st order", 2: "low-pass, 2nd order"}
 #: Score margin (χ² units) by which a damper effect must beat the sensor terms (the nominal model seen
@@ -82,7 +93,9 @@ def instrument_confounding(out: dict, dg: Diagnoser, best, candidates, verdict: 
                            scale: Mapping) -> None:
     """The instrument terms the verdict cannot be told apart from, added to ``out['confounded']`` with their
     notes: a load-cell gain against discharge + viscosity; a force-channel lag scoring within SENSOR_MARGIN of
-    the verdict; an unmeasured displacement scale (no command channel) against a gain, discharge or viscosity."""
+    the verdict (alone, or with other effects where the verdict has none, and the reverse); a needed zero drift
+    correlated with an effect beyond DRIFT_CONFOUNDED_CORRELATION; an unmeasured displacement scale (no command
+    channel) against a gain, discharge or viscosity."""
     gain = out["instrument"]["force_gain"] is not None
     group = gain_confounding(dg, best, candidates, gain)
     if group:
@@ -93,6 +106,26 @@ def instrument_confounding(out: dict, dg: Diagnoser, best, candidates, verdict: 
         out.setdefault("confounded", []).append([*verdict, "force_lag"])
         out["confounded_sensor_note"] = (f"the nominal model through a force-channel lag of {hyp['lag_s']:.4g} s "
                                          f"scores within {SENSOR_MARGIN:g} of the verdict")
+    rivals = [c for c in candidates if c.explained and (c.channel is None) != (best.channel is None)
+              and c.effects != best.effects and abs(c.score - best.score) < SENSOR_MARGIN] if verdict else []
+    if rivals:
+        rival = min(rivals, key=lambda c: c.score)
+        out.setdefault("confounded", []).append(sorted({*verdict, *rival.effects}) + ["force_lag"])
+        out["confounded_lag_note"] = (f"{list(rival.effects)} {'with' if rival.channel else 'without'} a "
+                                      f"force-channel lag explains the data within {SENSOR_MARGIN:g} of the verdict")
+    lagging = [e for e, r in ((out.get("identifiability") or {}).get("lag_correlation") or {}).items()
+               if abs(r) > DRIFT_CONFOUNDED_CORRELATION]
+    if lagging and out["instrument"].get("force_lag_s") is not None:
+        out.setdefault("confounded", []).append([*lagging, "force_lag"])
+        out["confounded_lag_fit_note"] = (f"the force-channel lag and {lagging} are correlated beyond "
+                                          f"{DRIFT_CONFOUNDED_CORRELATION:g} in the fit: the data cannot tell them "
+                                          "apart")
+    corr = (out.get("identifiability") or {}).get("drift_correlation") or {}
+    drifting = [e for e, r in corr.items() if abs(r) > DRIFT_CONFOUNDED_CORRELATION]
+    if drifting and out["instrument"].get("force_drift_N_s") is not None:
+        out.setdefault("confounded", []).append([*drifting, DRIFT])
+        out["confounded_drift_note"] = (f"the load-cell zero drift and {drifting} are correlated beyond "
+                                        f"{DRIFT_CONFOUNDED_CORRELATION:g} in the fit: the data cannot tell them apart")
     physics = [e for e in verdict if e in ("discharge", "viscosity")]
     unmeasured = scale["estimate"] is None or "note" in scale  # no command channel, or none that follows the LVDT
     if (physics or gain) and unmeasured:
@@ -105,69 +138,161 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
     """The diagnosis dict of the contract, and the predictions (nominal, verdict) for figures.
 
     ``sensor`` (from the stage): ``displacement_scale`` (:func:`isokinetic.diagnosis.instrument.displacement_scale`,
-    already applied to ``obs``' drives where ``applied``) and ``obs_time_s`` (each observation's campaign time,
-    for the load-cell zero drift); absent: no command channel, no drift test."""
+    already applied to ``obs``' drives where ``applied``), ``obs_time_s`` (each observation's campaign time: the
+    load-cell zero drift is then profiled in every fit) and ``time_ref_s`` (the campaign's middle, at which the
+    load-cell offset is reported); absent: no command channel, no drift."""
     started = time.perf_counter()
     delays = dict(delays or {"delay_s": None})
     sensor = dict(sensor or {})
-    dg = Diagnoser(obs, damper, alpha)
+    dg = Diagnoser(obs, damper, alpha, sensor.get("obs_time_s"), sensor.get("time_ref_s"))
     out = gap_before_keys(dg, alpha)
-    nominal_fit = dg.refit((), INSTRUMENT)
+    nominal_fit = dg.refit(())
     out["nominal_p_value"] = dg.nominal_p_value()
     nominal_ok = out["nominal_p_value"] >= alpha
-    drift_removed = None
-    if not nominal_ok and nominal_fit is not None:
-        dg, drift_removed = drift_compensated(dg, nominal_fit, sensor.get("obs_time_s"))
-        if drift_removed is not None:
-            nominal_fit = dg.refit((), INSTRUMENT)
-            nominal_ok = True
-    candidates = [] if nominal_ok else dg.search()
+    candidates = []
+    if nominal_ok and nominal_fit is not None:   # the omnibus test passes: is any single effect needed?
+        candidates, out["effect_tests"] = single_effect_tests(dg, nominal_fit)
+        nominal_ok = not candidates
+    elif not nominal_ok:
+        candidates = dg.search()
     out["candidates"] = [c.to_dict() for c in candidates]
-    hyp = None if nominal_ok or nominal_fit is None else sensor_hypothesis(dg, nominal_fit, candidates)
-    lagged = None
-    if hyp is not None and hyp["preferred"]:
-        best = hyp["candidate"]
-        lagged = hyp["prediction"]
-        verdict = []
-        out.update(nominal_verdict_keys(best, best.explained, out["gap_before"]))
-        out.pop("search_note", None)
-        out.pop("unexplained_note", None)
-        out["sensor_note"] = SENSOR_NOTE
+    best, bdg, lag = dg, None, None
+    if not nominal_ok and candidates:
+        best = chosen_candidate(dg, candidates)
+        best, bdg, lag, lag_candidates = joint_lag(dg, best, candidates)
+        candidates = [*candidates, *lag_candidates]
+        out["candidates"] += [c.to_dict() for c in lag_candidates]
+    hyp = None if nominal_fit is None else sensor_hypothesis(dg, nominal_fit, candidates)
+    # the verdict [] through a lagging force channel: preferred to the damper candidates, or (where the nominal
+    # model explains) its lag needed
+    sensor_verdict = hyp is not None and (hyp["lag_needed"] if nominal_ok else hyp["preferred"])
+    if sensor_verdict:
+        best, bdg, verdict = hyp["candidate"], dg, []
+        out.update(nominal_verdict_keys(best, best.explained or nominal_ok, out["gap_before"]))
+        if not nominal_ok:
+            out.pop("search_note", None)
+            out.pop("unexplained_note", None)
+            out["sensor_note"] = SENSOR_NOTE
+        lag = lag_report(hyp["lag_s"], hyp["form"], hyp["report"]["chi2_drop"], float(chi2_isf(alpha, 1)))
     elif nominal_ok or not candidates:
-        best = nominal_fit
-        verdict = []
+        best, bdg, verdict = nominal_fit, dg, []
         out.update(nominal_verdict_keys(best, nominal_ok, out["gap_before"]))
     else:
-        best = chosen_candidate(dg, candidates)
         verdict = list(best.effects)
-        out.update(verdict_keys(dg, best, candidates, out["gap_before"]))
-    instrument, tests = instrument_report(dg, best, delays.get("delay_s"), lagged)
-    instrument["force_lag_s"] = hyp["lag_s"] if hyp is not None and hyp["preferred"] and hyp["lag_needed"] else None
+        out.update(verdict_keys(bdg, best, candidates, out["gap_before"]))
+    instrument, tests = instrument_report(bdg, best, delays.get("delay_s"),
+                                          hyp["prediction"] if sensor_verdict else None)
+    instrument["force_lag_s"] = lag["estimate_s"] if lag is not None and lag["needed"] else None
     scale = dict(sensor.get("displacement_scale") or displacement_scale([]))
     instrument["displacement_scale"] = scale["estimate"] if scale["applied"] else None
-    drift = drift_removed or zero_drift(dg, best, sensor.get("obs_time_s"))
-    if drift.get("needed") and not out["explained"]:  # residuals of a model that misfits are no drift measure
-        drift = {**drift, "needed": False, "reason": "not reported: the verdict does not explain the data"}
-    instrument["force_drift_N_s"] = drift["estimate"] if drift.get("needed") else None
-    if drift_removed is not None:
-        out["drift_note"] = ("the nominal model explains the data once a load-cell zero drift linear in campaign "
-                             "time is taken off the forces (force_drift_N_s)")
     out["instrument"] = instrument
     out["instrument_tests"] = {**tests, "delay": {k: v for k, v in delays.items() if k != "delay_s"},
-                               "force_lag": None if hyp is None else hyp["report"],
-                               "displacement_scale": scale, "force_drift": drift,
+                               "force_lag": None if lag is None and hyp is None else
+                               {**(hyp["report"] if hyp is not None else {}), **(lag or {})},
+                               "displacement_scale": scale,
                                "bounds": {"force_gain": [1.0 - GAIN_BOUND, 1.0 + GAIN_BOUND],
                                           "force_offset_N": [-dg.linear.offset_bound_N,
-                                                             dg.linear.offset_bound_N]}}
-    instrument_confounding(out, dg, best, candidates, verdict, hyp, scale)
-    if dg.failed:
-        out["failed_fits"] = dg.failed
+                                                             dg.linear.offset_bound_N],
+                                          "force_drift_N_s": [-dg.linear.drift_bound_N_s, dg.linear.drift_bound_N_s]}}
+    instrument_confounding(out, bdg, best, candidates, verdict, hyp, scale)
+    if dg.failed or (bdg is not dg and bdg.failed):
+        out["failed_fits"] = dg.failed + (bdg.failed if bdg is not dg else [])
     out["nominal_explains"] = nominal_ok
-    out["model_evaluations"] = dg.evaluator.calls + dg.fit_evaluator.calls
+    out["model_evaluations"] = dg.calls + (bdg.calls if bdg is not dg else 0)
     out["seconds"] = round(time.perf_counter() - started, 3)
     predictions = {"nominal": dg.nominal,
                    "verdict": None if best is None or not verdict else best.measured_prediction}
     return json_safe(out), predictions
+
+
+def lag_report(lag_s: float, form: int, chi2_drop: float, threshold: float) -> dict:
+    """The force-lag test's details: the lag, its form and whether its χ² drop exceeds the χ²₁ quantile."""
+    return {"estimate_s": lag_s, "form": LAG_FORM_NAMES[form], "chi2_drop": chi2_drop, "threshold": threshold,
+            "needed": bool(chi2_drop > threshold)}
+
+
+def profiled_lag(dg: Diagnoser, effects=None, low_pass: bool = True) -> tuple[float, int, np.ndarray]:
+    """(lag, form, prediction) of the force channel best for the model of ``effects`` (default nominal): a
+    delay, and (``low_pass``) where the windows' rms_z with it is below SENSOR_GATE_RMS_Z also the low-passes
+    (a lag moves the steady windows little: far above it, no sensor dynamics explain them)."""
+    lag, form, pred = fit_force_lag(dg, (0,), effects=effects)
+    cand = dg.score_prediction(pred, extra_k=1)
+    if low_pass and rms(dg.z(cand.measured_prediction)[dg.obs.is_window]) < SENSOR_GATE_RMS_Z:
+        lag, form, pred = fit_force_lag(dg, effects=effects)
+    return lag, form, pred
+
+
+def single_effect_tests(dg: Diagnoser, nominal_fit: Candidate) -> tuple[list[Candidate], dict]:
+    """(the needed single effects, best score first; every effect's test) where the nominal model passes the
+    omnibus χ² test. The omnibus test spreads its power over every observation; an effect concentrated in a
+    few (friction at the slowest speeds) is found by a test of its own. An effect is needed when its
+    likelihood-ratio test against the nominal model passes (χ² drop of the period-1 fit beyond the χ²₁
+    quantile at 1 - alpha/len(CATALOGUE), Bonferroni over the catalogue) and the period 2 it was not fitted on
+    confirms it: its score beats the nominal model's by SENSOR_MARGIN (residuals correlated in time, as a slow
+    drift of the oil's viscosity leaves, pass the first test alone)."""
+    threshold = float(chi2_isf(dg.alpha / len(CATALOGUE), 1))
+    tests, needed = {}, []
+    for e, c in dg.singles().items():
+        drop = None if c is None else nominal_fit.chi2_fit - c.chi2_fit
+        ok = bool(c is not None and drop > threshold and c.score < nominal_fit.score - SENSOR_MARGIN)
+        tests[e] = {"chi2_drop": drop, "threshold": threshold, "needed": ok,
+                    "score_gain": None if c is None else nominal_fit.score - c.score, "margin": SENSOR_MARGIN}
+        if ok:
+            needed.append(c)
+    return sorted(needed, key=lambda c: (not c.explained, c.score)), tests
+
+
+def lag_preferred(alt: Candidate, best: Candidate) -> bool:
+    """Whether ``alt`` (effects with a fitted lag) is the better verdict than ``best`` (without): it explains
+    and ``best`` does not; both explain and ``alt`` is a smaller set, or of the same size scores better; or
+    neither explains and ``alt`` scores better (each score counts the lag as one more parameter)."""
+    if alt.explained != best.explained:
+        return alt.explained
+    if alt.explained and len(alt.effects) != len(best.effects):
+        return len(alt.effects) < len(best.effects)
+    return alt.score < best.score
+
+
+def joint_lag(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate]
+              ) -> tuple[Candidate, Diagnoser, dict, list[Candidate]]:
+    """The verdict candidate with the force channel's lag fitted jointly (issue 21, "effect + lag" against
+    "effect alone"): (candidate, its diagnoser, the lag test, the candidates searched with a lag).
+
+    The lag is profiled on ``best`` (the search's verdict without a lag, its effects held, a pure delay:
+    :func:`profiled_lag`; the form is chosen below), then fitted with ``best``'s effects (from
+    that lag). Where that lag is needed (χ² drop beyond the χ²₁ quantile at
+    1 - alpha) or ``best`` claims air (compressibility lags the force as a low-pass does, so a lag read as
+    air shows no need of a lag), the search is run again with the lag a fitted parameter of every
+    candidate (started from that lag and from LAG_SECOND_START_S), in the form (delay, 1st- or 2nd-order
+    low-pass) that fits ``best``'s effects other than air best (air would take up part of the lag's shape).
+    Its verdict replaces ``best`` where :func:`lag_preferred` and its lag is needed against the same effects
+    without one. The lag test reports the final verdict's lag."""
+    threshold = float(chi2_isf(dg.alpha, 1))
+    lag, form, _pred = profiled_lag(dg, dg.param.effects(best.effects, best.x), low_pass=False)
+    ldg = dg.with_channel((form, lag))
+    lagged = ldg.refit(best.effects, warm=best)
+    first = lag_report(lag if lagged is None else lagged.channel[1], form,
+                       math.inf if lagged is None else best.chi2_fit - lagged.chi2_fit, threshold)
+    if not (first["needed"] or "air" in best.effects):
+        return best, dg, first, []
+    core = tuple(e for e in best.effects if e != "air")   # air mimics a lag: the form is chosen without it
+    chosen_form = None
+    for f in LAG_FORMS:
+        fdg = dg.with_channel((f, lag), (LAG_SECOND_START_S,))
+        c = fdg.refit(core, warm=best)
+        if c is not None and (chosen_form is None or c.chi2_fit < chosen_form[1].chi2_fit):
+            chosen_form = (fdg, c, f)
+    if chosen_form is not None:
+        ldg, _c, form = chosen_form
+    found = ldg.search()
+    if not found:
+        return best, dg, first, []
+    alt = chosen_candidate(ldg, found)
+    same = dg.refit(alt.effects, warm=alt)   # the same effects without the lag
+    drop = math.inf if same is None else same.chi2_fit - alt.chi2_fit
+    if drop > threshold and lag_preferred(alt, best):
+        return alt, ldg, lag_report(alt.channel[1], form, drop, threshold), found
+    return best, dg, first, found
 
 
 def gap_before_keys(dg: Diagnoser, alpha: float) -> dict:
@@ -198,13 +323,25 @@ def nominal_verdict_keys(best: Candidate, nominal_ok: bool, gap_before: float) -
 
 
 def chosen_candidate(dg: Diagnoser, candidates: Sequence[Candidate]) -> Candidate:
-    """The best explaining candidate (else the best overdispersed score), polished at POLISH_TOL."""
+    """The best explaining candidate, polished at POLISH_TOL; where none explains, the smallest set whose
+    overdispersed score is within CONFOUNDED_SCORE of the best one (:func:`parsimonious`)."""
     explaining = [c for c in candidates if c.explained]
-    best = explaining[0] if explaining else min(candidates, key=lambda c: overdispersed_score(c, candidates))
+    best = explaining[0] if explaining else parsimonious(candidates)
     polished = dg.refit(best.effects, best.instrument, best, POLISH_TOL)
     if polished is not None and polished.chi2_fit <= best.chi2_fit:
         best = polished
     return best
+
+
+def parsimonious(candidates: Sequence[Candidate]) -> Candidate:
+    """Of candidates none of which explains the data: the smallest effect set (then the best score) among
+    those whose overdispersed score (:func:`isokinetic.diagnosis.candidate.overdispersed_score`) is within
+    CONFOUNDED_SCORE of the best. Scores that close cannot be told apart, and an effect added to a partial
+    explanation must earn its place by that margin."""
+    scores = {id(c): overdispersed_score(c, candidates) for c in candidates}
+    best = min(scores.values())
+    close = [c for c in candidates if scores[id(c)] <= best + CONFOUNDED_SCORE]
+    return min(close, key=lambda c: (len(c.effects), scores[id(c)]))
 
 
 def verdict_keys(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate], gap_before: float) -> dict:
@@ -230,25 +367,35 @@ def verdict_keys(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate]
 
 def instrument_report(dg: Diagnoser, best: Candidate, delay_s: float | None,
                       lagged: np.ndarray | None = None) -> tuple[dict, dict]:
-    """The ``instrument`` key and its test details: each load-cell term refitted as fixed (gain 1,
-    offset 0) and kept where the fit χ² rises beyond the χ²₁ quantile at 1 - alpha. ``lagged``: the
-    verdict is the nominal model seen through a lagging force channel (this prediction), refitted as such."""
-    needed = {}
+    """The ``instrument`` key and its test details: each load-cell term (gain, offset, zero drift) refitted
+    as fixed (gain 1, offset 0, no drift) and kept where the fit χ² rises beyond the χ²₁ quantile at
+    1 - alpha (the drift at 1 - alpha·DRIFT_ALPHA_FACTOR: a slow drift of the oil's viscosity over the
+    campaign also leaves a small slope in time). The estimates are the terms solved on all observations (both
+    periods: instrument terms are measured on all the data) with the verdict's model held; the offset is the
+    one at the diagnoser's reference time (``time_ref_s``, the campaign's middle). ``lagged``: the verdict is
+    the nominal model seen through a lagging force channel (this prediction), refitted as such."""
+    needed = {"force_offset": False, "force_gain": False, "force_drift": False}
     tests = {}
-    threshold = float(chi2_isf(dg.alpha, 1))
-    for term in INSTRUMENT:
+    obs = dg.obs
+    gain, _fc, offset, drift = dg.terms(best.instrument).solve(obs.force_N, best.prediction, obs.sign, dg.weight,
+                                                                False, dg.time_s)
+    estimates = {"force_gain": gain, "force_offset": offset, "force_drift": drift}
+    for term in best.instrument:
         reduced = tuple(t for t in best.instrument if t != term)
-        if term not in best.instrument:
-            needed[term] = False
-            continue
         alt = dg.refit(best.effects, reduced, best) if lagged is None else dg.score_prediction(lagged, reduced, 1)
         rise = math.inf if alt is None else alt.chi2_fit - best.chi2_fit
+        threshold = float(chi2_isf(dg.alpha * (DRIFT_ALPHA_FACTOR if term == DRIFT else 1.0), 1))
         needed[term] = bool(rise > threshold)
-        tests[term] = {"estimate": best.gain if term == "force_gain" else best.offset_N,
-                       "chi2_rise_if_fixed": rise, "threshold": threshold, "needed": needed[term]}
+        tests[term] = {"estimate": estimates[term], "chi2_rise_if_fixed": rise, "threshold": threshold,
+                       "needed": needed[term]}
+    if "force_offset" in tests and dg.time_ref_s is not None:
+        tests["force_offset"]["reference_time_s"] = dg.time_ref_s
+    if DRIFT not in best.instrument:
+        tests[DRIFT] = {"estimate": None, "needed": False, "reason": "no campaign time per observation"}
     return ({"delay_s": delay_s,
-             "force_offset_N": best.offset_N if needed["force_offset"] else None,
-             "force_gain": best.gain if needed["force_gain"] else None}, tests)
+             "force_offset_N": offset if needed["force_offset"] else None,
+             "force_gain": gain if needed["force_gain"] else None,
+             "force_drift_N_s": drift if needed[DRIFT] else None}, tests)
 
 
 def gain_confounding(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate],
@@ -267,7 +414,7 @@ def gain_confounding(dg: Diagnoser, best: Candidate, candidates: Sequence[Candid
     elif any(e in best.effects for e in physics):
         rest = tuple(e for e in best.effects if e not in physics)
         alt = next((c for c in candidates if c.effects == rest and "force_gain" in c.instrument), None) if rest \
-            else dg.refit((), INSTRUMENT)
+            else dg.refit(())
     else:
         return None
     if alt is not None and alt.explained and abs(alt.score - best.score) < CONFOUNDED_SCORE:
@@ -280,21 +427,18 @@ def sensor_hypothesis(dg: Diagnoser, nominal_fit: Candidate, candidates: Sequenc
 
     The sensor candidate is the nominal model seen through a force channel lagging by a fitted delay,
     or (where the windows' rms_z is below SENSOR_GATE_RMS_Z) a fitted first- or second-order low-pass,
-    whichever fits best (:func:`isokinetic.diagnosis.instrument.fit_force_lag`), scored like any
-    candidate (one more parameter). It is ``preferred`` (the verdict is then ``[]``) when the steady
-    windows pass with the sensor terms (χ² of the windows alone; the lag moves the windows little, the
-    transients much) and no explaining damper candidate scores better than it by SENSOR_MARGIN. The
-    lag is ``lag_needed`` when the fit χ² falls by more than the χ²₁ quantile at 1 - alpha against no lag.
+    whichever fits best (:func:`profiled_lag`), scored like any candidate (one more parameter). It is
+    ``preferred`` (the verdict is then ``[]``) when the steady windows pass with the sensor terms (χ² of
+    the windows alone; the lag moves the windows little, the transients much) and no explaining damper
+    candidate (with or without a lag) scores better than it by SENSOR_MARGIN. The lag is ``lag_needed``
+    when the fit χ² falls by more than the χ²₁ quantile at 1 - alpha against no lag.
     """
-    lag, form, pred = fit_force_lag(dg, (0,))
-    cand = dg.score_prediction(pred, INSTRUMENT, extra_k=1)
+    lag, form, pred = profiled_lag(dg)
+    cand = replace(dg.score_prediction(pred, extra_k=1), channel=(form, lag))
     win = dg.obs.is_window
-    if rms(dg.z(cand.measured_prediction)[win]) < SENSOR_GATE_RMS_Z:  # the low-passes: only where plausible
-        lag, form, pred = fit_force_lag(dg)
-        cand = dg.score_prediction(pred, INSTRUMENT, extra_k=1)
     threshold = float(chi2_isf(dg.alpha, 1))
     drop = nominal_fit.chi2_fit - cand.chi2_fit
-    k = len(INSTRUMENT) + 1
+    k = len(dg.instrument) + 1
     chi2_win = float(np.sum(dg.z(cand.measured_prediction)[win] ** 2))
     windows_ok = bool(consistent_with_noise(chi2_win, int(win.sum()) - k, dg.alpha, dg.scale_rel_sd))
     explaining = [c for c in candidates if c.explained]
@@ -307,49 +451,5 @@ def sensor_hypothesis(dg: Diagnoser, nominal_fit: Candidate, candidates: Sequenc
               "best_damper_score": None if best_damper is None else best_damper.score,
               "best_damper_effects": None if best_damper is None else list(best_damper.effects),
               "margin": SENSOR_MARGIN, "chosen": "sensor" if preferred else "damper"}
-    return {"lag_s": lag, "prediction": pred, "candidate": cand, "lag_needed": bool(drop > threshold),
+    return {"lag_s": lag, "form": form, "prediction": pred, "candidate": cand, "lag_needed": bool(drop > threshold),
             "preferred": preferred, "report": report}
-
-
-def zero_drift(dg: Diagnoser, best: Candidate, obs_time_s: np.ndarray | None) -> dict:
-    """The load-cell zero drift, linear in campaign time: the slope r [N/s] of F = g·F_model + F_0 + r·t,
-    weighted least squares with the gain and offset refitted alongside (a drift over cases ordered by
-    speed would otherwise partly hide in the gain), ``needed`` when its χ² drop exceeds the χ²₁ quantile
-    at 1 - alpha·DRIFT_ALPHA_FACTOR. Not refitted into the verdict."""
-    if obs_time_s is None or len(obs_time_s) != len(dg.obs):
-        return {"estimate": None, "needed": False, "reason": "no campaign time per observation"}
-    t = np.asarray(obs_time_s, dtype=float)
-    if np.ptp(t) <= 0:
-        return {"estimate": None, "needed": False, "reason": "all observations at one time"}
-    sigma = dg.obs.sigma_N
-    y = dg.obs.force_N / sigma
-    model = np.asarray(getattr(best, "prediction", np.zeros(len(t))), dtype=float)
-    a = np.column_stack([model / sigma, 1.0 / sigma, (t - t.mean()) / sigma])
-
-    def ssr(cols: np.ndarray) -> tuple[float, np.ndarray]:
-        coef, *_ = np.linalg.lstsq(cols, y, rcond=None)
-        return float(np.sum((y - cols @ coef) ** 2)), coef
-
-    without, _ = ssr(a[:, :2])
-    with_drift, coef = ssr(a)
-    drop = without - with_drift
-    cov = np.linalg.pinv(a.T @ a)
-    threshold = float(chi2_isf(dg.alpha * DRIFT_ALPHA_FACTOR, 1))
-    return {"estimate": float(coef[2]), "std_error": float(math.sqrt(max(cov[2, 2], 0.0))), "chi2_drop": drop,
-            "threshold": threshold, "needed": bool(drop > threshold), "span_s": float(np.ptp(t))}
-
-
-def drift_compensated(dg: Diagnoser, nominal_fit: Candidate, obs_time_s: np.ndarray | None
-                      ) -> tuple[Diagnoser, dict | None]:
-    """(diagnoser, drift) with the load-cell zero drift taken off the forces, when the nominal model's
-    residuals need one (:func:`zero_drift`) and the nominal model then explains the data within noise;
-    else the diagnoser unchanged and None (a drift beside damper effects is only reported)."""
-    drift = zero_drift(dg, nominal_fit, obs_time_s)
-    if not drift.get("needed"):
-        return dg, None
-    t = np.asarray(obs_time_s, dtype=float)
-    obs = replace(dg.obs, force_N=dg.obs.force_N - drift["estimate"] * (t - t.mean()))
-    compensated = Diagnoser(obs, dg.evaluator.damper, dg.alpha)
-    if compensated.nominal_p_value() < dg.alpha:
-        return dg, None
-    return compensated, {**drift, "removed": True}

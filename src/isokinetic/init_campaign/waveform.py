@@ -12,7 +12,7 @@ A triangle is then measured like :mod:`isokinetic.measurement.motion` measures i
 the central part [0.1, 0.9]·T/2 of each half-period; each crosses the mid-stroke at the middle of its
 half-period, so the crossing times, spaced T/2, give the period (and its standard error from the lines'
 noise), the slopes give the amplitude Y = |v|·T/4 (Eq. 26), and the first crossing the phase. The
-pipeline cuts its windows from the plan's period and phase (:mod:`isokinetic.stages.windows`): a period off
+pipeline cuts its windows from the plan's period and phase (:mod:`isokinetic.measurement.windows`): a period off
 by 1e-6 moves a window edge of a 100 Hz record past a sample. So a period is rounded to the value with
 the fewest significant digits within :data:`ROUND_SIGMAS` standard errors (:func:`round_to_uncertainty`):
 a rig's planned 20 s is recovered exactly, not as 20.000013 s. A turning point within

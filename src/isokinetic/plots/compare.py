@@ -19,9 +19,8 @@ import pandas as pd
 from matplotlib.figure import Figure
 
 from isokinetic.plots.style import MM, footnote, force_unit, new_figure, plain_log_ticks, say_missing
+from isokinetic.stats import Z_95
 
-#: Two-sided 95 % quantile of the normal distribution (bars and bands are +-Z_95 SE).
-Z_95 = 1.959963984540054
 PANELS = (("+", "v > 0"), ("-", "v < 0, folded: |v|, |F|"))
 COLOURS = ("black", "tab:blue", "tab:orange", "tab:green", "tab:purple", "tab:brown", "tab:pink", "tab:olive")
 
@@ -152,4 +151,4 @@ def difference_figure(table: pd.DataFrame, campaigns: Sequence[str], *, name: st
     return fig
 
 
-__all__ = ["COLOURS", "PANELS", "Z_95", "colour_of", "difference_figure", "overlay_figure"]
+__all__ = ["COLOURS", "PANELS", "colour_of", "difference_figure", "overlay_figure"]

@@ -117,10 +117,10 @@ def _draw_planned_strokes(ax, plan: pd.DataFrame) -> None:
                     gid="planned-window-start", label="planned: stroke at the window start")
 
 
-def stroke_to_converge_figure(damper: Damper | None, velocities_m_s, phi: float = 0.999,
+def stroke_to_converge_figure(damper: Damper | None, velocities_m_s, *, phi: float,
                               air_fractions: Sequence[float] = FIG5_AIR_FRACTIONS,
                               band: tuple[float, float] = (0.95, 0.99999), planned: pd.DataFrame | None = None,
-                              *, campaign: str | None = None, max_stroke_m: float | None = None) -> Figure:
+                              campaign: str | None = None, max_stroke_m: float | None = None) -> Figure:
     """Fig. 5: stroke to reach ϕ of the incompressible Δp against piston velocity (log x).
 
     Central starting position (V1 = V0,1, V2 = V0,2) as in the paper. Curves (gids): 'laminar',
@@ -251,8 +251,8 @@ def _at_notes(plan_check_df: pd.DataFrame | None, damper: Damper | None) -> str:
 
 
 def at_diagram_figure(campaign: str, plan_check_df: pd.DataFrame, damper: Damper | None,
-                      max_amplitude_m: float, min_amplitude_m: float, start_fraction: float = 0.45,
-                      phi: float = 0.999, *, effects: Effects = NOMINAL) -> Figure:
+                      max_amplitude_m: float, min_amplitude_m: float, start_fraction: float,
+                      phi: float, *, effects: Effects = NOMINAL) -> Figure:
     """Fig. 6: A-T diagram, log-log: period T [s] against amplitude Y [mm] of the triangle cases.
 
     Iso-velocity lines (Eq. 27, gid 'iso-velocity', labelled in mm/s); planned points grouped

@@ -21,13 +21,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
-from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
 
 from isokinetic.plots.style import MM, force_unit, new_figure, plain_log_ticks, say_missing
+
+if TYPE_CHECKING:  # matplotlib only where a figure is drawn: the campaign report asks applies() alone
+    from matplotlib.figure import Figure
 
 ALPHAS = (0, 1, 2)
 _ALPHA_STYLE = {0: ("tab:green", "friction-like"), 1: ("tab:blue", "laminar"), 2: ("tab:purple", "turbulent")}
@@ -188,6 +190,8 @@ def window_selection(case_row, series: pd.DataFrame | None, windows_of_case: pd.
     lines with dots on the displacement axis (gid ``velocity-fit``; the same row range as the
     window), and mean +/- std as lines with '+' markers (gids ``window-mean``, ``window-std``).
     """
+    from matplotlib.lines import Line2D
+
     row = _case_row_dict(case_row)
     w = windows_of_case if windows_of_case is not None else pd.DataFrame()
     name = campaign_name(campaign, w, pd.DataFrame([row]) if row else None)

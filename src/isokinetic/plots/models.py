@@ -5,7 +5,7 @@ steady velocity inputs" (Titurus et al.), Sec. 4.5: Fig. 13 compares, on linear 
 measured characteristic with the nominal model (through the test plan and the Eq. (32) families
 for C_D in {0.6, 0.7, 0.8}), the Wallaschek and Surace fits, and the harmonic-excitation (HE)
 loops and peak-to-peak curve; Fig. 14 shows the same on log-log axes with quadrant 3 folded
-into quadrant 1. The fitted models are evaluated by :func:`isokinetic.stages.models.model_force`;
+into quadrant 1. The fitted models are evaluated by :func:`isokinetic.measurement.model_fit.model_force`;
 the rule ``models`` (:mod:`isokinetic.stages.models`) fits them and writes both figures.
 """
 
@@ -18,6 +18,7 @@ import pandas as pd
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
+from isokinetic.measurement.model_fit import model_force
 from isokinetic.plots.style import MM, footnote, force_unit, new_figure, plain_log_ticks, say_missing
 
 _CD_COLOURS = {0.6: "tab:blue", 0.7: "tab:green", 0.8: "tab:olive"}
@@ -26,13 +27,6 @@ _CD_COLOURS = {0.6: "tab:blue", 0.7: "tab:green", 0.8: "tab:olive"}
 # ----------------------------------------------------------------------------------------------
 # helpers
 # ----------------------------------------------------------------------------------------------
-
-def _fitted_force(models_df: pd.DataFrame, model: str, velocity_m_s) -> np.ndarray:
-    """Force of a fitted model at the given velocities (:func:`isokinetic.stages.models.model_force`)."""
-    # imported here, not at the top: isokinetic.stages.models imports this module to draw Fig. 13-14
-    from isokinetic.stages.models import model_force
-    return model_force(models_df, model, velocity_m_s)
-
 
 def _has_rows(df: pd.DataFrame | None) -> bool:
     return df is not None and len(df) > 0
@@ -128,12 +122,12 @@ def _linear_spans(char: pd.DataFrame, p2p: pd.DataFrame, loop_items) -> tuple[fl
 
 
 def _draw_fits(ax, models_df: pd.DataFrame, vx: np.ndarray, fs: float) -> None:
-    fw = _fitted_force(models_df, "wallaschek", vx)
+    fw = model_force(models_df, "wallaschek", vx)
     if np.isfinite(fw).any():
         ax.plot(vx * MM, fw / fs, color="black", lw=1.3, zorder=4, gid="wallaschek",
                 label="Wallaschek fit (L–T + Coulomb)")
     for dirn, sel in (("+", vx > 0), ("-", vx < 0)):
-        fsur = _fitted_force(models_df, "surace", vx[sel])
+        fsur = model_force(models_df, "surace", vx[sel])
         if np.isfinite(fsur).any():
             ax.plot(vx[sel] * MM, fsur / fs, color="tab:purple", lw=1.3, ls="-.", zorder=4, gid=f"surace{dirn}",
                     label="Surace fit (per direction)" if dirn == "+" else None)
@@ -176,7 +170,7 @@ def comparison_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, 
     """Fig. 13: measured characteristic, nominal model (through the plan and Eq. 32 families), fits, HE data.
 
     Linear axes, velocity in mm/s, force in N. ``families`` from
-    :func:`isokinetic.stages.models.nominal_families` (None or empty: no damper block, said on the
+    :func:`isokinetic.measurement.model_fit.nominal_families` (None or empty: no damper block, said on the
     figure). Lines carry gids: measured+, measured-, nominal-plan, family-T-0.6 ..., wallaschek,
     surace+, surace-, peak-to-peak, loop-<case>. The axes span the measured data (characteristic,
     HE loops and peak-to-peak points); model curves are clipped.
@@ -225,11 +219,11 @@ def comparison_figure(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, 
 # ----------------------------------------------------------------------------------------------
 
 def _draw_fits_folded(ax, models_df: pd.DataFrame, vx: np.ndarray, fs: float) -> None:
-    fw = _fitted_force(models_df, "wallaschek", vx)
+    fw = model_force(models_df, "wallaschek", vx)
     if np.isfinite(fw).any():
         ax.plot(vx * MM, np.abs(fw) / fs, color="black", lw=1.3, zorder=4, gid="wallaschek", label="Wallaschek fit")
     for dirn, sgn, ls in (("+", 1.0, "-."), ("-", -1.0, ":")):
-        fsur = _fitted_force(models_df, "surace", sgn * vx)
+        fsur = model_force(models_df, "surace", sgn * vx)
         if np.isfinite(fsur).any():
             ax.plot(vx * MM, np.abs(fsur) / fs, color="tab:purple", lw=1.3, ls=ls, zorder=4, gid=f"surace{dirn}",
                     label=f"Surace fit, {'v > 0' if dirn == '+' else 'v < 0 folded'}")

@@ -12,13 +12,14 @@ import os
 import textwrap
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure  # used directly: no pyplot state, Agg canvas when saving
-from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from isokinetic.io import current_vector_format, write_png, write_vector
+
+if TYPE_CHECKING:  # matplotlib is imported where a figure is made: a job that only asks which figures apply
+    from matplotlib.figure import Figure  # (the campaign report) does not pay for it (issue 23)
 
 #: Resolution of every PNG [dots per inch].
 DPI = 120
@@ -32,6 +33,8 @@ _MISSING_STYLE = {"ha": "center", "va": "center", "fontsize": 10, "color": "tab:
 
 def new_figure(width_in: float, height_in: float) -> Figure:
     """An empty figure of that size [inches] with the constrained layout."""
+    from matplotlib.figure import Figure  # used directly: no pyplot state, Agg canvas when saving
+
     return Figure(figsize=(width_in, height_in), layout="constrained")
 
 
@@ -63,6 +66,8 @@ def footnote(fig: Figure, text: str, *, width: int | None = None, fontsize: floa
 
 def plain_log_ticks(ax) -> None:
     """Label the log-scaled axes of ``ax`` 0.01, 0.1, 1 rather than 10^-2 ..., without minor labels."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
     for axis in (ax.xaxis, ax.yaxis):
         if axis.get_scale() == "log":
             axis.set_major_formatter(FuncFormatter(lambda x, _pos: f"{x:g}"))
@@ -78,6 +83,8 @@ def lay_out(fig: Figure, dpi: float) -> None:
     pass's drawing (about a fifth of writing a figure); the pixels are the same. A figure whose
     engine cannot be dropped (rcParams that choose one for every figure) keeps it and is drawn twice.
     """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
     engine = fig.get_layout_engine()
     if engine is None or not fig.axes:
         return

@@ -29,6 +29,9 @@ CAMPAIGN_SECTIONS = ("cases", "characteristic", "models", "harmonic", "design", 
 
 _EXTERNAL = re.compile(r"""(?:src|href|action|poster|data)\s*=\s*["']?\s*(?:https?:|ftp:|//)"""
                        r"""|url\(\s*["']?\s*(?!data:)[^)'"\s]|@import""", re.IGNORECASE)
+#: The base64 text of an embedded image: no reference fits in its alphabet, so the scan for external
+#: references skips it (ten times faster on a campaign page of 2 MB, issue 23).
+_PAYLOAD = re.compile(r"(?<=;base64,)[A-Za-z0-9+/=]+")
 _IMG = re.compile(r"<img\b[^>]*>", re.IGNORECASE)
 _SRC = re.compile(r"""\bsrc\s*=\s*"([^"]*)\"""", re.IGNORECASE)
 _DATA_FILE = re.compile(r"""\bdata-file\s*=\s*"([^"]*)\"""", re.IGNORECASE)
@@ -78,8 +81,9 @@ def _image_problem(name: str, src: str) -> str | None:
 def page_problems(page_html: str, expected_figures: Iterable[str] = ()) -> list[str]:
     """What makes a page not self-contained or incomplete: external references, images that are not
     decodable PNG data URIs, expected figures (file names) absent, 'figure missing' boxes."""
-    problems = [f"external reference: {page_html[max(0, m.start() - 20):m.end() + 40]!r}"
-                for m in _EXTERNAL.finditer(page_html)]
+    text = _PAYLOAD.sub("", page_html)
+    problems = [f"external reference: {text[max(0, m.start() - 20):m.end() + 40]!r}"
+                for m in _EXTERNAL.finditer(text)]
     images = embedded_images(page_html)
     problems += [p for p in (_image_problem(name, src) for name, src in images) if p]
     names = {Path(n).name for n, _ in images}

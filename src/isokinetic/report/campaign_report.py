@@ -26,6 +26,7 @@ from markupsafe import Markup
 from isokinetic.contracts.campaign import viscosity_law
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in
 from isokinetic.io import write_text
+from isokinetic.measurement.static_force_fit import offset_check
 from isokinetic.plots.figures import applies as figure_applies
 from isokinetic.report.cells import Col, Table, badge, kv_table, table_view
 from isokinetic.report.diagnosis_section import diagnosis_section, viscosity_as_temperature
@@ -33,7 +34,6 @@ from isokinetic.report.embed import FigureView, LeftOut, figure_views, read_capt
 from isokinetic.report.layout import footer, render
 from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, missing, short, text, yes_no
 from isokinetic.report.sources import Sources, lineage_of, lineage_rows, read_json, read_parquet, selector_of
-from isokinetic.stages.static_force import offset_check
 
 DAMPER_LABELS = {
     "piston_area_m2": ("piston area A_p", "m^2"), "chamber_volume_1_m3": ("chamber volume V_1", "m^3"),

@@ -18,12 +18,12 @@ import pandas as pd
 
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in
 from isokinetic.io import write_text
-from isokinetic.plots.compare import Z_95
 from isokinetic.report.cells import Col, Table, badge, json_table_view, kv_table, table_view
 from isokinetic.report.embed import figure_views, read_captions
 from isokinetic.report.layout import footer, render
 from isokinetic.report.numbers import esc, fmt, fmt_pct, text, yes_no
 from isokinetic.report.sources import Sources, lineage_of, lineage_rows, read_json, read_parquet
+from isokinetic.stats import Z_95
 
 TABLE, CSV, SUMMARY = (STAGE_OUTPUTS["compare"][k] for k in ("table", "csv", "summary"))
 NAV = [("comparison", "Comparison"), ("method", "Method"), ("figures", "Figures"), ("rows", "All rows"),

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.design import plan_warnings, write_design
 from isokinetic.stages.exports import write_exports
 from isokinetic.stages.figures import write_campaign_figures
@@ -29,7 +30,6 @@ from isokinetic.stages.harmonic import write_harmonic
 from isokinetic.stages.models import write_models
 from isokinetic.stages.nominal import nominal_stage
 from isokinetic.stages.static_force import write_static_force
-from isokinetic.stages.windows import WindowSpec
 
 log = logging.getLogger(__name__)
 

@@ -15,11 +15,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.blind_generate import effect_text
 from isokinetic.stages.characteristic import write_characteristic
 from isokinetic.stages.diagnosis import write_diagnosis
 from isokinetic.stages.ingest import ingest_campaign
-from isokinetic.stages.windows import WindowSpec
 
 log = logging.getLogger(__name__)
 

@@ -8,7 +8,7 @@ They are diagnosed through exactly the chain a real raw campaign gets
 reads the truth.
 
 Scenario
-    A campaign simulated by the independent reference rig (:mod:`isokinetic.physics.reference_rig`:
+    A campaign simulated by the independent reference rig (:mod:`isokinetic.reference.rig`:
     two chamber pressures, physical effect forms, an imperfect rig; it shares no code with the
     diagnosis' model) for a damper drawn around Table 1 of "A method for the identification of
     hydraulic damper characteristics from steady velocity inputs" (Titurus et al.;
@@ -37,7 +37,7 @@ Detection level
     rms_z = 3, where rms_z = sqrt(mean_i ((F_i(m) - F_i,nom) / SE_i)^2) over all windows i of the
     plan, F from :class:`~isokinetic.stages.nominal.ModelPlan` (the model run through the plan's own
     windows), and SE_i the rig's exact noise of a mean of the window's n_i samples at F_i(m) (white
-    plus proportional coloured noise, :func:`isokinetic.physics.reference_rig_campaign.mean_noise_variance`).
+    plus proportional coloured noise, :func:`isokinetic.reference.campaign.mean_noise_variance`).
     Found by a coarse scan of log m upwards from 1e-7 of the effect's bound (first crossing of 3,
     so the *smallest* root) refined by ``brentq`` on log m. An effect whose 5x detection level
     exceeds its physical bound (:data:`BOUNDS`; or that never reaches rms_z = 3) makes the
@@ -64,12 +64,12 @@ import pandas as pd
 
 from isokinetic.contracts.scenarios import EFFECTS, OUT_OF_CATALOGUE, scenario_names
 from isokinetic.io import write_json
-from isokinetic.physics import reference_rig as rr
-from isokinetic.physics import reference_rig_campaign as rrc
+from isokinetic.measurement.model_windows import ModelPlan
+from isokinetic.measurement.windows import WindowSpec
 from isokinetic.physics.damper import NOMINAL, TABLE_1, Damper, Effects, nominal_force
 from isokinetic.physics.plan import CasePlan, paper_plan
-from isokinetic.stages.nominal import ModelPlan
-from isokinetic.stages.windows import WindowSpec
+from isokinetic.reference import campaign as rrc
+from isokinetic.reference import rig as rr
 
 log = logging.getLogger(__name__)
 
@@ -179,7 +179,7 @@ class DetectionProblem:
     """rms_z(m) of one effect in one scenario, evaluated through a prepared ModelPlan.
 
     SE of a window mean: the rig's exact noise of a mean of n samples (white plus proportional
-    coloured, :func:`reference_rig_campaign.mean_noise_variance`) at the window's force.
+    coloured, :func:`isokinetic.reference.campaign.mean_noise_variance`) at the window's force.
     """
 
     plan: ModelPlan
@@ -294,7 +294,7 @@ class Scenario:
         return {
             "format_version": 2,
             "scenario": self.name,
-            "generator": "isokinetic.reference_rig",
+            "generator": "isokinetic.reference",
             "truth": list(self.truth),
             "truth_text": self.truth_text,
             "out_of_catalogue": self.out_of_catalogue,
@@ -434,7 +434,7 @@ def out_of_catalogue_true_effects(kind: str, damper: Damper, cases: Sequence[Cas
 
     stribeck: a Coulomb force of 3x its detection level plus a breakaway peak decaying over v_S at the
     geometric middle of the plan's speeds (seals: 0.1-1 mm/s), F_S = STRIBECK_PEAK of the nominal
-    hydraulic force at v_S (a weaker hump is absorbed by friction + viscosity: README); backlash:
+    hydraulic force at v_S (a weaker hump is absorbed by friction + viscosity: docs/diagnosis.md); backlash:
     30 um of free play; relief: a relief valve that cracks at half the plan's largest steady
     pressure and passes 30 % of the piston flow at it.
     """

@@ -2,8 +2,8 @@
 
 Rule ``characteristic`` runs the stages from an ingested campaign folder to its characteristic in
 one process (:func:`write_characteristic`): validate (:mod:`isokinetic.stages.validate`) ->
-windows (:mod:`isokinetic.stages.windows`) -> repeatability
-(:mod:`isokinetic.stages.repeatability`) -> :func:`assemble`. The blind suite runs the same function.
+windows (:mod:`isokinetic.measurement.windows`) -> repeatability
+(:mod:`isokinetic.measurement.repeatability`) -> :func:`assemble`. The blind suite runs the same function.
 
 Every point carries its ``method`` (tables.CHARACTERISTIC_METHODS):
 
@@ -35,6 +35,7 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts import tables
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.io import write_parquet
 from isokinetic.measurement.peak_velocity import (
@@ -45,10 +46,10 @@ from isokinetic.measurement.peak_velocity import (
     steady_range,
     summarise,
 )
+from isokinetic.measurement.repeatability import repeatability
+from isokinetic.measurement.windows import WindowSpec, extract_windows
 from isokinetic.stages.harmonic import binned_characteristic, dominant_period_s, free_loop
-from isokinetic.stages.repeatability import repeatability
 from isokinetic.stages.validate import GapTolerance, write_validated
-from isokinetic.stages.windows import WindowSpec, windows_stage
 
 log = logging.getLogger(__name__)
 
@@ -62,6 +63,12 @@ PEAK_SPEC = PeakSpec()
 #: Fewest cycles a direction a sine point averages (a scatter needs two); four give two periods.
 MIN_CYCLES = 2
 ENERGY_COLUMNS = list(tables.ENERGY.columns) + ["window_start_s", "window_end_s", "raw_file", "raw_sha256"]
+
+
+def windows_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
+    """Windows of a validated campaign folder ``results/<campaign>/`` (reads cases.parquet)."""
+    folder = CampaignFolder.at(campaign_root)
+    return extract_windows(folder.validated_cases(), folder.timeseries, spec)
 
 
 def assemble(windows: pd.DataFrame, repeatability: pd.DataFrame, records: pd.DataFrame | None = None) -> pd.DataFrame:
@@ -218,10 +225,8 @@ def record_points(cases: pd.DataFrame, load_series: Callable, spec: PeakSpec = P
 
 def records_stage(campaign_root, spec: PeakSpec = PEAK_SPEC) -> tuple[pd.DataFrame, pd.DataFrame]:
     """(sine/free characteristic rows, energy table) of a validated campaign folder (reads cases.parquet)."""
-    root = Path(campaign_root)
-    cases = pd.read_parquet(root / "cases.parquet")
-    records, energy, _notes = record_points(cases, lambda case: pd.read_parquet(root / str(case["timeseries_file"])),
-                                            spec)
+    folder = CampaignFolder.at(campaign_root)
+    records, energy, _notes = record_points(folder.validated_cases(), folder.timeseries, spec)
     return records, energy
 
 

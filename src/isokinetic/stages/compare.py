@@ -61,10 +61,11 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_json, write_parquet, write_text
-from isokinetic.plots.compare import Z_95, difference_figure, overlay_figure
+from isokinetic.measurement.model_fit import MODEL_NAMES, PARAMETERS, design_matrix, fit_points, standard_errors, wls
+from isokinetic.plots.compare import difference_figure, overlay_figure
 from isokinetic.plots.style import save_figure
 from isokinetic.stages.exports import csv_text
-from isokinetic.stages.models import MODEL_NAMES, PARAMETERS, design_matrix, fit_points, standard_errors, wls
+from isokinetic.stats import Z_95
 
 log = logging.getLogger(__name__)
 
@@ -228,7 +229,7 @@ class ModelCurve:
 
 def weighted_fit(velocity_m_s, force_N, sigma_N) -> tuple[np.ndarray, np.ndarray, float]:
     """(estimate, covariance, residual scale) of F = sign(v) F_C + D_L v + D_Q v|v| by the weighted
-    least squares of :func:`isokinetic.stages.models.wls` (columns scaled, QR, covariance scaled by the
+    least squares of :func:`isokinetic.measurement.model_fit.wls` (columns scaled, QR, covariance scaled by the
     reduced chi-square); needs more points than parameters."""
     x = design_matrix(velocity_m_s)
     n, p = x.shape

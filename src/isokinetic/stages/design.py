@@ -12,7 +12,6 @@ paper's flag is the start from rest.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping
@@ -21,6 +20,7 @@ from pathlib import Path
 import pandas as pd
 
 from isokinetic.contracts import tables
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.io import write_parquet
 from isokinetic.physics.convergence import check_phi, g1, g2, g3, stroke_to_converge
@@ -55,8 +55,8 @@ def _num(row: Mapping, key: str) -> float:
     return x
 
 
-def plan_check(campaign: str, cases, damper, *, phi: float = 0.999, max_amplitude_m: float,
-               min_amplitude_m: float, start_fraction: float = 0.45,
+def plan_check(campaign: str, cases, damper, *, phi: float, max_amplitude_m: float,
+               min_amplitude_m: float, start_fraction: float,
                effects: Effects = NOMINAL) -> pd.DataFrame:
     """One row per planned case (tables.PLAN_CHECK plus design columns); flags broken constraints.
 
@@ -212,15 +212,8 @@ def plan_warnings(df: pd.DataFrame) -> list[str]:
     return out
 
 
-def _read_cases(root: Path) -> pd.DataFrame:
-    for p in (root / "cases.parquet", root / "ingest" / "cases.parquet"):
-        if p.is_file():
-            return pd.read_parquet(p)
-    raise FileNotFoundError(f"{root}: no cases.parquet (validated) or ingest/cases.parquet")
-
-
-def write_design(campaign_root: str | os.PathLike, out_dir: str | os.PathLike, *, phi: float = 0.999,
-                 max_amplitude_m: float, min_amplitude_m: float, start_fraction: float = 0.45,
+def write_design(campaign_root: str | os.PathLike, out_dir: str | os.PathLike, *, phi: float,
+                 max_amplitude_m: float, min_amplitude_m: float, start_fraction: float,
                  effects: Effects = NOMINAL) -> tuple[pd.DataFrame, list[Path]]:
     """Plan check and Fig. 5-6 of one campaign (``results/<campaign>``) into ``out_dir``.
 
@@ -229,10 +222,10 @@ def write_design(campaign_root: str | os.PathLike, out_dir: str | os.PathLike, *
     ``fig05_stroke_to_converge.png`` and ``fig06_at_diagram.png``; without damper data the figures
     are still written and say so. Returns (plan check, [paths]).
     """
-    root, out = Path(campaign_root), Path(out_dir)
-    meta = json.loads((root / "ingest" / "campaign.json").read_text(encoding="utf-8"))
-    name = str(meta.get("campaign") or root.name)
-    cases = _read_cases(root)
+    folder, out = CampaignFolder.at(campaign_root), Path(out_dir)
+    meta = folder.meta()
+    name = folder.campaign(meta)
+    cases = folder.cases()
     note = ""
     try:
         dmp = _as_damper(meta.get("damper"))

@@ -43,11 +43,19 @@ from isokinetic.diagnosis.result import (
 from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.diagnosis.verdict import diagnose_observations
 from isokinetic.io import write_json
+from isokinetic.measurement.windows import WindowSpec, motion_start
 from isokinetic.physics.damper import NOMINAL, Damper
-from isokinetic.stages.nominal import motion_start
-from isokinetic.stages.windows import WindowSpec
 
 log = logging.getLogger(__name__)
+
+#: Why a campaign's sine cases are not diagnosed beside its triangle windows (``sources.not_used``). A short sine
+#: record carries one slow-noise error common to all its phase bins, which the bins' independent standard errors
+#: do not describe: beside triangle windows this produced damper effects the truth did not have (the reference
+#: rig's mixed campaign with coloured noise). And each model run integrates the sine records (Eq. 1), which made
+#: the 27-case paper campaign's diagnosis about seven times slower. The triangles' transient bins already carry
+#: the compressibility and sensor lag that the sine bins would add.
+SINES_BESIDE_TRIANGLES = ("sine cases beside triangle windows are not diagnosed: their phase bins share a slow-noise "
+                          "error per record that the bins' standard errors do not describe; the triangles decide")
 
 
 def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame, pd.DataFrame, dict[str, float]]:
@@ -59,7 +67,7 @@ def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame
     damper = None if meta.get("damper") is None else Damper.from_mapping(meta["damper"])
     cases = pd.read_parquet(root / CASES_FILE)
     char = pd.read_parquet(root / CHARACTERISTIC_FILE)
-    if "method" in char:  # the triangle windows only: sine and free points are not diagnosed (yet)
+    if "method" in char:  # the triangle windows only: a sine is diagnosed from its record (phase bins)
         char = char[char["method"] == "triangle_window"].reset_index(drop=True)
     return meta["campaign"], damper, cases, char, viscosity_scales(meta, cases)
 
@@ -78,24 +86,34 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     The LVDT's scale is measured first, from its speed against the command channel's
     (:func:`isokinetic.diagnosis.instrument.displacement_scale`); where it departs from 1, the model is
     driven at the measured speeds divided by it. ``sensor`` holds that scale and each observation's
-    campaign time (``obs_time_s``: the cases back to back in the order of cases.parquet), for the
+    campaign time (``obs_time_s``: the cases back to back in the order of cases.parquet) and the campaign's
+    middle (``time_ref_s``, where the load-cell offset is reported), for the
     load-cell zero drift.
+
+    Sine cases are diagnosed where a campaign has no triangle window (a sine-only campaign); beside
+    triangle windows they are left out (SINES_BESIDE_TRIANGLES says why) and ``sources`` names them.
 
     Observations are built twice: first to profile the load-cell offset against the nominal model,
     then with the noise model fitted to offset-free samples (the proportional noise scales with the
-    true force). With a viscosity law and case temperatures, each case is modelled at its temperature.
+    true force) and, for sine cases, with the nominal model's bin means (its cycle-to-cycle convergence
+    is no noise). Sine cases (status ok) give phase bins (:mod:`isokinetic.diagnosis.sine_observations`).
+    With a viscosity law and case temperatures, each case is modelled at its temperature.
     Observations is None, with the reason, when the campaign cannot be diagnosed.
     """
     root = Path(campaign_root)
     campaign, damper, cases, char, scales = load_campaign(root)
     if damper is None:
         return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model", {}
-    if char.empty:
-        others = cases[(cases["status"] == "ok") & cases["waveform"].isin(["sine", "free"])]
-        if len(others) and not ((cases["status"] == "ok") & (cases["waveform"] == "triangle")).any():
-            return campaign, damper, cases, None, ("no triangle case: diagnosis of sine and free records "
+    sines = cases[(cases["status"] == "ok") & (cases["waveform"] == "sine")]
+    if not char.empty and not sines.empty:  # the triangles' windows and bins decide (SINES_BESIDE_TRIANGLES)
+        log.info("%s: sine cases %s not diagnosed beside the triangle windows", campaign, ",".join(sines["case"]))
+        sines = sines.iloc[0:0]
+    modelled = cases[(cases["waveform"] != "sine") | cases["case"].isin(sines["case"])]
+    if char.empty and sines.empty:
+        if ((cases["status"] == "ok") & (cases["waveform"] == "free")).any():
+            return campaign, damper, cases, None, ("no triangle or sine case: diagnosis of free records "
                                                    "not yet supported"), {}
-        return campaign, damper, cases, None, "no status-ok triangle case: no characteristic to compare", {}
+        return campaign, damper, cases, None, "no status-ok triangle or sine case: nothing to compare", {}
     cache: dict[str, pd.DataFrame] = {}
 
     def load(row):
@@ -107,6 +125,9 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     scale = displacement_scale(np.array([case_speed_ratio(load(row), float(row["period_s"]), motion_start(row))
                                          for _, row in ok.iterrows()]))
+    if ok.empty:   # a sine's amplitude against its command mixes the servo's gain with the LVDT's scale
+        scale["source"] = "no triangle case"
+    lvdt = scale["estimate"] if scale["applied"] else 1.0
     if "velocity_ratio" in ok:  # the evidence against the plan (not applied: a real stroke error reads the same)
         ratios = ok["velocity_ratio"].to_numpy(dtype=float)
         scale["velocity_ratio_to_plan"] = float(np.median(ratios[np.isfinite(ratios)])) if np.isfinite(ratios).any() \
@@ -115,19 +136,27 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     def scaled(o: Observations) -> Observations:
         return rescaled_drives(o, scale["estimate"]) if scale["applied"] and len(o) else o
 
-    obs = scaled(build_observations(campaign, cases, char, load, spec, n_bins, viscosity_scales=scales))
+    obs = scaled(build_observations(campaign, modelled, char, load, spec, n_bins, viscosity_scales=scales,
+                                    displacement_scale=lvdt))
     if len(obs):
         dg0 = Diagnoser(obs, damper, alpha)
         first = dg0.refit((), INSTRUMENT)
         offset = 0.0 if first is None else first.offset_N
-        obs = scaled(build_observations(campaign, cases, char, load, spec, n_bins, offset,
+        # a sine's noise is read from its cycle-to-cycle differences less the nominal model's convergence
+        sine = np.array([obs.plans[i].waveform == "sine" for i in obs.case_index], dtype=bool)
+        sine_means = {(str(c), int(k)): float(f) for c, k, f in zip(obs.case[sine], obs.start[sine], dg0.nominal[sine],
+                                                                   strict=True)}
+        obs = scaled(build_observations(campaign, modelled, char, load, spec, n_bins, offset,
                                         unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
-                                        drive_input_variance(obs, damper, dg0.nominal), scales))
+                                        drive_input_variance(obs, damper, dg0.nominal), scales,
+                                        displacement_scale=lvdt, sine_model_means=sine_means))
     if len(obs) == 0:
-        return campaign, damper, cases, None, "no triangle case with four windows: nothing to compare", {}
-    spans = {row["case"]: record_span(load(row)) for _, row in ok.iterrows()}
+        return campaign, damper, cases, None, ("no triangle case with four windows and no sine case of two "
+                                               "cycles: nothing to compare"), {}
+    spans = {row["case"]: record_span(load(row)) for _, row in pd.concat([ok, sines]).iterrows()}
     return campaign, damper, cases, obs, "", {"displacement_scale": scale,
-                                              "obs_time_s": campaign_times(obs, cases, spans)}
+                                              "obs_time_s": campaign_times(obs, cases, spans),
+                                              "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans)))}
 
 
 def record_span(series: pd.DataFrame) -> tuple[float, float]:
@@ -136,13 +165,9 @@ def record_span(series: pd.DataFrame) -> tuple[float, float]:
     return (float(t[0]), float(t[-1] - t[0])) if t.size else (0.0, 0.0)
 
 
-def campaign_times(obs: Observations, cases: pd.DataFrame, spans: dict[str, tuple[float, float]]) -> np.ndarray:
-    """Each observation's time in the campaign [s]: its case's start (the cases back to back, each its
-    record's length (``spans``: first time stamp and length; else ``duration_s``, else two periods) plus
-    one sample, in the order of cases.parquet) plus its motion start after the record's first time
-    stamp and the middle of its samples."""
-    rows = cases.to_dict("records")
-
+def case_lengths_s(cases: pd.DataFrame, spans: dict[str, tuple[float, float]]) -> np.ndarray:
+    """Each case's length in the campaign [s], in the order of cases.parquet: its record's length (``spans``;
+    else ``duration_s``, else two periods) plus one sample (their sum is the campaign's length)."""
     def length(row: dict) -> float:
         span = spans.get(row["case"])
         recorded = None if span is None else span[1]
@@ -151,10 +176,20 @@ def campaign_times(obs: Observations, cases: pd.DataFrame, spans: dict[str, tupl
                 return float(value)
         return 0.0
 
-    durations = np.array([length(r) + 1.0 / float(r["sample_rate_Hz"]) for r in rows])
+    return np.nan_to_num([length(r) + 1.0 / float(r["sample_rate_Hz"]) for r in cases.to_dict("records")])
+
+
+def campaign_times(obs: Observations, cases: pd.DataFrame, spans: dict[str, tuple[float, float]]) -> np.ndarray:
+    """Each observation's time in the campaign [s]: its case's start (the cases back to back, each its
+    record's length (``spans``: first time stamp and length; else ``duration_s``, else two periods) plus
+    one sample, in the order of cases.parquet) plus its motion start after the record's first time
+    stamp and the middle of its samples."""
+    rows = cases.to_dict("records")
+    durations = case_lengths_s(cases, spans)
     starts = dict(zip(cases["case"], np.concatenate([[0.0], np.cumsum(np.nan_to_num(durations))[:-1]]), strict=True))
-    begin = {c: starts[c] + motion_start(row) - spans.get(c, (0.0, 0.0))[0] for c, row in zip(cases["case"], rows,
-                                                                                       strict=True)}
+    # a triangle's model samples count from its motion start, a sine's from its record's first sample
+    begin = {c: starts[c] + (0.0 if row.get("waveform") == "sine" else motion_start(row) - spans.get(c, (0.0, 0.0))[0])
+             for c, row in zip(cases["case"], rows, strict=True)}
     fs = np.array([obs.plans[i].sample_rate_Hz for i in obs.case_index])
     return np.array([begin[c] for c in obs.case]) + 0.5 * (obs.start + obs.stop) / fs
 
@@ -164,7 +199,7 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     """Diagnose a processed campaign folder ``results/<campaign>/``.
 
     Returns (diagnosis dict, observations, predictions); observations is None when the campaign
-    cannot be diagnosed (no damper block, no triangle case). The dict's ``sources`` key lists the
+    cannot be diagnosed (no damper block, no triangle or sine case). The dict's ``sources`` key lists the
     observations used (:func:`isokinetic.diagnosis.result.observation_sources`).
     """
     campaign, damper, cases, obs, reason, sensor = prepare_sensor(campaign_root, spec, n_bins, alpha)
@@ -172,6 +207,9 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
         return {**no_model(campaign, reason), "sources": observation_sources(None, cases)}, None, {}
     result, predictions = diagnose_observations(obs, damper, alpha, case_delays(cases), sensor)
     result["sources"] = observation_sources(obs, cases)
+    left_out = cases[(cases["status"] == "ok") & (cases["waveform"] == "sine") & ~cases["case"].isin(obs.case)]
+    if len(left_out) and (obs.kind == "window").any():
+        result["sources"]["not_used"] = f"{','.join(left_out['case'])}: {SINES_BESIDE_TRIANGLES}"
     return result, obs, predictions
 
 

@@ -62,10 +62,11 @@ from isokinetic.contracts.manifest import (
     load_manifest,
     unit_from_text,
 )
+from isokinetic.contracts.problem import Problem
 from isokinetic.io import sha256_file
 from isokinetic.rawfile import FOREIGN_BOMS as FOREIGN_BOMS  # re-exported for init_campaign
 from isokinetic.rawfile import FileFormat, RawFileError, RawTable, read_raw_table
-from isokinetic.stages.validate import Problem, quarantine_frame, quarantine_rows, timeseries_problems
+from isokinetic.stages.validate import quarantine_frame, quarantine_rows, timeseries_problems
 
 log = logging.getLogger("isokinetic")
 

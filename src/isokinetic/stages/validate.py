@@ -44,12 +44,13 @@ import pandas as pd
 
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan, read_ingested
+from isokinetic.contracts.problem import Problem
 from isokinetic.io import write_parquet
 from isokinetic.measurement.motion import Motion, estimate_motion, line_spans_s
 from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
+from isokinetic.measurement.windows import WindowSpec, case_windows, windowed_half_periods
 from isokinetic.physics.damper import Damper, nominal_force
 from isokinetic.physics.plan import CasePlan
-from isokinetic.stages.windows import WindowSpec, case_windows, windowed_half_periods
 
 log = logging.getLogger("isokinetic")
 
@@ -119,21 +120,6 @@ class GapTolerance:
         half = {"triangle": plan.period_s / 2.0, "sine": 0.5 / plan.frequency_Hz}.get(plan.waveform, math.nan)
         return max(self.max_gap_s, self.max_gap_half_period_fraction * half) if np.isfinite(half) else \
             self.max_gap_s
-
-
-@dataclass(frozen=True)
-class Problem:
-    """What is wrong with one case.
-
-    ``column`` is a data column (``kind="column"``: the CSV's at ingest, the canonical one at
-    validation) or a manifest key of the case (``kind="key"``: ``file``, ``period_s``, ...).
-    ``row`` is the first bad 0-based data row, None when no single row is at fault.
-    """
-
-    column: str
-    message: str
-    row: int | None = None
-    kind: str = "column"
 
 
 def reason(campaign: str, case: str, problem: Problem) -> str:
@@ -216,7 +202,7 @@ def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: f
     return problems
 
 
-def analysed_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec = WindowSpec(),
+def analysed_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec,
                    motion_start_s: float = 0.0) -> list[tuple[str, float, float]]:
     """(label, start, end) of the time spans whose samples the later stages use: the windows of a
     triangle case at the motion start (windows.window_ranges), the whole record of a sine or free case."""
@@ -235,7 +221,7 @@ def _inside(spans, a: float, b: float) -> str | None:
     return next((label for label, s0, s1 in spans if a <= s1 and b >= s0), None)
 
 
-def gap_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec = WindowSpec(),
+def gap_spans(plan: CasePlan, time_s: np.ndarray, spec: WindowSpec,
               motion: Motion | None = None) -> list[tuple[str, float, float]]:
     """(label, start, end) of the spans whose dropped samples are judged: the analysed spans
     (:func:`analysed_spans`), and for a triangle case with a measured motion the line fits of its four
@@ -434,7 +420,7 @@ def motion_problems(motion: Motion, plan: CasePlan) -> tuple[list[Problem], list
     return problems, warnings
 
 
-def window_problems(df: pd.DataFrame, plan: CasePlan, motion: Motion, spec: WindowSpec = WindowSpec()
+def window_problems(df: pd.DataFrame, plan: CasePlan, motion: Motion, spec: WindowSpec
                     ) -> list[Problem]:
     """The four windows at the measured motion start: that they fit the record, and the force's sign.
 

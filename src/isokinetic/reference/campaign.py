@@ -1,11 +1,11 @@
-"""What leaves the independent reference rig (:mod:`isokinetic.physics.reference_rig`): measured
+"""What leaves the independent reference rig (:mod:`isokinetic.reference.rig`): measured
 channels, the raw-campaign export, and the catalogue equivalents of its hidden truth.
 
 Part of the separately written reference against which the project's diagnosis is tested (the
 method of the paper "A method for the identification of hydraulic damper characteristics from
 steady velocity inputs", Titurus et al.; equation and table numbers are the paper's). Like its
 sibling it shares no code with the rest of ``isokinetic``: it imports only numpy, scipy, pandas,
-yaml, the standard library and :mod:`isokinetic.physics.reference_rig`.
+yaml, the standard library and :mod:`isokinetic.reference.rig`.
 
 Measurement
     Force channel F_meas = g F_true + F0 + sigma_w w_k + |F_true| sigma_rel c_k, with w white and c
@@ -38,13 +38,14 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from isokinetic.physics.reference_rig import (
+from isokinetic.reference.rig import (
     IDEAL_RIG,
     NOMINAL_EFFECTS,
     TABLE1,
     DamperDesign,
+    RigCase,
     RigImperfections,
-    TriangleCase,
+    SineCase,
     TrueEffects,
     annular_leakage_conductance,
     piston_diameter_m,
@@ -108,7 +109,7 @@ def lowpass(t_s: np.ndarray, x: np.ndarray, corner_Hz: float, order: int) -> np.
     return np.asarray(y, dtype=float)
 
 
-def measure(truth: pd.DataFrame, case: TriangleCase, rig: RigImperfections, seed: int,
+def measure(truth: pd.DataFrame, case: RigCase, rig: RigImperfections, seed: int,
             case_index: int, campaign_time_s: float = 0.0) -> pd.DataFrame:
     """Measured channels of a true record: adds force_meas_N, displacement_meas_m, command_meas_m.
 
@@ -140,7 +141,7 @@ def measure(truth: pd.DataFrame, case: TriangleCase, rig: RigImperfections, seed
     return out
 
 
-def simulate_case(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
+def simulate_case(case: RigCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
                   rig: RigImperfections = IDEAL_RIG, seed: int = 0, case_index: int = 0,
                   n_cases: int = 1, rtol: float = 1e-10, viscosity_ratio: float = 1.0,
                   campaign_time_s: float = 0.0) -> pd.DataFrame:
@@ -366,7 +367,7 @@ def _csv_text(header: str, columns: Sequence[tuple[np.ndarray, int]]) -> str:
     return header + "\n" + table[table != 0].tobytes().decode("ascii")
 
 
-def case_csv(series: pd.DataFrame, case: TriangleCase, rig: RigImperfections, invert_force: bool = False,
+def case_csv(series: pd.DataFrame, case: RigCase, rig: RigImperfections, invert_force: bool = False,
              time_offset_s: float = 0.0, temperature_K: np.ndarray | None = None) -> str:
     """CSV text of one measured case (columns :data:`EXPORT_COLUMNS`, "\\n" line ends; and
     :data:`TEMPERATURE_COLUMN` when ``temperature_K`` is given)."""
@@ -390,16 +391,20 @@ def _sig(x: float, digits: int = 4) -> float:
     return float(f"{x:.{digits}g}")
 
 
-def campaign_manifest(campaign: str, cases: Sequence[TriangleCase], damper, description: str = "",
+def campaign_manifest(campaign: str, cases: Sequence[RigCase], damper, description: str = "",
                       temperature_C: float = 40.0, write_phase: bool = True, oil: OilTemperature | None = None) -> dict:
     """campaign.yaml content (raw-campaign format v1): nominal damper only, rounded numbers."""
     rates = [c.sample_rate_Hz for c in cases]
     default_rate = max(rates, key=lambda r: (rates.count(r), -rates.index(r)))
     entries = []
     for c in cases:
-        e = {"id": c.case_id, "waveform": "triangle", "period_s": _sig(c.period_s),
-             "amplitude_mm": _sig(c.amplitude_m * 1e3)}
-        if write_phase:
+        if isinstance(c, SineCase):   # Y sin(2 pi f t): no phase key; the record's length as duration_s
+            e = {"id": c.case_id, "waveform": "sine", "frequency_Hz": _sig(c.frequency_Hz),
+                 "amplitude_mm": _sig(c.amplitude_m * 1e3), "duration_s": _sig(c.duration_s)}
+        else:
+            e = {"id": c.case_id, "waveform": "triangle", "period_s": _sig(c.period_s),
+                 "amplitude_mm": _sig(c.amplitude_m * 1e3)}
+        if write_phase and not isinstance(c, SineCase):
             e["phase_rad"] = -1.5708
         if c.sample_rate_Hz != default_rate:
             e["sample_rate_Hz"] = float(c.sample_rate_Hz)
@@ -423,12 +428,13 @@ def campaign_manifest(campaign: str, cases: Sequence[TriangleCase], damper, desc
     }
 
 
-def write_campaign(folder: str | os.PathLike, cases: Sequence[TriangleCase], damper=TABLE1,
+def write_campaign(folder: str | os.PathLike, cases: Sequence[RigCase], damper=TABLE1,
                    effects: TrueEffects = NOMINAL_EFFECTS, rig: RigImperfections = IDEAL_RIG, seed: int = 0, *,
                    description: str = "Low-velocity mapping, triangular excitation", temperature_C: float = 40.0,
                    write_phase: bool = True, invert_force: bool = False, time_offset_s: float = 0.0,
                    rtol: float = 1e-10, oil: OilTemperature | None = None) -> dict[str, pd.DataFrame]:
-    """Simulate ``cases`` and write ``<folder>/campaign.yaml`` plus one CSV per case.
+    """Simulate ``cases`` (triangles and sines, :class:`SineCase`: manifest ``waveform: sine``) and write
+    ``<folder>/campaign.yaml`` plus one CSV per case.
 
     The campaign id is the folder name; the folder must be absent or empty. Only the nominal
     ``damper`` block is written, nothing about ``effects`` or ``rig``. ``invert_force`` writes

@@ -1,6 +1,6 @@
 """Independent reference rig: a two-state compressible damper on an imperfect test rig.
 
-This module (with its sibling :mod:`isokinetic.physics.reference_rig_measurement`: sensors and
+This module (with its sibling :mod:`isokinetic.reference.rig_measurement`: sensors and
 raw-campaign export) is the separately written reference against which the project's diagnosis is
 tested. It shares no code with the rest of ``isokinetic``: it imports only numpy, scipy, pandas
 and the standard library, and keeps its own copy of Table 1 (:data:`TABLE1`) on purpose. Equation
@@ -25,7 +25,9 @@ Damper (noise free)
 Rig
     Actuator rod x: dx/dt = (c(t - d) - x) / tau_s, solved in closed form per linear piece of the
     delayed command (x = c(t - d) when tau_s = 0). The LVDT measures x, not the piston. Backlash b
-    is a play operator between x and y (:func:`piston_pieces`). The sensor noise model is a
+    is a play operator between x and y (:func:`piston_pieces`). A :class:`SineCase` commands
+    Y sin(2 pi f t) from rest through the same delay, servo (its first-order response in closed form) and
+    play operator; the rest is the triangle's. The sensor noise model is a
     parameter of the rig (:class:`RigImperfections`); it is applied in the sibling module.
 
 Speed (measured on one core, 2 CPUs shared, Table-1 damper, 2T recorded, velocities
@@ -33,7 +35,7 @@ Speed (measured on one core, 2 CPUs shared, Table-1 damper, 2T recorded, velocit
 noise 0.015-0.04 s per case for T in {20, 80, 240} s at 50 or 100 Hz (LSODA takes few steps
 on the quasi-steady ramps); writing the CSV adds 0.003-0.06 s (2 000-48 000 rows).
 Agreement with the project's virtual rig on the clean nominal damper: max |dF| ~1e-9 to 6e-9
-of the force scale at the default rtol 1e-10 (tests/physics/test_reference_rig.py).
+of the force scale at the default rtol 1e-10 (tests/reference/test_rig.py).
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from isokinetic.physics.reference_rig_motion import PistonPiece, piston_pieces
+from isokinetic.reference.motion import PistonPiece, SineActuatorPiece, piston_pieces
 
 # ---------------------------------------------------------------------------------------------
 # Parameters
@@ -291,8 +293,64 @@ class TriangleCase:
     def duration_s(self) -> float:
         return 2.0 * self.period_s
 
+    @property
+    def peak_speed_m_s(self) -> float:
+        """The largest commanded speed |dc/dt|: W."""
+        return self.velocity_m_s
+
+    @property
+    def start_position_m(self) -> float:
+        """c(0) = -Y, where the record starts at rest."""
+        return -self.amplitude_m
+
+    def command_m(self, t_s) -> np.ndarray:
+        """The ideal (undelayed) command c(t) [m]."""
+        return triangle_command(t_s, self.amplitude_m, self.period_s)
+
     def sample_times_s(self) -> np.ndarray:
         """t = k / fs, k = 0 .. round(2 T fs)."""
+        n = int(round(self.duration_s * self.sample_rate_Hz))
+        return np.arange(n + 1, dtype=float) / self.sample_rate_Hz
+
+
+@dataclass(frozen=True)
+class SineCase:
+    """One sine test: command c(t) = Y sin(2 pi f t) for t >= 0, 0 before; ``n_cycles`` periods recorded."""
+
+    case_id: str
+    frequency_Hz: float
+    amplitude_m: float
+    n_cycles: float = 4.0
+    sample_rate_Hz: float = 500.0
+
+    def __post_init__(self):
+        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]*", self.case_id):
+            raise ValueError(f"case id {self.case_id!r}: letters, digits, '_' and '-' only")
+        for name in ("frequency_Hz", "amplitude_m", "n_cycles", "sample_rate_Hz"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"case {self.case_id}: {name} must be > 0, got {v!r}")
+
+    @property
+    def duration_s(self) -> float:
+        return self.n_cycles / self.frequency_Hz
+
+    @property
+    def peak_speed_m_s(self) -> float:
+        """The largest commanded speed: 2 pi f Y."""
+        return 2.0 * math.pi * self.frequency_Hz * self.amplitude_m
+
+    @property
+    def start_position_m(self) -> float:
+        """c(0) = 0, where the record starts at rest."""
+        return 0.0
+
+    def command_m(self, t_s) -> np.ndarray:
+        """The ideal (undelayed) command c(t) [m]."""
+        return sine_command(t_s, self.amplitude_m, self.frequency_Hz)
+
+    def sample_times_s(self) -> np.ndarray:
+        """t = k / fs, k = 0 .. round(n_cycles fs / f)."""
         n = int(round(self.duration_s * self.sample_rate_Hz))
         return np.arange(n + 1, dtype=float) / self.sample_rate_Hz
 
@@ -310,6 +368,16 @@ def triangle_command(t_s, amplitude_m: float, period_s: float) -> np.ndarray:
     s = np.mod(t / period_s, 1.0)                        # phase in periods, 0 at -Y
     c = amplitude_m * np.where(s < 0.5, 4.0 * s - 1.0, 3.0 - 4.0 * s)
     return np.where(t < 0.0, -amplitude_m, c)
+
+
+#: A case the rig can run.
+RigCase = TriangleCase | SineCase
+
+
+def sine_command(t_s, amplitude_m: float, frequency_Hz: float) -> np.ndarray:
+    """c(t) = Y sin(2 pi f t) for t >= 0 and 0 before [m]."""
+    t = np.asarray(t_s, dtype=float)
+    return np.where(t < 0.0, 0.0, amplitude_m * np.sin(2.0 * math.pi * frequency_Hz * t))
 
 
 def laminar_coefficient(viscosity_Pa_s: float, length_m: float, area_m2: float) -> float:
@@ -519,7 +587,7 @@ def steady_pressure_difference(piston_flow_m3_s: float, model: ChamberModel) -> 
 # Noise-free response
 # ---------------------------------------------------------------------------------------------
 
-def _check_stroke(case: TriangleCase, model: ChamberModel) -> None:
+def _check_stroke(case: RigCase, model: ChamberModel) -> None:
     """The stroke must leave oil in both chambers (Eq. 12: T_max < T_lim)."""
     a = model.piston_area_m2
     for v0, gas in ((model.chamber_volume_1_m3, model.gas_1_Pa_m3), (model.chamber_volume_2_m3, model.gas_2_Pa_m3)):
@@ -546,7 +614,9 @@ def _piece_system(model: ChamberModel, piece: PistonPiece):
     k_relief = model.relief_discharge_coefficient * model.relief_area_gradient_m2_Pa
     contact, rest = piece.contact, piece.rest_m
     act = piece.actuator
-    ts, cs, v, tau, k = act.t_start_s, act.command_start_m, act.velocity_m_s, act.lag_s, act.transient_m
+    sine = isinstance(act, SineActuatorPiece)       # a sine's kinematics from its own closed form
+    ts, cs, v, tau, k = (0.0,) * 5 if sine else (act.t_start_s, act.command_start_m, act.velocity_m_s, act.lag_s,
+                                                  act.transient_m)
     off = piece.offset_m
     lag = tau > 0.0
 
@@ -555,6 +625,9 @@ def _piece_system(model: ChamberModel, piece: PistonPiece):
         u0, u1 = u.tolist()
         if not contact:
             y, ydot = rest, 0.0
+        elif sine:
+            y, ydot = act.state(tt)
+            y += off
         elif lag:
             s = tt - ts
             e = math.exp(-s / tau)
@@ -595,7 +668,7 @@ def _piece_system(model: ChamberModel, piece: PistonPiece):
     return rhs, jac
 
 
-def integrate_pressures(case: TriangleCase, model: ChamberModel, pieces: Sequence[PistonPiece],
+def integrate_pressures(case: RigCase, model: ChamberModel, pieces: Sequence[PistonPiece],
                         rtol: float = 1e-10) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """p1, p2 (absolute) at the sample times by LSODA piece by piece (analytic Jacobian).
 
@@ -608,7 +681,7 @@ def integrate_pressures(case: TriangleCase, model: ChamberModel, pieces: Sequenc
 
     t = case.sample_times_s()
     p0 = model.charge_pressure_Pa
-    atol = rtol * max(abs(steady_pressure_difference(model.piston_area_m2 * case.velocity_m_s, model)), 1.0)
+    atol = rtol * max(abs(steady_pressure_difference(model.piston_area_m2 * case.peak_speed_m_s, model)), 1.0)
     p1_out = np.empty_like(t)
     p2_out = np.empty_like(t)
     state = np.zeros(2)
@@ -631,7 +704,7 @@ def integrate_pressures(case: TriangleCase, model: ChamberModel, pieces: Sequenc
     return t, p1_out, p2_out
 
 
-def true_series(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
+def true_series(case: RigCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
                 rig: RigImperfections = IDEAL_RIG, case_index: int = 0, n_cases: int = 1,
                 rtol: float = 1e-10, viscosity_ratio: float = 1.0) -> pd.DataFrame:
     """Noise-free record of one case at the sample times; ``viscosity_ratio`` multiplies the case's
@@ -665,7 +738,7 @@ def true_series(case: TriangleCase, damper=TABLE1, effects: TrueEffects = NOMINA
         force = np.where(contact, force, 0.0)
     return pd.DataFrame({
         "time_s": t,
-        "command_m": triangle_command(t, case.amplitude_m, case.period_s),
+        "command_m": case.command_m(t),
         "actuator_m": actuator,
         "piston_m": piston,
         "piston_velocity_m_s": velocity,

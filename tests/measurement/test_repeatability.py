@@ -1,8 +1,8 @@
 import pandas as pd
 import pytest
 
+from isokinetic.measurement.repeatability import relative_difference, repeatability
 from isokinetic.stages.characteristic import assemble
-from isokinetic.stages.repeatability import relative_difference, repeatability
 
 
 def windows_table():

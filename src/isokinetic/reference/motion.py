@@ -1,5 +1,5 @@
 """The reference rig's kinematics: the delayed command, a first-order servo and the play operator of
-backlash, as closed-form pieces of smooth motion (a sibling of :mod:`isokinetic.physics.reference_rig`,
+backlash, as closed-form pieces of smooth motion (a sibling of :mod:`isokinetic.reference.rig`,
 sharing its independence: it imports only the standard library, numpy and scipy)."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from isokinetic.physics.reference_rig import RigImperfections, TriangleCase, TrueEffects
+    from isokinetic.reference.rig import RigCase, RigImperfections, TriangleCase, TrueEffects
 
 
 # ---------------------------------------------------------------------------------------------
@@ -69,10 +69,64 @@ def actuator_pieces(case: TriangleCase, rig: RigImperfections, t_end_s: float) -
     return pieces
 
 
-def _actuator_turning_times(pieces: Sequence[ActuatorPiece]) -> list[float]:
+@dataclass(frozen=True)
+class SineActuatorPiece:
+    """x(t) on [t_start, t_end) for the delayed sine command c = Y sin(w s), s = t - d >= 0, through the
+    first-order servo dx/dt = (c - x)/tau from rest at x = 0: with r = w tau,
+    x = Y (sin ws - r cos ws) / (1 + r^2) + K exp(-s/tau), K = Y r / (1 + r^2); tau = 0: x = c."""
+
+    t_start_s: float
+    t_end_s: float
+    delay_s: float
+    amplitude_m: float
+    omega_rad_s: float
+    lag_s: float
+
+    def state(self, t: float) -> tuple[float, float]:
+        """(x, dx/dt) at a float time t (the ODE's fast path)."""
+        s, w, tau = t - self.delay_s, self.omega_rad_s, self.lag_s
+        r = w * tau
+        g = self.amplitude_m / (1.0 + r * r)
+        sn, cs = math.sin(w * s), math.cos(w * s)
+        if tau > 0.0:
+            e = g * r * math.exp(-s / tau)
+            return g * (sn - r * cs) + e, g * w * (cs + r * sn) - e / tau
+        return g * sn, g * w * cs
+
+    def position(self, t):
+        return np.vectorize(lambda x: self.state(x)[0], otypes=[float])(np.asarray(t, dtype=float))
+
+    def velocity(self, t):
+        return np.vectorize(lambda x: self.state(x)[1], otypes=[float])(np.asarray(t, dtype=float))
+
+    def turning_times(self) -> list[float]:
+        """Where dx/dt changes sign in (t_start, t_end): bracketed on 64 points a period, then brentq."""
+        from scipy.optimize import brentq
+
+        n = int(math.ceil((self.t_end_s - self.t_start_s) * self.omega_rad_s / (2.0 * math.pi) * 64)) + 2
+        grid = np.linspace(self.t_start_s, self.t_end_s, n)
+        v = self.velocity(grid)
+        out = []
+        for i in np.flatnonzero(v[:-1] * v[1:] < 0.0):
+            out.append(brentq(lambda t: self.state(t)[1], grid[i], grid[i + 1], xtol=1e-13, rtol=1e-15))
+        return out
+
+
+def sine_actuator_pieces(case, rig: RigImperfections, t_end_s: float) -> list:
+    """At rest at x = 0 until the delayed command starts at d, then one sine piece to ``t_end_s``."""
+    d = rig.delay_s
+    rest = [ActuatorPiece(0.0, d, 0.0, 0.0, rig.servo_lag_s, 0.0)] if d > 0.0 else []
+    return rest + [SineActuatorPiece(min(d, t_end_s), t_end_s, d, case.amplitude_m,
+                                     2.0 * math.pi * case.frequency_Hz, rig.servo_lag_s)]
+
+
+def _actuator_turning_times(pieces: Sequence) -> list[float]:
     """Times where the actuator starts to move or reverses (dx/dt changes sign), sorted."""
     out, moving = [], 0.0
     for p in pieces:
+        if isinstance(p, SineActuatorPiece):   # the last piece: starts moving upwards, then its reversals
+            out += [p.t_start_s, *p.turning_times()]
+            break
         v = p.velocity_m_s
         if v == 0.0:
             continue
@@ -128,7 +182,7 @@ def _crossing_time(pieces: Sequence[ActuatorPiece], ta: float, tb: float, target
         if fa == 0.0:
             return a
         if fa * fb <= 0.0:
-            if p.lag_s == 0.0:
+            if isinstance(p, ActuatorPiece) and p.lag_s == 0.0:
                 return min(max(a - fa / p.velocity_m_s, a), b)
             from scipy.optimize import brentq
 
@@ -136,22 +190,24 @@ def _crossing_time(pieces: Sequence[ActuatorPiece], ta: float, tb: float, target
     return None
 
 
-def piston_pieces(case: TriangleCase, effects: TrueEffects, rig: RigImperfections) -> list[PistonPiece]:
+def piston_pieces(case: RigCase, effects: TrueEffects, rig: RigImperfections) -> list[PistonPiece]:
     """Play operator of total gap b between actuator x and piston y, as smooth pieces.
 
     Pushing upwards y = x - b/2, downwards y = x + b/2; at every actuator reversal the contact
     is lost and the piston stands still until x has travelled b. The record starts at rest with
     the piston at y = -Y + b/2 (as left by the downward stroke that brought it to -Y), so the
-    first upward motion crosses the whole gap too. Pieces break at the delayed command corners,
+    first upward motion crosses the whole gap too (a sine case likewise from y = b/2, its command starting at 0
+    upwards). Pieces break at the delayed command corners,
     actuator reversals and contacts: the piston velocity is smooth inside each piece.
     """
     t_end = float(case.sample_times_s()[-1])
-    acts = actuator_pieces(case, rig, t_end)
+    sine = hasattr(case, "frequency_Hz")
+    acts = sine_actuator_pieces(case, rig, t_end) if sine else actuator_pieces(case, rig, t_end)
     b = effects.backlash_m
     turns = [t for t in _actuator_turning_times(acts) if 0.0 <= t < t_end]
     stretch_edges = sorted({0.0, *turns, t_end})
     spans = []                                      # (ta, tb, contact, offset, rest)
-    y = -case.amplitude_m + b / 2.0
+    y = case.start_position_m + b / 2.0
     for ta, tb in zip(stretch_edges[:-1], stretch_edges[1:]):
         mid = 0.5 * (ta + tb)
         v_mid = float(_actuator_at(acts, mid).velocity(mid))

@@ -4,15 +4,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from isokinetic.physics.plan import CasePlan, triangle_displacement
-from isokinetic.stages.windows import (
+from isokinetic.measurement.windows import (
     WindowSpec,
     case_windows,
     extract_windows,
     line_slope,
+    motion_start,
     window_ranges,
     windowed_half_periods,
 )
+from isokinetic.physics.plan import CasePlan, triangle_displacement
 
 LEVELS_N = [100.0, -80.0, 101.0, -81.0]
 
@@ -110,7 +111,7 @@ def test_extract_windows_skips_quarantined_and_non_triangle_cases():
         {**base, "case": "T02", "waveform": "triangle", "status": "quarantined"},
         {**base, "case": "H01", "waveform": "sine", "status": "ok", "frequency_Hz": 1.75},
     ])
-    out = extract_windows(cases, lambda row: make_series())
+    out = extract_windows(cases, lambda row: make_series(), WindowSpec())
     assert out["case"].unique().tolist() == ["T01"]
     assert len(out) == 4 and (out["raw_file"] == "f.csv").all() and (out["campaign"] == "c").all()
 
@@ -127,8 +128,8 @@ def test_rounded_phase_of_a_300_s_period_keeps_four_windows():
                        phase_rad=-1.5707963, duration_s=600.0)
     exact = CasePlan(case="T01", waveform="triangle", sample_rate_Hz=100.0, amplitude_m=1e-3, period_s=300.0,
                      duration_s=600.0)
-    assert window_ranges(rounded, t) == window_ranges(exact, t)
-    assert [k for k, *_ in window_ranges(rounded, t)] == [1, 2, 3, 4]
+    assert window_ranges(rounded, t, WindowSpec()) == window_ranges(exact, t, WindowSpec())
+    assert [k for k, *_ in window_ranges(rounded, t, WindowSpec())] == [1, 2, 3, 4]
 
 
 def test_windows_are_cut_at_the_motion_start_on_a_shifted_time_axis():
@@ -155,8 +156,8 @@ def test_a_shifted_time_axis_without_its_motion_start_is_refused():
 
 def test_window_ranges_default_is_plan_time():
     t = make_series()["time_s"].to_numpy()
-    assert window_ranges(plan(), t) == window_ranges(plan(), t, WindowSpec(), 0.0)
-    assert window_ranges(plan(), t)[0] == (1, 1.0, 45, 96)
+    assert window_ranges(plan(), t, WindowSpec()) == window_ranges(plan(), t, WindowSpec(), 0.0)
+    assert window_ranges(plan(), t, WindowSpec())[0] == (1, 1.0, 45, 96)
 
 
 def test_windowed_half_periods_are_on_the_record_time_axis():
@@ -178,7 +179,7 @@ def test_extract_windows_cuts_each_case_at_its_motion_start():
                           {**base, "case": "T02", "motion_start_s": 7.3},
                           {**base, "case": "T03", "motion_start_s": math.nan}])
     series = {"T01": make_series(), "T02": shifted(make_series(), 7.3), "T03": make_series()}
-    out = extract_windows(cases, lambda row: series[row["case"]]).set_index(["case", "segment"])
+    out = extract_windows(cases, lambda row: series[row["case"]], WindowSpec()).set_index(["case", "segment"])
     for case in ("T02", "T03"):
         np.testing.assert_array_equal(out.loc[case, "force_N"], out.loc["T01", "force_N"])
     assert out.loc[("T02", 1), "window_start_s"] == pytest.approx(11.8)
@@ -224,3 +225,10 @@ def test_window_velocity_uses_the_real_time_stamps():
     rows = case_windows(plan(), dropped(make_series(), [*range(50, 60), 70, 160, *range(300, 320)]))
     expected = 4 * 1e-3 / 20.0                                  # noise-free triangle: W = 4Y/T exactly
     assert [r["velocity_m_s"] for r in rows] == pytest.approx([expected, -expected] * 2, rel=1e-9)
+
+
+def test_motion_start_is_the_cases_column_and_zero_when_absent_or_not_a_number():
+    assert motion_start(pd.Series({"motion_start_s": 7.3})) == 7.3
+    assert motion_start({"motion_start_s": 0.25}) == 0.25
+    for row in ({}, {"motion_start_s": None}, {"motion_start_s": math.nan}, pd.Series({"case": "T01"})):
+        assert motion_start(row) == 0.0

@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -69,7 +68,7 @@ def window_mean_force(t, f, centre_s: float, complete: bool) -> float:
     return float(f.mean() + line_slope(t, f) * (centre_s - tm))
 
 
-def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec = WindowSpec(),
+def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec,
                           motion_start_s: float = 0.0):
     """The first four half-periods (rows t_start, t_end, sign) whose window ends within the record.
 
@@ -92,7 +91,7 @@ def time_tolerance_s(plan: CasePlan) -> float:
     return 1e-6 / plan.sample_rate_Hz
 
 
-def window_ranges(plan: CasePlan, t, spec: WindowSpec = WindowSpec(),
+def window_ranges(plan: CasePlan, t, spec: WindowSpec,
                   motion_start_s: float = 0.0) -> list[tuple[int, float, int, int]]:
     """(segment 1-4, sign, i0, i1) of the four windows of a triangle record with sample times ``t``.
 
@@ -168,7 +167,7 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
     return out
 
 
-def motion_start_of(case) -> float:
+def motion_start(case) -> float:
     """``motion_start_s`` of a cases-table row: the record time of the plan's t = 0 (0 when the
     column is absent or NaN, as in tables written before it existed)."""
     value = case.get("motion_start_s") if hasattr(case, "get") else None
@@ -179,7 +178,7 @@ def motion_start_of(case) -> float:
     return value if math.isfinite(value) else 0.0
 
 
-def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
+def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec) -> pd.DataFrame:
     """Windows of every status-ok triangle case of a cases table (tables.WINDOWS), cut at each case's
     ``motion_start_s`` (0 when the table has no such column).
 
@@ -188,7 +187,7 @@ def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec = WindowS
     rows = []
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     for _, case in ok.iterrows():
-        for row in case_windows(case_plan(case), load_series(case), spec, motion_start_of(case)):
+        for row in case_windows(case_plan(case), load_series(case), spec, motion_start(case)):
             row.update(campaign=case["campaign"], raw_file=case["raw_file"], raw_sha256=case["raw_sha256"],
                        quality=case.get("quality", "ok") if isinstance(case.get("quality"), str) else "ok")
             rows.append(row)
@@ -199,8 +198,3 @@ def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec = WindowS
     return tables.validate_table(df[columns], tables.WINDOWS)
 
 
-def windows_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
-    """Windows of a validated campaign folder ``results/<campaign>/`` (reads cases.parquet)."""
-    root = Path(campaign_root)
-    cases = pd.read_parquet(root / "cases.parquet")
-    return extract_windows(cases, lambda case: pd.read_parquet(root / case["timeseries_file"]), spec)

@@ -1,0 +1,177 @@
+"""What a sine record offers the diagnosis: its measured motion, its phase bins and its noise.
+
+Drive. The measured displacement of a sine case is fitted by least squares with y = c + Y sin(2πf t + φ)
+(offset, amplitude, frequency, phase; :func:`fit_sine`), on the record after its first cycle (the servo's
+start-up transient); the model is then driven by that sine from rest, from where the fitted sine starts
+the cycle in which the record starts (:class:`isokinetic.physics.sine_drive.SineDrive`), so it is driven
+by the measured kinematics, not the plan's.
+
+Bins. Every steady cycle (all but the first: the drive's start-up is not the rig's) is cut into
+``n_bins`` equal phase bins (a multiple of 4, so that no bin straddles a reversal: reversals lie at a
+quarter and three quarters of a cycle). A bin's ``sign`` is the direction of motion, its speed the mean
+|dy/dt| of the fitted sine over it. Bins whose centre lies within 45° of peak speed are kind ``window``
+(the characteristic's part of the cycle), the others, around the reversals, kind ``transient``, so that
+the verdict's steady-versus-transient logic applies unchanged. Steady cycles alternate between period
+1 and period 2 (the search fits period 1 and scores period 2, as with a triangle's two periods).
+
+Noise. A steady periodic force cancels in the difference of the same bin's means in consecutive
+cycles, which leaves noise: half its square estimates the variance of one bin mean, whatever the noise's
+colour within a bin. These are pooled into var = a/n + b·F² (white plus force-proportional;
+:func:`bin_variance_model`), from the cases whose period is at least the campaign's median (noise slower
+than a short period would cancel in its differences and be missed). A variogram fit
+(:func:`isokinetic.measurement.noise.fit_noise_model`) does not serve here: within any stretch of a sine the
+proportional noise's level changes with the force, and its variogram reads that as slow noise. Where a
+model is at hand (the nominal model, in the second pass), its own cycle-to-cycle convergence is taken off
+the differences (seconds, for a stiff low-speed damper). Noise slower than a short record is one draw per
+case: a common error s·|F| in all its bins, which cycle differences cannot see. Its size is measured as the
+between-case scatter of each case's even mode against that model (:func:`between_case_scatter`; a symmetric
+damper's force and every symmetric effect are odd over a cycle) and added to the bins' variances; the errors
+of one case's bins stay correlated, which diagonal standard errors do not describe.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Phase bins per cycle (a multiple of 4).
+N_SINE_BINS = 16
+#: Cycles left out at the start of a record: the servo's start-up, which the fitted sine does not describe.
+SKIPPED_CYCLES = 1
+#: A bin whose centre lies within this phase of peak speed is a ``window`` [rad].
+WINDOW_HALF_WIDTH_RAD = math.pi / 4
+#: Gauss-Newton iterations of the frequency refinement (quadratic convergence from the linear fit's start).
+FIT_ITERATIONS = 6
+
+
+@dataclass(frozen=True)
+class SineFit:
+    """y = offset + Y sin(2π f t + φ), fitted to a displacement record; ``amplitude_rel_se`` the relative
+    standard error of Y (LVDT noise)."""
+
+    offset_m: float
+    amplitude_m: float
+    frequency_Hz: float
+    phase_rad: float
+    amplitude_rel_se: float
+
+    def start_s(self, t0_s: float) -> float:
+        """The fitted sine's cycle start (phase 0, rising) nearest to ``t0_s``: in [t0 - 1/(2f), t0 + 1/(2f)) (a
+        record that starts at rest shortly before the motion: the motion's start)."""
+        period = 1.0 / self.frequency_Hz
+        first = -self.phase_rad / (2.0 * math.pi * self.frequency_Hz)
+        return first + math.floor((t0_s - first) / period + 0.5) * period
+
+
+def _linear_sine(t: np.ndarray, y: np.ndarray, omega: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Least squares of y = c + a sin ωt + b cos ωt: (coefficients, design, residuals)."""
+    design = np.column_stack([np.ones_like(t), np.sin(omega * t), np.cos(omega * t)])
+    coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+    return coef, design, y - design @ coef
+
+
+def fit_sine(time_s, displacement_m, frequency_Hz: float) -> SineFit | None:
+    """Least-squares sine through a displacement record: the linear fit at the planned frequency, then
+    Gauss-Newton on (c, a, b, ω) (times centred for conditioning); None for fewer than 8 samples or no motion."""
+    t = np.asarray(time_s, dtype=float)
+    y = np.asarray(displacement_m, dtype=float)
+    if t.size < 8 or not np.all(np.isfinite(y)):
+        return None
+    mid = 0.5 * (t[0] + t[-1])
+    tc = t - mid
+    omega = 2.0 * math.pi * frequency_Hz
+    coef, design, resid = _linear_sine(tc, y, omega)
+    for _ in range(FIT_ITERATIONS):
+        d_omega = tc * (coef[1] * np.cos(omega * tc) - coef[2] * np.sin(omega * tc))
+        jac = np.column_stack([design, d_omega])
+        step, *_ = np.linalg.lstsq(jac, resid, rcond=None)
+        omega += step[3]
+        coef, design, resid = _linear_sine(tc, y, omega)
+        if abs(step[3]) < 1e-12 * omega:
+            break
+    amp = math.hypot(coef[1], coef[2])
+    if not (amp > 0.0 and omega > 0.0):
+        return None
+    s2 = float(resid @ resid) / max(t.size - 4, 1)
+    cov = s2 * np.linalg.pinv(design.T @ design)
+    grad = np.array([0.0, coef[1], coef[2]]) / amp
+    rel_se = math.sqrt(max(float(grad @ cov @ grad), 0.0)) / amp
+    # a sin ωtc + b cos ωtc = Y sin(ω t + φ) with φ = atan2(b, a) - ω mid
+    phase = math.remainder(math.atan2(coef[2], coef[1]) - omega * mid, 2.0 * math.pi)
+    return SineFit(float(coef[0]), amp, omega / (2.0 * math.pi), phase, rel_se)
+
+
+def phase_bins(n_bins: int = N_SINE_BINS) -> list[tuple[float, float, float, str]]:
+    """(start, end, sign, kind) of each phase bin of one cycle, as fractions of the period."""
+    if n_bins % 4 or n_bins <= 0:
+        raise ValueError(f"n_bins must be a positive multiple of 4, got {n_bins}")
+    out = []
+    for j in range(n_bins):
+        centre = 2.0 * math.pi * (j + 0.5) / n_bins
+        kind = "window" if abs(math.cos(centre)) >= math.cos(WINDOW_HALF_WIDTH_RAD) else "transient"
+        out.append((j / n_bins, (j + 1) / n_bins, 1.0 if math.cos(centre) > 0.0 else -1.0, kind))
+    return out
+
+
+def mean_speed(fit: SineFit, a_s: float, b_s: float) -> float:
+    """Mean |dy/dt| of the fitted sine over plan times [a, b) inside one direction of motion [m/s]."""
+    w = 2.0 * math.pi * fit.frequency_Hz
+    return abs(fit.amplitude_m * (math.sin(w * b_s) - math.sin(w * a_s))) / (b_s - a_s)
+
+
+def bin_variance_model(key: np.ndarray, cycle: np.ndarray, force_N: np.ndarray, n: np.ndarray, long: np.ndarray,
+                       model_N: np.ndarray | None = None) -> tuple[float, float]:
+    """(a [N²], b [-]) of the variance of a bin mean, a/n + b·F², from the differences of the same bin's means
+    in consecutive cycles (``key``: the bin's case and phase slot; a periodic force cancels, so
+    E[d²]/2 is the variance of one mean), less the differences of ``model_N`` (a model's bin means: its own
+    cycle-to-cycle convergence is no noise) where given. Only the bins of ``long`` cases enter (periods long
+    against the noise's correlation; a shorter one would cancel slow noise). Non-negative least squares,
+    weighted by the fitted variance once (the variance of d² is twice its square)."""
+    from scipy.optimize import nnls
+
+    g = force_N - (0.0 if model_N is None else model_N)
+    order = np.lexsort((cycle, key))
+    k, c, gg, f, nn, lg = key[order], cycle[order], g[order], force_N[order], n[order], long[order]
+    pair = (k[1:] == k[:-1]) & (c[1:] == c[:-1] + 1) & lg[1:]
+    if not pair.any():
+        return 0.0, 0.0
+    y = 0.5 * (gg[1:] - gg[:-1])[pair] ** 2
+    design = np.column_stack([0.5 * (1.0 / nn[1:] + 1.0 / nn[:-1])[pair], (0.5 * (f[1:] + f[:-1])[pair]) ** 2])
+    weight = np.ones(y.size)
+    for _ in range(2):
+        coef, _ = nnls(design * weight[:, None], y * weight)
+        fitted = design @ coef
+        if not np.any(fitted > 0.0):
+            break
+        weight = 1.0 / np.maximum(fitted, 1e-12 * float(fitted.max()))
+    return float(coef[0]), float(coef[1])
+
+
+def between_case_scatter(case: np.ndarray, residual_N: np.ndarray, model_N: np.ndarray, var_N2: np.ndarray) -> float:
+    """Relative scatter s of a common even error per case, s·|F| in every bin of a case, beyond the bins' own
+    variances: the noise slower than a short record (a proportional noise correlated over longer than the
+    record is one draw per case). Each case's even mode e = Σ r|M|/var / Σ M²/var (``residual_N`` r = F - M,
+    against a model M: a symmetric damper's force and every symmetric effect are odd over a cycle and leave
+    it) is regressed on a common term and an offset's 1/|F| pattern (an asymmetry or a load-cell offset are
+    common to all cases, not scatter); s² = the residual variance beyond the e's own, 0 for fewer than four
+    cases."""
+    names = list(dict.fromkeys(case.tolist()))
+    if len(names) < 4:
+        return 0.0
+    rows = []
+    for c in names:
+        m = case == c
+        u, w = np.abs(model_N[m]), 1.0 / var_N2[m]
+        norm = float(np.sum(w * u * u))
+        if norm <= 0.0:
+            continue
+        rows.append((float(np.sum(w * residual_N[m] * u)) / norm, float(np.sum(w * u)) / norm, 1.0 / norm))
+    if len(rows) < 4:
+        return 0.0
+    e, offset, own = (np.array(x) for x in zip(*rows, strict=True))
+    design = np.column_stack([np.ones_like(e), offset])
+    coef, *_ = np.linalg.lstsq(design, e, rcond=None)
+    resid = e - design @ coef
+    return math.sqrt(max(float(resid @ resid) / (e.size - 2) - float(np.mean(own)), 0.0))

@@ -1,0 +1,48 @@
+"""The model driven by a measured sine (isokinetic.physics.sine_drive) against the virtual rig's own sine
+integration (physics.responses.sine_response) on the plan grid and between its samples."""
+
+import math
+
+import numpy as np
+import pytest
+
+from isokinetic.physics.damper import TABLE_1, Effects
+from isokinetic.physics.hydraulics import Hydraulics
+from isokinetic.physics.plan import CasePlan
+from isokinetic.physics.responses import sine_response
+from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
+
+HYD = Hydraulics.from_damper(TABLE_1, Effects(air_volume_fraction=0.01))
+
+
+def plan(frequency_Hz: float, amplitude_m: float, fs: float, cycles: float = 3.0) -> CasePlan:
+    return CasePlan("H01", "sine", fs, amplitude_m=amplitude_m, frequency_Hz=frequency_Hz, phase_rad=0.0,
+                    duration_s=cycles / frequency_Hz)
+
+
+@pytest.mark.parametrize("backlash_m", [0.0, 2e-6])
+def test_on_the_plan_grid_the_sine_drive_is_the_virtual_rigs_sine(backlash_m):
+    p = plan(2.0, 2e-5, 400.0)
+    t, dp, vel = sine_response(p, HYD, backlash_m)
+    tau, dp2, vel2 = sine_drive_response(SineDrive(p.amplitude_m, 2.0, 0.0, t.size), 400.0, HYD, backlash_m)
+    assert np.allclose(tau, t, rtol=0, atol=1e-12)
+    assert np.max(np.abs(dp2 - dp)) < 1e-6 * np.max(np.abs(dp))
+    assert np.allclose(vel2[1:], vel[1:], rtol=0, atol=1e-12) and vel2[0] == 0.0   # at rest up to τ = 0
+
+
+def test_an_offset_grid_samples_between_the_plan_grids_samples():
+    # the plan grid at 2 fs holds the offset grid (start half a sample late) as its odd samples
+    fine = plan(5.0, 1e-5, 1000.0)
+    t, dp, _ = sine_response(fine, HYD)
+    drive = SineDrive(fine.amplitude_m, 5.0, 0.5 / 500.0, (t.size - 1) // 2)
+    tau, dp2, _ = sine_drive_response(drive, 500.0, HYD)
+    assert np.allclose(tau, t[1::2][:tau.size], rtol=0, atol=1e-12)
+    assert np.max(np.abs(dp2 - dp[1::2][:tau.size])) < 1e-6 * np.max(np.abs(dp))
+
+
+def test_before_the_motion_starts_the_model_is_at_rest():
+    drive = SineDrive(1e-5, 1.0, -0.05, 200)
+    tau, dp, vel = sine_drive_response(drive, 100.0, HYD)
+    before = tau <= 0.0
+    assert before.sum() == 6 and np.all(dp[before] == 0.0) and np.all(vel[before] == 0.0)
+    assert vel[~before][0] == pytest.approx(1e-5 * 2 * math.pi * math.cos(2 * math.pi * tau[~before][0]))
