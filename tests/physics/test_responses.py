@@ -30,7 +30,8 @@ from isokinetic.physics.responses import (
     true_response,
 )
 from isokinetic.physics.servo import servo_response
-from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, simulate_case
+from isokinetic.physics.virtual_rig import Measurement, simulate_case
+from isokinetic.stages.virtual_rig import VirtualCampaign
 from testconfig import TEST_CONFIG as CONFIG
 
 TRUTH = dm.Effects(coulomb_force_N=90.0, leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)

@@ -13,10 +13,10 @@ import yaml
 from isokinetic.contracts.scenarios import EFFECTS
 from isokinetic.measurement.windows import case_windows
 from isokinetic.physics.damper import TABLE_1, Effects
+from isokinetic.physics.virtual_rig import Measurement, simulate_cases
 from isokinetic.reference import campaign as rrc
 from isokinetic.stages import blind_generate as gen
 from isokinetic.stages.blind_generate import BOUNDS, effect_fields, generate_scenarios, magnitude_bin, write_suite
-from isokinetic.stages.virtual_rig import Measurement, simulate_cases
 
 SEED = 11
 SUITE = {"n_per_effect": 1, "n_pairs": 2, "n_none": 1, "n_out": 3}

@@ -219,7 +219,7 @@ def test_a_sine_case_too_short_for_two_cycles_is_named_and_skipped():
     spec = copy.deepcopy(SINE)
     spec["plan"]["sine"].update(periods=2, amplitudes_mm=[0.3])
     vc = VirtualCampaign.from_config("short", spec)
-    from isokinetic.stages.virtual_rig import simulate_case
+    from isokinetic.physics.virtual_rig import simulate_case
     series = simulate_case(vc.cases[0], vc.damper, vc.effects, vc.measurement, vc.seed)
     cases = pd.DataFrame([{"campaign": "short", "case": vc.cases[0].case, "waveform": "sine", "status": "ok",
                            "raw_file": "x", "raw_sha256": "0" * 64, "frequency_Hz": 1.75, "amplitude_m": 3e-4}])

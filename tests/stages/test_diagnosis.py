@@ -9,10 +9,11 @@ from isokinetic.io import write_parquet
 from isokinetic.measurement.repeatability import repeatability
 from isokinetic.physics.damper import TABLE_1, Effects
 from isokinetic.physics.plan import CasePlan
+from isokinetic.physics.virtual_rig import Measurement
 from isokinetic.stages import diagnosis as dg
 from isokinetic.stages.characteristic import assemble, windows_stage
 from isokinetic.stages.validate import write_validated
-from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, write_campaign
+from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
 
 # speeds [mm/s] and periods [s]: across the laminar-turbulent transition, the fast ones short
 PLAN = [(0.01, 80.0), (0.05, 80.0), (0.2, 20.0), (0.5, 20.0), (1.0, 20.0), (1.5, 20.0)]

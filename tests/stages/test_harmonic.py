@@ -17,14 +17,10 @@ import pytest
 from scipy.optimize import brentq
 
 from isokinetic.contracts import tables
-from isokinetic.physics import damper as dm
-from isokinetic.physics.damper import TABLE_1 as TABLE1
-from isokinetic.physics.plan import CasePlan
-from isokinetic.stages.harmonic import (
+from isokinetic.measurement.loops import (
     binned_characteristic,
     default_window_s,
     free_loop,
-    harmonic_stage,
     loop,
     peak_to_peak,
     peak_velocity_characteristic,
@@ -32,9 +28,12 @@ from isokinetic.stages.harmonic import (
     savgol_derivative_coeffs,
     signed_area,
     smooth_velocity,
-    write_harmonic,
 )
-from isokinetic.stages.virtual_rig import Measurement, simulate_case
+from isokinetic.physics import damper as dm
+from isokinetic.physics.damper import TABLE_1 as TABLE1
+from isokinetic.physics.plan import CasePlan
+from isokinetic.physics.virtual_rig import Measurement, simulate_case
+from isokinetic.stages.harmonic import harmonic_stage, write_harmonic
 
 LEAKY = dm.Effects(leakage_conductance_m3_s_Pa=2.2e-12)
 TRUTH = dm.Effects(coulomb_force_N=90.0, leakage_conductance_m3_s_Pa=2.2e-12, asymmetry=0.06)

@@ -24,9 +24,9 @@ from isokinetic.physics import damper as dm
 from isokinetic.physics.damper import TABLE_1 as TABLE1
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import true_responses
+from isokinetic.physics.virtual_rig import Measurement, measure
 from isokinetic.stages.characteristic import assemble
 from isokinetic.stages.models import write_models
-from isokinetic.stages.virtual_rig import Measurement, measure
 
 #: Sensor model of config/config.yaml (paper-lag-damper), with its ADC resolutions.
 SENSORS = Measurement(force_noise_N=5.0, force_noise_rel=0.01, displacement_noise_m=1.0e-6)

@@ -20,9 +20,10 @@ from isokinetic.physics import damper as dm
 from isokinetic.physics.damper import NOMINAL
 from isokinetic.physics.damper import TABLE_1 as TABLE1
 from isokinetic.physics.plan import CasePlan
+from isokinetic.physics.virtual_rig import Measurement, simulate_case
 from isokinetic.stages.nominal import nominal_stage
 from isokinetic.stages.validate import write_validated
-from isokinetic.stages.virtual_rig import Measurement, VirtualCampaign, simulate_case, write_campaign
+from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
 
 #: The paper's window, [0.45, 0.95] T/2 (the configuration's default)
 PAPER = WindowSpec()

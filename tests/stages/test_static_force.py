@@ -14,9 +14,9 @@ import yaml
 import isokinetic.reference.campaign as rrc
 import isokinetic.reference.rig as rr
 from isokinetic.contracts import tables
+from isokinetic.measurement.loops import binned_characteristic, free_loop
 from isokinetic.measurement.static_force_fit import StaticForceSpec, estimate_static_force, intercept_fit, offset_check
 from isokinetic.stages.characteristic import write_characteristic
-from isokinetic.stages.harmonic import binned_characteristic, free_loop
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.static_force import static_force_stage, write_static_force
 

@@ -19,13 +19,8 @@ from isokinetic.physics import damper as dm
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import true_response
-from isokinetic.stages.virtual_rig import (
-    Measurement,
-    VirtualCampaign,
-    export_raw_campaign,
-    simulate_case,
-    write_campaign,
-)
+from isokinetic.physics.virtual_rig import Measurement, simulate_case
+from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign, write_campaign
 from testconfig import TEST_CONFIG as CONFIG
 
 UNIT_SI = {"s": 1.0, "mm": 1e-3, "kN": 1e3}      # raw-campaign-format units used by the export

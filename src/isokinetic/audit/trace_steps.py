@@ -87,7 +87,7 @@ def _series_step(ctx: Context, src: RawSource, scratch: Path, case: str) -> pd.D
         reasons = "; ".join(q[q["case"] == case]["reason"]) or "?"
         ctx.report.step(f"Validation (validate.case_problems): case {case} is quarantined now: {reasons}")
     raw = RawText(ctx, src, scratch, case)
-    how = "ingest.ingest_case" if src.kind == "raw" else "virtual_rig.simulate_cases"
+    how = "stages.ingest.ingest_case" if src.kind == "raw" else "physics.virtual_rig.simulate_cases"
     ctx.report.step(f"Canonical SI series of {case} ({how}; validation: status {status}): {len(series)} samples, "
                     f"t = {series['time_s'].iloc[0]:g} .. "
                     f"{series['time_s'].iloc[-1]:g} s",

@@ -26,7 +26,7 @@ crossings), positive for a dissipating damper. For F = c v on x = X sin(wt): E =
 F = c2 v|v|: E = (8/3) c2 w^2 X^3.
 
 :func:`steady_range` picks the steady whole periods of a record (first ones skipped while the
-period-mean force still drifts), the same rule as :func:`isokinetic.stages.harmonic.loop`.
+period-mean force still drifts), the same rule as :func:`isokinetic.measurement.loops.loop`.
 """
 
 from __future__ import annotations

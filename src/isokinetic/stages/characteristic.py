@@ -16,7 +16,7 @@ Every point carries its ``method`` (tables.CHARACTERISTIC_METHODS):
   keeps its first period unless its force still drifts). ``n_samples`` counts the cycles and
   ``force_std_N`` is their scatter, so force_std_N / sqrt(n_samples) is the point's standard error, as
   for a window. ``planned_velocity_m_s`` is 2 pi f Y; the row range spans the samples of the fits;
-- ``free_bin``: a status-ok free case's velocity bin (:func:`isokinetic.stages.harmonic.binned_characteristic`),
+- ``free_bin``: a status-ok free case's velocity bin (:func:`isokinetic.measurement.loops.binned_characteristic`),
   segment = the bin's number, period 1, ``planned_velocity_m_s`` the bin's centre, ``n_samples`` its samples.
 
 The sine cases' energy per cycle goes to ``energy.parquet`` (tables.ENERGY).
@@ -38,6 +38,7 @@ from isokinetic.contracts import tables
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.io import write_parquet
+from isokinetic.measurement.loops import binned_characteristic, dominant_period_s, free_loop
 from isokinetic.measurement.peak_velocity import (
     PeakSpec,
     cycle_energies,
@@ -48,7 +49,6 @@ from isokinetic.measurement.peak_velocity import (
 )
 from isokinetic.measurement.repeatability import repeatability
 from isokinetic.measurement.windows import WindowSpec, extract_windows
-from isokinetic.stages.harmonic import binned_characteristic, dominant_period_s, free_loop
 from isokinetic.stages.validate import GapTolerance, write_validated
 
 log = logging.getLogger(__name__)

@@ -15,6 +15,7 @@ from isokinetic.contracts import tables
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
+from isokinetic.measurement.loops import loop as harmonic_loop
 from isokinetic.measurement.model_fit import (
     MODEL_NAMES,
     comparison_table,
@@ -25,7 +26,6 @@ from isokinetic.measurement.model_fit import (
 from isokinetic.measurement.windows import WindowSpec
 from isokinetic.plots.models import comparison_figure, comparison_loglog_figure
 from isokinetic.plots.style import save_figure
-from isokinetic.stages.harmonic import loop as harmonic_loop
 from isokinetic.stages.nominal import nominal_stage
 
 log = logging.getLogger("isokinetic.models")
@@ -74,7 +74,7 @@ FIGURE_FILES = tuple(Path(f.path).name for f in figures_of("models"))
 def sine_loops(campaign_root, max_cases: int = 8) -> dict[str, pd.DataFrame]:
     """Force against velocity of the status-ok sine cases, first period (start from rest) left out.
 
-    Uses :func:`isokinetic.stages.harmonic.loop` (the harmonic stage's velocity estimator, so the loops
+    Uses :func:`isokinetic.measurement.loops.loop` (the harmonic stage's velocity estimator, so the loops
     agree with its peak-to-peak points). A case whose series cannot be read or holds no whole
     period is left out (logged).
     """

@@ -10,11 +10,7 @@ Configuration
     damper, hidden truth effects, :class:`Measurement` (sensors and servo) and the test plan.
 
 Measurement
-    Seeded Gaussian noise, independent per case (``SeedSequence([seed, crc32(case)])``): LVDT noise
-    on the actuator position (the command for a rigid servo), additive plus |F|-proportional noise
-    on the force (Fig. 12). Every channel is then quantised to a stated resolution (ADC step), so
-    the exported CSV prints exact decimals and reading it back reproduces the simulated series to
-    float rounding.
+    The simulation and its sensor model: :mod:`isokinetic.physics.virtual_rig`.
 
 Export
     :func:`write_campaign` writes the ingested campaign (the rule's output); :func:`export_raw_campaign`
@@ -29,8 +25,7 @@ import math
 import os
 import shutil
 import tempfile
-import zlib
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from decimal import Decimal
 from pathlib import Path
@@ -44,8 +39,13 @@ from isokinetic.contracts.campaign import CAMPAIGN_KEYS, timeseries_relpath, wri
 from isokinetic.contracts.outputs import CAMPAIGN_ID
 from isokinetic.physics.damper import Damper, Effects
 from isokinetic.physics.plan import CasePlan, paper_plan
-from isokinetic.physics.responses import true_response, true_responses
-from isokinetic.physics.servo import check_stiffness
+from isokinetic.physics.virtual_rig import (
+    Measurement,
+    check_keys,
+    check_mapping,
+    check_number,
+    simulate_cases,
+)
 
 #: CSV columns of an exported case: (column name, unit, SI per unit).
 RAW_COLUMNS = {
@@ -59,76 +59,6 @@ RAW_COLUMNS = {
 # --------------------------------------------------------------------------------------------
 # Configuration
 # --------------------------------------------------------------------------------------------
-
-def _number(value, key: str, *, positive: bool = False, nonnegative: bool = False) -> float:
-    """A finite float from config, else ValueError naming ``key``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{key}: must be a finite number, got {value!r}")
-    if positive and value <= 0:
-        raise ValueError(f"{key}: must be > 0, got {value!r}")
-    if nonnegative and value < 0:
-        raise ValueError(f"{key}: must be >= 0, got {value!r}")
-    return float(value)
-
-
-def _mapping(value, key: str) -> Mapping:
-    if not isinstance(value, Mapping):
-        raise ValueError(f"{key}: must be a mapping, got {type(value).__name__}")
-    return value
-
-
-def _check_keys(values: Mapping, allowed: Iterable[str], required: Iterable[str], where: str) -> None:
-    allowed = set(allowed)
-    for key in values:
-        if key not in allowed:
-            raise KeyError(f"{where}: unknown key {key!r}; allowed: {sorted(allowed)}")
-    for key in required:
-        if key not in values:
-            raise KeyError(f"{where}: missing key {key!r}")
-
-
-@dataclass(frozen=True)
-class Measurement:
-    """Sensor and servo model of the rig (1σ noise levels, ADC resolutions, servo stiffness, SI).
-
-    Resolutions quantise the *measured* channels (and the command) to integer multiples of the
-    step; 0 disables quantisation. A resolution must be a short decimal in the export unit
-    (e.g. 0.1 N = 1e-4 kN) so that the CSV prints it exactly.
-
-    ``servo_stiffness_N_m`` k: the displacement-controlled actuator lags its command under load,
-    x = command - F/k, and the LVDT measures x (:func:`servo.servo_response`). inf (the default) is a
-    rigid servo: x = command exactly, the fast paths of :func:`responses.true_responses`.
-    """
-
-    force_noise_N: float = 0.0
-    force_noise_rel: float = 0.0
-    displacement_noise_m: float = 0.0
-    force_resolution_N: float = 0.1
-    displacement_resolution_m: float = 1.0e-7
-    command_resolution_m: float = 1.0e-9
-    servo_stiffness_N_m: float = math.inf
-
-    def __post_init__(self):
-        for f in dataclasses.fields(self):
-            if f.name == "servo_stiffness_N_m":
-                check_stiffness(self.servo_stiffness_N_m, f"measurement.{f.name}")
-            else:
-                _number(getattr(self, f.name), f"measurement.{f.name}", nonnegative=True)
-
-    @classmethod
-    def ideal(cls) -> Measurement:
-        """Noise free and unquantised (for physics checks)."""
-        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-
-    @classmethod
-    def from_config(cls, values: Mapping | None, where: str = "measurement") -> Measurement:
-        """Build from the config block; unknown keys raise KeyError naming the key."""
-        values = _mapping(values or {}, where)
-        names = [f.name for f in dataclasses.fields(cls)]
-        _check_keys(values, names, (), where)
-        return cls(**{k: (check_stiffness(v, f"{where}.{k}") if k == "servo_stiffness_N_m"
-                          else _number(v, f"{where}.{k}", nonnegative=True)) for k, v in values.items()})
-
 
 @dataclass(frozen=True)
 class VirtualCampaign:
@@ -158,8 +88,8 @@ class VirtualCampaign:
         where = f"virtual_campaigns.{name}"
         if not isinstance(name, str) or not CAMPAIGN_ID.fullmatch(name):
             raise ValueError(f"{where}: campaign name must match [a-z0-9][a-z0-9_-]*")
-        mapping = _mapping(mapping, where)
-        _check_keys(mapping, ("description", "seed", "temperature_C", "damper", "effects", "measurement", "plan"),
+        mapping = check_mapping(mapping, where)
+        check_keys(mapping, ("description", "seed", "temperature_C", "damper", "effects", "measurement", "plan"),
                     ("seed", "temperature_C", "damper", "plan"), where)
         seed = mapping["seed"]
         if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
@@ -168,124 +98,63 @@ class VirtualCampaign:
         if not isinstance(description, str):
             raise ValueError(f"{where}.description: must be a string")
         try:
-            damper = Damper.from_mapping(_mapping(mapping["damper"], f"{where}.damper"))
+            damper = Damper.from_mapping(check_mapping(mapping["damper"], f"{where}.damper"))
         except (KeyError, ValueError) as exc:
             raise type(exc)(f"{where}.{exc.args[0]}") from exc
-        extra = set(_mapping(mapping["damper"], f"{where}.damper")) - {f.name for f in dataclasses.fields(Damper)}
+        extra = set(check_mapping(mapping["damper"], f"{where}.damper")) - {f.name for f in dataclasses.fields(Damper)}
         if extra:
             raise KeyError(f"{where}.damper: unknown key {sorted(extra)[0]!r}")
-        groups = _mapping(mapping.get("effects") or {}, f"{where}.effects")
+        groups = check_mapping(mapping.get("effects") or {}, f"{where}.effects")
         for group, values in groups.items():
-            for key, value in _mapping(values or {}, f"{where}.effects.{group}").items():
-                _number(value, f"{where}.effects.{group}.{key}")
+            for key, value in check_mapping(values or {}, f"{where}.effects.{group}").items():
+                check_number(value, f"{where}.effects.{group}.{key}")
         try:
             effects = Effects.from_config(groups)
         except KeyError as exc:
             raise KeyError(f"{where}.{exc.args[0]}") from exc
         measurement = Measurement.from_config(mapping.get("measurement"), f"{where}.measurement")
-        cases = _plan_from_config(_mapping(mapping["plan"], f"{where}.plan"), f"{where}.plan")
+        cases = _plan_from_config(check_mapping(mapping["plan"], f"{where}.plan"), f"{where}.plan")
         return cls(name=name, description=description.strip(), seed=seed,
-                   temperature_C=_number(mapping["temperature_C"], f"{where}.temperature_C"),
+                   temperature_C=check_number(mapping["temperature_C"], f"{where}.temperature_C"),
                    damper=damper, effects=effects, measurement=measurement, cases=tuple(cases))
 
 
 def _number_list(values, key: str) -> list[float]:
     if not isinstance(values, (list, tuple)) or not values:
         raise ValueError(f"{key}: must be a non-empty list")
-    return [_number(v, f"{key}[{i}]", positive=True) for i, v in enumerate(values)]
+    return [check_number(v, f"{key}[{i}]", positive=True) for i, v in enumerate(values)]
 
 
 def _plan_from_config(plan: Mapping, where: str) -> list[CasePlan]:
     """Cases of a ``plan`` block via :func:`plan.paper_plan` (mm -> m)."""
-    _check_keys(plan, ("triangle", "sine"), (), where)
+    check_keys(plan, ("triangle", "sine"), (), where)
     if not plan:
         raise KeyError(f"{where}: needs a 'triangle' and/or a 'sine' block")
     velocities, periods, tri_rate, phase, acq = [], [], 1.0, -math.pi / 2, 2.0
     if "triangle" in plan:
         w = f"{where}.triangle"
-        tri = _mapping(plan["triangle"], w)
-        _check_keys(tri, ("velocities_mm_s", "periods_s", "phase_rad", "acquisition_periods", "sample_rate_Hz"),
+        tri = check_mapping(plan["triangle"], w)
+        check_keys(tri, ("velocities_mm_s", "periods_s", "phase_rad", "acquisition_periods", "sample_rate_Hz"),
                     ("velocities_mm_s", "periods_s", "sample_rate_Hz"), w)
         velocities = [v * 1e-3 for v in _number_list(tri["velocities_mm_s"], f"{w}.velocities_mm_s")]
         periods = _number_list(tri["periods_s"], f"{w}.periods_s")
         if len(periods) != len(velocities):
             raise ValueError(f"{w}.periods_s: {len(periods)} periods for {len(velocities)} velocities")
-        tri_rate = _number(tri["sample_rate_Hz"], f"{w}.sample_rate_Hz", positive=True)
-        phase = _number(tri.get("phase_rad", phase), f"{w}.phase_rad")
-        acq = _number(tri.get("acquisition_periods", acq), f"{w}.acquisition_periods", positive=True)
+        tri_rate = check_number(tri["sample_rate_Hz"], f"{w}.sample_rate_Hz", positive=True)
+        phase = check_number(tri.get("phase_rad", phase), f"{w}.phase_rad")
+        acq = check_number(tri.get("acquisition_periods", acq), f"{w}.acquisition_periods", positive=True)
     amplitudes, freq, sine_rate, sine_periods = [], 1.0, 1.0, 1.0
     if "sine" in plan:
         w = f"{where}.sine"
-        sine = _mapping(plan["sine"], w)
-        _check_keys(sine, ("frequency_Hz", "amplitudes_mm", "periods", "sample_rate_Hz"),
+        sine = check_mapping(plan["sine"], w)
+        check_keys(sine, ("frequency_Hz", "amplitudes_mm", "periods", "sample_rate_Hz"),
                     ("frequency_Hz", "amplitudes_mm", "periods", "sample_rate_Hz"), w)
         amplitudes = [a * 1e-3 for a in _number_list(sine["amplitudes_mm"], f"{w}.amplitudes_mm")]
-        freq = _number(sine["frequency_Hz"], f"{w}.frequency_Hz", positive=True)
-        sine_rate = _number(sine["sample_rate_Hz"], f"{w}.sample_rate_Hz", positive=True)
-        sine_periods = _number(sine["periods"], f"{w}.periods", positive=True)
+        freq = check_number(sine["frequency_Hz"], f"{w}.frequency_Hz", positive=True)
+        sine_rate = check_number(sine["sample_rate_Hz"], f"{w}.sample_rate_Hz", positive=True)
+        sine_periods = check_number(sine["periods"], f"{w}.periods", positive=True)
     return paper_plan(velocities, periods, amplitudes, freq, tri_rate, sine_rate, sine_periods,
                       phase_rad=phase, acquisition_periods=acq)
-
-
-# --------------------------------------------------------------------------------------------
-# Measurement and cases
-# --------------------------------------------------------------------------------------------
-
-def quantise(x, resolution: float) -> np.ndarray:
-    """Nearest integer multiple of ``resolution`` (0: unchanged); never -0.0."""
-    x = np.asarray(x, dtype=float)
-    if resolution == 0.0:
-        return x + 0.0
-    return np.rint(x / resolution) * resolution + 0.0
-
-
-def case_rng(seed: int, case_id: str) -> np.random.Generator:
-    """Independent, reproducible noise stream of one case: SeedSequence([seed, crc32(case)])."""
-    return np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(case_id.encode("utf-8"))]))
-
-
-def simulate_case(case: CasePlan, damper: Damper, effects: Effects, measurement: Measurement,
-                  seed: int) -> pd.DataFrame:
-    """Measured record of one case (tables.TIMESERIES): row, time_s, displacement_m, force_N, command_m.
-
-    displacement = LVDT on the actuator (the command for a rigid servo, command - F/k otherwise;
-    plus noise), force = transmitted force (Eq. 8 in contact) + additive and |F|-proportional
-    noise; both then quantised (``measurement`` resolutions).
-    """
-    return measure(case, true_response(case, damper, effects, servo_stiffness_N_m=measurement.servo_stiffness_N_m),
-                   measurement, seed)
-
-
-def measure(case: CasePlan, truth: pd.DataFrame, measurement: Measurement, seed: int) -> pd.DataFrame:
-    """Sensor model applied to a noise-free record (:func:`true_response`) of ``case``.
-
-    Draws, in this order from ``case_rng(seed, case.case)``: LVDT noise, additive force noise,
-    relative force noise (standard normals of the record length).
-    """
-    n = len(truth)
-    rng = case_rng(seed, case.case)
-    z_disp = rng.standard_normal(n)
-    z_add = rng.standard_normal(n)
-    z_rel = rng.standard_normal(n)
-    f = truth["force_N"].to_numpy()
-    cmd = truth["command_m"].to_numpy()
-    lvdt = truth["actuator_m"].to_numpy() if "actuator_m" in truth else cmd
-    force = f + measurement.force_noise_N * z_add + measurement.force_noise_rel * np.abs(f) * z_rel
-    disp = lvdt + measurement.displacement_noise_m * z_disp
-    return pd.DataFrame({
-        "row": np.arange(n, dtype=np.int64),
-        "time_s": truth["time_s"].to_numpy(),
-        "displacement_m": quantise(disp, measurement.displacement_resolution_m),
-        "force_N": quantise(force, measurement.force_resolution_N),
-        "command_m": quantise(cmd, measurement.command_resolution_m),
-    })
-
-
-def simulate_cases(cases: Sequence[CasePlan], damper: Damper, effects: Effects, measurement: Measurement,
-                   seed: int) -> dict[str, pd.DataFrame]:
-    """:func:`simulate_case` of many cases, physics batched; {case id: record}, in the given order."""
-    truths = true_responses(cases, damper, effects, servo_stiffness_N_m=measurement.servo_stiffness_N_m)
-    return {c.case: measure(c, truth, measurement, seed) for c, truth in zip(cases, truths)}
 
 
 def simulate_campaign(vc: VirtualCampaign) -> dict[str, pd.DataFrame]:
@@ -435,7 +304,7 @@ def export_raw_campaign(vc: VirtualCampaign, out_dir: str | os.PathLike, cases: 
             vc.case(cid)
         selected = [c for c in vc.cases if c.case in set(wanted)]
     if sample_rate_Hz is not None:
-        rate = _number(sample_rate_Hz, "sample_rate_Hz", positive=True)
+        rate = check_number(sample_rate_Hz, "sample_rate_Hz", positive=True)
         selected = [dataclasses.replace(c, sample_rate_Hz=rate) for c in selected]
         sample_rate_Hz = rate
     manifest = campaign_manifest(vc, selected, name, sample_rate_Hz)
