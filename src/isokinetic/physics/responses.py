@@ -459,8 +459,9 @@ def scaled_viscosity(hyd: Hydraulics, scale: float) -> Hydraulics:
     return replace(hyd, laminar_coefficient=hyd.laminar_coefficient * scale, laminar_coefficient_neg=neg)
 
 
-def _sine_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):
-    """rhs and Jacobian of Eq. (1) on one piece of a sine case: pushed (y = Y sin ωt + offset) or at rest."""
+def sine_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):
+    """rhs and Jacobian of Eq. (1) on one piece of a sine case: pushed (y = Y sin ωt + offset) or at rest
+    (``seg``: a piece of :func:`isokinetic.physics.excitation.piston_segments`)."""
     a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
     q_n, dq_n = hyd.flow, hyd.flow_derivative
     if seg.contact:
@@ -507,7 +508,7 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
     vel = np.zeros(t.size)
     p = 0.0
     for seg, idx in zip(segs, segment_index(t, segs)):
-        rhs, jac = _sine_segment_system(seg, hyd, amp, omega)
+        rhs, jac = sine_segment_system(seg, hyd, amp, omega)
         t_eval = t[idx]
         t0, t1 = seg.t_start_s, seg.t_end_s
         sol = solve_ivp(rhs, (t0, t1), [p], method=method, jac=jac, rtol=rtol, atol=atol,

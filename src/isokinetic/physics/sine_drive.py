@@ -22,6 +22,7 @@ import numpy as np
 from isokinetic.physics.excitation import check_stroke, piston_segments, segment_index
 from isokinetic.physics.hydraulics import Hydraulics, steady_pressure
 from isokinetic.physics.plan import CasePlan
+from isokinetic.physics.responses import sine_segment_system
 
 #: Relative tolerance of the model's integration: ~1e-7 of the force scale (measured against rtol 1e-12),
 #: far below any bin's noise, and smooth enough in the parameters for finite-difference Jacobians.
@@ -56,28 +57,6 @@ class SineDrive:
         return SineDrive(self.amplitude_m * factor, self.frequency_Hz, self.grid_start_s, self.n_samples)
 
 
-def _system(seg, hyd: Hydraulics, amp: float, omega: float):
-    """rhs and Jacobian of Eq. (1) on one piece: pushed (y = Y sin ωτ + offset) or at rest."""
-    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
-    flow, slope = hyd.flow, hyd.flow_derivative
-    contact, off = seg.contact, seg.offset_m
-    rest_volume = beta * hyd.composite_volume(seg.piston_start_m)
-
-    def kin(tt):
-        if not contact:
-            return 0.0, rest_volume
-        return a * amp * omega * math.cos(omega * tt), beta * hyd.composite_volume(amp * math.sin(omega * tt) + off)
-
-    def rhs(tt, z):
-        qp, cap = kin(tt)
-        return [(qp - flow(z[0])) / cap]
-
-    def jac(tt, z):
-        return [[-slope(z[0]) / kin(tt)[1]]]
-
-    return rhs, jac
-
-
 def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics, backlash_m: float = 0.0,
                         rtol: float = SINE_RTOL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(τ, Δp, piston velocity) of the model driven by ``drive`` at its sample times (Eq. 1, 2, 7; Δp = 0 and
@@ -103,7 +82,7 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
         t_eval, t0, t1 = t[idx], seg.t_start_s, seg.t_end_s
         if t1 <= t0:
             continue
-        rhs, jac = _system(seg, hyd, amp, omega)
+        rhs, jac = sine_segment_system(seg, hyd, amp, omega)
         times = np.concatenate([[t0], t_eval, [t1]])
         sol, info = odeint(rhs, [p], times, Dfun=jac, rtol=rtol, atol=atol, tfirst=True, full_output=True,
                            mxstep=100_000)

@@ -15,7 +15,6 @@ whose diagnosis fails, ``status: failed``.
 from __future__ import annotations
 
 import contextlib
-import json
 import logging
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts.campaign import viscosity_scales
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import (
     INSTRUMENT,
@@ -34,8 +34,6 @@ from isokinetic.diagnosis.instrument import (
 from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
 from isokinetic.diagnosis.observations import Observations, build_observations
 from isokinetic.diagnosis.result import (
-    CASES_FILE,
-    CHARACTERISTIC_FILE,
     no_model,
     observation_sources,
     validate_diagnosis,
@@ -62,11 +60,11 @@ def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame
     """(campaign, nominal damper or None, cases, characteristic, case -> viscosity scale) of a processed
     campaign folder; the scales put each case at its temperature's viscosity (format 1.1 viscosity law,
     :func:`isokinetic.contracts.campaign.viscosity_scales`; empty without one)."""
-    root = Path(campaign_root)
-    meta = json.loads((root / "ingest" / "campaign.json").read_text(encoding="utf-8"))
-    damper = None if meta.get("damper") is None else Damper.from_mapping(meta["damper"])
-    cases = pd.read_parquet(root / CASES_FILE)
-    char = pd.read_parquet(root / CHARACTERISTIC_FILE)
+    folder = CampaignFolder.at(campaign_root)
+    meta = folder.meta()
+    damper = folder.damper(meta)
+    cases = folder.validated_cases()
+    char = folder.characteristic()
     if "method" in char:  # the triangle windows only: a sine is diagnosed from its record (phase bins)
         char = char[char["method"] == "triangle_window"].reset_index(drop=True)
     return meta["campaign"], damper, cases, char, viscosity_scales(meta, cases)

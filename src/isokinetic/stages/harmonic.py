@@ -18,6 +18,7 @@ from pathlib import Path
 import pandas as pd
 
 from isokinetic.contracts import tables
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
 from isokinetic.io import write_parquet
 from isokinetic.measurement.loops import (
@@ -46,10 +47,11 @@ COLUMNS = ["campaign", "case", "waveform", "kind", "direction", "velocity_m_s", 
 # ----------------------------------------------------------------------------------------------
 
 def _read_cases(root: Path) -> pd.DataFrame | None:
-    for p in (root / "cases.parquet", root / "ingest" / "cases.parquet"):
-        if p.is_file():
-            return pd.read_parquet(p)
-    return None
+    """Validate's cases table, else ingest's (:meth:`CampaignFolder.cases`); None when the folder has neither."""
+    try:
+        return CampaignFolder.at(root).cases()
+    except FileNotFoundError:
+        return None
 
 
 def _empty_table() -> pd.DataFrame:
