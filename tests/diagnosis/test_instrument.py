@@ -61,17 +61,23 @@ def test_rescaled_drives_divide_every_measured_speed(campaign):
         assert np.allclose(np.array(after.speeds_m_s) * 1.02, before.speeds_m_s)
 
 
-def test_lagged_model_means_are_the_means_of_the_model_force_shifted_back(campaign):
+@pytest.mark.parametrize("effects", [NOMINAL, Effects(leakage_conductance_m3_s_Pa=2e-12, air_volume_fraction=0.01)],
+                         ids=["nominal", "leakage-air"])
+@pytest.mark.parametrize("samples", [3.0, 7.4])
+def test_lagged_model_means_are_the_means_of_the_model_force_shifted_back(campaign, effects, samples):
+    """lagged (from the running sums of Δp, :class:`PressureSums`) against the model force sample by sample
+    (Evaluator.forces), shifted back by whole samples at the plan's 50 Hz and interpolated linearly between them."""
     obs, damper = campaign
     ev = Evaluator(obs, damper)
-    forces = ev.forces(NOMINAL)
-    k = 3  # whole samples at the plan's 50 Hz
-    lagged = ev.lagged(NOMINAL, [k / 50.0])[0]
+    forces = ev.forces(effects)
+    lagged = ev.lagged(effects, [samples / 50.0])[0]
+    k, frac = int(samples), samples - int(samples)
     by_hand = []
     for case, lo, hi in zip(obs.case_index, obs.start, obs.stop, strict=True):
-        f = np.concatenate([np.zeros(k), forces[case]])  # at rest before the record
-        by_hand.append(f[lo:hi].mean())
-    assert np.allclose(lagged, by_hand, rtol=1e-12, atol=1e-9)
+        f = np.concatenate([np.zeros(k + 1), forces[case]])  # at rest before the record
+        by_hand.append((1.0 - frac) * f[lo + 1:hi + 1].mean() + frac * f[lo:hi].mean())
+    scale = max(np.abs(by_hand))
+    assert np.allclose(lagged, by_hand, rtol=1e-11, atol=1e-9 * scale)
 
 
 def test_a_low_pass_moves_the_steady_windows_like_a_delay_of_its_group_delay(campaign):

@@ -18,3 +18,14 @@ def test_predicted_means_are_the_means_of_the_simulated_samples(campaign, effect
     forces = ev.forces(effects)
     expected = np.array([forces[c][a:b].mean() for c, a, b in zip(obs.case_index, obs.start, obs.stop)])
     np.testing.assert_allclose(ev.predict(effects), expected, rtol=1e-11, atol=1e-9 * np.abs(expected).max())
+
+
+def test_a_remembered_run_gives_the_same_means_without_simulating_again(campaign):
+    obs, damper = campaign
+    ev = Evaluator(obs, damper)
+    effects = Effects(leakage_conductance_m3_s_Pa=2e-12)
+    first = ev.predict(effects)
+    first[:] = 0.0   # the caller's copy: what is remembered stays as simulated
+    again = ev.predict(effects)
+    assert ev.calls == 1
+    np.testing.assert_array_equal(again, Evaluator(obs, damper).predict(effects))

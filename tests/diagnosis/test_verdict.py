@@ -154,3 +154,25 @@ def test_an_effect_the_fit_cannot_tell_from_the_lag_or_the_drift_is_listed_with_
 
 def test_weakly_correlated_instrument_terms_are_not_listed():
     assert confounding_of({"air": -0.8, "friction": 0.1}, {"air": 0.0, "friction": 0.5}) == []
+
+
+def test_friction_the_omnibus_test_misses_beside_an_explaining_effect_is_claimed(campaign):
+    obs, damper = campaign
+    coulomb = friction_step(obs, 60.0)
+    effects = replace(viscous(damper, 1.5), coulomb_force_N=coulomb)
+    force = replace(obs, force_N=Evaluator(obs, damper).predict(effects))
+    alone = Diagnoser(force, damper).refit(("viscosity",))
+    assert alone.explained   # the viscosity alone passes the χ² of all observations
+    result, _pred = vd.diagnose_observations(force, damper)
+    assert result["effect_tests"]["friction"]["against"] == ["viscosity"]
+    assert result["verdict"] == ["friction", "viscosity"]
+    assert result["params"]["coulomb_force_N"] == pytest.approx(coulomb, rel=0.01)
+
+
+def test_friction_beside_an_explaining_effect_below_its_test_is_not_claimed(campaign):
+    obs, damper = campaign
+    effects = replace(viscous(damper, 1.5), coulomb_force_N=friction_step(obs, 30.0))
+    result, _pred = vd.diagnose_observations(replace(obs, force_N=Evaluator(obs, damper).predict(effects)), damper)
+    test = result["effect_tests"]["friction"]
+    assert 0.0 < test["chi2_drop"] < test["threshold"]
+    assert result["verdict"] == ["viscosity"]

@@ -11,7 +11,7 @@ force from Eq. 8. A sine case (:class:`isokinetic.physics.sine_drive.SineDrive`)
 measured sine, Eq. (1) integrated on the record's own sample times
 (:func:`isokinetic.physics.sine_drive.sine_drive_response`); its model forces join the triangle cases' on
 one sample grid, so every reduction below serves both. A campaign without sine cases keeps the closed-form
-sums of the triangle windows (:func:`triangle_pressure_sums`).
+sums of the triangle windows (:class:`isokinetic.physics.responses.PressureSums`).
 
 Before the fits, the nominal model marks the windows that are still relaxing
 (:func:`unsteady_windows`, kept out of the noise fit) and the variance the measured drive speed's
@@ -21,6 +21,8 @@ own error propagates into the model means (:func:`drive_input_variance`).
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -28,7 +30,7 @@ import numpy as np
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.hydraulics import Hydraulics
-from isokinetic.physics.responses import drive_times, scaled_viscosity, triangle_pressure_sums, triangle_responses_at
+from isokinetic.physics.responses import PressureSums, drive_times, scaled_viscosity, triangle_responses_at
 from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
 
 #: Panel width of the model's segment tables (isokinetic.physics.hydraulics.DEFAULT_STEP is 0.03): on the paper
@@ -39,6 +41,13 @@ SPEED_STEP = 1e-4
 #: A window whose nominal-model force varies by more than this fraction of the per-sample noise
 #: (standard deviations) is still relaxing and is kept out of the noise fit (:func:`unsteady_windows`).
 UNSTEADY_FRACTION = 0.25
+#: Model runs an evaluator remembers, the least recent dropped first (a run is a pure function of the effects): a
+#: fit's Jacobian column of the force channel's lag, its second starting lag and a refit from a fitted candidate
+#: run effects already simulated. Mean forces: RUN_CACHE; running sums (:class:`PressureSums`): RUN_CACHE_SUMS;
+#: the forces on every sample: as many as fit in RUN_CACHE_SAMPLES values (at least 4).
+RUN_CACHE = 64
+RUN_CACHE_SUMS = 32
+RUN_CACHE_SAMPLES = 3_000_000
 
 
 class Evaluator:
@@ -58,16 +67,35 @@ class Evaluator:
         self._first = offsets[obs.case_index]   # each observation's case: the index of its leading zero
         self._fs = np.array([p.sample_rate_Hz for p in obs.plans])[obs.case_index] if len(obs) else np.zeros(0)
         self._sums = np.empty(int(offsets[-1]))  # per case: 0, then the running sum of its samples
-        self.calls = 0
+        self.calls = 0   # model runs (simulations of the damper), remembered ones not counted
+        # effects -> mean forces, and -> forces on every sample, least recent first; how many of each are kept
+        self._runs = {"mean": OrderedDict(), "sums": OrderedDict(), "forces": OrderedDict()}
+        self._kept = {"mean": RUN_CACHE, "sums": RUN_CACHE_SUMS,
+                      "forces": max(4, RUN_CACHE_SAMPLES // max(int(sizes.sum()), 1))}
         self._split = None   # triangles and sines: each part's own evaluator, the triangles' closed-form sums kept
         if any(self._sine) and not all(self._sine):
             rows = np.array([self._sine[i] for i in obs.case_index], dtype=bool)
             self._split = (rows, Evaluator(obs.subset(~rows), damper), Evaluator(obs.subset(rows), damper))
 
+    def _remembered(self, kind: str, effects: Effects, run: Callable):
+        """``run()``, or its result for the same ``kind`` and ``effects`` where still remembered (RUN_CACHE)."""
+        runs = self._runs[kind]
+        hit = runs.get(effects)
+        if hit is not None:
+            runs.move_to_end(effects)
+            return hit
+        out = runs[effects] = run()
+        if len(runs) > self._kept[kind]:
+            runs.popitem(last=False)
+        return out
+
     def predict(self, effects: Effects = NOMINAL) -> np.ndarray:
         """Model mean force of every observation [N] (Eq. 8 with Δp from Eq. 13-14); without friction
-        from the sums of Δp over the triangle observations' samples (:func:`triangle_pressure_sums`: the samples
-        at steady state summed in closed form), the sine cases' from their forces."""
+        from the sums of Δp over the triangle observations' samples (:class:`PressureSums`: the samples at steady
+        state summed in closed form), the sine cases' from their forces."""
+        return self._remembered("mean", effects, lambda: self._predict(effects)).copy()
+
+    def _predict(self, effects: Effects) -> np.ndarray:
         friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
         if self._split is not None and not friction:
             self.calls += 1
@@ -77,28 +105,40 @@ class Evaluator:
             return out
         if friction or any(self._sine):
             return self._moments(effects, 1)[0]
-        self.calls += 1
-        hyd = Hydraulics.from_damper(self.damper, effects)
-        sums = triangle_pressure_sums(self.obs.plans, hyd, self.obs.case_index, self.obs.start, self.obs.stop,
-                                      self.obs.viscosity_scale, 0.0, MODEL_STEP, self.obs.drives or None)
-        return hyd.piston_area_m2 * sums / self._n
+        area, run = self._pressure_sums(effects)
+        return area * run.sums(self.obs.case_index, self.obs.start, self.obs.stop) / self._n
+
+    def _pressure_sums(self, effects: Effects) -> tuple[float, PressureSums]:
+        """(A_p, the running sums of Δp of the triangle cases) of a run without friction (remembered)."""
+        def run():
+            self.calls += 1
+            hyd = Hydraulics.from_damper(self.damper, effects)
+            return hyd.piston_area_m2, PressureSums(self.obs.plans, hyd, self.obs.viscosity_scale, 0.0, MODEL_STEP,
+                                                    self.obs.drives or None)
+        return self._remembered("sums", effects, run)
 
     def lagged(self, effects: Effects, lags_s) -> np.ndarray:
         """Model mean force of every observation as a force channel lagging by each of ``lags_s`` would
         read it [N], one row per lag: the mean over the observation's samples shifted back by lag·fs
         (linear interpolation between whole samples; the model is at rest, force 0, before its first
-        sample). One simulation for all lags (a pure delay: the force channel's low-frequency group delay)."""
-        self._moments(effects, 1)
-        cs = self._sums
-        rows = []
-        for lag in np.atleast_1d(np.asarray(lags_s, dtype=float)):
-            shift = lag * self._fs
-            k = np.floor(shift).astype(np.int64)
-            frac = shift - k
+        sample). One simulation for all lags (a pure delay: the force channel's low-frequency group delay);
+        triangle cases without friction from the running sums of Δp (:class:`PressureSums`), as :meth:`predict`."""
+        lags = np.atleast_1d(np.asarray(lags_s, dtype=float))
+        shift = lags[:, None] * self._fs
+        k = np.floor(shift).astype(np.int64)
+        frac = shift - k
+        if effects.coulomb_force_N or effects.stribeck_force_N or any(self._sine):
+            self._moments(effects, 1)
+            cs = self._sums
             means = [(cs[np.maximum(self._hi - j, self._first)] - cs[np.maximum(self._lo - j, self._first)]) / self._n
                      for j in (k, k + 1)]
-            rows.append((1.0 - frac) * means[0] + frac * means[1])
-        return np.array(rows)
+        else:
+            area, run = self._pressure_sums(effects)
+            obs = self.obs
+            case = np.broadcast_to(obs.case_index, k.shape).ravel()
+            means = [(area * run.sums(case, np.maximum(obs.start - j, 0).ravel(), np.maximum(obs.stop - j, 0).ravel())
+                      ).reshape(k.shape) / self._n for j in (k, k + 1)]
+        return (1.0 - frac) * means[0] + frac * means[1]
 
     def spread(self, effects: Effects = NOMINAL) -> np.ndarray:
         """Standard deviation of the model force over each observation's samples [N]: how far the
@@ -127,7 +167,10 @@ class Evaluator:
 
     def forces(self, effects: Effects) -> list[np.ndarray]:
         """The model force of every case on its sample grid [N] (Eq. 8 with Δp from Eq. 13-14 for a
-        triangle, from Eq. 1 driven by the fitted sine for a sine case)."""
+        triangle, from Eq. 1 driven by the fitted sine for a sine case); read-only arrays."""
+        return self._remembered("forces", effects, lambda: self._forces(effects))
+
+    def _forces(self, effects: Effects) -> list[np.ndarray]:
         self.calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
         friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
@@ -136,6 +179,7 @@ class Evaluator:
             force = hyd.piston_area_m2 * dp
             if friction:  # the search profiles friction linearly (LinearTerms): its runs carry none
                 force = force + friction_force(vel, effects)
+            force.flags.writeable = False
             forces.append(force)
         return forces
 

@@ -112,9 +112,13 @@ class Diagnoser:
 
     def __init__(self, obs: Observations, damper: Damper, alpha: float = ALPHA, time_s: np.ndarray | None = None,
                  time_ref_s: float | None = None, channel: tuple[int, float] | None = None,
-                 lag_starts: Sequence[float] = ()):
+                 lag_starts: Sequence[float] = (), evaluators: tuple[Evaluator, Evaluator] | None = None):
         self.obs = obs
-        self.evaluator = Evaluator(obs, damper)   # an ideal force channel (``model`` applies ``channel``)
+        # an ideal force channel (``model`` applies ``channel``); period 1 alone (simulated only up to its last
+        # sample); ``evaluators``: those of a diagnoser of the same observations, shared with their remembered runs
+        self.fit_mask = obs.period == 1
+        self.fit_obs = obs.subset(self.fit_mask)
+        self.evaluator, self.fit_evaluator = evaluators or (Evaluator(obs, damper), Evaluator(self.fit_obs, damper))
         self.alpha = alpha
         self.channel = channel
         self.lag_starts = () if channel is None else (channel[1], *(s for s in lag_starts if s != channel[1]))
@@ -131,19 +135,18 @@ class Diagnoser:
         self.linear = LinearTerms(offset_bound_N=offset_bound, drift_bound_N_s=drift_bound,
                                   friction_bound_N=self.param.bounds("friction")[1] * self.param.force_ref_N)
         self.weight = 1.0 / obs.sigma_N**2
-        self.fit_mask = obs.period == 1
         self.hold_mask = obs.period == 2
-        self.fit_obs = obs.subset(self.fit_mask)   # period 1: simulated only up to its last sample
         self.fit_time_s = None if self.time_s is None else self.time_s[self.fit_mask]
-        self.fit_evaluator = Evaluator(self.fit_obs, damper)
         self.nominal = self.model(NOMINAL)
         self.scale_rel_sd = float(obs.noise.get("scale_rel_sd", 0.0))
         self.failed: list[dict] = []
 
     def with_channel(self, channel: tuple[int, float] | None, lag_starts: Sequence[float] = ()) -> Diagnoser:
-        """The same diagnoser with every model prediction read through the force channel ``channel``."""
+        """The same diagnoser with every model prediction read through the force channel ``channel`` (the same
+        evaluators: model runs are shared, and counted once in ``calls``)."""
         t = None if self.time_s is None else self.time_s + self.time_ref_s
-        return Diagnoser(self.obs, self.evaluator.damper, self.alpha, t, self.time_ref_s, channel, lag_starts)
+        return Diagnoser(self.obs, self.evaluator.damper, self.alpha, t, self.time_ref_s, channel, lag_starts,
+                         (self.evaluator, self.fit_evaluator))
 
     def model(self, effects, fit: bool = False, lag: float | None = None) -> np.ndarray:
         """The model force of every observation (``fit``: of period 1) as the force channel reads it (its
@@ -162,7 +165,7 @@ class Diagnoser:
 
     @property
     def calls(self) -> int:
-        """Model runs so far."""
+        """Model runs so far (of these evaluators: shared with the diagnosers made by :meth:`with_channel`)."""
         return self.evaluator.calls + self.fit_evaluator.calls
 
     def z(self, prediction: np.ndarray) -> np.ndarray:

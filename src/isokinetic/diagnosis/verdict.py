@@ -162,6 +162,14 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
         best, bdg, lag, lag_candidates = joint_lag(dg, best, candidates)
         candidates = [*candidates, *lag_candidates]
         out["candidates"] += [c.to_dict() for c in lag_candidates]
+        best, friction_test = friction_beside(bdg, best)
+        if friction_test is not None:
+            out["effect_tests"] = {"friction": friction_test}
+            if friction_test["needed"]:
+                candidates = [*candidates, best]
+                out["candidates"].append(best.to_dict())
+                if best.channel is not None:   # the lag refitted with friction; its test against the effects as before
+                    lag["estimate_s"] = best.channel[1]
     hyp = None if nominal_fit is None else sensor_hypothesis(dg, nominal_fit, candidates)
     # the verdict [] through a lagging force channel: preferred to the damper candidates, or (where the nominal
     # model explains) its lag needed
@@ -198,7 +206,7 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
     if dg.failed or (bdg is not dg and bdg.failed):
         out["failed_fits"] = dg.failed + (bdg.failed if bdg is not dg else [])
     out["nominal_explains"] = nominal_ok
-    out["model_evaluations"] = dg.calls + (bdg.calls if bdg is not dg else 0)
+    out["model_evaluations"] = dg.calls   # every diagnoser here shares dg's evaluators (Diagnoser.with_channel)
     out["seconds"] = round(time.perf_counter() - started, 3)
     predictions = {"nominal": dg.nominal,
                    "verdict": None if best is None or not verdict else best.measured_prediction}
@@ -240,6 +248,31 @@ def single_effect_tests(dg: Diagnoser, nominal_fit: Candidate) -> tuple[list[Can
         if ok:
             needed.append(c)
     return sorted(needed, key=lambda c: (not c.explained, c.score)), tests
+
+
+def friction_beside(dg: Diagnoser, best: Candidate) -> tuple[Candidate, dict | None]:
+    """(the verdict, the test) of Coulomb friction beside an explaining verdict without it (None where the verdict
+    has friction or does not explain). The χ² of all observations spreads its power over every observation, and
+    a Coulomb force (Eq. 8) is concentrated where the hydraulic force is small, at the slowest speeds: beside an
+    effect that explains the rest it moves a few means only, as it does beside the nominal model
+    (:func:`single_effect_tests`). The verdict's effects with friction (warm-started, the force channel's lag,
+    where ``dg`` has one, refitted too) replace the verdict where, as there, the likelihood-ratio test passes
+    (χ² drop of the period-1 fit beyond the χ²₁ quantile at 1 - alpha/len(CATALOGUE)), the held-out period
+    confirms it (score better by SENSOR_MARGIN) and the larger set explains too. Friction is linear in the means
+    (profiled in closed form), so this costs one refit."""
+    if not best.explained or not best.effects or "friction" in best.effects:
+        return best, None
+    threshold = float(chi2_isf(dg.alpha / len(CATALOGUE), 1))
+    names = tuple(e for e in CATALOGUE if e in best.effects or e == "friction")
+    c = dg.refit(names, best.instrument, best)
+    drop = None if c is None else best.chi2_fit - c.chi2_fit
+    ok = bool(c is not None and c.explained and drop > threshold and c.score < best.score - SENSOR_MARGIN)
+    test = {"against": list(best.effects), "chi2_drop": drop, "threshold": threshold, "needed": ok,
+            "score_gain": None if c is None else best.score - c.score, "margin": SENSOR_MARGIN}
+    if not ok:
+        return best, test
+    polished = dg.refit(c.effects, c.instrument, c, POLISH_TOL)
+    return (polished if polished is not None and polished.chi2_fit <= c.chi2_fit else c), test
 
 
 def lag_preferred(alt: Candidate, best: Candidate) -> bool:

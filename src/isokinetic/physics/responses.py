@@ -348,57 +348,80 @@ def triangle_pressure_sums(cases: Sequence[CasePlan], hyd: Hydraulics, case_inde
     """Σ Δp [Pa] of :func:`triangle_responses_at` over the samples ``start[k]:stop[k]`` of case ``case_index[k]``,
     for every k, without evaluating the samples one by one where they need no evaluation: a segment's samples
     after its table's end are all at Δp* (Eq. 13 steady state), their sum is count·Δp*. Equal to summing the
-    samples up to rounding (the partial sums run over each case, as a cumulative sum of its samples would)."""
-    case_index, start, stop = (np.asarray(a, dtype=np.int64) for a in (case_index, start, stop))
-    out = np.zeros(case_index.size)
-    if not len(cases):
+    samples up to rounding (the partial sums run over each case, as a cumulative sum of its samples would).
+    The same as ``PressureSums(...).sums(case_index, start, stop)``."""
+    return PressureSums(cases, hyd, viscosity_scales, backlash_m, step, drives).sums(case_index, start, stop)
+
+
+class PressureSums:
+    """One run of the model over triangle cases (:func:`triangle_responses_at`'s Δp), kept as running sums:
+    Σ Δp over any sample ranges of its cases (:meth:`sums`) without running it again. The segments' tables are
+    chained (Eq. 13-14), the samples before each table's end evaluated, the rest counted at Δp*."""
+
+    def __init__(self, cases: Sequence[CasePlan], hyd: Hydraulics, viscosity_scales: Sequence[float] = (),
+                 backlash_m: float = 0.0, step: float = DEFAULT_STEP, drives: Sequence[Drive | None] | None = None):
+        if viscosity_scales and len(viscosity_scales) != len(cases):
+            raise ValueError(f"{len(viscosity_scales)} viscosity scales for {len(cases)} cases")
+        self.n_cases = len(cases)
+        drives = [None] * len(cases) if drives is None else list(drives)
+        groups: dict[Hydraulics, list[int]] = {}
+        for i, scale in enumerate(viscosity_scales or [1.0] * len(cases)):
+            groups.setdefault(scaled_viscosity(hyd, scale), []).append(i)
+        self.groups = []   # (the group's cases, local index of every case or -1, its running sums)
+        for group_hyd, idx in groups.items():
+            local = np.full(len(cases), -1, dtype=np.int64)
+            local[idx] = np.arange(len(idx))
+            group_drives = [drives[i] for i in idx]
+            tables = _segment_tables([cases[i] for i in idx], group_hyd, backlash_m, step,
+                                     group_drives if any(d is not None for d in group_drives) else None)
+            self.groups.append((local, _RunningSums(*tables, group_hyd)))
+
+    def sums(self, case_index: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+        """Σ Δp [Pa] over the samples ``start[k]:stop[k]`` of case ``case_index[k]``, for every k."""
+        case_index, start, stop = (np.asarray(a, dtype=np.int64) for a in (case_index, start, stop))
+        out = np.zeros(case_index.size)
+        for local, run in self.groups:
+            mine = (local[case_index] >= 0).nonzero()[0]
+            out[mine] = run.range_sums(local[case_index[mine]], start[mine], stop[mine])
         return out
-    if viscosity_scales and len(viscosity_scales) != len(cases):
-        raise ValueError(f"{len(viscosity_scales)} viscosity scales for {len(cases)} cases")
-    drives = [None] * len(cases) if drives is None else list(drives)
-    groups: dict[Hydraulics, list[int]] = {}
-    for i, scale in enumerate(viscosity_scales or [1.0] * len(cases)):
-        groups.setdefault(scaled_viscosity(hyd, scale), []).append(i)
-    for group_hyd, idx in groups.items():
-        local = np.full(len(cases), -1, dtype=np.int64)
-        local[idx] = np.arange(len(idx))
-        mine = (local[case_index] >= 0).nonzero()[0]
-        group_drives = [drives[i] for i in idx]
-        lay, tabs, table, n_live = _segment_tables([cases[i] for i in idx], group_hyd, backlash_m, step,
-                                                   group_drives if any(d is not None for d in group_drives) else None)
-        out[mine] = _range_sums(lay, tabs, table, n_live, group_hyd, local[case_index[mine]], start[mine], stop[mine])
-    return out
 
 
-def _range_sums(lay: _Layout, tabs: RelaxationBatch, table: np.ndarray, n_live: np.ndarray, hyd: Hydraulics,
-                case: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
-    """Σ Δp over samples [start, stop) of each ``case`` of the layout: the live samples evaluated
-    (:func:`_sample_pressures`), the rest count·Δp*."""
-    dp = np.empty(lay.times_all.size)
-    _sample_pressures(tabs, table, lay, n_live, hyd, dp)
-    live_at = lay.lo.repeat(n_live) + _ranks(n_live)
-    live_sum = np.concatenate([[0.0], np.cumsum(dp.take(live_at))])   # the live samples, segment after segment
-    live_first = np.cumsum(n_live) - n_live                            # each segment's first in live_sum
-    steady = tabs.steady_Pa[table]
-    totals = (live_sum[live_first + n_live] - live_sum[live_first]) + steady * (lay.count - n_live)
-    before = np.cumsum(totals) - totals                                # Σ of the segments before, all cases
-    n_seg = np.bincount(lay.case, minlength=len(lay.times))
-    first_seg = np.cumsum(n_seg) - n_seg
-    last_seg = first_seg + n_seg - 1
-    sizes = np.array([t.size for t in lay.times], dtype=np.int64)
-    case_first = np.cumsum(sizes) - sizes
+class _RunningSums:
+    """Σ Δp of the samples of a layout's cases, per segment (the live samples evaluated, :func:`_sample_pressures`;
+    the rest count·Δp*), ready for sums over any sample ranges (:meth:`range_sums`)."""
 
-    def prefix(case_, local_at):
+    def __init__(self, lay: _Layout, tabs: RelaxationBatch, table: np.ndarray, n_live: np.ndarray, hyd: Hydraulics):
+        dp = np.empty(lay.times_all.size)
+        _sample_pressures(tabs, table, lay, n_live, hyd, dp)
+        live_at = lay.lo.repeat(n_live) + _ranks(n_live)
+        self.live_sum = np.concatenate([[0.0], np.cumsum(dp.take(live_at))])   # live samples, segment by segment
+        self.live_first = np.cumsum(n_live) - n_live                            # each segment's first in live_sum
+        self.n_live = n_live
+        self.steady = tabs.steady_Pa[table]
+        totals = (self.live_sum[self.live_first + n_live] - self.live_sum[self.live_first]) \
+            + self.steady * (lay.count - n_live)
+        self.before = np.cumsum(totals) - totals                                # Σ of the segments before
+        n_seg = np.bincount(lay.case, minlength=len(lay.times))
+        self.first_seg = np.cumsum(n_seg) - n_seg
+        self.last_seg = self.first_seg + n_seg - 1
+        sizes = np.array([t.size for t in lay.times], dtype=np.int64)
+        self.case_first = np.cumsum(sizes) - sizes
+        self.lo = lay.lo
+
+    def prefix(self, case: np.ndarray, local_at: np.ndarray) -> np.ndarray:
         """Σ Δp of the case's samples before ``local_at``."""
-        at = case_first[case_] + local_at
-        seg = np.minimum(np.searchsorted(lay.lo, at, side="right") - 1, last_seg[case_])
-        seg = np.maximum(seg, first_seg[case_])
-        into = at - lay.lo[seg]
-        k = np.minimum(into, n_live[seg])
-        return (before[seg] - before[first_seg[case_]] + live_sum[live_first[seg] + k] - live_sum[live_first[seg]]
-                + steady[seg] * (into - k))
+        at = self.case_first[case] + local_at
+        seg = np.minimum(np.searchsorted(self.lo, at, side="right") - 1, self.last_seg[case])
+        seg = np.maximum(seg, self.first_seg[case])
+        into = at - self.lo[seg]
+        k = np.minimum(into, self.n_live[seg])
+        first = self.live_first[seg]
+        return (self.before[seg] - self.before[self.first_seg[case]] + self.live_sum[first + k]
+                - self.live_sum[first] + self.steady[seg] * (into - k))
 
-    return prefix(case, stop) - prefix(case, start)
+    def range_sums(self, case: np.ndarray, start: np.ndarray, stop: np.ndarray) -> np.ndarray:
+        """Σ Δp over samples [start, stop) of each ``case`` of the layout."""
+        return self.prefix(case, stop) - self.prefix(case, start)
 
 
 def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: float = 0.0,
