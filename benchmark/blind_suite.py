@@ -1,12 +1,14 @@
 """The larger blind suite of the diagnosis, outside the pipeline: >= 60 reference-rig scenarios.
 
     .venv/bin/python benchmark/blind_suite.py [--seed 777] [--per-effect 6] [--pairs 9] [--none 9]
-                                              [--out 6] [--jobs 2] [--no-sensor-chain]
+                                              [--out 6] [--sine 14] [--jobs 2] [--no-sensor-chain]
 
 Generates the suite exactly as the pipeline's blind_generate does (isokinetic.stages.blind_generate,
 reference rig, nuisances and the sensor chain's in every scenario), diagnoses every scenario through
 the raw-campaign chain in ``--jobs`` processes, scores it and prints the same summary table as the
-pipeline's blind_score, plus the wall time. ``--no-sensor-chain``: the same scenarios with an ideal sensor
+pipeline's blind_score, plus the wall time and the CPU-seconds per scenario kind. ``--sine``: sine-only
+campaigns after the 60 triangle ones (none, then each effect alone, in turn; the triangle scenarios are the
+same with or without them). ``--no-sensor-chain``: the same scenarios with an ideal sensor
 chain (no force-channel low-pass, LVDT gain error, zero drift or dropouts), to see what the chain costs.
 Works in a temporary folder; asserts nothing.
 """
@@ -21,14 +23,21 @@ from pathlib import Path
 
 import pandas as pd
 
+from isokinetic.contracts.scenarios import balanced_chunks, kind_name, suite_composition
 from isokinetic.stages.blind_diagnose import diagnose_suite
 from isokinetic.stages.blind_generate import generate_scenarios, write_suite
 from isokinetic.stages.blind_score import read_truths, score, summarize, summary_text
 
 
-def diagnose_chunk(args: tuple[str, list[str], str]) -> dict:
+def diagnose_chunk(args: tuple[str, list[str], str]) -> tuple[dict, dict]:
+    """(diagnoses, CPU-seconds per scenario) of one chunk."""
     raw, names, work = args
-    return diagnose_suite(raw, names, work)
+    out, cpu = {}, {}
+    for name in names:
+        start = time.process_time()
+        out.update(diagnose_suite(raw, [name], work))
+        cpu[name] = time.process_time() - start
+    return out, cpu
 
 
 def main() -> None:
@@ -38,33 +47,42 @@ def main() -> None:
     parser.add_argument("--pairs", type=int, default=9)
     parser.add_argument("--none", type=int, default=9)
     parser.add_argument("--out", type=int, default=6)
+    parser.add_argument("--sine", type=int, default=14, help="sine-only scenarios (0: the triangle suite alone)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--no-sensor-chain", action="store_true", help="an ideal sensor chain (same scenarios)")
     args = parser.parse_args()
     started = time.perf_counter()
-    scenarios = generate_scenarios(args.seed, args.per_effect, args.pairs, args.none, args.out,
+    scenarios = generate_scenarios(args.seed, args.per_effect, args.pairs, args.none, args.out, args.sine,
                                    sensor_chain=not args.no_sensor_chain)
     with tempfile.TemporaryDirectory() as tmp:
         raw, truth, work = Path(tmp) / "raw", Path(tmp) / "truth", Path(tmp) / "work"
         write_suite(scenarios, raw, truth)
         generated = time.perf_counter() - started
         names = [s.name for s in scenarios]
-        chunks = [(str(raw), names[k::args.jobs], str(work)) for k in range(args.jobs)]
+        kinds = suite_composition(args.seed, args.per_effect, args.pairs, args.none, args.out, args.sine)
+        chunks = [(str(raw), [names[i] for i in c], str(work)) for c in balanced_chunks(kinds, args.jobs)]
         diagnoses: dict = {}
+        cpu: dict = {}
         with ProcessPoolExecutor(args.jobs) as pool:
-            for part in pool.map(diagnose_chunk, chunks):
+            for part, seconds in pool.map(diagnose_chunk, chunks):
                 diagnoses.update(part)
+                cpu.update(seconds)
         scores = score(read_truths(truth), diagnoses)
     summary = summarize(scores)
     chain = "without" if args.no_sensor_chain else "with"
     print(f"blind suite: seed {args.seed}, {len(scenarios)} scenarios {chain} the sensor chain; generated in "
           f"{generated:.0f} s, total {time.perf_counter() - started:.0f} s with {args.jobs} processes")
     print(summary_text(summary))
+    kind = [kind_name((("x",) * n, {}, o, w)) for w, o, n in
+            zip(scores["waveform"], scores["out_of_catalogue"], scores["n_truth"], strict=True)]
+    kinds = scores.assign(kind=kind, cpu_s=scores["scenario"].map(cpu))
+    print("\ndiagnosis CPU-seconds per scenario, by kind:")
+    print(kinds.groupby("kind")["cpu_s"].describe()[["count", "mean", "50%", "max"]].round(2).to_string())
     wrong = scores[~scores["exact"] & (scores["out_of_catalogue"] == "")]
     if len(wrong):
         with pd.option_context("display.width", 200, "display.max_columns", 20):
             print("\nnot exact:")
-            print(wrong[["scenario", "truth", "verdict", "explained", "magnitude_x_detection", "true_lag_s",
+            print(wrong[["scenario", "waveform", "truth", "verdict", "explained", "magnitude_x_detection", "true_lag_s",
                          "lag_error_s", "scale_error", "offset_error_N", "confounded"]].to_string(index=False))
 
 

@@ -18,7 +18,8 @@ def test_unchanged_campaign(raw_campaign, capsys):
     raw_campaign.run()
     assert raw_changes(raw_campaign.root) == []
     assert check_raw(raw_campaign.root, raw_campaign.root / "raw_check.json") == []
-    assert json.loads((raw_campaign.root / "raw_check.json").read_text())["ok"] is True
+    record = json.loads((raw_campaign.root / "raw_check.json").read_text())
+    assert (record["kind"], record["ok"], record["changes"]) == ("raw", True, [])
     assert main(["raw-check", str(raw_campaign.root)]) == 0 and capsys.readouterr().out == ""
 
 
@@ -82,6 +83,15 @@ def test_simulated_campaign_has_nothing_on_disk(tmp_path):
     assert raw_changes(Path(tmp_path / "nothing")) == []
 
 
+def test_simulated_campaign_is_recorded_as_nothing_to_check(tmp_path):
+    root = tmp_path / "results" / "sim"
+    (root / "ingest").mkdir(parents=True)
+    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "sim", "lineage": {"rule": "virtual_rig"}}))
+    assert check_raw(root, root / "raw_check.json") == []
+    record = json.loads((root / "raw_check.json").read_text())
+    assert (record["campaign"], record["kind"], record["ok"], record["changes"]) == ("sim", "simulation", True, [])
+
+
 def test_help_lists_every_command_on_one_line(capsys):
     with pytest.raises(SystemExit):
         main(["--help"])
@@ -90,8 +100,8 @@ def test_help_lists_every_command_on_one_line(capsys):
         assert [line for line in out.splitlines() if line.split()[:1] == [name] and len(line.split()) > 2], out
 
 
-def test_the_raw_check_job_loads_no_pandas(raw_campaign):
-    # a job per campaign: pandas would cost it ~0.2 s of start-up for a table pyarrow reads alone (issue 23)
+def test_the_raw_check_loads_no_pandas(raw_campaign):
+    # the workflow's onsuccess/onerror check runs it in Snakemake's own process (issue 23)
     raw_campaign.run()
     code = ("import sys; import isokinetic.job; from isokinetic.audit.raw_check import raw_changes; "
             f"assert raw_changes({str(raw_campaign.root)!r}) == []; print('pandas' in sys.modules)")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import base64
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pandas as pd
@@ -264,3 +266,12 @@ def test_static_force_from_standstills_and_each_gas_force_check_are_shown(result
     assert "static force at rest (standstill cases)" in page and "mean of 2 standstill case(s)" in page
     assert "lowest speeds" not in page
     assert "Z02: +9.80 ± 0.05 N left of the declared 80 N: disagrees" in page
+
+
+def test_the_report_jobs_modules_load_no_scipy():
+    # the report job uses the statistics' constants only: scipy would cost it ~0.1 s of start-up (issue 23)
+    code = ("import sys; import isokinetic.report.campaign_report, isokinetic.audit.provenance, "
+            "isokinetic.audit.raw_check, isokinetic.report.browser; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] == 'scipy'))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

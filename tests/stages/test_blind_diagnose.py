@@ -1,6 +1,7 @@
 """Rule blind_diagnose: a small suite from its raw campaigns to its diagnoses, and the workflow's wiring."""
 
 import hashlib
+import re
 import shutil
 import subprocess
 import sys
@@ -54,7 +55,7 @@ def test_small_blind_suite_attributes_every_effect(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.workflow
-def test_workflow_runs_blind_test_in_four_jobs(tmp_path):
+def test_workflow_runs_one_generate_then_diagnose_chain_per_chunk(tmp_path):
     work = tmp_path / "project"
     work.mkdir()
     shutil.copy(ROOT / "Snakefile", work / "Snakefile")
@@ -64,13 +65,23 @@ def test_workflow_runs_blind_test_in_four_jobs(tmp_path):
     config = yaml.safe_load((ROOT / "config" / "config.yaml").read_text(encoding="utf-8"))
     config["virtual_campaigns"] = {}
     config.pop("comparisons", None)  # they name the virtual campaigns
-    config["blind"] = {"seed": 1, "n_per_effect": 1, "n_pairs": 1, "n_none": 2, "chunks": 2}
+    config["blind"] = {"seed": 1, "n_per_effect": 1, "n_pairs": 1, "n_none": 2, "n_sine": 1, "chunks": 2}
     (work / "config" / "config.yaml").write_text(yaml.safe_dump(config), encoding="utf-8")
-    proc = subprocess.run([str(Path(sys.executable).parent / "snakemake"), "-n", "--cores", "2"], cwd=work,
+    proc = subprocess.run([str(Path(sys.executable).parent / "snakemake"), "-n", "-p", "--cores", "2"], cwd=work,
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = proc.stdout + proc.stderr
     stats = {w[0]: w[1] for w in map(str.split, out.splitlines())
              if len(w) == 2 and w[0].startswith("blind_") and w[1].isdigit()}
-    assert stats == {"blind_generate": "1", "blind_diagnose": "2", "blind_score": "1"}
-    assert "results/blind/diagnosis/chunk1" in out
+    assert stats == {"blind_generate": "2", "blind_diagnose": "2", "blind_score": "1"}
+    for chunk in ("chunk0", "chunk1"):
+        assert f"results/blind/raw/{chunk}" in out and f"results/blind/diagnosis/{chunk}" in out
+    # each chunk's diagnosis waits for its own generation only
+    dag = subprocess.run([str(Path(sys.executable).parent / "snakemake"), "--dag"], cwd=work, capture_output=True,
+                         text=True)
+    assert dag.returncode == 0, dag.stderr[-3000:]
+    rule = {node: label.split("\\n")[0] for node, label in re.findall(r'(\d+)\[label = "([^"]+)"', dag.stdout)}
+    edges = re.findall(r"(\d+) -> (\d+)", dag.stdout)
+    feeding = {b: [a for a, b2 in edges if b2 == b and rule[a] == "blind_generate"] for b in rule
+               if rule[b] == "blind_diagnose"}
+    assert sorted(len(v) for v in feeding.values()) == [1, 1] and len({v[0] for v in feeding.values()}) == 2

@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 import yaml
 
-from isokinetic.contracts.scenarios import EFFECTS
+from isokinetic.contracts.scenarios import EFFECTS, EXPECTED_COST_S, balanced_chunks, kind_name
 from isokinetic.measurement.windows import case_windows
 from isokinetic.physics.damper import TABLE_1, Effects
 from isokinetic.physics.virtual_rig import Measurement, simulate_cases
 from isokinetic.reference import campaign as rrc
+from isokinetic.reference import rig as rr
 from isokinetic.stages import blind_generate as gen
 from isokinetic.stages.blind_generate import BOUNDS, effect_fields, generate_scenarios, magnitude_bin, write_suite
 
@@ -191,3 +192,94 @@ def test_export_holds_no_truth_and_is_byte_reproducible(suite, tmp_path):
         assert truth["truth"] == list(s.truth) and truth["multiple"] == s.multiple
         assert truth["out_of_catalogue"] == s.out_of_catalogue
         assert truth["magnitude_bin"] == magnitude_bin(s.magnitude_x_detection)
+
+
+# --------------------------------------------------------------------------------------------
+# composition, chunks and sine-only scenarios (issues 21 and 23)
+# --------------------------------------------------------------------------------------------
+
+def test_sine_scenarios_follow_the_same_triangle_suite_and_take_none_then_each_effect_in_turn():
+    triangles = gen.suite_composition(SEED, **SUITE)
+    composed = gen.suite_composition(SEED, **SUITE, n_sine=9)
+    assert composed[:len(triangles)] == triangles and {k[3] for k in triangles} == {"triangle"}
+    sines = composed[len(triangles):]
+    assert [k[3] for k in sines] == ["sine"] * 9 and not any(k[2] for k in sines)
+    expected = [()] + [(e,) for e in EFFECTS] + [(), ("friction",)]
+    assert sorted(k[0] for k in sines) == sorted(expected)
+    assert all(set(k[1]) == set(k[0]) and all(1.0 <= m <= 5.0 for m in k[1].values()) for k in sines)
+
+
+def test_chunks_hold_every_scenario_once_balanced_within_one_scenarios_cost():
+    kinds = gen.suite_composition(SEED, 2, 3, 3, 3, n_sine=5)
+    for n_chunks in (1, 2, 3):
+        chunks = balanced_chunks(kinds, n_chunks)
+        assert sorted(i for c in chunks for i in c) == list(range(len(kinds)))
+        assert all(c == sorted(c) for c in chunks)
+        loads = [sum(EXPECTED_COST_S[kind_name(kinds[i])] for i in c) for c in chunks]
+        assert max(loads) - min(loads) <= max(EXPECTED_COST_S.values())
+
+
+@pytest.fixture(scope="module")
+def sine_suite():
+    return generate_scenarios(SEED, 0, 0, 0, 0, n_sine=3)
+
+
+def test_a_chunk_is_generated_as_in_the_whole_suite(sine_suite):
+    assert generate_scenarios(SEED, 0, 0, 0, 0, n_sine=3, names=["blind-002"]) == [sine_suite[2]]
+    with pytest.raises(ValueError, match="not in the suite"):
+        generate_scenarios(SEED, 0, 0, 0, 0, n_sine=3, names=["blind-003"])
+
+
+def test_sine_scenarios_are_sweeps_of_0_2_to_10_hz_behind_the_same_nuisances(sine_suite):
+    assert sorted(s.truth for s in sine_suite) == sorted([(), ("friction",), ("leakage",)])
+    for s in sine_suite:
+        assert s.waveform == "sine" and s.truth_record()["waveform"] == "sine"
+        freqs = sorted(c.frequency_Hz for c in s.cases)
+        assert 5 <= len(freqs) <= 7 and freqs[0] == 0.2 and freqs[-1] == 10.0
+        assert [c.frequency_Hz for c in s.cases] != freqs  # tested in a random order
+        for c in s.cases:
+            assert c.sample_rate_Hz == 1000.0 and c.duration_s * c.frequency_Hz == pytest.approx(4.0)
+            assert 0.03e-3 <= 2 * math.pi * c.frequency_Hz * c.amplitude_m <= 1.5e-3 * (1 + 1e-3)
+        assert abs(s.rig.force_offset_N) > 0 and 0 < abs(s.rig.displacement_gain - 1) <= 0.015
+
+
+def _reference_bins(case, force_N, time_s):
+    """Phase-bin means of one sine record: 16 bins per cycle, every whole cycle after the first."""
+    cycle = np.asarray(time_s) * case.frequency_Hz
+    k = np.floor((cycle - 1.0) * 16 + 1e-9).astype(int)
+    used = (cycle >= 1.0 - 1e-12) & (k < 3 * 16)
+    n = np.bincount(k[used])
+    return np.bincount(k[used], weights=np.asarray(force_N)[used]) / n, n
+
+
+def _reference_rms_z(scenario, effects) -> float:
+    """rms_z of the noise-free effect against the nominal on the reference rig (ideal rig, exact catalogue
+    forms of friction and viscosity), binned here, with the rig's exact noise of a bin mean."""
+    z = []
+    for rc, c in zip(scenario.rig_cases(), scenario.cases, strict=True):
+        design = rr.DamperDesign.from_mapping(scenario.damper.to_dict())
+        eff = rr.true_series(rc, design, effects)
+        nom = rr.true_series(rc, design, gen.physical_effects(scenario.damper, {}, {}))
+        fe, n = _reference_bins(c, eff["force_N"], eff["time_s"])
+        f0, _ = _reference_bins(c, nom["force_N"], nom["time_s"])
+        se = np.sqrt([rrc.mean_noise_variance(int(k), float(f), scenario.rig, c.sample_rate_Hz)
+                      for k, f in zip(n, fe, strict=True)])
+        z.extend((fe - f0) / se)
+    return float(np.sqrt(np.mean(np.square(z))))
+
+
+def test_sine_detection_level_gives_rms_z_3_checked_on_the_reference_rig(sine_suite):
+    s = next(s for s in sine_suite if s.truth == ("friction",))
+    level = s.detection_level["friction"]
+    at = lambda k: gen.physical_effects(s.damper, {"friction": k * level}, {})  # noqa: E731
+    assert _reference_rms_z(s, at(1.0)) == pytest.approx(3.0, rel=2e-3)
+    assert _reference_rms_z(s, at(0.5)) < 3.0
+
+
+def test_a_sine_scenarios_load_cell_offset_stays_within_5_percent_of_its_largest_force(sine_suite):
+    # the full scale follows the force the sweep reaches (compressibility holds a stiff damper's force at a few
+    # Hz far below the steady force at the same peak speed), not the steady force
+    for s in sine_suite:
+        design = rr.DamperDesign.from_mapping(s.damper.to_dict())
+        peak = max(float(np.abs(rr.true_series(rc, design)["force_N"]).max()) for rc in s.rig_cases())
+        assert abs(s.rig.force_offset_N) <= 0.05 * peak

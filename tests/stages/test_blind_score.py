@@ -4,13 +4,16 @@ import json
 
 import numpy as np
 
+from isokinetic.io import write_json
 from isokinetic.plots.blind_score import confusion_figure
 from isokinetic.plots.style import save_figure
 from isokinetic.stages.blind_score import (
     SCORE_COLUMNS,
     confusion_counts,
     confusion_title,
+    read_truths,
     score,
+    score_sources,
     summarize,
     summary_text,
 )
@@ -151,3 +154,30 @@ def test_target_f_counts_only_explained_claims_on_scenarios_without_effects():
     f = summary["targets"]["f_none_explained"]
     assert (f["n"], f["claimed"], f["pass"], f["misses"]) == (3, 1, False, ["s04"])
     assert "(f) FAIL" in summary_text(summary) and summary["all_pass"] is False
+
+
+def test_sine_campaigns_are_scored_alike_and_counted_apart():
+    sine = [(dict(_truth("s10", ["friction"], 3.0), waveform="sine"), _diag(["friction"])),
+            (dict(_truth("s11", [], None), waveform="sine"), _diag(["discharge"])),
+            (dict(_truth("s12", ["air"], 3.0), waveform="sine"), _diag(["viscosity"]))]
+    cases = HAND + sine
+    scores = score([t for t, _ in cases], {t["scenario"]: d for t, d in cases if d is not None})
+    assert scores.set_index("scenario")["waveform"].tolist() == ["triangle"] * 10 + ["sine"] * 3
+    summary = summarize(scores)
+    assert summary["n_sine"] == 3 and summary["targets"]["f_none_explained"]["misses"] == ["s06", "s11"]
+    assert summary["by_waveform"]["sine"] == {"n": 3, "n_effects": 2, "exact": 1, "n_none": 1, "none_claimed": 1,
+                                              "errors": 0}
+    assert summary["by_waveform"]["triangle"]["n"] == 8  # in-catalogue only
+    assert "sine campaigns: with effects 1/2 exact; effects claimed on 1/1 without" in summary_text(summary)
+
+
+def test_truth_of_several_chunks_is_read_and_traced_to_its_raw_folder(tmp_path):
+    blind = tmp_path / "blind"
+    for chunk, name in (("chunk0", "s01"), ("chunk1", "s00")):
+        write_json(_truth(name, ["friction"], 2.0), blind / "truth" / chunk / f"{name}.json")
+        (blind / "raw" / chunk / name).mkdir(parents=True)
+    roots = [blind / "truth" / "chunk0", blind / "truth" / "chunk1"]
+    assert [t["scenario"] for t in read_truths(roots)] == ["s00", "s01"]
+    sources = score_sources(roots, [], ["s00", "s01"]).set_index("scenario")
+    assert sources.loc["s00", "raw_dir"] == (blind / "raw" / "chunk1" / "s00").as_posix()
+    assert sources.loc["s01", "truth_file"] == (blind / "truth" / "chunk0" / "s01.json").as_posix()

@@ -89,10 +89,24 @@ def test_new_raw_campaign_runs_only_its_own_jobs(project, tmp_path):
     planned = snakemake(work, "-n").stdout
     jobs = {block.split(":", 1)[0]: block for block in planned.split("\nrule ")[1:]}
     own = {name: block for name, block in jobs.items() if name not in ("all", "report_index")}
-    assert set(own) == {"ingest", "characteristic", "analysis", "diagnosis", "campaign_report", "raw_check"}, planned
+    assert set(own) == {"ingest", "characteristic", "analysis", "diagnosis", "campaign_report"}, planned
     outputs = [line for block in own.values() for line in block.splitlines() if line.strip().startswith("output:")]
     assert all("results/tiny-copy/" in line for line in outputs), outputs
     assert "virtual_rig" not in jobs
+
+
+def test_raw_file_changed_since_ingest_fails_the_report_job_before_it_writes(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    t01 = work / "data/raw/tiny-export/T01.csv"
+    st = t01.stat()
+    t01.write_bytes(t01.read_bytes().replace(b"0", b"1", 1))
+    os.utime(t01, ns=(st.st_atime_ns, st.st_mtime_ns))   # same mtime: Snakemake sees no reason to rerun ingest
+    proc = snakemake(work, "--forcerun", "campaign_report", "results/tiny-export/report.html", check=False)
+    assert proc.returncode != 0
+    line = next(x for x in (proc.stdout + proc.stderr).splitlines()
+                if x.strip().startswith("campaign tiny-export: rule campaign_report failed:"))
+    assert "raw file data/raw/tiny-export/T01.csv has sha256" in line, line
+    assert not any((work / "results/tiny-export" / name).exists() for name in ("raw_check.json", "report.html"))
 
 
 def test_broken_manifest_fails_its_campaign_alone(project, tmp_path):

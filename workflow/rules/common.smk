@@ -26,7 +26,7 @@ from isokinetic.contracts.outputs import (
     rule_figures,
     rule_outputs_of,
 )
-from isokinetic.contracts.scenarios import scenario_names, suite_size
+from isokinetic.contracts.scenarios import balanced_chunks, scenario_names, suite_composition
 from isokinetic.scheduling import coalesce_reevaluations
 
 # Snakemake 9 arms a new 1 s scheduler wake-up after every scheduling pass, so wake-ups pile up with
@@ -199,7 +199,6 @@ def campaign_outputs(campaign):
         ]
         + figure_paths("analysis", campaign)
         + figure_paths("diagnosis", campaign)
-        + ([output_path("raw_check", "raw_check", campaign)] if campaign in RAW_CAMPAIGNS else [])
     )
 
 
@@ -232,30 +231,34 @@ BLIND_OUTPUTS = [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_sco
 DESIGN_SUMMARY = f"{RESULTS_DIR}/design/plan_check.parquet"
 
 
-def blind_scenario_names(blind):
-    """Names of the blind scenarios of the config's ``blind`` block (isokinetic.contracts.scenarios)."""
+def blind_composition(blind):
+    """The blind suite's composition (isokinetic.contracts.scenarios.suite_composition) of the config's
+    ``blind`` block: one (truth, multiples, out-of-catalogue kind, waveform) per scenario."""
     if not blind:
         return []
-    return scenario_names(
-        suite_size(
-            blind.get("n_per_effect", 0),
-            blind.get("n_pairs", 0),
-            blind.get("n_none", 0),
-            blind.get("n_out_of_catalogue", 0),
-        )
+    return suite_composition(
+        int(blind.get("seed", 0)),
+        blind.get("n_per_effect", 0),
+        blind.get("n_pairs", 0),
+        blind.get("n_none", 0),
+        blind.get("n_out_of_catalogue", 0),
+        blind.get("n_sine", 0),
     )
 
 
 BLIND = config.get("blind") or {}
-BLIND_NAMES = blind_scenario_names(BLIND)
+BLIND_KINDS = blind_composition(BLIND)
+BLIND_NAMES = scenario_names(len(BLIND_KINDS))
 BLIND_CHUNKS = max(1, min(int(BLIND.get("chunks", 2)), len(BLIND_NAMES)))
+#: Scenario names per chunk, balanced by expected cost (each chunk is generated and diagnosed on its own).
+BLIND_CHUNK_NAMES = [[BLIND_NAMES[i] for i in c] for c in balanced_chunks(BLIND_KINDS, BLIND_CHUNKS)]
 if BLIND and "blind" in CAMPAIGNS:
     raise WorkflowError("a campaign named 'blind' would share results/blind/ with the blind test; rename it")
 
 
 def blind_chunk(wildcards):
-    """The scenarios of chunk k: a fixed partition of the names (every k-th)."""
-    return BLIND_NAMES[int(wildcards.chunk) :: BLIND_CHUNKS]
+    """The scenarios of chunk k (BLIND_CHUNK_NAMES)."""
+    return BLIND_CHUNK_NAMES[int(wildcards.chunk)]
 
 
 COMPARISONS = config.get("comparisons") or {}

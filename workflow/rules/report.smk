@@ -1,5 +1,7 @@
 # Reports for people: one self-contained HTML page per campaign (figures embedded, no server, no
-# network), with the campaign's provenance record written first in the same job, and
+# network), with the raw check (raw_check.json: every raw file the ingest read still has the sha256
+# recorded then; a changed raw file fails this job) and the campaign's provenance record written first
+# in the same job (one job fewer per campaign than a raw-check job of its own: issue 23), and
 # results/index.html over all campaigns, the blind suite and the comparisons (their pages are written
 # by rule compare), with every campaign's plan check in one table. Every number on the pages names its
 # source file, rule, commit and parameters (isokinetic.report). The index never waits on every campaign:
@@ -7,10 +9,13 @@
 
 
 rule campaign_report:
-    """provenance.json (raw files and hashes, environment, code, stages of every output), then the
-    campaign's report page: plan check, characteristic, repeatability, models, harmonic, design,
-    diagnosis and quarantine, every figure embedded, every number with its lineage."""
+    """raw_check.json (every raw file the campaign's ingest read still has the sha256 recorded then:
+    isokinetic.audit.raw_check; a changed or missing one fails the job), provenance.json (raw files and
+    hashes, environment, code, stages of every output), then the campaign's report page: plan check,
+    characteristic, repeatability, models, harmonic, design, diagnosis and quarantine, every figure
+    embedded, every number with its lineage."""
     input:
+        raw=lambda wildcards: raw_files(wildcards) if wildcards.campaign in RAW_CAMPAIGNS else [],
         outputs=lambda wildcards: campaign_outputs(wildcards.campaign),
         ingest=output_path("ingest", "ingest"),
         cases=output_path("characteristic", "cases"),

@@ -1,4 +1,5 @@
-"""Rule blind_generate: the seeded blind suite -> results/blind/raw/<scenario>/ and results/blind/truth/."""
+"""Rule blind_generate: one chunk of the seeded blind suite -> results/blind/raw/chunk<k>/<scenario>/ and
+results/blind/truth/chunk<k>/."""
 import time
 
 from isokinetic.job import job
@@ -8,8 +9,8 @@ from isokinetic.stages.blind_generate import generate_scenarios, write_suite
 with job(snakemake) as j:
     p = snakemake.params
     start = time.perf_counter()
-    scenarios = generate_scenarios(p.seed, p.n_per_effect, p.n_pairs, p.n_none, p.n_out,
-                                   spec=WindowSpec(p.start_fraction, p.end_fraction))
+    scenarios = generate_scenarios(p.seed, p.n_per_effect, p.n_pairs, p.n_none, p.n_out, p.n_sine,
+                                   spec=WindowSpec(p.start_fraction, p.end_fraction), names=list(p.names))
     names = [s.name for s in scenarios]
     if names != list(p.names):
         raise RuntimeError(f"generated scenarios {names} differ from the workflow's {list(p.names)}")

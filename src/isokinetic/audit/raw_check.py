@@ -6,6 +6,11 @@ recorded at ingest (``ingest/campaign.json`` ``manifest_sha256``; ``raw_sha256``
 The comparison is :func:`isokinetic.audit.provenance.raw_sources`, which the provenance rule uses too:
 one implementation of the hashes, two callers. A simulated campaign has nothing on disk to check.
 
+The stage runs first in the campaign's report job (rule ``campaign_report``: a raw file changed since
+ingest fails that job, before the provenance and the page are written) and writes ``raw_check.json``
+for every campaign (``kind`` ``raw`` or ``simulation``); the workflow's ``onsuccess``/``onerror`` handlers
+check every raw campaign again at the end of each run.
+
 ``python -m isokinetic raw-check results/<campaign> [...]`` prints one line per changed or missing
 file and exits 1 when there is any (0 otherwise).
 """
@@ -33,7 +38,11 @@ def raw_changes(campaign_root: str | os.PathLike, base: str | os.PathLike = ".")
     working directory). Files recorded without a hash (a case quarantined because its file was
     missing) are not checked. Empty for a simulated campaign.
     """
-    raw = raw_sources(Path(campaign_root), Path(base))
+    return _changes(raw_sources(Path(campaign_root), Path(base)))
+
+
+def _changes(raw: dict) -> list[dict]:
+    """The changed, missing or outside files of a ``raw`` section (:func:`isokinetic.audit.provenance.raw_sources`)."""
     if raw["kind"] != "raw":
         return []
     out = []
@@ -67,12 +76,14 @@ def describe(campaign: str, change: dict) -> str:
 
 def check_raw(campaign_root: str | os.PathLike, out_path: str | os.PathLike | None = None, *,
               base: str | os.PathLike = ".") -> list[dict]:
-    """:func:`raw_changes`, written to ``out_path`` as JSON (``campaign``, ``ok``, ``changes``)
-    when given; raises :class:`RawDataChanged` listing every change when there is any."""
+    """:func:`raw_changes`, written to ``out_path`` as JSON (``campaign``, ``kind``: ``raw`` or ``simulation``
+    (nothing on disk to check), ``ok``, ``changes``) when given; raises :class:`RawDataChanged` listing every
+    change when there is any."""
     root = Path(campaign_root)
-    changes = raw_changes(root, base)
+    raw = raw_sources(root, Path(base))
+    changes = _changes(raw)
     if out_path is not None:
-        write_json({"campaign": root.name, "ok": not changes, "changes": changes}, out_path)
+        write_json({"campaign": root.name, "kind": raw["kind"], "ok": not changes, "changes": changes}, out_path)
     if changes:
         raise RawDataChanged("; ".join(describe(root.name, c) for c in changes))
     return changes

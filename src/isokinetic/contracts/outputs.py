@@ -130,8 +130,7 @@ RULE_STAGES = {
     "characteristic": ("validate", "windows", "repeatability", "characteristic"),
     "analysis": ("design", "nominal", "harmonic", "static_force", "models", "exports", "figures"),
     "diagnosis": ("diagnosis",),
-    "raw_check": ("raw_check",),
-    "campaign_report": ("provenance", "campaign_report"),
+    "campaign_report": ("raw_check", "provenance", "campaign_report"),
     "blind_score": ("blind_score",),
     "compare": ("compare", "compare_report"),
 }

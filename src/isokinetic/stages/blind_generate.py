@@ -27,6 +27,14 @@ Scenario
     valve; :func:`out_of_catalogue_true_effects`). The rig writes its own column names and units
     and rounds the manifest as a person would.
 
+Sine-only scenario (issue 21)
+    The same damper draw, nuisances and sensor chain, but the plan is a sine sweep
+    (:func:`draw_sine_plan`: 5-7 frequencies log-spaced over 0.2-10 Hz, peak speeds log-spaced from
+    0.03-0.1 to 0.6-1.5 mm/s, four cycles each at 1 kHz, in a random test order), with no effect or
+    one catalogue effect at 1x-5x its sine detection level. The load cell's full scale follows the
+    largest force the sweep reaches (:func:`plan_peak_force_N`: a stiff damper's force at a few Hz is
+    held far below the steady force at the same peak speed by compressibility).
+
 Magnitude of an effect (what "1x detection" is measured in)
     friction: Coulomb force F_C [N]; leakage: conductance g [m3/(s Pa)]; asymmetry: |a| (random
     sign); discharge, viscosity: the relative deviation |theta/theta_0 - 1| from the nominal
@@ -38,20 +46,22 @@ Detection level
     plan, F from :class:`~isokinetic.stages.nominal.ModelPlan` (the model run through the plan's own
     windows), and SE_i the rig's exact noise of a mean of the window's n_i samples at F_i(m) (white
     plus proportional coloured noise, :func:`isokinetic.reference.campaign.mean_noise_variance`).
-    Found by a coarse scan of log m upwards from 1e-7 of the effect's bound (first crossing of 3,
-    so the *smallest* root) refined by ``brentq`` on log m. An effect whose 5x detection level
-    exceeds its physical bound (:data:`BOUNDS`; or that never reaches rms_z = 3) makes the
-    scenario re-draw its damper, plan and noise (same random stream, so still deterministic; the
-    number of re-draws is recorded).
+    On a sine-only plan the same computation runs on the phase bins the diagnosis compares
+    (:class:`SineDetectionProblem`: the model driven by each case's planned sine, 16 bins a cycle
+    over the cycles after the first, window and transient bins alike). Found by a coarse scan of
+    log m upwards from 1e-7 of the effect's bound (first crossing of 3, so the *smallest* root)
+    refined by ``brentq`` on log m. An effect whose 5x detection level exceeds its physical bound
+    (:data:`BOUNDS`; or that never reaches rms_z = 3) makes the scenario re-draw its damper, plan and
+    noise (same random stream, so still deterministic; the number of re-draws is recorded).
 
-Determinism: the suite composition and order come from ``SeedSequence(seed)``, scenario k from
-``SeedSequence([seed, k])``; the same arguments give identical scenarios and identical files.
+Determinism: the suite composition and order come from ``SeedSequence(seed)``
+(:func:`isokinetic.contracts.scenarios.suite_composition`), scenario k from ``SeedSequence([seed, k])``;
+the same arguments give identical scenarios and identical files, whichever chunk of the suite draws them.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import itertools
 import logging
 import math
 import os
@@ -62,11 +72,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from isokinetic.contracts.scenarios import EFFECTS, OUT_OF_CATALOGUE, scenario_names
+from isokinetic.contracts.scenarios import EFFECTS, MULTIPLE_RANGE, OUT_OF_CATALOGUE, scenario_names, suite_composition
 from isokinetic.io import write_json
 from isokinetic.measurement.model_windows import ModelPlan
 from isokinetic.measurement.windows import WindowSpec
-from isokinetic.physics.damper import NOMINAL, TABLE_1, Damper, Effects, nominal_force
+from isokinetic.physics.damper import NOMINAL, TABLE_1, Damper, Effects, friction_force, nominal_force
 from isokinetic.physics.plan import CasePlan, paper_plan
 from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
@@ -89,7 +99,6 @@ UNITS = {"friction": "coulomb_force_N", "leakage": "leakage_conductance_m3_s_Pa"
 SIGNED = ("asymmetry", "discharge", "viscosity")
 
 TARGET_RMS_Z = 3.0
-MULTIPLE_RANGE = (1.0, 5.0)
 MAGNITUDE_BINS = (("1-2x", 1.0, 2.0), ("2-3x", 2.0, 3.0), ("3-5x", 3.0, math.inf))
 
 PERIODS_S = (20.0, 80.0, 240.0)
@@ -99,6 +108,15 @@ SAMPLE_RATE_HZ = 50.0
 LOW_END_MM_S = (0.005, 0.05)      # log-uniform range of the slowest speed
 HIGH_END_MM_S = (0.4, 1.5)        # log-uniform range of the fastest speed
 N_VELOCITIES = (8, 12)
+#: Sine-only scenarios: a sweep of 5-7 frequencies log-spaced over SINE_FREQUENCY_HZ, peak speeds log-spaced
+#: from a low end in SINE_LOW_SPEED_MM_S to a high end in SINE_HIGH_SPEED_MM_S (an amplitude of some 20-80 um),
+#: SINE_CYCLES cycles each at SINE_SAMPLE_RATE_HZ, in a random test order.
+SINE_FREQUENCY_HZ = (0.2, 10.0)
+SINE_N_FREQUENCIES = (5, 7)
+SINE_LOW_SPEED_MM_S = (0.03, 0.1)
+SINE_HIGH_SPEED_MM_S = (0.6, 1.5)
+SINE_CYCLES = 4
+SINE_SAMPLE_RATE_HZ = 1000.0
 MAX_REDRAWS = 50
 
 
@@ -208,8 +226,85 @@ class DetectionProblem:
         return float(np.sqrt(np.mean(z * z)))
 
 
-def detection_level(problem: DetectionProblem, effect: str, sign: float = 1.0, bound: float | None = None,
-                    target: float = TARGET_RMS_Z, scan_decades: float = 7.0, scan_points: int = 15) -> float | None:
+@dataclass
+class SineDetectionProblem:
+    """rms_z(m) of one effect in one sine-only scenario: the same computation as :class:`DetectionProblem` on
+    the sine records' phase bins, which is what the diagnosis compares there.
+
+    The noise-free model (Eq. 1, 2, 7 with the effects, friction added to the force;
+    :func:`isokinetic.physics.sine_drive.sine_drive_response`) is driven by each case's planned sine from rest
+    and sampled at the rig's sample times; its force is reduced to the diagnosis' phase bins
+    (:data:`~isokinetic.diagnosis.sine_observations.N_SINE_BINS` per cycle, every cycle after the first
+    ``SKIPPED_CYCLES``, window and transient bins alike); SE of a bin mean: the rig's exact noise of a mean of
+    its n samples at its force (:func:`isokinetic.reference.campaign.mean_noise_variance`).
+    """
+
+    cases: tuple[CasePlan, ...]
+    damper: Damper
+    rig: rr.RigImperfections
+    bins: tuple[np.ndarray, ...]    # per case, the bin of each sample (-1: in no bin)
+    nominal_N: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    calls: int = 0
+
+    @classmethod
+    def of(cls, cases: Sequence[CasePlan], damper: Damper, rig: rr.RigImperfections) -> SineDetectionProblem:
+        problem = cls(tuple(cases), damper, rig, tuple(sine_sample_bins(c) for c in cases))
+        problem.nominal_N = problem.forces(NOMINAL)
+        return problem
+
+    def forces(self, effects: Effects) -> np.ndarray:
+        """Bin means of the model's force [N], case after case."""
+        out = []
+        for force, b in zip(sine_model_forces(self.cases, self.damper, effects), self.bins, strict=True):
+            used = b >= 0
+            out.append(np.bincount(b[used], weights=force[used]) / np.bincount(b[used]))
+        return np.concatenate(out)
+
+    def se(self, force_N: np.ndarray) -> np.ndarray:
+        n = np.concatenate([np.bincount(b[b >= 0]) for b in self.bins])
+        fs = np.concatenate([np.full(int(b.max()) + 1, c.sample_rate_Hz) for c, b in zip(self.cases, self.bins,
+                                                                                          strict=True)])
+        return np.sqrt([rrc.mean_noise_variance(int(k), float(f), self.rig, float(r))
+                        for k, f, r in zip(n, force_N, fs, strict=True)])
+
+    def rms_z(self, effect: str, magnitude: float, sign: float = 1.0) -> float:
+        self.calls += 1
+        f = self.forces(Effects(**effect_fields(effect, magnitude, sign, self.damper)))
+        z = (f - self.nominal_N) / self.se(f)
+        return float(np.sqrt(np.mean(z * z)))
+
+
+def sine_model_forces(cases: Sequence[CasePlan], damper: Damper, effects: Effects = NOMINAL) -> list[np.ndarray]:
+    """The noise-free model's force [N] of each sine case at t = k/fs (k = 0 .. duration fs), driven by the
+    planned sine from rest: A_p Δp (Eq. 1, 2, 7 with the effects) plus the friction of Eq. 8."""
+    from isokinetic.physics.hydraulics import Hydraulics
+    from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
+
+    hyd = Hydraulics.from_damper(damper, effects)
+    out = []
+    for c in cases:
+        n = int(round(c.duration_s * c.sample_rate_Hz)) + 1
+        _t, dp, vel = sine_drive_response(SineDrive(c.amplitude_m, c.frequency_Hz, 0.0, n), c.sample_rate_Hz, hyd)
+        out.append(hyd.piston_area_m2 * dp + friction_force(vel, effects))
+    return out
+
+
+def sine_sample_bins(case: CasePlan) -> np.ndarray:
+    """The phase bin of each of a sine case's samples t = k/fs (k = 0 .. duration fs, as the rig records):
+    N_SINE_BINS per cycle, numbered on from the first cycle after SKIPPED_CYCLES; -1 before it and after the
+    last whole cycle."""
+    from isokinetic.diagnosis.sine_observations import N_SINE_BINS, SKIPPED_CYCLES
+
+    n = int(round(case.duration_s * case.sample_rate_Hz)) + 1
+    cycles = np.arange(n) * (case.frequency_Hz / case.sample_rate_Hz)
+    whole = math.floor(case.duration_s * case.frequency_Hz + 1e-9)
+    b = np.floor((cycles - SKIPPED_CYCLES) * N_SINE_BINS + 1e-9).astype(int)
+    return np.where((cycles >= SKIPPED_CYCLES - 1e-12) & (b < (whole - SKIPPED_CYCLES) * N_SINE_BINS), b, -1)
+
+
+def detection_level(problem: DetectionProblem | SineDetectionProblem, effect: str, sign: float = 1.0,
+                    bound: float | None = None, target: float = TARGET_RMS_Z, scan_decades: float = 7.0,
+                    scan_points: int = 15) -> float | None:
     """Smallest magnitude in (0, bound] with rms_z = ``target``; None when rms_z(bound) < target.
 
     Scan log m on ``scan_points`` points from bound*10^-scan_decades up to the bound (extended
@@ -269,8 +364,15 @@ class Scenario:
         """The weakest truth effect's magnitude in detection levels (NaN without effects)."""
         return min(self.multiple.values()) if self.multiple else math.nan
 
-    def rig_cases(self) -> list[rr.TriangleCase]:
-        return [rr.TriangleCase(c.case, c.velocity_m_s, c.period_s, c.sample_rate_Hz) for c in self.cases]
+    @property
+    def waveform(self) -> str:
+        """'sine' for a sine-only campaign, else 'triangle'."""
+        return "sine" if all(c.waveform == "sine" for c in self.cases) else "triangle"
+
+    def rig_cases(self) -> list[rr.TriangleCase | rr.SineCase]:
+        return [rr.SineCase(c.case, c.frequency_Hz, c.amplitude_m, round(c.duration_s * c.frequency_Hz, 9),
+                            c.sample_rate_Hz) if c.waveform == "sine"
+                else rr.TriangleCase(c.case, c.velocity_m_s, c.period_s, c.sample_rate_Hz) for c in self.cases]
 
     def truth_params(self) -> dict[str, float]:
         """Catalogue-form SI parameters of the truth effects (what an exact verdict should fit)."""
@@ -311,8 +413,9 @@ class Scenario:
             "magnitude_bin": magnitude_bin(self.magnitude_x_detection),
             "detection_rms_z": TARGET_RMS_Z,
             "damper": self.damper.to_dict(),
-            "velocities_mm_s": [round(c.velocity_m_s * 1e3, 12) for c in self.cases],
-            "periods_s": [c.period_s for c in self.cases],
+            "waveform": self.waveform,
+            "velocities_mm_s": [round(case_speed_m_s(c) * 1e3, 12) for c in self.cases],
+            "periods_s": [c.period_s if c.waveform == "triangle" else 1.0 / c.frequency_Hz for c in self.cases],
             "noise_seed": self.noise_seed,
             "redraws": self.redraws,
         }
@@ -352,9 +455,39 @@ def draw_plan(rng: np.random.Generator, n_velocities: tuple[int, int] = N_VELOCI
     return [cases[int(i)] for i in rng.permutation(len(cases))]
 
 
+def draw_sine_plan(rng: np.random.Generator) -> list[CasePlan]:
+    """A sine sweep S01..: 5-7 frequencies log-spaced over SINE_FREQUENCY_HZ (3 significant digits), peak
+    speeds log-spaced from a low end in SINE_LOW_SPEED_MM_S to a high end in SINE_HIGH_SPEED_MM_S (amplitudes
+    to 4 digits, as the manifest writes them), SINE_CYCLES cycles each, in a random test order."""
+    n = int(rng.integers(SINE_N_FREQUENCIES[0], SINE_N_FREQUENCIES[1] + 1))
+    lo = math.exp(rng.uniform(*np.log(SINE_LOW_SPEED_MM_S)))
+    hi = math.exp(rng.uniform(*np.log(SINE_HIGH_SPEED_MM_S)))
+    cases = [CasePlan(f"S{i:02d}", "sine", SINE_SAMPLE_RATE_HZ, amplitude_m=_sig(v * 1e-3 / (2 * math.pi * f), 4),
+                      frequency_Hz=f, phase_rad=0.0, duration_s=SINE_CYCLES / f)
+             for i, (f, v) in enumerate(zip((_sig(f, 3) for f in np.geomspace(*SINE_FREQUENCY_HZ, n)),
+                                            np.geomspace(lo, hi, n), strict=True), start=1)]
+    return [cases[int(i)] for i in rng.permutation(len(cases))]
+
+
+def case_speed_m_s(case: CasePlan) -> float:
+    """A case's largest planned speed: the triangle's W, a sine's 2 pi f Y."""
+    return case.velocity_m_s if case.waveform == "triangle" else 2.0 * math.pi * case.frequency_Hz * case.amplitude_m
+
+
+def plan_peak_force_N(damper: Damper, cases: Sequence[CasePlan]) -> float:
+    """The plan's largest nominal force [N]: the steady force at the fastest triangle speed; for sine cases the
+    model's largest force over the record (compressibility keeps a stiff damper's force at a few Hz far below
+    the steady force at the same peak speed, :func:`sine_model_forces`)."""
+    tri = [c.velocity_m_s for c in cases if c.waveform == "triangle"]
+    sines = [c for c in cases if c.waveform == "sine"]
+    peak = float(np.max(np.abs(nominal_force(np.array(tri), damper)))) if tri else 0.0
+    return max([peak] + [float(np.max(np.abs(f))) for f in sine_model_forces(sines, damper)])
+
+
 def full_scale_N(damper: Damper, cases: Sequence[CasePlan]) -> float:
-    """The load cell's full scale: the next of 1, 2, 5 x 10^k above 1.25 x the plan's largest force."""
-    peak = 1.25 * float(np.max(np.abs(nominal_force(np.array([c.velocity_m_s for c in cases]), damper))))
+    """The load cell's full scale: the next of 1, 2, 5 x 10^k above 1.25 x the plan's largest force
+    (:func:`plan_peak_force_N`)."""
+    peak = 1.25 * plan_peak_force_N(damper, cases)
     k = math.floor(math.log10(max(peak, 1e-9)))
     return next(m * 10.0**k for m in (1.0, 2.0, 5.0, 10.0) if m * 10.0**k >= peak)
 
@@ -400,7 +533,7 @@ def draw_rig(rng: np.random.Generator, full_scale: float, duration_s: float = 1.
 def charge_pressure_Pa(damper: Damper, cases: Sequence[CasePlan]) -> float:
     """Charge (accumulator) pressure of the drawn damper: twice the plan's largest steady Δp, at least
     5 MPa (2 significant digits), so that neither chamber comes near zero absolute pressure."""
-    dp_max = float(np.max(np.abs(nominal_force(np.array([c.velocity_m_s for c in cases]), damper))))
+    dp_max = float(np.max(np.abs(nominal_force(np.array([case_speed_m_s(c) for c in cases]), damper))))
     return _sig(max(5.0e6, 2.0 * dp_max / damper.piston_area_m2), 2)
 
 
@@ -462,7 +595,8 @@ def detection_levels(name: str, effects: Iterable[str], cases: Sequence[CasePlan
     detection: dict[str, float] = {}
     if not effects:
         return detection
-    problem = DetectionProblem.of(name, cases, damper, rig, spec)
+    problem = SineDetectionProblem.of(cases, damper, rig) if cases[0].waveform == "sine" else \
+        DetectionProblem.of(name, cases, damper, rig, spec)
     for e in sorted(effects, key=EFFECTS.index):
         level = detection_level(problem, e, signs.get(e, 1.0))
         if level is None or MULTIPLE_RANGE[1] * level > BOUNDS[e]:
@@ -484,14 +618,19 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
                   n_velocities: tuple[int, int] = N_VELOCITIES,
                   low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
                   high_end_mm_s: tuple[float, float] = HIGH_END_MM_S, out_of_catalogue: str = "",
-                  rig: rr.RigImperfections | None = None, sensor_chain: bool = True) -> Scenario:
+                  rig: rr.RigImperfections | None = None, sensor_chain: bool = True,
+                  waveform: str = "triangle") -> Scenario:
     """Draw a scenario with the effects ``truth`` at ``multiples`` x their detection level.
 
     ``multiples`` missing an effect: drawn U[1, 5]. Damper, plan and rig are re-drawn (up to
     MAX_REDRAWS times) while an effect's 5x detection level exceeds its bound. ``rig`` overrides
     the drawn nuisances (tests); ``sensor_chain`` False leaves the sensor chain ideal (:func:`draw_rig`; its
-    own stream, child 21 of ``seed_seq``: everything else is drawn as without it).
+    own stream, child 21 of ``seed_seq``: everything else is drawn as without it). ``waveform`` 'sine': a
+    sine-only campaign (:func:`draw_sine_plan`, the plan ranges unused), its detection levels on its phase bins
+    (:class:`SineDetectionProblem`).
     """
+    if waveform == "sine" and out_of_catalogue:
+        raise ValueError(f"{name}: out-of-catalogue scenarios are triangle campaigns")
     rng = np.random.default_rng(seed_seq)
     chain_rng = np.random.default_rng(np.random.SeedSequence(seed_seq.entropy, spawn_key=(*seed_seq.spawn_key, 21))) \
         if sensor_chain else None
@@ -499,7 +638,8 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
     multiples = dict(multiples or {})
     for redraw in range(MAX_REDRAWS + 1):
         damper = draw_damper(rng)
-        cases = tuple(draw_plan(rng, n_velocities, low_end_mm_s, high_end_mm_s))
+        cases = tuple(draw_sine_plan(rng) if waveform == "sine" else
+                      draw_plan(rng, n_velocities, low_end_mm_s, high_end_mm_s))
         drawn_rig = draw_rig(rng, full_scale_N(damper, cases), campaign_duration_s(cases), chain_rng)
         the_rig = drawn_rig if rig is None else rig
         noise_seed = int(rng.integers(0, 2**31 - 1))
@@ -522,57 +662,36 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
     raise RuntimeError(f"{name}: no plan within {MAX_REDRAWS} re-draws makes {truth} detectable within bounds")
 
 
-def suite_composition(seed: int, n_per_effect: int, n_pairs: int, n_none: int, n_out: int = 0
-                      ) -> list[tuple[tuple[str, ...], dict[str, float], str]]:
-    """(truth, multiples, out-of-catalogue kind) per scenario, in name order.
-
-    Singles of one effect get stratified multiples (k-th of n in [1 + 4k/n, 1 + 4(k+1)/n], strata
-    in random order); pairs are distinct effect pairs (cycled when more than 15 are asked) with
-    U[1, 5] multiples; ``n_out`` out-of-catalogue scenarios cycle through OUT_OF_CATALOGUE; the
-    whole list is shuffled so a name does not tell its kind.
-    """
-    for key, v in (("n_per_effect", n_per_effect), ("n_pairs", n_pairs), ("n_none", n_none), ("n_out", n_out)):
-        if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-            raise ValueError(f"{key}: must be a non-negative integer, got {v!r}")
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5EED]))
-    lo, hi = MULTIPLE_RANGE
-    kinds: list[tuple[tuple[str, ...], dict[str, float], str]] = []
-    for e in EFFECTS:
-        strata = rng.permutation(n_per_effect)
-        for k in strata:
-            u = rng.uniform(k / n_per_effect, (k + 1) / n_per_effect)
-            kinds.append(((e,), {e: lo + (hi - lo) * float(u)}, ""))
-    all_pairs = list(itertools.combinations(EFFECTS, 2))
-    order = rng.permutation(len(all_pairs))
-    for i in range(n_pairs):
-        pair = all_pairs[int(order[i % len(all_pairs)])]
-        kinds.append((pair, {e: float(rng.uniform(lo, hi)) for e in pair}, ""))
-    kinds += [((), {}, "") for _ in range(n_none)]
-    kinds += [((), {}, OUT_OF_CATALOGUE[i % len(OUT_OF_CATALOGUE)]) for i in range(n_out)]
-    return [kinds[int(i)] for i in rng.permutation(len(kinds))]
-
-
-def generate_scenarios(seed: int, n_per_effect: int, n_pairs: int, n_none: int, n_out: int = 0, *,
+def generate_scenarios(seed: int, n_per_effect: int, n_pairs: int, n_none: int, n_out: int = 0, n_sine: int = 0, *,
                        multiple: float | None = None, spec: WindowSpec = WindowSpec(),
                        n_velocities: tuple[int, int] = N_VELOCITIES,
                        low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
                        high_end_mm_s: tuple[float, float] = HIGH_END_MM_S,
-                       sensor_chain: bool = True) -> list[Scenario]:
+                       sensor_chain: bool = True, names: Sequence[str] | None = None) -> list[Scenario]:
     """The blind suite: ``n_per_effect`` single-effect scenarios per effect, ``n_pairs`` with two
-    effects, ``n_none`` without, ``n_out`` with an effect outside the catalogue; names blind-000...
-    in a seeded random order.
+    effects, ``n_none`` without, ``n_out`` with an effect outside the catalogue (triangle campaigns; names
+    blind-000... in a seeded random order), then ``n_sine`` sine-only campaigns
+    (:func:`isokinetic.contracts.scenarios.suite_composition`).
 
     ``multiple`` fixes every effect's magnitude at that many detection levels (tests); the plan
     ranges can be narrowed for small suites; ``sensor_chain`` False draws the same suite with an ideal
-    sensor chain (the same scenarios otherwise).
+    sensor chain (the same scenarios otherwise); ``names`` draws only those scenarios (a chunk of the
+    suite: each is the same as in the whole suite), in the suite's order.
     """
-    composition = suite_composition(seed, n_per_effect, n_pairs, n_none, n_out)
+    composition = suite_composition(seed, n_per_effect, n_pairs, n_none, n_out, n_sine)
+    all_names = scenario_names(len(composition))
+    if names is not None and set(names) - set(all_names):
+        raise ValueError(f"not in the suite: {sorted(set(names) - set(all_names))}")
+    wanted = set(all_names if names is None else names)
     out = []
-    for k, (name, (truth, mult, kind)) in enumerate(zip(scenario_names(len(composition)), composition, strict=True)):
+    for k, (name, (truth, mult, kind, waveform)) in enumerate(zip(all_names, composition, strict=True)):
+        if name not in wanted:
+            continue
         if multiple is not None:
             mult = {e: float(multiple) for e in truth}
         out.append(make_scenario(name, truth, np.random.SeedSequence([int(seed), k]), mult, spec,
-                                 n_velocities, low_end_mm_s, high_end_mm_s, kind, sensor_chain=sensor_chain))
+                                 n_velocities, low_end_mm_s, high_end_mm_s, kind, sensor_chain=sensor_chain,
+                                 waveform=waveform))
     return out
 
 

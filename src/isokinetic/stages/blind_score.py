@@ -27,7 +27,7 @@ from isokinetic.plots.blind_score import confusion_figure
 from isokinetic.plots.style import save_figure
 from isokinetic.stages.blind_generate import MAGNITUDE_BINS, PARAM_KEYS, effect_text, magnitude_bin
 
-SCORE_COLUMNS = ("scenario", "truth", "out_of_catalogue", "verdict", "exact", "exact_up_to_confounding",
+SCORE_COLUMNS = ("scenario", "waveform", "truth", "out_of_catalogue", "verdict", "exact", "exact_up_to_confounding",
                  "explained", "n_truth", "magnitude_x_detection", "magnitude_bin", "gap_before", "gap_after",
                  "shrink", "confounded", "param_error_max", "delay_error_s", "offset_error_N", "gain_error",
                  "true_lag_s", "lag_error_s", "true_scale", "scale_error", "drift_error_N_s", "error")
@@ -163,7 +163,8 @@ def score_row(t: Mapping, d: Mapping | None) -> dict:
     mult = _float(t.get("magnitude_x_detection"))
     if not truth:
         mult = math.nan
-    row = {"scenario": name, "truth": effect_text(truth), "out_of_catalogue": str(t.get("out_of_catalogue") or ""),
+    row = {"scenario": name, "waveform": str(t.get("waveform") or "triangle"), "truth": effect_text(truth),
+           "out_of_catalogue": str(t.get("out_of_catalogue") or ""),
            "n_truth": len(truth), "magnitude_x_detection": mult, "magnitude_bin": magnitude_bin(mult),
            "true_lag_s": _float((t.get("instrument") or {}).get("force_lag_s")),
            "true_scale": _float((t.get("instrument") or {}).get("displacement_scale"))}
@@ -326,6 +327,19 @@ def target_none_explained(none: pd.DataFrame) -> dict:
             "pass": None if none.empty else bool(claimed.empty), "misses": sorted(claimed["scenario"])}
 
 
+def by_waveform(inside: pd.DataFrame) -> dict:
+    """Per waveform ('triangle', 'sine'), over the in-catalogue scenarios: how many, how many with effects and
+    how many of those attributed exactly, how many without effects and how many of those with effects claimed."""
+    out = {}
+    for wave in ("triangle", "sine"):
+        w = inside[inside["waveform"] == wave]
+        eff, none = w[w["n_truth"] > 0], w[w["n_truth"] == 0]
+        out[wave] = {"n": int(len(w)), "n_effects": int(len(eff)), "exact": int(eff["exact"].sum()),
+                     "n_none": int(len(none)), "none_claimed": int((none["verdict"] != "").sum()),
+                     "errors": int(w["error"].sum())}
+    return out
+
+
 def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
     """Per-bin exact-attribution rates and the five targets (JSON-ready).
 
@@ -358,7 +372,9 @@ def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
         "n_pairs": int((eff["n_truth"] == 2).sum()),
         "n_none": int(len(none)),
         "n_out_of_catalogue": int(len(out)),
+        "n_sine": int((scores["waveform"] == "sine").sum()),
         "n_errors": int(scores["error"].sum()),
+        "by_waveform": by_waveform(inside),
         "exact_rate": float(eff["exact"].mean()) if len(eff) else None,
         "bins": magnitude_bins(eff, singles),
         "targets": targets,
@@ -389,11 +405,16 @@ def summary_text(summary: Mapping) -> str:
              f"pairs, {summary['n_none']} none, {summary['n_out_of_catalogue']} out of catalogue; "
              f"{summary['n_errors']} diagnosis errors)",
              "exact attribution by magnitude (weakest effect, x detection level):"]
+    waves = summary.get("by_waveform") or {}
     for name, b in summary["bins"].items():
         rate = "  -  " if b["rate"] is None else f"{100 * b['rate']:5.1f} %"
         rs = "  -  " if b["rate_single"] is None else f"{100 * b['rate_single']:5.1f} %"
         lines.append(f"  {name:>5}: {b['exact']:3d}/{b['n']:<3d} {rate}   (single effect {b['exact_single']}/"
                      f"{b['n_single']} {rs})")
+    for wave, w in waves.items():
+        if w["n"]:
+            lines.append(f"  {wave} campaigns: with effects {w['exact']}/{w['n_effects']} exact; effects claimed on "
+                         f"{w['none_claimed']}/{w['n_none']} without; {w['errors']} diagnosis errors")
     a, bn, c, d, e, f = (t[k] for k in TARGETS)
     lines.append(f"(a) {pass_text(a['pass'])}: single effect at >= 2x detection exact {a['exact']}/{a['n']} "
                  f"= {_percent(a['rate'])} (target >= {100 * a['threshold']:.0f} %)" + _misses(a["misses"], "missed "))
@@ -459,8 +480,19 @@ def confusion_title(scores: pd.DataFrame, summary: Mapping | None = None) -> str
 # Reading the suite and writing the scores
 # --------------------------------------------------------------------------------------------
 
-def read_truths(truth_root: str | os.PathLike) -> list[dict]:
-    return [json.loads(p.read_text(encoding="utf-8")) for p in sorted(Path(truth_root).glob("*.json"))]
+def _roots(roots: str | os.PathLike | Iterable[str | os.PathLike]) -> list[Path]:
+    """One folder or several (the suite's chunks) as a list of paths."""
+    return [Path(roots)] if isinstance(roots, (str, os.PathLike)) else [Path(r) for r in roots]
+
+
+def _truth_files(truth_roots) -> list[Path]:
+    """Every truth file under ``truth_roots`` (one folder or several), sorted by file name."""
+    return sorted((p for r in _roots(truth_roots) for p in r.glob("*.json")), key=lambda p: (p.name, p.as_posix()))
+
+
+def read_truths(truth_roots: str | os.PathLike | Iterable[str | os.PathLike]) -> list[dict]:
+    """The truth records under one folder or several (the suite's chunks), in scenario order."""
+    return [json.loads(p.read_text(encoding="utf-8")) for p in _truth_files(truth_roots)]
 
 
 def read_diagnoses(work_roots: Iterable[str | os.PathLike], names: Iterable[str]) -> dict[str, dict | None]:
@@ -483,17 +515,27 @@ def _raw_dir(meta_path: Path) -> str:
     return Path(manifest).parent.as_posix() if manifest else ""
 
 
-def score_sources(truth_root: str | os.PathLike, work_roots: Iterable[str | os.PathLike],
-                  names: Iterable[str]) -> pd.DataFrame:
+def _raw_beside(truth_file: Path) -> str:
+    """The raw folder of a truth file's scenario in the suite's layout, '' when absent."""
+    name, folder = truth_file.stem, truth_file.parent
+    for raw in (folder.parent / "raw" / name, folder.parent.parent / "raw" / folder.name / name):
+        if raw.is_dir():
+            return raw.as_posix()
+    return ""
+
+
+def score_sources(truth_root, work_roots: Iterable[str | os.PathLike], names: Iterable[str]) -> pd.DataFrame:
     """Where each scenario's score came from: scenario, raw_dir, truth_file, diagnosis_file.
 
-    truth_file: the truth record read (its 'scenario' key, under ``truth_root``); diagnosis_file: the
-    diagnosis.json found under ``work_roots`` (as :func:`read_diagnoses`); raw_dir: the raw campaign
-    folder that diagnosis ingested (the parent of ``manifest_file`` in its ingest/campaign.json),
-    else ``<truth_root>/../raw/<scenario>`` when that folder exists. '' where there is none.
+    truth_file: the truth record read (its 'scenario' key, under ``truth_root``: one folder or several);
+    diagnosis_file: the diagnosis.json found under ``work_roots`` (as :func:`read_diagnoses`); raw_dir: the
+    raw campaign folder that diagnosis ingested (the parent of ``manifest_file`` in its
+    ingest/campaign.json), else the raw folder beside its truth file when that exists
+    (``<blind>/truth/<scenario>.json``: ``<blind>/raw/<scenario>``; ``<blind>/truth/chunk<k>/<scenario>.json``:
+    ``<blind>/raw/chunk<k>/<scenario>``). '' where there is none.
     """
     truth_files = {}
-    for p in sorted(Path(truth_root).glob("*.json")):
+    for p in _truth_files(truth_root):
         name = json.loads(p.read_text(encoding="utf-8")).get("scenario")
         truth_files.setdefault(str(name), p.as_posix())
     roots = [Path(r) for r in work_roots]
@@ -506,8 +548,8 @@ def score_sources(truth_root: str | os.PathLike, work_roots: Iterable[str | os.P
             meta_path = r / name / "ingest" / "campaign.json"
             if not raw and meta_path.is_file():
                 raw = _raw_dir(meta_path)
-        if not raw and (Path(truth_root).parent / "raw" / name).is_dir():
-            raw = (Path(truth_root).parent / "raw" / name).as_posix()
+        if not raw and name in truth_files:
+            raw = _raw_beside(Path(truth_files[name]))
         rows.append({"scenario": name, "raw_dir": raw, "truth_file": truth_files.get(name, ""),
                      "diagnosis_file": diagnosis})
     return pd.DataFrame(rows, columns=["scenario", *SOURCE_COLUMNS]).astype(str)
@@ -515,7 +557,7 @@ def score_sources(truth_root: str | os.PathLike, work_roots: Iterable[str | os.P
 
 def write_scores(truth_root, work_roots, scores_path, summary_path, figure_path) -> tuple[pd.DataFrame, dict]:
     """Score the suite: scores.parquet (SCORE_COLUMNS and the sources, SOURCE_COLUMNS), summary.json and
-    the confusion figure; returns both."""
+    the confusion figure; returns both. ``truth_root``: one folder of truth files or several (the chunks)."""
     truths = read_truths(truth_root)
     work_roots = list(work_roots)
     diagnoses = read_diagnoses(work_roots, [t["scenario"] for t in truths])
