@@ -124,3 +124,56 @@ def test_the_force_lag_is_profiled_on_a_candidates_effects(campaign):
     dg = Diagnoser(replace(obs, force_N=truth), damper)
     lag, form, _pred = ins.fit_force_lag(dg, (0,), effects=effects)
     assert (form, lag) == (0, pytest.approx(0.03, abs=5e-4))
+
+
+SWEEP_HZ_MM_S = [(0.2, 0.05), (0.5, 0.1), (1.0, 0.2), (2.0, 0.4), (5.0, 0.8), (10.0, 1.2)]
+
+
+def sine_responses(rig: rr.RigImperfections, with_command: bool = True) -> list[tuple[float, float, float]]:
+    """case_sine_response of each case of a reference-rig sweep (four cycles at 1 kHz)."""
+    from isokinetic.reference import campaign as rrc
+
+    out = []
+    for i, (f, v) in enumerate(SWEEP_HZ_MM_S):
+        case = rr.SineCase(f"H{i}", f, v * 1e-3 / (2 * np.pi * f), 4, 1000.0)
+        s = rrc.simulate_case(case, rig=rig, seed=3, case_index=i, rtol=1e-6)
+        series = pd.DataFrame({"time_s": s["time_s"], "displacement_m": s["displacement_meas_m"]})
+        if with_command:
+            series["command_m"] = s["command_meas_m"]
+        out.append(ins.case_sine_response(series, f))
+    return out
+
+
+def test_a_sine_sweeps_lvdt_scale_and_delay_are_measured_against_its_command():
+    rig = rr.RigImperfections(delay_s=0.012, servo_lag_s=0.006, displacement_gain=1.012, displacement_noise_m=1e-6)
+    scale, delays = ins.sine_servo_terms(*zip(*sine_responses(rig), strict=True))
+    assert scale["estimate"] == pytest.approx(1.012, abs=3e-4)
+    assert scale["applied"] is True
+    assert delays["delay_s"] == pytest.approx(0.018, abs=5e-4)   # a ramp's delay: dead time plus servo lag
+    assert delays["servo_lag_s"] == pytest.approx(0.006, abs=5e-4)
+
+
+def test_a_sine_sweep_with_a_true_lvdt_gets_no_scale_applied():
+    rig = rr.RigImperfections(delay_s=0.012, servo_lag_s=0.006, displacement_noise_m=1e-6)
+    scale, _delays = ins.sine_servo_terms(*zip(*sine_responses(rig), strict=True))
+    assert scale["applied"] is False
+
+
+def test_a_sine_sweep_without_a_command_channel_gives_no_scale_and_no_delay():
+    rig = rr.RigImperfections(delay_s=0.012, servo_lag_s=0.006, displacement_gain=1.012)
+    scale, delays = ins.sine_servo_terms(*zip(*sine_responses(rig, with_command=False), strict=True))
+    assert scale["estimate"] is None and scale["source"] == "no command channel"
+    assert delays["delay_s"] is None
+
+
+def test_a_sine_only_campaigns_offset_bound_does_not_grow_with_the_offset():
+    force = np.sin(np.linspace(0.0, 2 * np.pi, 32, endpoint=False)) * 900.0
+    window = np.abs(force) > 600.0
+    assert ins.offset_bound_N(force - 142.0, window, True) == pytest.approx(ins.offset_bound_N(force, window, True))
+    assert ins.offset_bound_N(force - 142.0, window, True) > 142.0   # a sweep's offset of 16 % of its peak force
+
+
+def test_a_triangle_campaigns_offset_bound_is_a_fraction_of_its_largest_window_force():
+    force = np.array([-900.0, -300.0, 20.0, 310.0, 880.0])
+    window = np.array([True, True, False, True, True])
+    assert ins.offset_bound_N(force, window, False) == pytest.approx(ins.OFFSET_BOUND_REL * 900.0)

@@ -46,3 +46,15 @@ def test_before_the_motion_starts_the_model_is_at_rest():
     before = tau <= 0.0
     assert before.sum() == 6 and np.all(dp[before] == 0.0) and np.all(vel[before] == 0.0)
     assert vel[~before][0] == pytest.approx(1e-5 * 2 * math.pi * math.cos(2 * math.pi * tau[~before][0]))
+
+
+def test_without_backlash_the_pushed_pieces_are_integrated_as_one_and_gaps_stay_apart():
+    from isokinetic.physics.excitation import piston_segments
+    from isokinetic.physics.sine_drive import merged_contacts
+
+    p = plan(2.0, 2e-5, 400.0)
+    assert len(merged_contacts(piston_segments(p, 0.0))) == 1
+    with_gap = piston_segments(p, 2e-6)
+    merged = merged_contacts(with_gap)
+    assert sum(not s.contact for s in merged) == sum(not s.contact for s in with_gap) > 0
+    assert merged[0].t_start_s == with_gap[0].t_start_s and merged[-1].t_end_s == with_gap[-1].t_end_s

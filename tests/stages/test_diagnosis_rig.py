@@ -271,3 +271,64 @@ def test_a_zero_drift_beside_a_damper_effect_is_fitted_with_it_not_absorbed(tmp_
     assert result["verdict"] == ["friction"]
     assert result["params"]["coulomb_force_N"] == pytest.approx(15.0, rel=0.15)
     assert result["instrument"]["force_drift_N_s"] == pytest.approx(0.05, rel=0.1)
+
+
+def prepared_sweep(tmp_path, name: str, command: bool = True, **chain):
+    """The prepared observations and sensor terms (:func:`prepare_sensor`) of a SWEEP campaign, and its cases
+    (``command``: whether the manifest names the command channel)."""
+    from isokinetic.stages.blind_diagnose import process_raw_campaign
+    from isokinetic.stages.diagnosis import prepare_sensor
+
+    raw = tmp_path / "raw" / name
+    sines = [rr.SineCase(f"H{i:02d}", f, v * 1e-3 / (2 * math.pi * f), 4, 1000.0)
+             for i, (f, v) in enumerate(SWEEP, start=1)]
+    rrc.write_campaign(raw, sines, rr.TABLE1, rr.NOMINAL_EFFECTS, rr.RigImperfections(**{**QUIET, **chain}), 11,
+                       write_phase=False)
+    if not command:
+        manifest = yaml.safe_load((raw / "campaign.yaml").read_text(encoding="utf-8"))
+        del manifest["columns"]["command"]
+        (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    _c, _d, _cases, obs, _reason, sensor = prepare_sensor(process_raw_campaign(raw, tmp_path / "work"))
+    return obs, sensor, sines
+
+
+def test_a_sine_sweeps_lvdt_scale_is_measured_against_its_command_and_the_model_driven_at_the_true_motion(tmp_path):
+    obs, sensor, sines = prepared_sweep(tmp_path, "sweep-lvdt", **CHAIN, servo_lag_s=0.004, displacement_gain=1.012)
+    scale = sensor["displacement_scale"]
+    assert scale["applied"] is True
+    assert scale["estimate"] == pytest.approx(1.012, rel=0.003)
+    assert sensor["delays"]["delay_s"] == pytest.approx(0.014, abs=0.001)   # dead time 10 ms + servo lag 4 ms
+    # the actuator follows the command through the first-order servo: its amplitude is Y/√(1 + (ωτ)²)
+    true_amplitude = {c.case_id: c.amplitude_m / math.hypot(1.0, 2 * math.pi * c.frequency_Hz * 0.004) for c in sines}
+    for plan, drive in zip(obs.plans, obs.drives, strict=True):
+        assert drive.amplitude_m == pytest.approx(true_amplitude[plan.case], rel=0.003)
+
+
+def test_without_a_command_channel_a_sine_sweeps_lvdt_scale_and_delay_are_not_measured(tmp_path):
+    obs, sensor, sines = prepared_sweep(tmp_path, "sweep-nocmd", command=False, **CHAIN, displacement_gain=1.012)
+    assert sensor["displacement_scale"]["estimate"] is None
+    assert sensor["displacement_scale"]["source"] == "no command channel"
+    assert sensor["delays"]["delay_s"] is None
+    # the model is driven at the motion the LVDT reports
+    measured = {c.case_id: 1.012 * c.amplitude_m for c in sines}
+    assert all(d.amplitude_m == pytest.approx(measured[p.case], rel=0.003) for p, d in zip(obs.plans, obs.drives,
+                                                                                          strict=True))
+
+
+@pytest.mark.slow
+def test_a_sine_sweep_with_an_lvdt_scale_error_gets_no_damper_effect(tmp_path):
+    result = diagnose_sweep(tmp_path, "sweep-lvdt", chain={**CHAIN, "displacement_gain": 1.012})
+    assert result["verdict"] == []
+    assert result["instrument"]["displacement_scale"] == pytest.approx(1.012, rel=0.003)
+    assert result["instrument"]["delay_s"] == pytest.approx(0.01, abs=0.001)
+    assert result["instrument"]["force_gain"] is None   # not the algebraic twin 1/k
+
+
+@pytest.mark.slow
+def test_a_sine_sweep_with_friction_beside_a_large_load_cell_offset_gets_friction(tmp_path):
+    # -142 N: 16 % of the sweep's peak force, beyond 5 % of its largest window force (the triangles' bound)
+    result = diagnose_sweep(tmp_path, "sweep-offset", rr.TrueEffects(coulomb_force_N=10.0),
+                            chain={**CHAIN, "force_offset_N": -142.0})
+    assert result["verdict"] == ["friction"]
+    assert result["params"]["coulomb_force_N"] == pytest.approx(10.0, rel=0.15)
+    assert result["instrument"]["force_offset_N"] == pytest.approx(-142.0, abs=2.0)

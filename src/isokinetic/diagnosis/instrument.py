@@ -1,7 +1,7 @@
 """Instrument terms: load-cell gain and offset (and Coulomb friction) profiled in closed form; the delay.
 
 The load cell reads F_meas = g·F + F_0 + r·(t - t_ref): a gain g (|g - 1| <= GAIN_BOUND), a zero offset
-F_0 at the reference time t_ref (|F_0| <= OFFSET_BOUND_REL of the largest window force) and, where each
+F_0 at the reference time t_ref (|F_0| bounded, :func:`offset_bound_N`) and, where each
 observation's campaign time t is known, a zero drift r linear in campaign time, are profiled out of every
 fit in closed form (bounded weighted least squares, :class:`LinearTerms`). Coulomb friction, sign(v)·F_C over a
 constant-velocity segment (Eq. 8's F_f in "A method for the identification of hydraulic damper
@@ -14,7 +14,10 @@ The sensor chain (issue 21): the force channel's dynamics between the force and 
 channels, fitted on the nominal model as a lag (:func:`fit_force_lag`: a delay, or a first- or
 second-order Butterworth low-pass, each by its low-frequency group delay), and the LVDT's scale,
 measured as its speed against the command channel's (:func:`case_speed_ratio`,
-:func:`displacement_scale`), the model then driven at the true speeds (:func:`rescaled_drives`).
+:func:`displacement_scale`), the model then driven at the true speeds (:func:`rescaled_drives`). A sine-only
+campaign has no ramp to set against its command: its LVDT scale and actuator delay come from each case's amplitude
+and phase against the command channel's, read through a dead time and a first-order servo lag
+(:func:`case_sine_response`, :func:`sine_servo_terms`).
 """
 
 from __future__ import annotations
@@ -34,6 +37,24 @@ DRIFT = "force_drift"
 GAIN_BOUND = 0.02
 #: Largest load-cell zero offset, as a fraction of the largest window force |F|.
 OFFSET_BOUND_REL = 0.05
+#: Largest load-cell zero offset of a sine-only campaign, as a fraction of half the range of its bins' mean forces
+#: (:func:`offset_bound_N`).
+OFFSET_BOUND_SINE_REL = 0.25
+
+
+def offset_bound_N(force_N: np.ndarray, is_window: np.ndarray, sine_only: bool) -> float:
+    """The bound on the load-cell zero offset [N]: OFFSET_BOUND_REL of the largest window force |F|; for a
+    sine-only campaign OFFSET_BOUND_SINE_REL of half the range (max - min) of all its bin means. A load cell's
+    zero is a fraction of its full scale, which may be several times a campaign's largest force (a cell sized for
+    the largest dampers tested): a sine sweep's offset of 15 % of its peak force is no gross error. On sine
+    records a wider bound is safe: every cycle's bins sweep the force from near zero to its peak in both
+    directions, so a constant offset is told apart from the even effects (an asymmetry, ∝ |F|) within each case.
+    Half the range is unchanged by the offset it bounds (the largest |F| grows with it)."""
+    force = np.asarray(force_N, dtype=float)
+    if sine_only:
+        return OFFSET_BOUND_SINE_REL * 0.5 * float(np.ptp(force)) if force.size else 0.0
+    windows = np.abs(force[np.asarray(is_window, dtype=bool)])
+    return OFFSET_BOUND_REL * float(windows.max()) if windows.size else 0.0
 
 
 @dataclass(frozen=True)
@@ -194,6 +215,17 @@ def case_speed_ratio(series: pd.DataFrame, period_s: float, motion_start_s: floa
     return float(np.median(ratios)) if ratios else math.nan
 
 
+def _scale_report(k: float, se: float, n: int, source: str) -> dict:
+    """The displacement-scale dict: the estimate k, its standard error, and whether it departs from 1 enough to
+    apply (SCALE_MIN_DEPARTURE, SCALE_SIGMAS; never beyond SCALE_BOUND)."""
+    out = {"estimate": k, "std_error": se if math.isfinite(se) else None, "n_cases": int(n),
+           "applied": bool(abs(k - 1.0) > max(SCALE_MIN_DEPARTURE, SCALE_SIGMAS * se)), "source": source}
+    if abs(k - 1.0) > SCALE_BOUND:
+        out.update(applied=False, note=f"the LVDT and the command differ by {k - 1.0:+.1%}, beyond ±{SCALE_BOUND:.0%}: "
+                                       "the command is no measure of the motion; not applied")
+    return out
+
+
 def displacement_scale(ratios: np.ndarray) -> dict:
     """The LVDT's scale k (measured = k·true, the command taken as the truth of the motion) from the
     cases' speed ratios (:func:`case_speed_ratio`): their median, its standard error (1.2533·sd/√n),
@@ -205,15 +237,78 @@ def displacement_scale(ratios: np.ndarray) -> dict:
     r = r[np.isfinite(r) & (r > 0)]
     if not r.size:
         return {"estimate": None, "std_error": None, "n_cases": 0, "applied": False, "source": "no command channel"}
-    k = float(np.median(r))
     se = float(1.2533 * np.std(r, ddof=1) / math.sqrt(r.size)) if r.size > 1 else math.inf
-    out = {"estimate": k, "std_error": se if math.isfinite(se) else None, "n_cases": int(r.size),
-           "applied": bool(abs(k - 1.0) > max(SCALE_MIN_DEPARTURE, SCALE_SIGMAS * se)),
-           "source": "LVDT speed against the command channel"}
-    if abs(k - 1.0) > SCALE_BOUND:
-        out.update(applied=False, note=f"the LVDT and the command differ by {k - 1.0:+.1%}, beyond ±{SCALE_BOUND:.0%}: "
-                                       "the command is no measure of the motion; not applied")
-    return out
+    return _scale_report(float(np.median(r)), se, r.size, "LVDT speed against the command channel")
+
+
+def case_sine_response(series: pd.DataFrame, frequency_Hz: float) -> tuple[float, float, float, float]:
+    """(frequency [Hz], LVDT amplitude / command amplitude, phase lag of the LVDT behind the command [rad], in
+    [-π/4, 7π/4), the ratio's relative standard error (≈ the lag's, in rad) from the LVDT's residual noise:
+    √(2σ²/n)/Y) of a sine case, from least-squares sines through both channels after the first cycle (the
+    command's frequency refined, :func:`isokinetic.diagnosis.sine_observations.fit_sine`; the LVDT's at that
+    frequency); NaNs without a command channel or a record of two cycles."""
+    from isokinetic.diagnosis.sine_observations import SKIPPED_CYCLES, fit_sine
+
+    nan = (math.nan, math.nan, math.nan, math.nan)
+    if "command_m" not in series or not frequency_Hz > 0.0:
+        return nan
+    t = series["time_s"].to_numpy(dtype=float)
+    x, c = series["displacement_m"].to_numpy(dtype=float), series["command_m"].to_numpy(dtype=float)
+    sel = np.isfinite(t) & np.isfinite(x) & np.isfinite(c)
+    if sel.sum() < 8 or t[sel][-1] - t[sel][0] < (SKIPPED_CYCLES + 1) / frequency_Hz:
+        return nan
+    sel &= t >= t[sel][0] + SKIPPED_CYCLES / frequency_Hz
+    cmd = fit_sine(t[sel], c[sel], frequency_Hz)
+    if cmd is None:
+        return nan
+    w = 2.0 * math.pi * cmd.frequency_Hz
+    design = np.column_stack([np.ones(int(sel.sum())), np.sin(w * t[sel]), np.cos(w * t[sel])])
+    coef, *_ = np.linalg.lstsq(design, x[sel], rcond=None)
+    resid = x[sel] - design @ coef
+    amp = math.hypot(coef[1], coef[2])
+    phase_x = math.atan2(coef[2], coef[1])   # x ∝ sin(ωt + φ_x), as the command's φ
+    lag = (cmd.phase_rad - phase_x + 0.25 * math.pi) % (2.0 * math.pi) - 0.25 * math.pi
+    rel_se = math.sqrt(2.0 * float(resid @ resid) / max(resid.size - 3, 1) / resid.size) / amp
+    return cmd.frequency_Hz, amp / cmd.amplitude_m, lag, math.hypot(rel_se, cmd.amplitude_rel_se)
+
+
+#: What the sine path's servo terms assume (reported with them).
+SINE_SERVO_SOURCE = ("LVDT amplitude and phase against the command channel's over the sine cases, through a "
+                     "dead time d and a first-order servo lag τ: ratio = k/√(1 + ω²τ²), lag = ωd + atan(ωτ)")
+
+
+def sine_servo_terms(frequency_Hz, ratio, lag_rad, rel_se) -> tuple[dict, dict]:
+    """(displacement scale, delays) of a sine-only campaign from its cases' responses (:func:`case_sine_response`).
+
+    The LVDT reads k·x and the servo follows the (undelayed) command through a dead time d and a first-order lag
+    τ, so the amplitude ratio is r = k/√(1 + ω²τ²): 1/r² = 1/k² + (τ/k)²·ω² is a straight line in ω² (weighted
+    least squares, each case by its ratio's standard error; k's from its intercept's, scaled by the reduced χ²
+    where above 1), and the phase lag ωd + atan(ωτ) gives d (weighted least squares through the origin). The
+    delay is reported as the triangle path reports it (a ramp follows its command late by d + τ): ``delay_s`` =
+    d + τ, the motion's low-frequency group delay. Fewer than three cases: the scale is not applied (no
+    standard error) and no delay is reported."""
+    f, r, lag, se = (np.asarray(a, dtype=float) for a in (frequency_Hz, ratio, lag_rad, rel_se))
+    ok = np.isfinite(f) & np.isfinite(r) & np.isfinite(lag) & np.isfinite(se) & (r > 0) & (se > 0)
+    if not ok.any():
+        return displacement_scale([]), {"delay_s": None}
+    w, r, lag, se = 2.0 * math.pi * f[ok], r[ok], lag[ok], se[ok]
+    if w.size < 3:
+        return _scale_report(float(np.median(r)), math.inf, w.size, SINE_SERVO_SOURCE), {"delay_s": None}
+    root_w = r * r / (2.0 * se)   # 1/sd of 1/r²
+    design = np.column_stack([np.ones_like(w), w * w])
+    y = 1.0 / (r * r)
+    coef, *_ = np.linalg.lstsq(design * root_w[:, None], y * root_w, rcond=None)
+    a, b = float(coef[0]), max(float(coef[1]), 0.0)
+    chi2 = float(np.sum(((y - design @ coef) * root_w) ** 2))
+    cov = max(chi2 / (w.size - 2), 1.0) * np.linalg.inv((design * root_w[:, None] ** 2).T @ design)
+    k, tau = 1.0 / math.sqrt(a), math.sqrt(b / a)
+    se_k = 0.5 * a ** -1.5 * math.sqrt(max(float(cov[0, 0]), 0.0))
+    pw = w / se**2
+    dead = float(np.dot(pw, lag - np.arctan(w * tau)) / np.dot(pw, w))
+    scale = {**_scale_report(k, se_k, w.size, SINE_SERVO_SOURCE), "servo_lag_s": tau}
+    delays = {"delay_s": dead + tau, "dead_time_s": dead, "servo_lag_s": tau, "n_cases": int(w.size),
+              "source": SINE_SERVO_SOURCE}
+    return scale, delays
 
 
 def rescaled_drives(obs, scale: float):

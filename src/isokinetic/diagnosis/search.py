@@ -28,7 +28,7 @@ from scipy import optimize
 
 from isokinetic.contracts.scenarios import CATALOGUE
 from isokinetic.diagnosis.candidate import ALPHA, Candidate, consistent_with_noise, rms
-from isokinetic.diagnosis.instrument import DRIFT, INSTRUMENT, LAG_MAX_S, OFFSET_BOUND_REL, LinearTerms
+from isokinetic.diagnosis.instrument import DRIFT, INSTRUMENT, LAG_MAX_S, LinearTerms, offset_bound_N
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.parametrisation import Parametrisation
@@ -124,7 +124,8 @@ class Diagnoser:
         self.lag_starts = () if channel is None else (channel[1], *(s for s in lag_starts if s != channel[1]))
         windows = np.abs(obs.force_N[obs.is_window])
         self.param = Parametrisation(damper, float(np.median(windows)) if windows.size else 1.0)
-        offset_bound = OFFSET_BOUND_REL * float(windows.max()) if windows.size else 0.0
+        offset_bound = offset_bound_N(obs.force_N, obs.is_window,
+                                      bool(len(obs)) and all(p.waveform == "sine" for p in obs.plans))
         self.time_s, self.time_ref_s = None, None
         if time_s is not None and len(time_s) == len(obs) and np.ptp(time_s) > 0:
             t = np.asarray(time_s, dtype=float)

@@ -75,7 +75,9 @@ LAG_FORM_NAMES = {0: "delay", 1: "low-pass, 1st order", 2: "low-pass, 2nd order"
 #: through a lagging force channel) before it is claimed, when the steady windows already pass.
 SENSOR_MARGIN = 10.0
 #: The low-pass forms of the force channel are fitted only when the windows' rms_z with a pure delay is
-#: below this (a lag moves the steady windows little: far above it, no sensor dynamics explain them).
+#: below this (a lag moves the steady windows little: far above it, no sensor dynamics explain them). Not on sine
+#: records: a low-pass's gain at a sine's frequency scales its windows too (a 2nd-order Butterworth at 8.7 Hz passes
+#: 60 % of a 10 Hz sine), which no delay reproduces.
 SENSOR_GATE_RMS_Z = 2.0
 SENSOR_NOTE = (
     "steady characteristic explained; the transient mismatch is consistent with sensor dynamics or "
@@ -222,10 +224,12 @@ def lag_report(lag_s: float, form: int, chi2_drop: float, threshold: float) -> d
 def profiled_lag(dg: Diagnoser, effects=None, low_pass: bool = True) -> tuple[float, int, np.ndarray]:
     """(lag, form, prediction) of the force channel best for the model of ``effects`` (default nominal): a
     delay, and (``low_pass``) where the windows' rms_z with it is below SENSOR_GATE_RMS_Z also the low-passes
-    (a lag moves the steady windows little: far above it, no sensor dynamics explain them)."""
+    (a lag moves a triangle's steady windows little: far above it, no sensor dynamics explain them), on sine
+    records always (a low-pass scales a sine's windows by its gain at the sine's frequency)."""
     lag, form, pred = fit_force_lag(dg, (0,), effects=effects)
     cand = dg.score_prediction(pred, extra_k=1)
-    if low_pass and rms(dg.z(cand.measured_prediction)[dg.obs.is_window]) < SENSOR_GATE_RMS_Z:
+    sine = any(p.waveform == "sine" for p in dg.obs.plans)
+    if low_pass and (sine or rms(dg.z(cand.measured_prediction)[dg.obs.is_window]) < SENSOR_GATE_RMS_Z):
         lag, form, pred = fit_force_lag(dg, effects=effects)
     return lag, form, pred
 

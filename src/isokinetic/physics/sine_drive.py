@@ -9,13 +9,14 @@ composite volume of Eq. (2), the flow of Eq. (7) plus leakage, integrated with L
 Jacobian (``scipy.integrate.odeint``: its output times in Fortran, about ten times faster than
 ``solve_ivp``'s dense output at a record's thousands of samples), split at the turning points and gap
 contacts of the play operator (:func:`isokinetic.physics.excitation.piston_segments`), as
-:func:`isokinetic.physics.responses.sine_response` does on the plan grid (the tests check the two agree there).
+:func:`isokinetic.physics.responses.sine_response` does on the plan grid (the tests check the two agree there),
+except that pushed pieces with no gap crossed between them are integrated as one (:func:`merged_contacts`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -57,6 +58,21 @@ class SineDrive:
         return SineDrive(self.amplitude_m * factor, self.frequency_Hz, self.grid_start_s, self.n_samples)
 
 
+def merged_contacts(segs: list) -> list:
+    """Consecutive pushed pieces with the same offset (no gap crossed between them: always without backlash)
+    joined into one: the piston's sine motion is smooth across the actuator's turning points, and each restart
+    of the integrator costs its step-size ramp-up again."""
+    out = []
+    for seg in segs:
+        prev = out[-1] if out else None
+        if prev is not None and prev.contact and seg.contact and prev.offset_m == seg.offset_m \
+                and prev.t_end_s == seg.t_start_s:
+            out[-1] = replace(prev, t_end_s=seg.t_end_s)
+        else:
+            out.append(seg)
+    return out
+
+
 def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics, backlash_m: float = 0.0,
                         rtol: float = SINE_RTOL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(τ, Δp, piston velocity) of the model driven by ``drive`` at its sample times (Eq. 1, 2, 7; Δp = 0 and
@@ -76,7 +92,7 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
                       abs(steady_pressure(-hyd.piston_area_m2 * amp * omega, hyd)), 1.0)
     t = tau[live]
     out_dp, out_vel = np.zeros(t.size), np.zeros(t.size)
-    segs = piston_segments(plan, backlash_m)
+    segs = merged_contacts(piston_segments(plan, backlash_m))
     p = 0.0
     for seg, idx in zip(segs, segment_index(t, segs), strict=True):
         t_eval, t0, t1 = t[idx], seg.t_start_s, seg.t_end_s

@@ -21,15 +21,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from isokinetic.contracts.campaign import viscosity_scales
+from isokinetic.contracts.campaign import case_plan, viscosity_scales
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import (
     INSTRUMENT,
     case_delays,
+    case_sine_response,
     case_speed_ratio,
     displacement_scale,
     rescaled_drives,
+    sine_servo_terms,
 )
 from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
 from isokinetic.diagnosis.observations import Observations, build_observations
@@ -83,10 +85,12 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
 
     The LVDT's scale is measured first, from its speed against the command channel's
     (:func:`isokinetic.diagnosis.instrument.displacement_scale`); where it departs from 1, the model is
-    driven at the measured speeds divided by it. ``sensor`` holds that scale and each observation's
-    campaign time (``obs_time_s``: the cases back to back in the order of cases.parquet) and the campaign's
-    middle (``time_ref_s``, where the load-cell offset is reported), for the
-    load-cell zero drift.
+    driven at the measured speeds divided by it. A sine-only campaign's scale and actuator delay come from its
+    cases' amplitude and phase against the command (:func:`isokinetic.diagnosis.instrument.sine_servo_terms`;
+    ``sensor['delays']``, else None: the triangles' ``delay_s`` of cases.parquet). ``sensor`` holds that scale
+    and each observation's campaign time (``obs_time_s``: the cases back to back in the order of cases.parquet)
+    and the campaign's middle (``time_ref_s``, where the load-cell offset is reported), for the load-cell zero
+    drift.
 
     Sine cases are diagnosed where a campaign has no triangle window (a sine-only campaign); beside
     triangle windows they are left out (SINES_BESIDE_TRIANGLES says why) and ``sources`` names them.
@@ -121,15 +125,8 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
         return cache[key]
 
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
-    scale = displacement_scale(np.array([case_speed_ratio(load(row), float(row["period_s"]), motion_start(row))
-                                         for _, row in ok.iterrows()]))
-    if ok.empty:   # a sine's amplitude against its command mixes the servo's gain with the LVDT's scale
-        scale["source"] = "no triangle case"
+    scale, delays = motion_terms(ok, sines, load)
     lvdt = scale["estimate"] if scale["applied"] else 1.0
-    if "velocity_ratio" in ok:  # the evidence against the plan (not applied: a real stroke error reads the same)
-        ratios = ok["velocity_ratio"].to_numpy(dtype=float)
-        scale["velocity_ratio_to_plan"] = float(np.median(ratios[np.isfinite(ratios)])) if np.isfinite(ratios).any() \
-            else None
 
     def scaled(o: Observations) -> Observations:
         return rescaled_drives(o, scale["estimate"]) if scale["applied"] and len(o) else o
@@ -152,9 +149,29 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
         return campaign, damper, cases, None, ("no triangle case with four windows and no sine case of two "
                                                "cycles: nothing to compare"), {}
     spans = {row["case"]: record_span(load(row)) for _, row in pd.concat([ok, sines]).iterrows()}
-    return campaign, damper, cases, obs, "", {"displacement_scale": scale,
+    return campaign, damper, cases, obs, "", {"displacement_scale": scale, "delays": delays,
                                               "obs_time_s": campaign_times(obs, cases, spans),
                                               "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans)))}
+
+
+def motion_terms(triangles: pd.DataFrame, sines: pd.DataFrame, load) -> tuple[dict, dict | None]:
+    """(the LVDT's displacement scale, the actuator delays or None) of a campaign's status-ok triangle cases
+    (their speed against the command's, :func:`isokinetic.diagnosis.instrument.displacement_scale`; delays: None,
+    cases.parquet's ``delay_s`` serve) or, without any, of its sine cases (amplitude and phase against the
+    command's, :func:`isokinetic.diagnosis.instrument.sine_servo_terms`); ``load``: row -> its time series."""
+    scale = displacement_scale(np.array([case_speed_ratio(load(row), float(row["period_s"]), motion_start(row))
+                                         for _, row in triangles.iterrows()]))
+    delays = None
+    if triangles.empty and not sines.empty:   # a sine-only campaign: the servo's gain and phase beside the LVDT's
+        scale, delays = sine_servo_terms(*zip(*(case_sine_response(load(row), case_plan(row).frequency_Hz)
+                                                for _, row in sines.iterrows()), strict=True))
+    elif triangles.empty:
+        scale["source"] = "no triangle case"
+    if "velocity_ratio" in triangles:  # the evidence against the plan (not applied: a real stroke error reads the same)
+        ratios = triangles["velocity_ratio"].to_numpy(dtype=float)
+        scale["velocity_ratio_to_plan"] = float(np.median(ratios[np.isfinite(ratios)])) if np.isfinite(ratios).any() \
+            else None
+    return scale, delays
 
 
 def record_span(series: pd.DataFrame) -> tuple[float, float]:
@@ -203,7 +220,8 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     campaign, damper, cases, obs, reason, sensor = prepare_sensor(campaign_root, spec, n_bins, alpha)
     if obs is None:
         return {**no_model(campaign, reason), "sources": observation_sources(None, cases)}, None, {}
-    result, predictions = diagnose_observations(obs, damper, alpha, case_delays(cases), sensor)
+    delays = sensor.get("delays") or case_delays(cases)   # a sine-only campaign's: from its command channel
+    result, predictions = diagnose_observations(obs, damper, alpha, delays, sensor)
     result["sources"] = observation_sources(obs, cases)
     left_out = cases[(cases["status"] == "ok") & (cases["waveform"] == "sine") & ~cases["case"].isin(obs.case)]
     if len(left_out) and (obs.kind == "window").any():
