@@ -166,6 +166,13 @@ def test_a_sine_sweep_without_a_command_channel_gives_no_scale_and_no_delay():
     assert delays["delay_s"] is None
 
 
+def test_sine_cases_all_at_one_frequency_give_no_applied_scale_and_no_delay():
+    # one point of the amplitude response: the LVDT scale and the servo lag's amplitude loss are one unknown
+    scale, delays = ins.sine_servo_terms([2.0, 2.0, 2.0], [1.011, 1.012, 1.010], [0.15, 0.15, 0.16], [1e-4] * 3)
+    assert scale["applied"] is False and scale["estimate"] == pytest.approx(1.011)
+    assert delays["delay_s"] is None
+
+
 def test_a_sine_only_campaigns_offset_bound_does_not_grow_with_the_offset():
     force = np.sin(np.linspace(0.0, 2 * np.pi, 32, endpoint=False)) * 900.0
     window = np.abs(force) > 600.0

@@ -286,13 +286,14 @@ def sine_servo_terms(frequency_Hz, ratio, lag_rad, rel_se) -> tuple[dict, dict]:
     where above 1), and the phase lag ωd + atan(ωτ) gives d (weighted least squares through the origin). The
     delay is reported as the triangle path reports it (a ramp follows its command late by d + τ): ``delay_s`` =
     d + τ, the motion's low-frequency group delay. Fewer than three cases: the scale is not applied (no
-    standard error) and no delay is reported."""
+    standard error) and no delay is reported; so too where every case has the same frequency (k and τ
+    cannot be told apart from one point of the amplitude response)."""
     f, r, lag, se = (np.asarray(a, dtype=float) for a in (frequency_Hz, ratio, lag_rad, rel_se))
     ok = np.isfinite(f) & np.isfinite(r) & np.isfinite(lag) & np.isfinite(se) & (r > 0) & (se > 0)
     if not ok.any():
         return displacement_scale([]), {"delay_s": None}
     w, r, lag, se = 2.0 * math.pi * f[ok], r[ok], lag[ok], se[ok]
-    if w.size < 3:
+    if w.size < 3 or np.ptp(w) <= 1e-3 * w.max():   # one frequency: the scale and the servo lag's loss are one
         return _scale_report(float(np.median(r)), math.inf, w.size, SINE_SERVO_SOURCE), {"delay_s": None}
     root_w = r * r / (2.0 * se)   # 1/sd of 1/r²
     design = np.column_stack([np.ones_like(w), w * w])
