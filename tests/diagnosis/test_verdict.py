@@ -139,6 +139,16 @@ def test_a_partial_explanation_better_by_more_than_the_margin_is_chosen_whatever
     assert vd.parsimonious([small, large]) is large
 
 
+def test_an_unexplained_search_no_better_than_the_nominal_model_by_the_margin_names_no_effect():
+    nominal, leakage, air = unexplained((), 400.0), unexplained(("leakage",), 396.0), unexplained(("air",), 397.0)
+    assert vd.no_effect_earns(leakage, nominal, [leakage, air])
+
+
+def test_an_unexplained_effect_better_than_the_nominal_model_by_more_than_the_margin_is_named():
+    nominal, air = unexplained((), 400.0), unexplained(("air",), 300.0)
+    assert not vd.no_effect_earns(air, nominal, [air])
+
+
 def confounding_of(lag_correlation, drift_correlation):
     out = {"instrument": {"force_gain": None, "force_lag_s": 0.04, "force_drift_N_s": 0.01},
            "identifiability": {"lag_correlation": lag_correlation, "drift_correlation": drift_correlation}}

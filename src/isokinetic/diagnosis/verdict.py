@@ -49,6 +49,10 @@ POLISH_TOL = 1e-6
 
 NOMINAL_NOTE = "the nominal model with the instrument terms explains the data: no effect searched"
 NO_FIT_NOTE = "no candidate fit succeeded (see failed_fits)"
+NO_EFFECT_EARNS_NOTE = (
+    "no candidate of the catalogue explains the gap within noise, and none scores better than the nominal model "
+    "by the margin an added effect must earn (overdispersed score): no damper effect is named; the remaining gap "
+    "points to an effect outside the catalogue or to noise the noise model does not describe")
 UNEXPLAINED_NOTE = (
     "no candidate of the catalogue explains the gap within noise: the verdict is the candidate "
     "with the best overdispersed score (χ² divided by the smallest achievable χ²/dof, plus "
@@ -187,6 +191,10 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
     elif nominal_ok or not candidates:
         best, bdg, verdict = nominal_fit, dg, []
         out.update(nominal_verdict_keys(best, nominal_ok, out["gap_before"]))
+    elif no_effect_earns(best, nominal_fit, candidates):
+        best, bdg, verdict = nominal_fit, dg, []
+        out.update(nominal_verdict_keys(best, False, out["gap_before"]))
+        out["unexplained_note"] = NO_EFFECT_EARNS_NOTE
     else:
         verdict = list(best.effects)
         out.update(verdict_keys(bdg, best, candidates, out["gap_before"]))
@@ -368,6 +376,14 @@ def chosen_candidate(dg: Diagnoser, candidates: Sequence[Candidate]) -> Candidat
     if polished is not None and polished.chi2_fit <= best.chi2_fit:
         best = polished
     return best
+
+
+def no_effect_earns(best: Candidate, nominal_fit: Candidate | None, candidates: Sequence[Candidate]) -> bool:
+    """Whether an unexplained verdict ``best`` should name no effect: the nominal model (with the instrument
+    terms) is, by :func:`parsimonious`, the choice among it and every candidate. An effect added to the nominal
+    model must earn its place by the margin, as one added to a partial explanation must."""
+    return bool(not best.explained and nominal_fit is not None and not nominal_fit.explained
+                and parsimonious([nominal_fit, *candidates]) is nominal_fit)
 
 
 def parsimonious(candidates: Sequence[Candidate]) -> Candidate:
