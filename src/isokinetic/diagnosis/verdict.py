@@ -188,13 +188,10 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
             out.pop("unexplained_note", None)
             out["sensor_note"] = SENSOR_NOTE
         lag = lag_report(hyp["lag_s"], hyp["form"], hyp["report"]["chi2_drop"], float(chi2_isf(alpha, 1)))
-    elif nominal_ok or not candidates:
+    elif nominal_ok or not candidates or no_effect_earns(best, nominal_fit, candidates):
+        note = NO_EFFECT_EARNS_NOTE if candidates and not nominal_ok else NO_FIT_NOTE
         best, bdg, verdict = nominal_fit, dg, []
-        out.update(nominal_verdict_keys(best, nominal_ok, out["gap_before"]))
-    elif no_effect_earns(best, nominal_fit, candidates):
-        best, bdg, verdict = nominal_fit, dg, []
-        out.update(nominal_verdict_keys(best, False, out["gap_before"]))
-        out["unexplained_note"] = NO_EFFECT_EARNS_NOTE
+        out.update(nominal_verdict_keys(best, nominal_ok, out["gap_before"], note))
     else:
         verdict = list(best.effects)
         out.update(verdict_keys(bdg, best, candidates, out["gap_before"]))
@@ -359,9 +356,10 @@ def shrink(gap_before: float, gap_after: float) -> float | None:
     return gap_before / gap_after if gap_after > 0 else None
 
 
-def nominal_verdict_keys(best: Candidate, nominal_ok: bool, gap_before: float) -> dict:
-    """The empty verdict: the nominal model explains the data, or no candidate fit succeeded."""
-    keys = {"search_note": NOMINAL_NOTE} if nominal_ok else {"unexplained_note": NO_FIT_NOTE}
+def nominal_verdict_keys(best: Candidate, nominal_ok: bool, gap_before: float, note: str = NO_FIT_NOTE) -> dict:
+    """The empty verdict: the nominal model explains the data, or (``note``) no candidate fit succeeded, or none
+    earns its place against the nominal model (:func:`no_effect_earns`)."""
+    keys = {"search_note": NOMINAL_NOTE} if nominal_ok else {"unexplained_note": note}
     keys.update(verdict=[], explained=bool(nominal_ok), gap_after=best.gap_after,
                 holdout_gap_after=best.holdout_gap_after, shrink=shrink(gap_before, best.gap_after))
     return keys
