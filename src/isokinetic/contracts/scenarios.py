@@ -22,9 +22,9 @@ SCENARIO_PREFIX = "blind-"
 MULTIPLE_RANGE = (1.0, 5.0)
 
 #: Expected CPU-seconds of one scenario's diagnosis, by kind: the means of benchmark/blind_suite.py (seed 777, 74
-#: scenarios with the sensor chain; a sine-only one's median is 14 s, its range 3-57 s); what :func:`balanced_chunks`
+#: scenarios with the sensor chain; a sine-only one's median is 11 s, its range 3-35 s); what :func:`balanced_chunks`
 #: balances. Generation adds about 0.5 s to each.
-EXPECTED_COST_S = {"none": 2.1, "single": 2.8, "pair": 3.2, "out": 5.5, "sine": 19.4}
+EXPECTED_COST_S = {"none": 1.8, "single": 2.4, "pair": 2.7, "out": 4.7, "sine": 13.5}
 
 #: One scenario of the composition: (truth, multiples, out-of-catalogue kind, waveform).
 Kind = tuple[tuple[str, ...], dict[str, float], str, str]
