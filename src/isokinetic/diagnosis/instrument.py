@@ -247,7 +247,7 @@ def case_sine_response(series: pd.DataFrame, frequency_Hz: float) -> tuple[float
     √(2σ²/n)/Y) of a sine case, from least-squares sines through both channels after the first cycle (the
     command's frequency refined, :func:`isokinetic.diagnosis.sine_observations.fit_sine`; the LVDT's at that
     frequency); NaNs without a command channel or a record of two cycles."""
-    from isokinetic.diagnosis.sine_observations import SKIPPED_CYCLES, fit_sine
+    from isokinetic.diagnosis.sine_observations import SKIPPED_CYCLES, fit_sine, linear_sine
 
     nan = (math.nan, math.nan, math.nan, math.nan)
     if "command_m" not in series or not frequency_Hz > 0.0:
@@ -261,10 +261,7 @@ def case_sine_response(series: pd.DataFrame, frequency_Hz: float) -> tuple[float
     cmd = fit_sine(t[sel], c[sel], frequency_Hz)
     if cmd is None:
         return nan
-    w = 2.0 * math.pi * cmd.frequency_Hz
-    design = np.column_stack([np.ones(int(sel.sum())), np.sin(w * t[sel]), np.cos(w * t[sel])])
-    coef, *_ = np.linalg.lstsq(design, x[sel], rcond=None)
-    resid = x[sel] - design @ coef
+    coef, _design, resid = linear_sine(t[sel], x[sel], 2.0 * math.pi * cmd.frequency_Hz)
     amp = math.hypot(coef[1], coef[2])
     phase_x = math.atan2(coef[2], coef[1])   # x ∝ sin(ωt + φ_x), as the command's φ
     lag = (cmd.phase_rad - phase_x + 0.25 * math.pi) % (2.0 * math.pi) - 0.25 * math.pi

@@ -65,7 +65,7 @@ class SineFit:
         return first + math.floor((t0_s - first) / period + 0.5) * period
 
 
-def _linear_sine(t: np.ndarray, y: np.ndarray, omega: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def linear_sine(t: np.ndarray, y: np.ndarray, omega: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Least squares of y = c + a sin ωt + b cos ωt: (coefficients, design, residuals)."""
     design = np.column_stack([np.ones_like(t), np.sin(omega * t), np.cos(omega * t)])
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
@@ -82,13 +82,13 @@ def fit_sine(time_s, displacement_m, frequency_Hz: float) -> SineFit | None:
     mid = 0.5 * (t[0] + t[-1])
     tc = t - mid
     omega = 2.0 * math.pi * frequency_Hz
-    coef, design, resid = _linear_sine(tc, y, omega)
+    coef, design, resid = linear_sine(tc, y, omega)
     for _ in range(FIT_ITERATIONS):
         d_omega = tc * (coef[1] * np.cos(omega * tc) - coef[2] * np.sin(omega * tc))
         jac = np.column_stack([design, d_omega])
         step, *_ = np.linalg.lstsq(jac, resid, rcond=None)
         omega += step[3]
-        coef, design, resid = _linear_sine(tc, y, omega)
+        coef, design, resid = linear_sine(tc, y, omega)
         if abs(step[3]) < 1e-12 * omega:
             break
     amp = math.hypot(coef[1], coef[2])

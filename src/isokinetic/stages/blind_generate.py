@@ -192,13 +192,26 @@ def plan_table(name: str, cases: Sequence[CasePlan]) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-@dataclass
-class DetectionProblem:
-    """rms_z(m) of one effect in one scenario, evaluated through a prepared ModelPlan.
+class MeanDetection:
+    """rms_z(m) of one effect against the nominal model over a problem's means (``forces``), each mean's SE the
+    rig's exact noise of a mean of its ``n_samples`` at its force and ``rates_Hz`` (white plus proportional
+    coloured, :func:`isokinetic.reference.campaign.mean_noise_variance`): what :class:`DetectionProblem` and
+    :class:`SineDetectionProblem` share."""
 
-    SE of a window mean: the rig's exact noise of a mean of n samples (white plus proportional
-    coloured, :func:`isokinetic.reference.campaign.mean_noise_variance`) at the window's force.
-    """
+    def se(self, force_N: np.ndarray) -> np.ndarray:
+        return np.sqrt([rrc.mean_noise_variance(int(k), float(f), self.rig, float(r))
+                        for k, f, r in zip(self.n_samples, force_N, self.rates_Hz, strict=True)])
+
+    def rms_z(self, effect: str, magnitude: float, sign: float = 1.0) -> float:
+        self.calls += 1
+        f = self.forces(Effects(**effect_fields(effect, magnitude, sign, self.damper)))
+        z = (f - self.nominal_N) / self.se(f)
+        return float(np.sqrt(np.mean(z * z)))
+
+
+@dataclass
+class DetectionProblem(MeanDetection):
+    """rms_z(m) of one effect in one scenario, evaluated through a prepared ModelPlan: its window means."""
 
     plan: ModelPlan
     damper: Damper
@@ -212,22 +225,21 @@ class DetectionProblem:
         mp = ModelPlan.from_cases(name, plan_table(name, cases), spec)
         return cls(mp, damper, rig, mp.forces(damper, NOMINAL)[0])
 
-    def se(self, force_N: np.ndarray) -> np.ndarray:
-        fs = np.array([p.sample_rate_Hz for p in self.plan.plans])[self.plan.case_index]
-        n = self.plan.stop - self.plan.start
-        return np.sqrt([rrc.mean_noise_variance(int(k), float(f), self.rig, float(r))
-                        for k, f, r in zip(n, force_N, fs, strict=True)])
+    def forces(self, effects: Effects) -> np.ndarray:
+        """The model's window means [N]."""
+        return self.plan.forces(self.damper, effects)[0]
 
-    def rms_z(self, effect: str, magnitude: float, sign: float = 1.0) -> float:
-        self.calls += 1
-        effects = Effects(**effect_fields(effect, magnitude, sign, self.damper))
-        f = self.plan.forces(self.damper, effects)[0]
-        z = (f - self.nominal_N) / self.se(f)
-        return float(np.sqrt(np.mean(z * z)))
+    @property
+    def n_samples(self) -> np.ndarray:
+        return self.plan.stop - self.plan.start
+
+    @property
+    def rates_Hz(self) -> np.ndarray:
+        return np.array([p.sample_rate_Hz for p in self.plan.plans])[self.plan.case_index]
 
 
 @dataclass
-class SineDetectionProblem:
+class SineDetectionProblem(MeanDetection):
     """rms_z(m) of one effect in one sine-only scenario: the same computation as :class:`DetectionProblem` on
     the sine records' phase bins, which is what the diagnosis compares there.
 
@@ -260,18 +272,14 @@ class SineDetectionProblem:
             out.append(np.bincount(b[used], weights=force[used]) / np.bincount(b[used]))
         return np.concatenate(out)
 
-    def se(self, force_N: np.ndarray) -> np.ndarray:
-        n = np.concatenate([np.bincount(b[b >= 0]) for b in self.bins])
-        fs = np.concatenate([np.full(int(b.max()) + 1, c.sample_rate_Hz) for c, b in zip(self.cases, self.bins,
-                                                                                          strict=True)])
-        return np.sqrt([rrc.mean_noise_variance(int(k), float(f), self.rig, float(r))
-                        for k, f, r in zip(n, force_N, fs, strict=True)])
+    @property
+    def n_samples(self) -> np.ndarray:
+        return np.concatenate([np.bincount(b[b >= 0]) for b in self.bins])
 
-    def rms_z(self, effect: str, magnitude: float, sign: float = 1.0) -> float:
-        self.calls += 1
-        f = self.forces(Effects(**effect_fields(effect, magnitude, sign, self.damper)))
-        z = (f - self.nominal_N) / self.se(f)
-        return float(np.sqrt(np.mean(z * z)))
+    @property
+    def rates_Hz(self) -> np.ndarray:
+        return np.concatenate([np.full(int(b.max()) + 1, c.sample_rate_Hz)
+                               for c, b in zip(self.cases, self.bins, strict=True)])
 
 
 def sine_model_forces(cases: Sequence[CasePlan], damper: Damper, effects: Effects = NOMINAL) -> list[np.ndarray]:
