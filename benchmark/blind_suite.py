@@ -1,7 +1,7 @@
 """The larger blind suite of the diagnosis, outside the pipeline: >= 60 reference-rig scenarios.
 
     .venv/bin/python benchmark/blind_suite.py [--seed 777] [--per-effect 6] [--pairs 9] [--none 9]
-                                              [--out 6] [--sine 14] [--jobs 2] [--no-sensor-chain]
+                                              [--out 6] [--sine 14] [--jobs 2] [--no-sensor-chain] [--keep DIR]
 
 Generates the suite exactly as the pipeline's blind_generate does (isokinetic.stages.blind_generate,
 reference rig, nuisances and the sensor chain's in every scenario), diagnoses every scenario through
@@ -10,12 +10,16 @@ pipeline's blind_score, plus the wall time and the CPU-seconds per scenario kind
 campaigns after the 60 triangle ones (none, then each effect alone, in turn; the triangle scenarios are the
 same with or without them). ``--no-sensor-chain``: the same scenarios with an ideal sensor
 chain (no force-channel low-pass, LVDT gain error, zero drift or dropouts), to see what the chain costs.
-Works in a temporary folder; asserts nothing.
+Works in a temporary folder (``--keep DIR``: in DIR, kept, with each scenario's diagnosis CPU-seconds in
+``DIR/cpu.json`` and the scores in ``DIR/scores.parquet``, so that two versions' diagnoses of the same
+scenarios can be compared); asserts nothing.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import json
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -50,11 +54,13 @@ def main() -> None:
     parser.add_argument("--sine", type=int, default=14, help="sine-only scenarios (0: the triangle suite alone)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--no-sensor-chain", action="store_true", help="an ideal sensor chain (same scenarios)")
+    parser.add_argument("--keep", type=Path, metavar="DIR", help="work in DIR (created) and keep it")
     args = parser.parse_args()
     started = time.perf_counter()
     scenarios = generate_scenarios(args.seed, args.per_effect, args.pairs, args.none, args.out, args.sine,
                                    sensor_chain=not args.no_sensor_chain)
-    with tempfile.TemporaryDirectory() as tmp:
+    keep = contextlib.nullcontext(str(args.keep)) if args.keep else tempfile.TemporaryDirectory()
+    with keep as tmp:
         raw, truth, work = Path(tmp) / "raw", Path(tmp) / "truth", Path(tmp) / "work"
         write_suite(scenarios, raw, truth)
         generated = time.perf_counter() - started
@@ -68,6 +74,9 @@ def main() -> None:
                 diagnoses.update(part)
                 cpu.update(seconds)
         scores = score(read_truths(truth), diagnoses)
+        if args.keep:
+            (Path(tmp) / "cpu.json").write_text(json.dumps(cpu, indent=1, sort_keys=True), encoding="utf-8")
+            scores.to_parquet(Path(tmp) / "scores.parquet")
     summary = summarize(scores)
     chain = "without" if args.no_sensor_chain else "with"
     print(f"blind suite: seed {args.seed}, {len(scenarios)} scenarios {chain} the sensor chain; generated in "

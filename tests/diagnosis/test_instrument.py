@@ -184,3 +184,23 @@ def test_a_triangle_campaigns_offset_bound_is_a_fraction_of_its_largest_window_f
     force = np.array([-900.0, -300.0, 20.0, 310.0, 880.0])
     window = np.array([True, True, False, True, True])
     assert ins.offset_bound_N(force, window, False) == pytest.approx(ins.OFFSET_BOUND_REL * 900.0)
+
+
+def test_linear_terms_inside_and_at_their_bounds_are_the_bounded_least_squares():
+    """Within the bounds the closed-form solution is scipy's bounded one; with the gain beyond its 2 % bound it is
+    held at the bound and the offset is the weighted mean of what remains (an independent computation)."""
+    from scipy.optimize import lsq_linear
+
+    rng = np.random.default_rng(11)
+    model = rng.uniform(-800.0, 800.0, 60)
+    w = rng.uniform(0.5, 2.0, model.size)
+    terms = ins.LinearTerms(offset_bound_N=50.0)
+    force = 1.008 * model + 3.0 + rng.normal(0.0, 1.0, model.size)
+    g, _fc, offset, _r = terms.solve(force, model, np.sign(model), w, False)
+    a = np.column_stack([model, np.ones_like(model)]) * np.sqrt(w)[:, None]
+    ref = lsq_linear(a, force * np.sqrt(w), bounds=([0.98, -50.0], [1.02, 50.0]), method="bvls").x
+    assert (g, offset) == pytest.approx(tuple(ref), rel=1e-10)
+    force = 1.05 * model + 3.0 + rng.normal(0.0, 1.0, model.size)
+    g, _fc, offset, _r = terms.solve(force, model, np.sign(model), w, False)
+    assert g == pytest.approx(1.02, rel=1e-12)
+    assert offset == pytest.approx(np.sum(w * (force - 1.02 * model)) / np.sum(w), rel=1e-9)

@@ -60,3 +60,41 @@ def test_fit_with_the_secant_jacobian_finds_the_same_minimum():
     assert got.cost <= ref.cost * (1.0 + FIT_TOL)
     np.testing.assert_allclose(got.x, ref.x, rtol=FIT_TOL**0.5)
     assert calls["n"] < n_ref
+
+
+class _Starts:
+    def starts(self, effect):
+        return [0.1]
+
+
+def searched_sizes(holdout_of_size) -> list[int]:
+    """The sizes of the effect sets a search fits when no candidate explains and a set's holdout χ² is
+    ``holdout_of_size(size)`` (the fits stubbed: a Diagnoser with only ``fit`` and its parametrisation)."""
+    from isokinetic.diagnosis.candidate import Candidate
+    from isokinetic.diagnosis.search import Diagnoser
+
+    sizes = []
+
+    def fit(names, starts):
+        sizes.append(len(names))
+        return Candidate(effects=tuple(names), x=np.zeros(len(names)), params={}, prediction=np.zeros(1),
+                         chi2_fit=150.0, chi2_holdout=holdout_of_size(len(names)), n_fit=100, n_holdout=100,
+                         gap_after=2.0, holdout_gap_after=2.0, score=0.0, explained=False)
+
+    dg = object.__new__(Diagnoser)
+    dg.param, dg.fit = _Starts(), fit
+    dg.search()
+    return sizes
+
+
+def test_an_unexplained_search_stops_where_two_larger_sizes_leave_its_choice():
+    """Pairs beat the singles by far more than the margin; triples and sets of four earn less than it: the pair
+    stays the choice over two sizes, and no set of five or more is fitted."""
+    sizes = searched_sizes(lambda n: {1: 1000.0, 2: 500.0}.get(n, 495.0))
+    assert max(sizes) == 4 and sizes.count(3) > 0 and sizes.count(4) > 0
+
+
+def test_an_unexplained_search_goes_on_while_larger_sets_change_its_choice():
+    """Every size beats the one before by more than the margin: the search extends up to the whole catalogue."""
+    sizes = searched_sizes(lambda n: 1000.0 - 100.0 * n)
+    assert max(sizes) == 7

@@ -58,3 +58,22 @@ def test_without_backlash_the_pushed_pieces_are_integrated_as_one_and_gaps_stay_
     merged = merged_contacts(with_gap)
     assert sum(not s.contact for s in merged) == sum(not s.contact for s in with_gap) > 0
     assert merged[0].t_start_s == with_gap[0].t_start_s and merged[-1].t_end_s == with_gap[-1].t_end_s
+
+
+@pytest.mark.parametrize("contact", [True, False])
+def test_the_fused_system_is_the_hydraulics_arithmetic_bit_for_bit(contact):
+    """fused_segment_system's rhs and Jacobian equal responses.sine_segment_system's (Hydraulics.flow,
+    flow_derivative, composite_volume) exactly, both flow directions, with leakage and a one-sided path."""
+    from isokinetic.physics.excitation import Segment
+    from isokinetic.physics.responses import sine_segment_system
+    from isokinetic.physics.sine_drive import fused_segment_system
+
+    hyd = Hydraulics.from_damper(TABLE_1, Effects(leakage_conductance_m3_s_Pa=3e-13, asymmetry=0.05,
+                                                  path_asymmetry=0.12, air_volume_fraction=0.01))
+    seg = Segment(0.01, 0.4, contact, 3e-6, -1e-6, 1.0)
+    ref_rhs, ref_jac = sine_segment_system(seg, hyd, 2e-5, 2.0 * math.pi * 3.0)
+    rhs, jac = fused_segment_system(seg, hyd, 2e-5, 2.0 * math.pi * 3.0)
+    rng = np.random.default_rng(5)
+    for t, p in zip(rng.uniform(0.01, 0.4, 200), np.concatenate([[0.0], rng.normal(0.0, 2e5, 199)]), strict=True):
+        z = np.array([p])   # as the integrator passes the state
+        assert rhs(t, z) == ref_rhs(t, z) and jac(t, z) == ref_jac(t, z)

@@ -8,7 +8,8 @@ see: ``score`` = χ²(period 2) + k·ln(n_fit) (lower is better; k parameters, i
 included). It *explains* the gap when its fit χ² (n_fit - k degrees of freedom), its holdout χ²
 (n_holdout) and the χ² of the windows alone (the characteristic, both periods) are consistent with
 noise at level ``alpha`` (:func:`consistent_with_noise`). When none explains, candidates are
-ranked by :func:`overdispersed_score`.
+ranked by :func:`overdispersed_score`, and :func:`parsimonious` chooses among them (the verdict, and where the
+search stops extending its sets).
 """
 
 from __future__ import annotations
@@ -22,6 +23,10 @@ import numpy as np
 from isokinetic.diagnosis.instrument import INSTRUMENT
 from isokinetic.measurement.noise import scaled_chi2_sf
 from isokinetic.stats import ALPHA  # the significance level, defined once
+
+#: Score difference (χ² units) within which two candidates count as confounded (explaining ones), or cannot be
+#: told apart (:func:`parsimonious`, where none explains).
+CONFOUNDED_SCORE = 10.0
 
 
 @dataclass(frozen=True)
@@ -87,3 +92,14 @@ def overdispersed_score(candidate: Candidate, candidates: Sequence[Candidate]) -
     """
     s2 = min(c.chi2_fit / max(c.n_fit - c.k, 1) for c in candidates)
     return candidate.chi2_holdout / max(s2, 1.0) + candidate.k * math.log(candidate.n_fit)
+
+
+def parsimonious(candidates: Sequence[Candidate]) -> Candidate:
+    """Of candidates none of which explains the data: the smallest effect set (then the best score) among
+    those whose overdispersed score (:func:`overdispersed_score`) is within
+    CONFOUNDED_SCORE of the best. Scores that close cannot be told apart, and an effect added to a partial
+    explanation must earn its place by that margin."""
+    scores = {id(c): overdispersed_score(c, candidates) for c in candidates}
+    best = min(scores.values())
+    close = [c for c in candidates if scores[id(c)] <= best + CONFOUNDED_SCORE]
+    return min(close, key=lambda c: (len(c.effects), scores[id(c)]))

@@ -65,9 +65,11 @@ class LinearTerms:
     observation's direction (Coulomb friction, Eq. 8's F_f, is sign(v)·F_C over a constant-velocity
     segment), g the load-cell gain, F_0 its zero offset at the reference time and r its zero drift
     (τ: campaign time minus the reference time, ``time_s`` of :meth:`solve`). Solved as bounded weighted
-    linear least squares in (g, g·F_C, F_0, r) (scipy ``lsq_linear``). ``free`` names the instrument terms
-    fitted (others fixed at g = 1, F_0 = 0, r = 0; the drift only where ``time_s`` is given). The drift is
-    bounded so that it moves the zero by at most the offset bound at either end (``drift_bound_N_s``).
+    linear least squares in (g, g·F_C, F_0, r): the plain least squares where its solution lies within the
+    bounds (the problem is convex, so that is the bounded minimum too), else scipy's ``lsq_linear``. ``free``
+    names the instrument terms fitted (others fixed at g = 1, F_0 = 0, r = 0; the drift only where ``time_s`` is
+    given). The drift is bounded so that it moves the zero by at most the offset bound at either end
+    (``drift_bound_N_s``).
     """
 
     free: tuple[str, ...] = INSTRUMENT
@@ -99,9 +101,11 @@ class LinearTerms:
         if not cols:
             return 1.0, 0.0, 0.0, 0.0
         a = np.column_stack(cols) * root_w[:, None]
-        from scipy.optimize import lsq_linear  # scipy.optimize: only where the instrument is fitted
+        sol = np.linalg.lstsq(a, y * root_w, rcond=None)[0]
+        if not np.all((sol >= lo) & (sol <= hi)):   # the unbounded minimum is the bounded one where it is inside
+            from scipy.optimize import lsq_linear  # scipy.optimize: only where a bound is reached
 
-        sol = lsq_linear(a, y * root_w, bounds=(lo, hi), method="bvls").x
+            sol = lsq_linear(a, y * root_w, bounds=(lo, hi), method="bvls").x
         v = dict(zip(names, sol, strict=True))
         g = float(v.get("g", 1.0))
         return g, float(v.get("c", 0.0)) / g, float(v.get("o", 0.0)), float(v.get("r", 0.0))

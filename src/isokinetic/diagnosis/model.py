@@ -77,6 +77,18 @@ class Evaluator:
             rows = np.array([self._sine[i] for i in obs.case_index], dtype=bool)
             self._split = (rows, Evaluator(obs.subset(~rows), damper), Evaluator(obs.subset(rows), damper))
 
+    def share_forces(self, other: Evaluator) -> bool:
+        """Remember the forces on every sample together with ``other`` where both run the same damper, cases, sample
+        grids and viscosities (a sine-only campaign's period-1 evaluator: its bins reach the last cycle, so it
+        integrates every sample as the full one does), so that a run either makes serves both (the fit's last run
+        is the candidate's score run). Whether they now share."""
+        o, p = self.obs, other.obs
+        same = (self.damper == other.damper and o.plans == p.plans and o.drives == p.drives
+                and o.viscosity_scale == p.viscosity_scale and self._kept["forces"] == other._kept["forces"])
+        if same:
+            self._runs["forces"] = other._runs["forces"]
+        return same
+
     def _remembered(self, kind: str, effects: Effects, run: Callable):
         """``run()``, or its result for the same ``kind`` and ``effects`` where still remembered (RUN_CACHE)."""
         runs = self._runs[kind]

@@ -32,7 +32,14 @@ from dataclasses import replace
 import numpy as np
 
 from isokinetic.contracts.scenarios import CATALOGUE
-from isokinetic.diagnosis.candidate import ALPHA, Candidate, consistent_with_noise, overdispersed_score, rms
+from isokinetic.diagnosis.candidate import (
+    ALPHA,
+    CONFOUNDED_SCORE,
+    Candidate,
+    consistent_with_noise,
+    parsimonious,
+    rms,
+)
 from isokinetic.diagnosis.gap import gap_bands
 from isokinetic.diagnosis.identifiability import identifiability
 from isokinetic.diagnosis.instrument import DRIFT, GAIN_BOUND, LAG_FORMS, displacement_scale, fit_force_lag
@@ -42,8 +49,6 @@ from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.physics.damper import Damper
 from isokinetic.stats import chi2_isf
 
-#: Score difference (χ² units) within which two explaining candidates count as confounded.
-CONFOUNDED_SCORE = 10.0
 #: Tolerance of the verdict's final (polishing) fit, whose parameters are reported.
 POLISH_TOL = 1e-6
 
@@ -382,17 +387,6 @@ def no_effect_earns(best: Candidate, nominal_fit: Candidate | None, candidates: 
     model must earn its place by the margin, as one added to a partial explanation must."""
     return bool(not best.explained and nominal_fit is not None and not nominal_fit.explained
                 and parsimonious([nominal_fit, *candidates]) is nominal_fit)
-
-
-def parsimonious(candidates: Sequence[Candidate]) -> Candidate:
-    """Of candidates none of which explains the data: the smallest effect set (then the best score) among
-    those whose overdispersed score (:func:`isokinetic.diagnosis.candidate.overdispersed_score`) is within
-    CONFOUNDED_SCORE of the best. Scores that close cannot be told apart, and an effect added to a partial
-    explanation must earn its place by that margin."""
-    scores = {id(c): overdispersed_score(c, candidates) for c in candidates}
-    best = min(scores.values())
-    close = [c for c in candidates if scores[id(c)] <= best + CONFOUNDED_SCORE]
-    return min(close, key=lambda c: (len(c.effects), scores[id(c)]))
 
 
 def verdict_keys(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate], gap_before: float) -> dict:

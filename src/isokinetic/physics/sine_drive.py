@@ -20,10 +20,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from isokinetic.physics.excitation import check_stroke, piston_segments, segment_index
+from isokinetic.physics.excitation import Segment, check_stroke, piston_segments, segment_index
 from isokinetic.physics.hydraulics import Hydraulics, steady_pressure
 from isokinetic.physics.plan import CasePlan
-from isokinetic.physics.responses import sine_segment_system
 
 #: Relative tolerance of the model's integration: ~1e-7 of the force scale (measured against rtol 1e-12),
 #: far below any bin's noise, and smooth enough in the parameters for finite-difference Jacobians.
@@ -73,6 +72,65 @@ def merged_contacts(segs: list) -> list:
     return out
 
 
+def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):
+    """rhs and Jacobian of Eq. (1) on one piece of a sine case, pushed (y = Y sin ωt + offset) or at rest: the
+    arithmetic of :func:`isokinetic.physics.responses.sine_segment_system` (Eq. 2's composite volume, Eq. 7's flow
+    plus leakage, operation for operation, so the integration is bit for bit the same) in closures of local
+    Python floats (the state read with ``item()``: numpy scalars cost more): the integrator calls the rhs
+    thousands of times per case, and this makes a sine run about 30 % cheaper."""
+    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
+    v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
+    c1p = hyd.laminar_coefficient
+    c1n = c1p if hyd.laminar_coefficient_neg is None else hyd.laminar_coefficient_neg
+    c2p, c2n, leak = hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg, hyd.leakage_conductance_m3_s_Pa
+    sqrt, copysign, sin, cos = math.sqrt, math.copysign, math.sin, math.cos
+    contact, off, qamp = seg.contact, seg.offset_m, a * amp * omega
+    y0 = seg.piston_start_m
+    vol0 = (v01 - a * y0) * (v02 + a * y0) / (v01 + v02)
+
+    def volume(tt):   # Hydraulics.composite_volume of the piston's position
+        if not contact:
+            return vol0
+        y = amp * sin(omega * tt) + off
+        return (v01 - a * y) * (v02 + a * y) / (v01 + v02)
+
+    c1p2, c1n2, c2p4, c2n4, vsum = c1p * c1p, c1n * c1n, 4.0 * c2p, 4.0 * c2n, v01 + v02
+
+    def flow(p):   # Hydraulics.flow, operation for operation (its constant factors computed once)
+        m = abs(p)
+        if m == 0.0:
+            return 0.0
+        if p >= 0:
+            return copysign(2.0 * m / (c1p + sqrt(c1p2 + c2p4 * m)), p) + leak * p
+        return copysign(2.0 * m / (c1n + sqrt(c1n2 + c2n4 * m)), p) + leak * p
+
+    def pushed(tt, z):   # Eq. 1 driven by the sine; z.item(): a Python float (numpy scalars cost more)
+        p = z.item()
+        m = abs(p)
+        if m == 0.0:
+            q = 0.0
+        elif p >= 0:
+            q = copysign(2.0 * m / (c1p + sqrt(c1p2 + c2p4 * m)), p) + leak * p
+        else:
+            q = copysign(2.0 * m / (c1n + sqrt(c1n2 + c2n4 * m)), p) + leak * p
+        ph = omega * tt
+        ay = a * (amp * sin(ph) + off)
+        return [(qamp * cos(ph) - q) / (beta * ((v01 - ay) * (v02 + ay) / vsum))]
+
+    def resting(tt, z):   # Eq. 1 with the piston at rest
+        return [(0.0 - flow(z.item())) / (beta * vol0)]
+
+    rhs = pushed if contact else resting
+
+    def jac(tt, z):   # Hydraulics.flow_derivative
+        p = z.item()
+        c1, c2 = (c1p, c2p) if p >= 0 else (c1n, c2n)
+        root = sqrt(c1**2 + 4.0 * c2 * abs(p))
+        return [[-((1.0 / root if root > 0 else 1e300) + leak) / (beta * volume(tt))]]
+
+    return rhs, jac
+
+
 def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics, backlash_m: float = 0.0,
                         rtol: float = SINE_RTOL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(τ, Δp, piston velocity) of the model driven by ``drive`` at its sample times (Eq. 1, 2, 7; Δp = 0 and
@@ -98,7 +156,7 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
         t_eval, t0, t1 = t[idx], seg.t_start_s, seg.t_end_s
         if t1 <= t0:
             continue
-        rhs, jac = sine_segment_system(seg, hyd, amp, omega)
+        rhs, jac = fused_segment_system(seg, hyd, amp, omega)
         times = np.concatenate([[t0], t_eval, [t1]])
         sol, info = odeint(rhs, [p], times, Dfun=jac, rtol=rtol, atol=atol, tfirst=True, full_output=True,
                            mxstep=100_000)
