@@ -1,5 +1,6 @@
 """The scripts' one entry: a job's log file and lineage record, set up once; files stamped as written."""
 
+import gc
 import json
 import logging
 
@@ -91,3 +92,43 @@ def test_a_failing_job_logs_nothing_extra_and_leaves_no_context(tmp_path):
         raise RuntimeError("broken")
     assert "campaign demo not ingested: broken" in (tmp_path / "job.log").read_text(encoding="utf-8")
     assert current_lineage() is None
+
+
+def snakemake_job(tmp_path):
+    """The very object Snakemake gives a script job (snakemake.iocontainers.Snakemake), no inputs."""
+    from snakemake.iocontainers import InputFiles, Log, OutputFiles, Params, ResourceList, Snakemake, Wildcards
+
+    return Snakemake(InputFiles(), OutputFiles(), Params(), Wildcards(), 1, ResourceList(),
+                     Log([str(tmp_path / "job.log")]), {}, "windows", None)
+
+
+class Cycle:
+    """Cyclic garbage with a finalizer: ``done`` is set when the collector frees it."""
+
+    def __init__(self, done: list):
+        self.me, self.done = self, done
+
+    def __del__(self):
+        self.done.append(True)
+
+
+def test_a_job_in_its_own_process_freezes_what_it_keeps_after_collecting_its_garbage(tmp_path):
+    frozen_before, done = gc.get_freeze_count(), []
+    try:
+        with job(snakemake_job(tmp_path)):
+            entered = gc.get_freeze_count()
+            kept = [1.0, 2.0]                     # alive at the job's end
+            Cycle(done)                           # garbage only the cyclic collector frees
+            assert any(obj is kept for obj in gc.get_objects())
+        assert entered > frozen_before
+        assert not any(obj is kept for obj in gc.get_objects())    # frozen: no generation holds it
+        assert done == [True]                     # collected, finalizer run, before the freeze
+    finally:
+        gc.unfreeze()                             # this test's process goes on
+
+
+def test_a_job_run_in_a_tests_process_leaves_the_collector_alone(tmp_path):
+    frozen_before = gc.get_freeze_count()
+    with job(fake_job(tmp_path)):
+        pass
+    assert gc.get_freeze_count() == frozen_before

@@ -75,13 +75,17 @@ def plain_log_ticks(ax) -> None:
 
 
 def lay_out(fig: Figure, dpi: float) -> None:
-    """Run the figure's layout engine once, at the resolution it is saved with, and keep the result.
+    """Run the figure's layout once, at the resolution it is saved with, and keep the result.
 
     ``savefig`` of a figure with a layout engine draws it twice: a pass without output whose only
-    product is the layout, then the real one. Laying out here with the very call that pass makes
-    (the engine at the saving dpi, on an Agg canvas) and saving without the engine skips the first
-    pass's drawing (about a fifth of writing a figure); the pixels are the same. A figure whose
-    engine cannot be dropped (rcParams that choose one for every figure) keeps it and is drawn twice.
+    product is the layout, then the real one. Laying out here (on an Agg canvas at the saving dpi) and
+    saving without the engine skips that pass's drawing. Two cuts make the layout itself about 30 % cheaper
+    (issue 23; an axes moves by at most about 1.5 % of the figure against matplotlib's own layout,
+    ``tests/plots/test_style.py``): the axes' spines are left out of it (they
+    lie on the axes' edges and their tick marks under the tick labels, but each asks its axis for its
+    ticks again), and the constrained layout makes one pass of its algorithm, not two
+    (:func:`constrained_layout_once`). A figure whose engine cannot be dropped (rcParams that choose one
+    for every figure) keeps it and is drawn twice.
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -90,10 +94,14 @@ def lay_out(fig: Figure, dpi: float) -> None:
         return
     if not isinstance(fig.canvas, FigureCanvasAgg):
         FigureCanvasAgg(fig)
+    for ax in fig.axes:
+        for spine in ax.spines.values():
+            spine.set_in_layout(False)
     saved_dpi = fig.dpi
     fig.dpi = dpi
     try:
-        engine.execute(fig)
+        if not constrained_layout_once(fig, engine):
+            engine.execute(fig)
     except ValueError:  # as Figure.draw: a layout that cannot be applied is left out
         pass
     finally:
@@ -101,6 +109,58 @@ def lay_out(fig: Figure, dpi: float) -> None:
     fig.set_layout_engine(None)
     if fig.get_layout_engine() is not None:
         fig.set_layout_engine(engine)
+
+
+#: What :func:`constrained_layout_once` uses of matplotlib's constrained layout (``matplotlib._constrained_layout``).
+_CL_STEPS = ("make_layoutgrids", "make_layout_margins", "make_margin_suptitles", "match_submerged_margins",
+             "check_no_collapsed_axes", "reposition_axes", "reset_margins")
+
+
+def constrained_layout_once(fig: Figure, engine) -> bool:
+    """One pass of the constrained layout of ``fig`` (``engine``: its ConstrainedLayoutEngine); True when done.
+
+    matplotlib's ``do_constrained_layout`` runs its algorithm twice, because tick labels may change size once
+    the axes have moved; on this package's figures the second pass moves an axes by at most about 1 % of the
+    figure and costs about a third of the layout. False, with nothing changed, when the engine is another
+    one, compresses, the algorithm's steps are not found (another matplotlib), or the axes would collapse
+    (the caller then runs the engine itself, which warns as matplotlib does).
+    """
+    from matplotlib import _constrained_layout as cl
+    from matplotlib.layout_engine import ConstrainedLayoutEngine
+
+    if type(engine) is not ConstrainedLayoutEngine or getattr(engine, "_compress", True) \
+            or not all(hasattr(cl, step) for step in _CL_STEPS):
+        return False
+    try:
+        return _constrained_layout_pass(fig, engine, cl)
+    except (TypeError, AttributeError, KeyError):   # another matplotlib's private steps: its own engine lays out
+        return False
+
+
+def _constrained_layout_pass(fig: Figure, engine, cl) -> bool:
+    """The steps of matplotlib's ``do_constrained_layout``, once (see :func:`constrained_layout_once`)."""
+    params = engine.get()
+    width_in, height_in = fig.get_size_inches()
+    pads = {"h_pad": params["h_pad"] / height_in, "w_pad": params["w_pad"] / width_in}
+    spaces = {"hspace": params["hspace"], "wspace": params["wspace"]}
+    renderer = fig._get_renderer()
+    grids = cl.make_layoutgrids(fig, None, rect=params["rect"])
+    if not grids["hasgrids"]:
+        return False
+    cl.make_layout_margins(grids, fig, renderer, **pads, **spaces)
+    cl.make_margin_suptitles(grids, fig, renderer, **pads)
+    cl.match_submerged_margins(grids, fig)
+    grids[fig].update_variables()
+    if not cl.check_no_collapsed_axes(grids, fig):
+        cl.reset_margins(grids, fig)
+        return False
+    cl.reposition_axes(grids, fig, renderer, **pads, **spaces)
+    suptitle = fig._suptitle
+    if suptitle is not None and suptitle.get_in_layout() and suptitle._autopos:  # as matplotlib places it
+        suptitle.set_position((suptitle.get_position()[0], grids[fig].get_inner_bbox().y1 + pads["h_pad"]))
+        suptitle.set_verticalalignment("bottom")
+    cl.reset_margins(grids, fig)
+    return True
 
 
 def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = DPI,
@@ -121,5 +181,5 @@ def save_figure(fig: Figure, path: str | os.PathLike, dpi: int = DPI,
     return out
 
 
-__all__ = ["DPI", "MM", "PNG_METADATA", "footnote", "force_unit", "lay_out", "new_figure", "plain_log_ticks",
-           "save_figure", "say_missing"]
+__all__ = ["DPI", "MM", "PNG_METADATA", "constrained_layout_once", "footnote", "force_unit", "lay_out", "new_figure",
+           "plain_log_ticks", "save_figure", "say_missing"]
