@@ -538,6 +538,19 @@ def test_first_order_force_lowpass_follows_its_closed_form_step_response():
     assert np.allclose(y[10:], 1.0 - np.exp(-(t[10:] - 0.5e-3) / tau), atol=2e-4)
 
 
+@pytest.mark.parametrize("order", [1, 2])
+def test_force_lowpass_is_scipys_lsim_with_a_linearly_interpolated_input(order):
+    # the recursion per mode must give lsim's own output (its Python loop over samples is what it replaces)
+    from scipy import signal
+
+    t = 3.0 + np.arange(4000) * 1e-3
+    x = 500.0 + 800.0 * np.sin(2.0 * np.pi * 1.3 * t) + np.random.default_rng(5).normal(0.0, 20.0, t.size)
+    b, a = signal.butter(order, 2.0 * math.pi * 4.0, btype="low", analog=True)
+    system = signal.StateSpace(*signal.tf2ss(b, a))
+    _, expected, _ = signal.lsim(system, x, t - t[0], X0=-np.linalg.solve(system.A, system.B[:, 0]) * x[0])
+    assert np.allclose(rrc.lowpass(t, x, 4.0, order), expected, rtol=0.0, atol=1e-9)
+
+
 def test_lvdt_gain_scales_the_displacement_and_leaves_the_command_true():
     case = rr.TriangleCase("T1", 1e-3, 4.0, 50.0)
     ideal = rrc.simulate_case(case, rig=rr.RigImperfections(displacement_resolution_m=1e-12))

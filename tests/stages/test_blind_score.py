@@ -142,6 +142,31 @@ def test_sensor_chain_errors_and_target_e():
     assert "lag misses s01, s03" in summary_text(summarize(scores.reset_index()))
 
 
+def _sized(name, true_cd, got_cd, se):
+    """A discharge scenario (manifest C_D 0.6) and its exact verdict with a reported standard error."""
+    t = dict(_truth(name, ["discharge"], 3.0), params={"discharge_coefficient": true_cd},
+             damper={"discharge_coefficient": 0.6})
+    d = dict(_diag(["discharge"]), params={"discharge_coefficient": got_cd})
+    if se is not None:
+        d["identifiability"] = {"parameters": {"discharge_coefficient": {"std_error": se}}}
+    return t, d
+
+
+def test_target_e_takes_a_size_beyond_15_percent_only_within_3_of_its_standard_errors():
+    cases = [_sized("s00", 0.606, 0.6058, 1e-3),    # size 0.006, 3 % off: within 15 %
+             _sized("s01", 0.606, 0.6073, 6e-4),    # 22 % off, 2.2 SE: the data cannot pin it closer
+             _sized("s02", 0.606, 0.6075, 4e-4),    # 25 % off, 3.75 SE: a miss
+             _sized("s03", 0.606, 0.6075, 3e-3),    # 25 % off, SE half the size: not determined, a miss
+             _sized("s04", 0.606, 0.6073, None)]    # 22 % off, no standard error reported: a miss
+    scores = score([t for t, _ in cases], {t["scenario"]: d for t, d in cases}).set_index("scenario")
+    assert np.allclose(scores["param_error_max"], [0.2 / 6, 1.3 / 6, 1.5 / 6, 1.5 / 6, 1.3 / 6])
+    assert np.allclose(scores["param_z_max"][:3], [0.2, 1.3 / 0.6, 1.5 / 0.4])
+    assert np.isinf(scores["param_z_max"][3:]).all()
+    e = summarize(scores.reset_index())["targets"]["e_parameters"]
+    assert e["param_misses"] == ["s02", "s03", "s04"] and e["param_z_over_3"] == 3
+    assert [m.split()[0] for m in e["param_beyond_15pct"]] == ["s01", "s02", "s03", "s04"]
+
+
 def test_target_f_counts_only_explained_claims_on_scenarios_without_effects():
     cases = [(_truth("s00", [], None), _diag([], 1.0, 1.0)),
              (_truth("s01", [], None), _diag(["viscosity", "air"], 5.0, 3.0, explained=False)),  # not explained

@@ -168,7 +168,7 @@ def _target_result(target: Mapping) -> tuple[str, str, Mapping]:
                 f"{fmt(target.get('offset_error_max_N'), 3)} N"
                 + (f"; lag within {fmt((target.get('lag_error_max_s') or 0) * 1e3, 3)} ms; LVDT gain within "
                    f"{fmt_pct(target.get('scale_error_max'))}" if sensor else ""),
-                "15 %; 2 ms; 2 N" + ("; 5 ms; 0.3 %" if sensor else ""), {**target, "misses": misses})
+                "15 % (or 3 SE); 2 ms; 2 N" + ("; 5 ms; 0.3 %" if sensor else ""), {**target, "misses": misses})
     return (f"median {fmt(target.get('median'), 3)} over {target.get('n', '?')}",
             f"&ge; {fmt(target.get('threshold'), 3)}", target)
 

