@@ -315,6 +315,28 @@ def test_without_a_command_channel_a_sine_sweeps_lvdt_scale_and_delay_are_not_me
                                                                                           strict=True))
 
 
+def test_where_no_triangle_case_has_four_windows_the_sine_cases_are_diagnosed_and_the_triangles_named(tmp_path):
+    import pandas as pd
+
+    from isokinetic.stages.blind_diagnose import process_raw_campaign
+    from isokinetic.stages.diagnosis import TRIANGLES_WITHOUT_FOUR_WINDOWS, not_used, prepare_sensor
+
+    raw = tmp_path / "raw" / "mixed-three-windows"
+    sines = [rr.SineCase(f"H{i:02d}", f, v * 1e-3 / (2 * math.pi * f), 4, 1000.0)
+             for i, (f, v) in enumerate(SWEEP[2:5], start=1)]
+    rrc.write_campaign(raw, rig_cases(PLAN[2:3]) + sines, rr.TABLE1, rr.NOMINAL_EFFECTS,
+                       rr.RigImperfections(**{**QUIET, **CHAIN}), 11, write_phase=False)
+    root = process_raw_campaign(raw, tmp_path / "work")
+    char = pd.read_parquet(root / "characteristic.parquet")
+    lost = (char["case"] == "T01") & (char["segment"] == 4)   # one window lost (a dropout, a flagged window)
+    assert lost.sum() == 1
+    char[~lost].to_parquet(root / "characteristic.parquet")
+    _c, _d, cases, obs, reason, sensor = prepare_sensor(root)
+    assert reason == "" and set(obs.case) == {"H01", "H02", "H03"}
+    assert sensor["delays"]["delay_s"] == pytest.approx(0.01, abs=0.001)   # the sines' servo terms
+    assert not_used(cases, obs) == {"not_used": f"T01: {TRIANGLES_WITHOUT_FOUR_WINDOWS}"}
+
+
 @pytest.mark.slow
 def test_a_sine_sweep_with_an_lvdt_scale_error_gets_no_damper_effect(tmp_path):
     result = diagnose_sweep(tmp_path, "sweep-lvdt", chain={**CHAIN, "displacement_gain": 1.012})

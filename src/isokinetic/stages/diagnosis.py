@@ -56,6 +56,9 @@ log = logging.getLogger(__name__)
 #: the compressibility and sensor lag that the sine bins would add.
 SINES_BESIDE_TRIANGLES = ("sine cases beside triangle windows are not diagnosed: their phase bins share a slow-noise "
                           "error per record that the bins' standard errors do not describe; the triangles decide")
+#: Why a campaign's triangle cases are not diagnosed where its sine cases are (``sources.not_used``).
+TRIANGLES_WITHOUT_FOUR_WINDOWS = ("no triangle case has its four windows (two periods, both directions), which "
+                                  "the model's drive needs: the sine cases are diagnosed instead")
 
 
 def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame, pd.DataFrame, dict[str, float]]:
@@ -107,6 +110,9 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     if damper is None:
         return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model", {}
     sines = cases[(cases["status"] == "ok") & (cases["waveform"] == "sine")]
+    if not char.empty and not sines.empty and not has_four_windows(char):   # TRIANGLES_WITHOUT_FOUR_WINDOWS
+        log.info("%s: no triangle case has its four windows: its sine cases are diagnosed", campaign)
+        char = char.iloc[0:0]
     if not char.empty and not sines.empty:  # the triangles' windows and bins decide (SINES_BESIDE_TRIANGLES)
         log.info("%s: sine cases %s not diagnosed beside the triangle windows", campaign, ",".join(sines["case"]))
         sines = sines.iloc[0:0]
@@ -125,7 +131,7 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
         return cache[key]
 
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
-    scale, delays = motion_terms(ok, sines, load)
+    scale, delays = motion_terms(ok if not char.empty else ok.iloc[0:0], sines, load)
     lvdt = scale["estimate"] if scale["applied"] else 1.0
 
     def scaled(o: Observations) -> Observations:
@@ -152,6 +158,12 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     return campaign, damper, cases, obs, "", {"displacement_scale": scale, "delays": delays,
                                               "obs_time_s": campaign_times(obs, cases, spans),
                                               "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans)))}
+
+
+def has_four_windows(char: pd.DataFrame) -> bool:
+    """Whether any case of a characteristic's triangle windows has all four (segments 1-4: two periods, both
+    directions), which :func:`isokinetic.diagnosis.observations.case_record` needs to drive the model."""
+    return any(sorted(seg) == [1, 2, 3, 4] for seg in char.groupby("case")["segment"].agg(list))
 
 
 def motion_terms(triangles: pd.DataFrame, sines: pd.DataFrame, load) -> tuple[dict, dict | None]:
@@ -223,10 +235,22 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     delays = sensor.get("delays") or case_delays(cases)   # a sine-only campaign's: from its command channel
     result, predictions = diagnose_observations(obs, damper, alpha, delays, sensor)
     result["sources"] = observation_sources(obs, cases)
-    left_out = cases[(cases["status"] == "ok") & (cases["waveform"] == "sine") & ~cases["case"].isin(obs.case)]
-    if len(left_out) and (obs.kind == "window").any():
-        result["sources"]["not_used"] = f"{','.join(left_out['case'])}: {SINES_BESIDE_TRIANGLES}"
+    result["sources"].update(not_used(cases, obs))
     return result, obs, predictions
+
+
+def not_used(cases: pd.DataFrame, obs: Observations) -> dict[str, str]:
+    """``sources.not_used`` where status-ok cases of one waveform were set aside for the other's: sine cases beside
+    triangle windows (SINES_BESIDE_TRIANGLES), or triangle cases none of which has its four windows, beside sine
+    cases (TRIANGLES_WITHOUT_FOUR_WINDOWS)."""
+    ok = cases[(cases["status"] == "ok") & ~cases["case"].isin(obs.case)]
+    waves = {obs.plans[i].waveform for i in obs.case_index}
+    for left, used, why in (("sine", "triangle", SINES_BESIDE_TRIANGLES),
+                            ("triangle", "sine", TRIANGLES_WITHOUT_FOUR_WINDOWS)):
+        names = ok.loc[ok["waveform"] == left, "case"]
+        if len(names) and used in waves:
+            return {"not_used": f"{','.join(names)}: {why}"}
+    return {}
 
 
 def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | None, spec: WindowSpec = WindowSpec(),
