@@ -284,6 +284,20 @@ def test_batched_triangles_equal_the_segment_by_segment_chain(effects, backlash_
     np.testing.assert_array_equal(got[3][1], got[0][1])
 
 
+def test_a_remembered_layout_gives_every_run_the_segment_by_segment_chain():
+    """A batch's layout remembers the part of Eq. (14) without β_eff for the samples a run needed (extended when a
+    later run needs more): runs of the same cases with other coefficients (air: another β_eff, so other samples
+    before the tables' ends; leakage and asymmetry), the same case objects or equal copies, each give the
+    numbers of chaining single tables, bit for bit."""
+    copies = [dataclasses.replace(case) for case in BATCH]
+    for effects, cases in [(dm.Effects(), BATCH), (dm.Effects(air_volume_fraction=0.02), BATCH),
+                           (dm.Effects(), copies), (TRUTH, BATCH)]:
+        hyd = Hydraulics.from_damper(TABLE_1, dataclasses.replace(effects, coulomb_force_N=0.0))
+        for case, out in zip(cases, triangle_responses(cases, hyd, 0.0, 0.06)):
+            for x, y in zip(out, chained_segments(case, hyd, 0.0, None, 0.06)):
+                np.testing.assert_array_equal(x, y)
+
+
 def test_repeated_batches_do_not_share_their_arrays():
     """The sample grids of a batch are remembered between calls; what a call returns is its own."""
     hyd = Hydraulics.from_damper(TABLE_1, TRUTH)

@@ -38,6 +38,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -208,8 +209,11 @@ def _panel_coefficients(h, y0, y1, d0, d1, dd0, dd1) -> np.ndarray:
     """
     m0, m1 = h * d0, h * d1
     hh = h * h
-    with np.errstate(invalid="ignore"):
-        a0, a1 = hh * dd0, hh * dd1
+    if np.isfinite(hh).all() and np.isfinite(dd0).all() and np.isfinite(dd1).all():
+        a0, a1 = hh * dd0, hh * dd1                 # finite times finite: never invalid
+    else:
+        with np.errstate(invalid="ignore"):
+            a0, a1 = hh * dd0, hh * dd1
     quintic = np.isfinite(a0) & np.isfinite(a1)
     cubic = ~quintic
     if cubic.any():
@@ -306,19 +310,25 @@ def _problems(dp0: np.ndarray, qp: np.ndarray, hyd: Hydraulics):
     dist = |q* - q0|; a problem with dist 0 (or not finite) starts at its steady state.
     """
     g = hyd.leakage_conductance_m3_s_Pa
-    c1, c2 = _c1_table(hyd), _c2_table(hyd)
     one_c1 = hyd.laminar_coefficient_neg is None    # the same c1 both ways: the scalar (the old arithmetic)
+
+    def c1(x):                                      # c1 and c2 of the flow direction of x, Eq. (7)
+        return hyd.laminar_coefficient if one_c1 else np.where(x >= 0, hyd.laminar_coefficient,
+                                                                hyd.laminar_coefficient_neg)
+
+    def c2(x):
+        return np.where(x >= 0, hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg)
+
     aqp = np.abs(qp)
-    c1_q = hyd.laminar_coefficient if one_c1 else c1.take((qp >= 0).view(np.int8))
+    c1_q = c1(qp)
     b = 1.0 + g * c1_q                              # steady_orifice_flow, element by element
-    q_star = np.copysign(2.0 * aqp / (b + np.sqrt(b * b + 4.0 * g * c2.take((qp >= 0).view(np.int8)) * aqp)), qp)
+    q_star = np.copysign(2.0 * aqp / (b + np.sqrt(b * b + 4.0 * g * c2(qp) * aqp)), qp)
     q_star[qp == 0.0] = 0.0
-    c1_q = hyd.laminar_coefficient if one_c1 else c1.take((q_star >= 0).view(np.int8))
-    p_star = c1_q * q_star + c2.take((q_star >= 0).view(np.int8)) * q_star * np.abs(q_star)   # Eq. (7)
+    c1_q = c1(q_star)
+    p_star = c1_q * q_star + c2(q_star) * q_star * np.abs(q_star)   # Eq. (7)
     a = np.abs(dp0)                                 # orifice_flow_of_pressure, element by element
-    c1_q = hyd.laminar_coefficient if one_c1 else c1.take((dp0 >= 0).view(np.int8))
-    q0 = np.divide(2.0 * a, c1_q + np.sqrt(c1_q * c1_q + 4.0 * c2.take((dp0 >= 0).view(np.int8)) * a),
-                   out=np.zeros(a.size), where=a > 0)
+    c1_q = c1(dp0)
+    q0 = np.divide(2.0 * a, c1_q + np.sqrt(c1_q * c1_q + 4.0 * c2(dp0) * a), out=np.zeros(a.size), where=a > 0)
     q0 *= np.sign(dp0)
     dist = np.abs(q_star - q0)
     return q_star, np.copysign(1.0, q_star - q0), p_star, q0, dist
@@ -401,57 +411,56 @@ def _sum(x: np.ndarray, axis: int | None = None):
     return np.add.reduce(x, axis=axis, dtype=np.int64 if x.dtype == bool else None)
 
 
-def _integrand(uu: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray, p_star: np.ndarray,
-               hyd: Hydraulics):
-    """dτ/du, dΔp/dτ, δ = Δp - Δp* and dΔp/dq at points u of their problems (q*, s, A_p W, Δp* per point).
+def _integrand(uu: np.ndarray, n: int, pp: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray,
+               p_star: np.ndarray, hyd: Hydraulics):
+    """dτ/du at points u of their problems (``pp``: the problem of each point; q*, s, A_p W, Δp* per problem), and
+    at the first ``n`` points (the nodes) also dΔp/dτ, δ = Δp - Δp* and dΔp/dq.
 
     On the side of q*: A_pW - Q_N = (q* - q)(1 + g c1 + g c2 (|q*| + |q|)), exactly; across q = 0
     from the other side the direct form.
     """
     g = hyd.leakage_conductance_m3_s_Pa
+    q_star, s = q_star.take(pp), s.take(pp)
     e = np.exp(uu)
     q = s * e
     np.subtract(q_star, q, out=q)                   # q = q* - s e^u
     aq = np.abs(q)
-    aqs = np.abs(q_star)
-    side = (q >= 0).view(np.int8)
-    c2 = _c2_table(hyd).take(side)
+    side = q >= 0
+    c2 = np.where(side, hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg)
     # c1 of q's side; on the side of q* (the factored forms below) it is also q*'s
-    c1 = hyd.laminar_coefficient if hyd.laminar_coefficient_neg is None else _c1_table(hyd).take(side)
+    c1 = hyd.laminar_coefficient if hyd.laminar_coefficient_neg is None else \
+        np.where(side, hyd.laminar_coefficient, hyd.laminar_coefficient_neg)
     dpdq = 2.0 * c2
     dpdq *= aq
     dpdq += c1                                      # dΔp/dq = c1 + 2 c2 |q|, Eq. (7)
-    same = (q * q_star > 0.0) | ((q_star == 0.0) & (q != 0.0))
-    both = aqs + aq
+    same = q * q_star > 0.0
+    at_rest = q_star == 0.0
+    if at_rest.any():
+        same |= at_rest & (q != 0.0)
+    both = np.abs(q_star)
+    both += aq
     k_same = g * c2
     k_same *= both
     k_same += 1.0 + g * c1                          # 1 + g c1 + g c2 (|q*| + |q|)
     dtau = dpdq / k_same                            # dτ/du magnitude (τ grows as u falls)
-    f = s * e
-    f *= k_same                                     # dΔp/dτ = A_p W - Q_N
-    delta = -s
-    delta *= e
-    both *= c2
-    both += c1
+    f = s[:n] * e[:n]
+    f *= k_same[:n]                                 # dΔp/dτ = A_p W - Q_N
+    delta = -s[:n]
+    delta *= e[:n]
+    both = both[:n] * c2[:n]
+    both += c1 if np.isscalar(c1) else c1[:n]
     delta *= both                                   # Δp - Δp* = -s e^u (c1 + c2 (|q| + |q*|))
     if not same.all():
         o = (~same).nonzero()[0]
-        qo, c2o, eo = q[o], c2[o], e[o]
+        qo = q[o]
         c1o = c1 if np.isscalar(c1) else c1[o]
-        f[o] = fo = qp[o] - qo - g * (c1o * qo + c2o * qo * aq[o])
-        dtau[o] = dpdq[o] * eo / np.abs(fo)
-        delta[o] = c1o * qo + c2o * qo * aq[o] - p_star[o]
-    return dtau, f, delta, dpdq
-
-
-def _c2_table(hyd: Hydraulics) -> np.ndarray:
-    """[c2 for Δp < 0, c2 for Δp >= 0], to pick with a boolean index."""
-    return np.array([hyd.turbulent_coefficient_neg, hyd.turbulent_coefficient_pos])
-
-
-def _c1_table(hyd: Hydraulics) -> np.ndarray:
-    """[c1 for Δp < 0, c1 for Δp >= 0], to pick with a boolean index."""
-    return np.array([hyd.c1(-1.0), hyd.laminar_coefficient])
+        po = c1o * qo + c2[o] * qo * aq[o]          # Δp(q), Eq. (7)
+        fo = qp.take(pp.take(o)) - qo - g * po
+        dtau[o] = dpdq[o] * e[o] / np.abs(fo)
+        o_nodes = o[:int(o.searchsorted(n))]
+        f[o_nodes] = fo[:o_nodes.size]
+        delta[o_nodes] = po[:o_nodes.size] - p_star.take(pp.take(o_nodes))
+    return dtau, f, delta, dpdq[:n]
 
 
 def _node_tau(panel_integrals: np.ndarray, hi: np.ndarray, sizes: np.ndarray, first: np.ndarray,
@@ -521,32 +530,44 @@ class RelaxationBatch:
             # last node <= t within the sample's own table: a search in (table, τ) order
             keys = _pairs(np.arange(len(self)).repeat(self.sizes), self.tau)
             node = keys.searchsorted(_pairs(k, t), side="right") - 1
-            out[live] += self._interpolate(k, node, t)
+            out[live] += self._interpolate(self._clipped_panel(k, node), t)
         return out
 
     def pressure_runs(self, table: np.ndarray, counts: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """:meth:`pressure` of runs of samples: ``counts[r]`` ascending τ of table ``table[r]``, one run
         after the other, all before their table's end (one sorted search per run)."""
-        node = np.empty(tau.size, dtype=np.int64)
-        at = 0
-        for k, n in zip(table.tolist(), counts.tolist()):
+        local = np.empty(tau.size, dtype=np.int64)      # nodes <= τ within the run's table
+        first = self.first.take(table)
+        nodes, at = self.tau, 0
+        for a, b, n in zip(first.tolist(), (first + self.sizes.take(table)).tolist(), counts.tolist()):
             if n:
-                a = self.first[k]
-                node[at:at + n] = self.tau[a:a + self.sizes[k]].searchsorted(tau[at:at + n], side="right") + (a - 1)
+                local[at:at + n] = nodes[a:b].searchsorted(tau[at:at + n], side="right")
                 at += n
-        k = table.repeat(counts)
-        # τ >= 0 = the first node and τ < the table's end: within the panels
-        return self.steady_Pa.take(k) + self._interpolate(k, node, tau, clip=bool(tau.size) and tau.min() < 0.0)
+        if tau.size and tau.min() < 0.0:
+            k = table.repeat(counts)
+            panel = self._clipped_panel(k, local + (first - 1).repeat(counts))
+        else:   # τ >= 0 = the first node and τ < the table's end: within the panels
+            panel = local
+            panel += (first - 1 - table).repeat(counts)   # global node - table = panel
+        return self.steady_Pa.take(table).repeat(counts) + self._interpolate(panel, tau)
 
-    def _interpolate(self, k: np.ndarray, node: np.ndarray, t: np.ndarray, clip: bool = True) -> np.ndarray:
-        """δ = Δp - Δp* at τ ``t`` of table ``k`` from the last node <= t (``node``, global index; kept
-        within the table's panels unless ``clip`` is False)."""
-        if clip:
-            first = self.first.take(k)
-            node = node.clip(first, first + self.sizes.take(k) - 2)
+    def _clipped_panel(self, k: np.ndarray, node: np.ndarray) -> np.ndarray:
+        """The panel of global node ``node`` of table ``k``, the node kept within the table's panels."""
+        first = self.first.take(k)
+        return node.clip(first, first + self.sizes.take(k) - 2) - k
+
+    @cached_property
+    def _panels(self) -> tuple[np.ndarray, np.ndarray]:
+        """(τ at the start, width in τ) of every panel, in the order of ``coef``'s columns."""
+        node = np.arange(self.coef.shape[1]) + np.arange(len(self)).repeat(np.maximum(self.sizes - 1, 0))
         x0 = self.tau.take(node)
-        s = (t - x0) / (self.tau.take(node + 1) - x0)
-        panel = node - k
+        return x0, self.tau.take(node + 1) - x0
+
+    def _interpolate(self, panel: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """δ = Δp - Δp* at τ ``t`` on panel ``panel`` (its quintic in s = (τ - τ_i)/(τ_{i+1} - τ_i))."""
+        x0, width = self._panels
+        s = t - x0.take(panel)
+        s /= width.take(panel)
         c = self.coef
         out = c[5].take(panel)
         for j in (4, 3, 2, 1):
@@ -583,16 +604,14 @@ def _tables(u: np.ndarray, sizes: np.ndarray, q_star: np.ndarray, s: np.ndarray,
         np.multiply(half, x, out=pts[:, k])
         pts[:, k] += mid
     pp = np.concatenate([prob, prob.take(hi).repeat(_GL_X.size)])
-    dtau, f, delta, dpdq = _integrand(uu, q_star.take(pp), s.take(pp), qp.take(pp), p_star.take(pp), hyd)
+    dtau, f, delta, dpdq = _integrand(uu, n, pp, q_star, s, qp, p_star, hyd)
     tau = _node_tau(half * (dtau[n:].reshape(pts.shape) @ _GL_W), hi, sizes, first, prob)
-    dpdq, f = dpdq[:n], f[:n]
     # d²Δp/dτ² = f'(q) dq/dτ = -(1 + g dΔp/dq) f / (dΔp/dq); infinite where dΔp/dq = 0
     curv = np.divide(-(1.0 + g * dpdq) * f, dpdq, out=np.full(n, np.inf), where=dpdq > 0)
     if hyd.laminar_coefficient_neg is not None:     # c1 jumps at q = 0: d²Δp/dτ² is one-sided there (cubic)
         qs = q_star.take(prob)
         q_nodes = qs - s.take(prob) * np.exp(u)
         curv[np.abs(q_nodes) <= 1e-9 * np.abs(qs)] = np.inf
-    delta = delta[:n]
     delta[first] = dp0 - p_star                      # exact start: Δp continuous across segments
     coef = _panel_coefficients(tau.take(hi + 1) - tau.take(hi), delta.take(hi), delta.take(hi + 1), f.take(hi),
                                f.take(hi + 1), curv.take(hi), curv.take(hi + 1))
@@ -666,14 +685,27 @@ def compressibility_times(dt_s: np.ndarray, volume_1_m3: np.ndarray, volume_2_m3
                           piston_flow_m3_s: np.ndarray, hyd: Hydraulics) -> np.ndarray:
     """:func:`compressibility_time` element by element: each with its segment's start volumes
     (:func:`start_volumes`) and piston flow A_p W (A_p times the velocity), the same arithmetic."""
+    out = compressibility_logs(dt_s, volume_1_m3, volume_2_m3, piston_flow_m3_s)
+    out /= compressibility_divisors(piston_flow_m3_s, hyd)
+    return out
+
+
+def compressibility_logs(dt_s: np.ndarray, volume_1_m3: np.ndarray, volume_2_m3: np.ndarray,
+                         piston_flow_m3_s: np.ndarray) -> np.ndarray:
+    """The part of Eq. (14) without β_eff: ln(V2/V2,s) - ln(V1/V1,s) (log1p), Δt (1/V1,s + 1/V2,s) when
+    A_p W = 0; :func:`compressibility_times` is this over :func:`compressibility_divisors`, bit for bit."""
     dt, v1, v2, qp = dt_s, volume_1_m3, volume_2_m3, piston_flow_m3_s
-    beta = hyd.compressibility_1_Pa
     out = np.log1p(qp * dt / v2)
     out -= np.log1p(-qp * dt / v1)
     rest = qp == 0.0
-    if not rest.any():
-        out /= beta * qp
-        return out
-    np.divide(out, beta * qp, out=out, where=~rest)
-    out[rest] = dt[rest] * (1.0 / v1[rest] + 1.0 / v2[rest]) / beta
+    if rest.any():
+        out[rest] = dt[rest] * (1.0 / v1[rest] + 1.0 / v2[rest])
+    return out
+
+
+def compressibility_divisors(piston_flow_m3_s: np.ndarray, hyd: Hydraulics) -> np.ndarray:
+    """β_eff A_p W of Eq. (14) (β_eff where A_p W = 0), element by element [Pa m³/s]."""
+    beta = hyd.compressibility_1_Pa
+    out = beta * piston_flow_m3_s
+    out[piston_flow_m3_s == 0.0] = beta
     return out

@@ -23,10 +23,11 @@ actuator-gap-damper model of :mod:`isokinetic.physics.servo`.
 from __future__ import annotations
 
 import math
+import operator
 import threading
 from collections import OrderedDict
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pandas as pd
@@ -47,6 +48,8 @@ from isokinetic.physics.hydraulics import (
     DEFAULT_STEP,
     Hydraulics,
     RelaxationBatch,
+    compressibility_divisors,
+    compressibility_logs,
     compressibility_times,
     relaxation_batch,
     start_volumes,
@@ -170,6 +173,8 @@ class _Layout:
     count: np.ndarray               # samples
     rate_Hz: np.ndarray             # sample rate of the segment's case [Hz]
     steps: tuple[np.ndarray, ...]   # the segments of step j (the j-th of each case), case after case
+    memo: dict = field(default_factory=lambda: {"lock": threading.Lock()}, compare=False, repr=False)
+    # ^ what depends on the layout alone, computed when first needed (:func:`_sample_logs`)
 
 
 def _build_layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd: Hydraulics,
@@ -203,7 +208,7 @@ def _build_layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd
                   rate_Hz=np.array([c.sample_rate_Hz for c in cases], dtype=float)[case],
                   steps=tuple(by_step[a:b] for a, b in zip(bounds[:-1], bounds[1:])))
     for array in (*out.times, *out.steps,
-                  *(getattr(out, f) for f in out.__dataclass_fields__ if f not in ("times", "steps"))):
+                  *(getattr(out, f) for f in out.__dataclass_fields__ if f not in ("times", "steps", "memo"))):
         array.flags.writeable = False
     return out
 
@@ -215,9 +220,16 @@ LAYOUT_CACHE = 8
 
 
 def _layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd: Hydraulics, backlash_m: float) -> _Layout:
-    """:func:`_build_layout`, remembered for the last few (cases, drives, backlash, geometry)."""
-    key = (tuple(cases), tuple(drives), float(backlash_m), hyd.piston_area_m2, hyd.chamber_volume_1_m3,
-           hyd.chamber_volume_2_m3)
+    """:func:`_build_layout`, remembered for the last few (cases, drives, backlash, geometry); the very case and
+    drive objects of a remembered layout (a fit's runs) are found without hashing them."""
+    cases, drives = tuple(cases), tuple(drives)
+    geometry = (float(backlash_m), hyd.piston_area_m2, hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3)
+    with _LAYOUTS_LOCK:
+        for key in reversed(_LAYOUTS):
+            if key[2:] == geometry and _same_objects(key[0], cases) and _same_objects(key[1], drives):
+                _LAYOUTS.move_to_end(key)
+                return _LAYOUTS[key]
+    key = (cases, drives, *geometry)
     with _LAYOUTS_LOCK:
         hit = _LAYOUTS.get(key)
         if hit is not None:
@@ -231,14 +243,34 @@ def _layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd: Hydr
     return out
 
 
-def _sample_tau(lay: _Layout, seg: np.ndarray, counts: np.ndarray | None, at: np.ndarray,
-                hyd: Hydraulics) -> np.ndarray:
-    """τ (Eq. 14, as :func:`compressibility_time`) of the samples ``times_all[at]``: ``counts[r]`` of
-    them in segment ``seg[r]``, one segment after the other (None: one each)."""
-    def per_sample(x):
-        return x.take(seg) if counts is None else x.take(seg).repeat(counts)
-    return compressibility_times(lay.times_all.take(at) - per_sample(lay.t0), per_sample(lay.v1), per_sample(lay.v2),
-                                 per_sample(lay.qp), hyd)
+def _same_objects(a: tuple, b: tuple) -> bool:
+    """Whether two tuples hold the very same objects, in order."""
+    return len(a) == len(b) and all(map(operator.is_, a, b))
+
+
+def _sample_logs(lay: _Layout, n_live: np.ndarray) -> np.ndarray:
+    """Eq. (14) without β_eff (:func:`compressibility_logs`) at the samples of the layout, each with its
+    segment's start volumes and flow, valid for the first ``n_live`` samples of every segment (at least): it holds
+    no damper coefficient, so each sample is computed once per layout, when a run first needs it."""
+    with lay.memo["lock"]:
+        logs, done = lay.memo.get("logs"), lay.memo.get("done")
+        if logs is None:
+            logs, done = lay.memo["logs"], lay.memo["done"] = np.empty(lay.times_all.size), np.zeros_like(lay.count)
+        more = (n_live > done).nonzero()[0]
+        if more.size:
+            grow = n_live.take(more) - done.take(more)
+            seg = more.repeat(grow)
+            at = (lay.lo.take(more) + done.take(more)).repeat(grow) + _ranks(grow)
+            logs[at] = compressibility_logs(lay.times_all.take(at) - lay.t0.take(seg), lay.v1.take(seg),
+                                            lay.v2.take(seg), lay.qp.take(seg))
+            done[more] = n_live.take(more)
+    return logs
+
+
+def _sample_tau(lay: _Layout, seg: np.ndarray, at: np.ndarray, hyd: Hydraulics) -> np.ndarray:
+    """τ (Eq. 14, as :func:`compressibility_time`) of the samples ``times_all[at]``, sample i in segment ``seg[i]``."""
+    return compressibility_times(lay.times_all.take(at) - lay.t0.take(seg), lay.v1.take(seg), lay.v2.take(seg),
+                                 lay.qp.take(seg), hyd)
 
 
 def _live_counts(lay: _Layout, tau_end: np.ndarray, table_end: np.ndarray, hyd: Hydraulics) -> np.ndarray:
@@ -265,7 +297,7 @@ def _live_counts(lay: _Layout, tau_end: np.ndarray, table_end: np.ndarray, hyd: 
     while act.size:
         inside = (probe >= lo[who]) & (probe < hi[who])
         probe, who = probe[inside], who[inside]
-        below = _sample_tau(lay, who, None, lay.lo[who] + probe, hyd) < table_end[who]
+        below = _sample_tau(lay, who, lay.lo[who] + probe, hyd) < table_end[who]
         np.maximum.at(lo, who[below], probe[below] + 1)
         np.minimum.at(hi, who[~below], probe[~below])
         act = act[lo[act] < hi[act]]
@@ -303,22 +335,28 @@ def _chain(lay: _Layout, tau_end: np.ndarray, hyd: Hydraulics, step: float) -> t
 CHUNK_SAMPLES = 8192
 
 
-def _sample_pressures(tabs: RelaxationBatch, table: np.ndarray, lay: _Layout, n_live: np.ndarray, hyd: Hydraulics,
-                      dp: np.ndarray) -> None:
-    """Δp of the first ``n_live`` samples of every segment into ``dp``, in runs of ascending samples
-    of one table, grouped into cache-sized chunks (Eq. 14 then the table)."""
+def _live_pressures(tabs: RelaxationBatch, table: np.ndarray, lay: _Layout, n_live: np.ndarray,
+                    hyd: Hydraulics) -> np.ndarray:
+    """Δp of the first ``n_live`` samples of every segment, segment after segment (Eq. 14 then the table), in
+    runs of ascending samples of one table grouped into cache-sized chunks."""
     owners = n_live.nonzero()[0]
-    runs = -(-n_live[owners] // CHUNK_SAMPLES)
+    counts = n_live.take(owners)
+    logs = _sample_logs(lay, n_live)
+    tau = np.concatenate([logs[a:a + n] for a, n in zip(lay.lo.take(owners).tolist(), counts.tolist())]) \
+        if owners.size else np.zeros(0)
+    tau /= compressibility_divisors(lay.qp.take(owners), hyd).repeat(counts)   # τ: Eq. (14), as _sample_tau
+    runs = -(-counts // CHUNK_SAMPLES)
     run_seg = np.repeat(owners, runs)
-    offset = _ranks(runs) * CHUNK_SAMPLES
-    run_len = np.minimum(n_live[run_seg] - offset, CHUNK_SAMPLES)
-    run_lo = lay.lo[run_seg] + offset
-    chunk = (np.cumsum(run_len) - 1) // CHUNK_SAMPLES
+    run_len = np.minimum(n_live.take(run_seg) - _ranks(runs) * CHUNK_SAMPLES, CHUNK_SAMPLES)
+    ends = np.cumsum(run_len)
+    chunk = (ends - 1) // CHUNK_SAMPLES
     cuts = [0, *((chunk[1:] != chunk[:-1]).nonzero()[0] + 1).tolist(), run_seg.size]
+    bounds = [0, *ends.tolist()]
+    dp = np.empty(tau.size)
     for a, b in zip(cuts[:-1], cuts[1:]):
-        rs, rl = run_seg[a:b], run_len[a:b]
-        at = run_lo[a:b].repeat(rl) + _ranks(rl)
-        dp[at] = tabs.pressure_runs(table[rs], rl, _sample_tau(lay, rs, rl, at, hyd))
+        lo, hi = bounds[a], bounds[b]
+        dp[lo:hi] = tabs.pressure_runs(table.take(run_seg[a:b]), run_len[a:b], tau[lo:hi])
+    return dp
 
 
 def _ranks(counts: np.ndarray) -> np.ndarray:
@@ -387,14 +425,14 @@ class PressureSums:
 
 
 class _RunningSums:
-    """Σ Δp of the samples of a layout's cases, per segment (the live samples evaluated, :func:`_sample_pressures`;
+    """Σ Δp of the samples of a layout's cases, per segment (the live samples evaluated, :func:`_live_pressures`;
     the rest count·Δp*), ready for sums over any sample ranges (:meth:`range_sums`)."""
 
     def __init__(self, lay: _Layout, tabs: RelaxationBatch, table: np.ndarray, n_live: np.ndarray, hyd: Hydraulics):
-        dp = np.empty(lay.times_all.size)
-        _sample_pressures(tabs, table, lay, n_live, hyd, dp)
-        live_at = lay.lo.repeat(n_live) + _ranks(n_live)
-        self.live_sum = np.concatenate([[0.0], np.cumsum(dp.take(live_at))])   # live samples, segment by segment
+        live = _live_pressures(tabs, table, lay, n_live, hyd)
+        self.live_sum = np.empty(live.size + 1)                                 # live samples, segment by segment
+        self.live_sum[0] = 0.0
+        np.cumsum(live, out=self.live_sum[1:])
         self.live_first = np.cumsum(n_live) - n_live                            # each segment's first in live_sum
         self.n_live = n_live
         self.steady = tabs.steady_Pa[table]
@@ -442,7 +480,7 @@ def triangle_responses(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: f
         return []
     lay, tabs, table, n_live = _segment_tables(cases, hyd, backlash_m, step, drives)
     dp = np.repeat(tabs.steady_Pa[table], lay.count)
-    _sample_pressures(tabs, table, lay, n_live, hyd, dp)
+    dp[lay.lo.repeat(n_live) + _ranks(n_live)] = _live_pressures(tabs, table, lay, n_live, hyd)
     vel = np.repeat(lay.w, lay.count)
     ends = np.cumsum([t.size for t in lay.times]).tolist()
     return [(t.copy(), dp[e - t.size:e], vel[e - t.size:e]) for t, e in zip(lay.times, ends)]
