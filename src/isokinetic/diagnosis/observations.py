@@ -230,6 +230,12 @@ class _Collector:
                 for k, v in self.cols.items()}
 
 
+def has_four_windows(segments) -> bool:
+    """Whether a triangle case's window segments are all four (two periods, both directions): what
+    :func:`case_record` needs to drive the model."""
+    return sorted(segments) == [1, 2, 3, 4]
+
+
 def case_record(row: pd.Series, series: pd.DataFrame, win: pd.DataFrame) -> CaseRecord | None:
     """The record of a cases.parquet row in plan time, driven by its windows' measured speeds; None
     unless the case has its four windows (``win``: its characteristic rows indexed by segment)."""
@@ -237,7 +243,7 @@ def case_record(row: pd.Series, series: pd.DataFrame, win: pd.DataFrame) -> Case
     start_s = motion_start(row)
     t = series["time_s"].to_numpy()
     tau = t - start_s
-    if sorted(win.index) != [1, 2, 3, 4]:
+    if not has_four_windows(win.index):
         return None
     drive = measured_drive(win.index, win["velocity_m_s"], float(t[0]), start_s, plan.sample_rate_Hz)
     tm = drive_times(replace(plan, duration_s=float(tau[-1])), drive)

@@ -34,7 +34,7 @@ from isokinetic.diagnosis.instrument import (
     sine_servo_terms,
 )
 from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
-from isokinetic.diagnosis.observations import Observations, build_observations
+from isokinetic.diagnosis.observations import Observations, build_observations, has_four_windows
 from isokinetic.diagnosis.result import (
     no_model,
     observation_sources,
@@ -110,7 +110,7 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     if damper is None:
         return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model", {}
     sines = cases[(cases["status"] == "ok") & (cases["waveform"] == "sine")]
-    if not char.empty and not sines.empty and not has_four_windows(char):   # TRIANGLES_WITHOUT_FOUR_WINDOWS
+    if not char.empty and not sines.empty and not any_four_windows(char):   # TRIANGLES_WITHOUT_FOUR_WINDOWS
         log.info("%s: no triangle case has its four windows: its sine cases are diagnosed", campaign)
         char = char.iloc[0:0]
     if not char.empty and not sines.empty:  # the triangles' windows and bins decide (SINES_BESIDE_TRIANGLES)
@@ -160,10 +160,10 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
                                               "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans)))}
 
 
-def has_four_windows(char: pd.DataFrame) -> bool:
-    """Whether any case of a characteristic's triangle windows has all four (segments 1-4: two periods, both
-    directions), which :func:`isokinetic.diagnosis.observations.case_record` needs to drive the model."""
-    return any(sorted(seg) == [1, 2, 3, 4] for seg in char.groupby("case")["segment"].agg(list))
+def any_four_windows(char: pd.DataFrame) -> bool:
+    """Whether any case of a characteristic's triangle windows has all four
+    (:func:`isokinetic.diagnosis.observations.has_four_windows`)."""
+    return any(has_four_windows(seg) for seg in char.groupby("case")["segment"].agg(list))
 
 
 def motion_terms(triangles: pd.DataFrame, sines: pd.DataFrame, load) -> tuple[dict, dict | None]:
