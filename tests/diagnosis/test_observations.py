@@ -21,6 +21,7 @@ from isokinetic.reference import rig as rr
 from isokinetic.stages.blind_diagnose import process_raw_campaign
 from isokinetic.stages.diagnosis import load_campaign
 
+FRICTION_N = 5.0
 CASES = [rr.TriangleCase("T01", 0.1e-3, 20.0, 50.0), rr.SineCase("H01", 0.5, 30e-6, 4, 200.0),
          rr.SineCase("H02", 5.0, 20e-6, 4, 1000.0)]
 
@@ -193,3 +194,56 @@ def test_sine_cases_leave_the_triangle_models_means_unchanged(mixed, effects):
     alone = Evaluator(obs.subset(triangle), damper).predict(effects)
     together = Evaluator(obs, damper).predict(effects)[triangle]
     assert np.allclose(together, alone, rtol=1e-9, atol=1e-9 * np.abs(alone).max())
+
+
+@pytest.fixture(scope="module")
+def dropped(tmp_path_factory):
+    """(observations, damper) of the ``mixed`` campaign's triangle case, its damper with 5 N of Coulomb friction,
+    1.5 % of its samples dropped by the rig's logger (nearly noise-free: every mean is the rig's own force over the
+    samples the record kept)."""
+    tmp = tmp_path_factory.mktemp("dropped")
+    rig = rr.RigImperfections(force_noise_N=0.02, force_resolution_N=0.001, dropout_fraction=0.015)
+    rrc.write_campaign(tmp / "raw" / "dropped", CASES[:1], rr.TABLE1, rr.TrueEffects(coulomb_force_N=FRICTION_N),
+                       rig=rig, seed=3, write_phase=False)
+    root = process_raw_campaign(tmp / "raw" / "dropped", tmp / "work")
+    campaign, damper, cases, char, _scales = load_campaign(root)
+    obs = build_observations(campaign, cases, char, lambda row: pd.read_parquet(root / row["timeseries_file"]),
+                             WindowSpec())
+    return obs, damper
+
+
+def test_the_samples_a_record_dropped_are_named_as_holes_in_the_model_ranges(dropped):
+    obs, _damper = dropped
+    n_model = obs.stop - obs.start
+    per_row = np.bincount(obs.holes[:, 0], minlength=len(obs))
+    assert 0 < obs.holes.shape[0] < 0.06 * n_model.sum()
+    rows, at = obs.holes[:, 0], obs.holes[:, 1]
+    assert np.all((at >= obs.start[rows]) & (at < obs.stop[rows]))
+    assert np.all(per_row < n_model)
+
+
+def test_the_model_leaves_out_the_samples_a_record_dropped(dropped):
+    # a dropped sample inside a reversal's transient moves the bin's mean by a large share of the force's swing:
+    # the model's mean must be over the same samples; without friction from the closed-form sums (friction added
+    # as its constant step), with it on the sample grid
+    obs, damper = dropped
+    ev = Evaluator(obs, damper)
+    tol = 2e-4 * np.abs(obs.force_N).max()
+    assert np.max(np.abs(ev.predict(NOMINAL) + FRICTION_N * obs.sign - obs.force_N)) < tol
+    assert np.max(np.abs(ev.predict(Effects(coulomb_force_N=FRICTION_N)) - obs.force_N)) < tol
+
+
+def test_a_lagging_channels_model_means_leave_out_the_dropped_samples_at_their_places(dropped):
+    # an independent reduction: per observation, the model force shifted by whole samples, masked where dropped
+    obs, damper = dropped
+    ev = Evaluator(obs, damper)
+    force = ev.forces(NOMINAL)[0]
+    fs = obs.plans[0].sample_rate_Hz
+    shift = 7
+    lagged = ev.lagged(NOMINAL, [shift / fs])[0]
+    padded = np.concatenate([np.zeros(shift), force])   # the model is at rest before its first sample
+    for i in range(len(obs)):
+        keep = np.ones(obs.stop[i] - obs.start[i], dtype=bool)
+        keep[obs.holes[obs.holes[:, 0] == i, 1] - obs.start[i]] = False
+        expected = padded[obs.start[i]:obs.stop[i]][keep].mean()
+        assert lagged[i] == pytest.approx(expected, rel=1e-9, abs=1e-9 * np.abs(force).max())

@@ -63,8 +63,12 @@ class Evaluator:
         offsets = np.concatenate([[0], np.cumsum(sizes + 1)])  # +1: a leading zero per case in the cumsum
         self._lo = offsets[obs.case_index] + obs.start
         self._hi = offsets[obs.case_index] + obs.stop
-        self._n = (obs.stop - obs.start).astype(float)
         self._first = offsets[obs.case_index]   # each observation's case: the index of its leading zero
+        # the model samples the records dropped (Observations.holes): their observation, case, sample, running-sum index
+        self._hole_row, self._hole_at = obs.holes[:, 0], obs.holes[:, 1]
+        self._hole_case = obs.case_index[self._hole_row]
+        self._hole_abs = self._first[self._hole_row] + self._hole_at
+        self._n = (obs.stop - obs.start - np.bincount(self._hole_row, minlength=len(obs))).astype(float)
         self._fs = np.array([p.sample_rate_Hz for p in obs.plans])[obs.case_index] if len(obs) else np.zeros(0)
         self._sums = np.empty(int(offsets[-1]))  # per case: 0, then the running sum of its samples
         self.calls = 0   # model runs (simulations of the damper), remembered ones not counted
@@ -118,7 +122,17 @@ class Evaluator:
         if friction or any(self._sine):
             return self._moments(effects, 1)[0]
         area, run = self._pressure_sums(effects)
-        return area * run.sums(self.obs.case_index, self.obs.start, self.obs.stop) / self._n
+        sums = run.sums(self.obs.case_index, self.obs.start, self.obs.stop)
+        if self._hole_row.size:
+            sums = sums - self._per_row(run.sums(self._hole_case, self._hole_at, self._hole_at + 1))
+        return area * sums / self._n
+
+    def _per_row(self, hole_values: np.ndarray) -> np.ndarray:
+        """Sums over each observation's holes of ``hole_values`` (last axis: the holes; leading axes kept)."""
+        n = len(self.obs)
+        lead = hole_values.shape[:-1]
+        flat = (np.arange(int(np.prod(lead)))[:, None] * n + self._hole_row).ravel()
+        return np.bincount(flat, hole_values.ravel(), minlength=n * int(np.prod(lead))).reshape(*lead, n)
 
     def _pressure_sums(self, effects: Effects) -> tuple[float, PressureSums]:
         """(A_p, the running sums of Δp of the triangle cases) of a run without friction (remembered)."""
@@ -141,15 +155,27 @@ class Evaluator:
         frac = shift - k
         if effects.coulomb_force_N or effects.stribeck_force_N or any(self._sine):
             self._moments(effects, 1)
-            cs = self._sums
-            means = [(cs[np.maximum(self._hi - j, self._first)] - cs[np.maximum(self._lo - j, self._first)]) / self._n
+            cs, first = self._sums, self._first[self._hole_row]
+            means = [(cs[np.maximum(self._hi - j, self._first)] - cs[np.maximum(self._lo - j, self._first)]
+                      - (self._per_row(cs[np.maximum(self._hole_abs + 1 - j[:, self._hole_row], first)]
+                                       - cs[np.maximum(self._hole_abs - j[:, self._hole_row], first)])
+                         if self._hole_row.size else 0.0)) / self._n
                      for j in (k, k + 1)]
         else:
             area, run = self._pressure_sums(effects)
             obs = self.obs
             case = np.broadcast_to(obs.case_index, k.shape).ravel()
-            means = [(area * run.sums(case, np.maximum(obs.start - j, 0).ravel(), np.maximum(obs.stop - j, 0).ravel())
-                      ).reshape(k.shape) / self._n for j in (k, k + 1)]
+            means = []
+            for j in (k, k + 1):
+                sums = run.sums(case, np.maximum(obs.start - j, 0).ravel(), np.maximum(obs.stop - j, 0).ravel())
+                sums = sums.reshape(k.shape)
+                if self._hole_row.size:
+                    jh = j[:, self._hole_row]
+                    at = np.broadcast_to(self._hole_case, jh.shape).ravel()
+                    sums = sums - self._per_row(run.sums(at, np.maximum(self._hole_at - jh, 0).ravel(),
+                                                         np.maximum(self._hole_at + 1 - jh, 0).ravel()
+                                                         ).reshape(jh.shape))
+                means.append(area * sums / self._n)
         return (1.0 - frac) * means[0] + frac * means[1]
 
     def spread(self, effects: Effects = NOMINAL) -> np.ndarray:
@@ -232,7 +258,10 @@ class Evaluator:
                 cs[at] = 0.0
                 np.cumsum(force if k == 0 else force ** (k + 1), out=cs[at + 1:at + 1 + force.size])
                 at += force.size + 1
-            out.append((cs[self._hi] - cs[self._lo]) / self._n)
+            sums = cs[self._hi] - cs[self._lo]
+            if self._hole_row.size:
+                sums = sums - self._per_row(cs[self._hole_abs + 1] - cs[self._hole_abs])
+            out.append(sums / self._n)
         return out
 
 

@@ -11,7 +11,9 @@ velocity inputs", Titurus et al.) and ``n_bins`` *transient bins* that split the
 window, [0, start]·T/2, into equal times (the relaxation after each velocity reversal that the
 windows leave out). All times are *plan times*: record time minus the case's measured motion start
 (``motion_start_s`` of cases.parquet), so windows and bins sit where the piston really moved,
-whatever the actuator delay or the time axis' origin.
+whatever the actuator delay or the time axis' origin. A sample the record lacks (a logger's dropped sample)
+is left out of the model's mean too (``Observations.holes``), so both are means over the same times: inside a
+reversal's transient one missing sample moves a bin's mean by a large share of the force's swing.
 
 Noise. Each observation's standard error combines (a) the variance of a mean of n consecutive
 samples under the campaign's pooled force-noise model (:mod:`isokinetic.measurement.noise`: white
@@ -80,6 +82,9 @@ class Observations:
     noise: dict = field(default_factory=dict)   # the pooled noise model(s), for the report
     speed_rel_se: np.ndarray | None = None      # relative standard error of the drive's measured speed
     viscosity_scale: tuple[float, ...] = ()     # per plan, μ(T_case)/μ_nominal (viscosity law); empty: all 1
+    # (observation, model sample within its case) of the model samples in an observation's range that have no
+    # measured sample (dropped samples): the model's mean leaves them out (:func:`missing_samples`)
+    holes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
 
     def __len__(self) -> int:
         return int(self.force_N.size)
@@ -108,7 +113,10 @@ class Observations:
             drives.append(drive)
         fields_ = {name: getattr(self, name)[keep] for name in ("case", "kind", "segment", "period", "sign",
                                                                 "speed_m_s", "start", "stop", "force_N", "sigma_N")}
-        return Observations(campaign=self.campaign, plans=tuple(plans), rep_rel=self.rep_rel,
+        new_row = np.cumsum(np.asarray(mask, dtype=bool)) - 1
+        held = np.asarray(mask, dtype=bool)[self.holes[:, 0]]
+        holes = np.column_stack([new_row[self.holes[held, 0]], self.holes[held, 1]])
+        return Observations(campaign=self.campaign, plans=tuple(plans), rep_rel=self.rep_rel, holes=holes,
                             case_index=np.array([remap[i] for i in self.case_index[keep]], dtype=np.int64),
                             drives=tuple(drives) if self.drives else (), noise=self.noise, viscosity_scale=scales,
                             speed_rel_se=None if self.speed_rel_se is None else self.speed_rel_se[keep], **fields_)
@@ -144,6 +152,7 @@ class _Collector:
     window_samples: dict = field(default_factory=dict)   # sample rate -> steady windows' samples
     all_windows: dict = field(default_factory=dict)      # sample rate -> every window's samples
     sine_model_means: Mapping = field(default_factory=dict)   # (case, model start sample) -> a model's bin mean
+    holes: list = field(default_factory=list)            # (observation, model sample) without a measured sample
 
     def add(self, rec: CaseRecord, kind: str, k: int, sign: float, a: float, b: float, period: int | None = None,
             speed_m_s: float | None = None, slot: int | None = None, cycle: int = -1) -> int:
@@ -157,6 +166,9 @@ class _Collector:
             return 0
         plan, cols = rec.plan, self.cols
         fs = plan.sample_rate_Hz
+        if m1 - m0 < j1 - j0:
+            row = len(cols["case"])
+            self.holes += [(row, int(j0 + h)) for h in missing_samples(rec.tau_s[m0:m1], rec.model_times_s[j0:j1], fs)]
         fw = rec.force_N[m0:m1]
         fn = fw - self.force_offset_N
         cols["case"].append(plan.case)
@@ -326,10 +338,20 @@ def _observations(campaign: str, collector: _Collector, input_var_N2: np.ndarray
     sigma = np.sqrt(se2 + (rep_rel * force) ** 2)
     keep = {k: arrays[k] for k in KEPT_COLUMNS}
     scales = tuple(collector.scales) if any(x != 1.0 for x in collector.scales) else ()
+    holes = np.array(collector.holes, dtype=np.int64).reshape(-1, 2)
     return Observations(campaign=campaign, plans=tuple(collector.plans), drives=tuple(collector.drives),
-                        viscosity_scale=scales,
+                        viscosity_scale=scales, holes=holes,
                         rep_rel=rep_rel, sigma_N=sigma, noise={**noise, "between_period_rel": rep_rel},
                         speed_rel_se=arrays["speed_rel_se"], **keep)
+
+
+def missing_samples(measured_s: np.ndarray, model_s: np.ndarray, fs: float) -> np.ndarray:
+    """Indices into ``model_s`` of the model times with no measured time within half a sample interval
+    (``measured_s`` ascending): the samples a record dropped."""
+    i = np.searchsorted(measured_s, model_s)
+    after = np.abs(measured_s[np.minimum(i, measured_s.size - 1)] - model_s)
+    before = np.abs(model_s - measured_s[np.maximum(i - 1, 0)])
+    return np.flatnonzero(np.minimum(before, after) > 0.5 / fs)
 
 
 def speed_relative_se(tau: np.ndarray, y: np.ndarray, a: float, b: float) -> float:
