@@ -17,7 +17,9 @@ def identifiability(dg: Diagnoser, candidate: Candidate) -> dict:
 
     J (:func:`fit_jacobian`): derivatives of the fit residuals (period 1) with respect to every effect
     parameter and the free instrument terms, so the standard errors account for the instrument terms
-    fitted alongside.
+    fitted alongside. Where the fit's χ² exceeds its degrees of freedom (a verdict that does not explain the
+    data within noise), the standard errors are scaled by √(χ²/dof) (:func:`std_error_scale`, reported as
+    ``std_error_scale``): the scatter the noise model did not describe widens them as it widens the residuals.
     """
     if not candidate.effects:
         return {"identifiable": True, "parameters": {}}
@@ -28,9 +30,10 @@ def identifiability(dg: Diagnoser, candidate: Candidate) -> dict:
         return {"identifiable": False, "reason": "singular Fisher information"}
     if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0):
         return {"identifiable": False, "reason": "ill-conditioned Fisher information"}
-    out: dict = {"identifiable": True, "parameters": {}}
+    scale = std_error_scale(candidate.chi2_fit, candidate.n_fit - jac.shape[1])
+    out: dict = {"identifiable": True, "parameters": {}, "std_error_scale": scale}
     for i, name in enumerate(candidate.effects):
-        x, sx = float(candidate.x[i]), float(math.sqrt(max(cov[i, i], 0.0)))
+        x, sx = float(candidate.x[i]), scale * float(math.sqrt(max(cov[i, i], 0.0)))
         key, value = dg.param.si(name, x)
         _, shifted = dg.param.si(name, x + sx)
         out["parameters"][key] = {"estimate": value, "std_error": abs(shifted - value),
@@ -49,6 +52,12 @@ def identifiability(dg: Diagnoser, candidate: Candidate) -> dict:
         out["drift_correlation"] = {name: float(cov[i, -1] / (d[i] * d[-1]))
                                     for i, name in enumerate(candidate.effects)}
     return out
+
+
+def std_error_scale(chi2: float, dof: int) -> float:
+    """√(χ²/dof) where it exceeds 1 (the Birge ratio), else 1: the factor on standard errors from the Fisher
+    information when the residuals scatter more than the noise model says (none without degrees of freedom)."""
+    return math.sqrt(chi2 / dof) if dof > 0 and math.isfinite(chi2) and chi2 > dof else 1.0
 
 
 def fit_jacobian(dg: Diagnoser, candidate: Candidate) -> np.ndarray:
