@@ -65,10 +65,10 @@ def fit_jacobian(dg: Diagnoser, candidate: Candidate) -> np.ndarray:
     friction analytic, the others by forward differences, through the candidate's force channel), then the
     free gain, offset and zero drift (last)."""
     fm = dg.fit_mask
-    sigma, sign = dg.obs.sigma_N[fm], dg.obs.sign[fm]
     g = candidate.gain
     cols = []
     lag = None if candidate.channel is None else candidate.channel[1]
+    sigma, sign = dg.obs.sigma_N[fm], dg.friction_signature(lag)[fm]   # friction as the force channel reads it
     nonlinear = [n for n in candidate.effects if n != "friction"]
     base = dict(zip(candidate.effects, candidate.x, strict=True))
     for name in candidate.effects:

@@ -72,6 +72,8 @@ class Evaluator:
         self._fs = np.array([p.sample_rate_Hz for p in obs.plans])[obs.case_index] if len(obs) else np.zeros(0)
         self._sums = np.empty(int(offsets[-1]))  # per case: 0, then the running sum of its samples
         self.calls = 0   # model runs (simulations of the damper), remembered ones not counted
+        self._unit: list[np.ndarray] | None = None   # sign(v) per case (:meth:`friction_read`)
+        self._friction_reads: dict = {}             # (form, lag) -> friction_read
         # effects -> mean forces, and -> forces on every sample, least recent first; how many of each are kept
         self._runs = {"mean": OrderedDict(), "sums": OrderedDict(), "forces": OrderedDict()}
         self._kept = {"mean": RUN_CACHE, "sums": RUN_CACHE_SUMS,
@@ -154,29 +156,63 @@ class Evaluator:
         k = np.floor(shift).astype(np.int64)
         frac = shift - k
         if effects.coulomb_force_N or effects.stribeck_force_N or any(self._sine):
-            self._moments(effects, 1)
-            cs, first = self._sums, self._first[self._hole_row]
-            means = [(cs[np.maximum(self._hi - j, self._first)] - cs[np.maximum(self._lo - j, self._first)]
-                      - (self._per_row(cs[np.maximum(self._hole_abs + 1 - j[:, self._hole_row], first)]
-                                       - cs[np.maximum(self._hole_abs - j[:, self._hole_row], first)])
-                         if self._hole_row.size else 0.0)) / self._n
-                     for j in (k, k + 1)]
-        else:
-            area, run = self._pressure_sums(effects)
-            obs = self.obs
-            case = np.broadcast_to(obs.case_index, k.shape).ravel()
-            means = []
-            for j in (k, k + 1):
-                sums = run.sums(case, np.maximum(obs.start - j, 0).ravel(), np.maximum(obs.stop - j, 0).ravel())
-                sums = sums.reshape(k.shape)
-                if self._hole_row.size:
-                    jh = j[:, self._hole_row]
-                    at = np.broadcast_to(self._hole_case, jh.shape).ravel()
-                    sums = sums - self._per_row(run.sums(at, np.maximum(self._hole_at - jh, 0).ravel(),
-                                                         np.maximum(self._hole_at + 1 - jh, 0).ravel()
-                                                         ).reshape(jh.shape))
-                means.append(area * sums / self._n)
+            return self._shifted_means(self.forces(effects), lags)
+        area, run = self._pressure_sums(effects)
+        obs = self.obs
+        case = np.broadcast_to(obs.case_index, k.shape).ravel()
+        means = []
+        for j in (k, k + 1):
+            sums = run.sums(case, np.maximum(obs.start - j, 0).ravel(), np.maximum(obs.stop - j, 0).ravel())
+            sums = sums.reshape(k.shape)
+            if self._hole_row.size:
+                jh = j[:, self._hole_row]
+                at = np.broadcast_to(self._hole_case, jh.shape).ravel()
+                sums = sums - self._per_row(run.sums(at, np.maximum(self._hole_at - jh, 0).ravel(),
+                                                     np.maximum(self._hole_at + 1 - jh, 0).ravel()
+                                                     ).reshape(jh.shape))
+            means.append(area * sums / self._n)
         return (1.0 - frac) * means[0] + frac * means[1]
+
+    def _shifted_means(self, forces: list[np.ndarray], lags: np.ndarray) -> np.ndarray:
+        """Means of ``forces`` (per case, on its sample grid) over every observation's samples shifted back by
+        each lag·fs, one row per lag (:meth:`lagged`)."""
+        shift = lags[:, None] * self._fs
+        k = np.floor(shift).astype(np.int64)
+        frac = shift - k
+        self._means(forces, 1)
+        cs, first = self._sums, self._first[self._hole_row]
+        means = [(cs[np.maximum(self._hi - j, self._first)] - cs[np.maximum(self._lo - j, self._first)]
+                  - (self._per_row(cs[np.maximum(self._hole_abs + 1 - j[:, self._hole_row], first)]
+                                   - cs[np.maximum(self._hole_abs - j[:, self._hole_row], first)])
+                     if self._hole_row.size else 0.0)) / self._n
+                 for j in (k, k + 1)]
+        return (1.0 - frac) * means[0] + frac * means[1]
+
+    def friction_read(self, form: int, lag_s: float) -> np.ndarray:
+        """Mean of each observation's unit Coulomb friction sign(v) (Eq. 8's F_f per newton of F_C, on the model's
+        sample grid) as a force channel of ``form`` (0: a delay, 1 or 2: a Butterworth low-pass, as :meth:`lagged`
+        and :meth:`filtered`) and group delay ``lag_s`` reads it: the column of a profiled friction, which passes
+        through the channel as the hydraulic force does (near a reversal the channel still reads the other sign).
+        Without a channel that is ``obs.sign``."""
+        key = (int(form), float(lag_s))
+        hit = self._friction_reads.get(key)
+        if hit is None:
+            unit = self._unit_friction()
+            lags = np.array([float(lag_s)])
+            hit = self._shifted_means(unit, lags)[0] if form == 0 else self._filtered_means(unit, lags, form)[0]
+            if len(self._friction_reads) >= RUN_CACHE:
+                self._friction_reads.pop(next(iter(self._friction_reads)))
+            self._friction_reads[key] = hit
+        return hit
+
+    def _unit_friction(self) -> list[np.ndarray]:
+        """sign(v) of the driven piston on every case's sample grid (one nominal run, remembered)."""
+        if self._unit is None:
+            self.calls += 1
+            unit_friction = Effects(coulomb_force_N=1.0)
+            self._unit = [friction_force(vel, unit_friction)
+                          for _t, _dp, vel in self._responses(Hydraulics.from_damper(self.damper, NOMINAL))]
+        return self._unit
 
     def spread(self, effects: Effects = NOMINAL) -> np.ndarray:
         """Standard deviation of the model force over each observation's samples [N]: how far the
@@ -190,10 +226,14 @@ class Evaluator:
         (one simulation for all). The analog filter of group delay L has the corner Ω = c/L (c = 1, √2);
         each case's digital filter is its bilinear transform at the case's sample rate (same DC group
         delay), at rest before the record (scipy.signal ``butter``/``lfilter``)."""
+        return self._filtered_means(self.forces(effects), group_delays_s, order)
+
+    def _filtered_means(self, forces: list[np.ndarray], group_delays_s, order: int) -> np.ndarray:
+        """Means of ``forces`` (per case, on its sample grid) over every observation's samples behind the
+        low-pass of :meth:`filtered`, one row per group delay."""
         from scipy import signal  # scipy.signal: only where a force channel's low-pass is fitted
 
         c = 1.0 if order == 1 else math.sqrt(2.0)
-        forces = self.forces(effects)
         rates = [p.sample_rate_Hz for p in self.obs.plans]
         rows = []
         for lag in np.atleast_1d(np.asarray(group_delays_s, dtype=float)):

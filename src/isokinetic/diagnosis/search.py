@@ -179,6 +179,15 @@ class Diagnoser:
         """Model runs so far (of these evaluators: shared with the diagnosers made by :meth:`with_channel`)."""
         return self.evaluator.calls + self.fit_evaluator.calls
 
+    def friction_signature(self, lag: float | None = None, fit: bool = False) -> np.ndarray:
+        """The column of a profiled Coulomb friction per observation (``fit``: of period 1): its direction
+        ``obs.sign`` through an ideal channel, else sign(v) as the force channel of group delay ``lag`` (default
+        the channel's starting one) reads it (:meth:`isokinetic.diagnosis.model.Evaluator.friction_read`)."""
+        ev = self.fit_evaluator if fit else self.evaluator
+        if self.channel is None:
+            return ev.obs.sign
+        return ev.friction_read(self.channel[0], self.channel[1] if lag is None else lag)
+
     def z(self, prediction: np.ndarray) -> np.ndarray:
         return (self.obs.force_N - prediction) / self.obs.sigma_N
 
@@ -196,8 +205,9 @@ class Diagnoser:
         def fun(x):
             eff, lag = self._split(nonlinear, x)
             m = self.model(self.param.effects(nonlinear, eff), fit=True, lag=lag)
-            g, fc, o, r = terms.solve(obs.force_N, m, obs.sign, w, friction, self.fit_time_s)
-            return (obs.force_N - g * (m + fc * obs.sign) - o - self.drift(r, True)) / obs.sigma_N
+            s = self.friction_signature(lag, fit=True) if friction else obs.sign
+            g, fc, o, r = terms.solve(obs.force_N, m, s, w, friction, self.fit_time_s)
+            return (obs.force_N - g * (m + fc * s) - o - self.drift(r, True)) / obs.sigma_N
         return fun
 
     def fit(self, names: Sequence[str], starts: Sequence[Sequence[float]],
@@ -269,7 +279,8 @@ class Diagnoser:
         if hydraulic is None:
             hydraulic = self.model(self.param.effects(nonlinear, x), lag=lag) if nonlinear or lag is not None \
                 else self.nominal
-        fm, sign = self.fit_mask, self.obs.sign
+        fm = self.fit_mask
+        sign = self.friction_signature(lag) if "friction" in names else self.obs.sign
         g, fc, o, r = terms.solve(self.obs.force_N[fm], hydraulic[fm], sign[fm], self.weight[fm], "friction" in names,
                                   self.fit_time_s)
         pred = hydraulic + fc * sign
