@@ -421,13 +421,16 @@ def _sine_model(arrays: Mapping[str, np.ndarray], model_means: Mapping[tuple[str
 
 def _between_period(arrays: Mapping[str, np.ndarray], se2: np.ndarray, model_N: np.ndarray | None = None) -> float:
     """Between-period relative scatter of the window means beyond their noise variance (of the means less
-    ``model_N`` where given: a sine's modelled cycle-to-cycle convergence is no scatter)."""
+    ``model_N`` where given: a sine's modelled cycle-to-cycle convergence is no scatter). A triangle has one
+    window per direction and period; a sine's "periods" alternate its steady cycles, and its last two cycles
+    are compared (the most converged: a damper whose effects the model lacks converges in its own way over
+    the first cycles)."""
     win = arrays["kind"] == "window"
     force = arrays["force_N"] - (0.0 if model_N is None else model_N)
     df = pd.DataFrame({"case": arrays["case"][win], "slot": arrays["slot"][win], "period": arrays["period"][win],
                        "force": force[win], "level": arrays["force_N"][win], "se2": se2[win]})
     wide = df.pivot_table(index=["case", "slot"], columns="period", values=["force", "level", "se2"],
-                          aggfunc="first").dropna()
+                          aggfunc="last").dropna()
     if wide.empty:
         return 0.0
     d = (wide[("force", 2)] - wide[("force", 1)]).to_numpy()

@@ -121,20 +121,35 @@ def mean_speed(fit: SineFit, a_s: float, b_s: float) -> float:
     return abs(fit.amplitude_m * (math.sin(w * b_s) - math.sin(w * a_s))) / (b_s - a_s)
 
 
+#: A bin with at least this many steady cycles has its noise read from the later half of them
+#: (:func:`bin_variance_model`).
+LATER_HALF_CYCLES = 4
+
+
 def bin_variance_model(key: np.ndarray, cycle: np.ndarray, force_N: np.ndarray, n: np.ndarray, long: np.ndarray,
                        model_N: np.ndarray | None = None) -> tuple[float, float]:
     """(a [N²], b [-]) of the variance of a bin mean, a/n + b·F², from the differences of the same bin's means
     in consecutive cycles (``key``: the bin's case and phase slot; a periodic force cancels, so
     E[d²]/2 is the variance of one mean), less the differences of ``model_N`` (a model's bin means: its own
     cycle-to-cycle convergence is no noise) where given. Only the bins of ``long`` cases enter (periods long
-    against the noise's correlation; a shorter one would cancel slow noise). Non-negative least squares,
-    weighted by the fitted variance once (the variance of d² is twice its square)."""
+    against the noise's correlation; a shorter one would cancel slow noise). Where a bin has at least
+    LATER_HALF_CYCLES cycles, only the differences of their later half enter (from the middle of its first and
+    last cycle on): a damper whose effects the model lacks converges from rest over several cycles in its own
+    way (a leakage or an asymmetry shifts the mean pressure slowly), and those early differences are no noise
+    either; a shorter record has none to spare. Non-negative least squares, weighted by the fitted variance
+    once (the variance of d² is twice its square)."""
     from scipy.optimize import nnls
 
     g = force_N - (0.0 if model_N is None else model_N)
     order = np.lexsort((cycle, key))
     k, c, gg, f, nn, lg = key[order], cycle[order], g[order], force_N[order], n[order], long[order]
-    pair = (k[1:] == k[:-1]) & (c[1:] == c[:-1] + 1) & lg[1:]
+    names, at = np.unique(k, return_inverse=True)
+    first, last = np.full(names.size, np.inf), np.full(names.size, -np.inf)
+    np.minimum.at(first, at, c)
+    np.maximum.at(last, at, c)
+    many = (last - first + 1 >= LATER_HALF_CYCLES)[at[:-1]]
+    later = ~many | (c[:-1] >= 0.5 * (first + last)[at[:-1]])
+    pair = (k[1:] == k[:-1]) & (c[1:] == c[:-1] + 1) & lg[1:] & later
     if not pair.any():
         return 0.0, 0.0
     y = 0.5 * (gg[1:] - gg[:-1])[pair] ** 2
