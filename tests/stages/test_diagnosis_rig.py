@@ -268,6 +268,12 @@ def test_beside_triangle_windows_sine_cases_are_named_and_left_out(tmp_path):
     assert result["sources"]["windows"] == ",".join(f"T{i:02d}/{k}" for i in range(1, 4) for k in range(1, 5))
     assert result["sources"]["sine_bins"] == ""
     assert len(result["sources"]["not_used"].split(":")[0].split(",")) == 6
+    # but they check the verdict: [friction] predicts them within noise, the nominal damper does not
+    check = result["sine_check"]
+    assert check["cases"] == ",".join(f"H{i:02d}" for i in range(1, 7))
+    assert check["consistent"] is True and result["explained"] is True
+    assert check["nominal"]["p_value"] < 1e-6
+
 
 
 @pytest.mark.slow

@@ -41,6 +41,7 @@ from isokinetic.diagnosis.result import (
     validate_diagnosis,
 )
 from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.diagnosis.sine_check import sine_check
 from isokinetic.diagnosis.verdict import diagnose_observations
 from isokinetic.io import write_json
 from isokinetic.measurement.windows import WindowSpec, motion_start
@@ -55,7 +56,8 @@ log = logging.getLogger(__name__)
 #: the 27-case paper campaign's diagnosis about seven times slower. The triangles' transient bins already carry
 #: the compressibility and sensor lag that the sine bins would add.
 SINES_BESIDE_TRIANGLES = ("sine cases beside triangle windows are not diagnosed: their phase bins share a slow-noise "
-                          "error per record that the bins' standard errors do not describe; the triangles decide")
+                          "error per record that the bins' standard errors do not describe; the triangles decide, "
+                          "and the sine cases check their verdict (sine_check)")
 #: Why a campaign's triangle cases are not diagnosed where its sine cases are (``sources.not_used``).
 TRIANGLES_WITHOUT_FOUR_WINDOWS = ("no triangle case has its four windows (two periods, both directions), which "
                                   "the model's drive needs: the sine cases are diagnosed instead")
@@ -96,7 +98,9 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     drift.
 
     Sine cases are diagnosed where a campaign has no triangle window (a sine-only campaign); beside
-    triangle windows they are left out (SINES_BESIDE_TRIANGLES says why) and ``sources`` names them.
+    triangle windows they are left out of the search (SINES_BESIDE_TRIANGLES says why), ``sources`` names them,
+    and their observations (``sensor['sine_obs']``, with ``sine_time_s``) check the triangles' verdict
+    (:func:`isokinetic.diagnosis.sine_check.sine_check`).
 
     Observations are built twice: first to profile the load-cell offset against the nominal model,
     then with the noise model fitted to offset-free samples (the proportional noise scales with the
@@ -113,9 +117,10 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     if not char.empty and not sines.empty and not any_four_windows(char):   # TRIANGLES_WITHOUT_FOUR_WINDOWS
         log.info("%s: no triangle case has its four windows: its sine cases are diagnosed", campaign)
         char = char.iloc[0:0]
+    set_aside = sines.iloc[0:0]
     if not char.empty and not sines.empty:  # the triangles' windows and bins decide (SINES_BESIDE_TRIANGLES)
         log.info("%s: sine cases %s not diagnosed beside the triangle windows", campaign, ",".join(sines["case"]))
-        sines = sines.iloc[0:0]
+        set_aside, sines = sines, sines.iloc[0:0]
     modelled = cases[(cases["waveform"] != "sine") | cases["case"].isin(sines["case"])]
     if char.empty and sines.empty:
         if ((cases["status"] == "ok") & (cases["waveform"] == "free")).any():
@@ -137,27 +142,43 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     def scaled(o: Observations) -> Observations:
         return rescaled_drives(o, scale["estimate"]) if scale["applied"] and len(o) else o
 
-    obs = scaled(build_observations(campaign, modelled, char, load, spec, n_bins, viscosity_scales=scales,
-                                    displacement_scale=lvdt))
-    if len(obs):
-        dg0 = Diagnoser(obs, damper, alpha)
-        first = dg0.refit((), INSTRUMENT)
-        offset = 0.0 if first is None else first.offset_N
-        # a sine's noise is read from its cycle-to-cycle differences less the nominal model's convergence
-        sine = np.array([obs.plans[i].waveform == "sine" for i in obs.case_index], dtype=bool)
-        sine_means = {(str(c), int(k)): float(f) for c, k, f in zip(obs.case[sine], obs.start[sine], dg0.nominal[sine],
-                                                                   strict=True)}
-        obs = scaled(build_observations(campaign, modelled, char, load, spec, n_bins, offset,
-                                        unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
-                                        drive_input_variance(obs, damper, dg0.nominal), scales,
-                                        displacement_scale=lvdt, sine_model_means=sine_means))
+    def observations(of: pd.DataFrame, windows: pd.DataFrame) -> Observations:
+        return two_pass_observations(campaign, damper, of, windows, load, scaled, spec, n_bins, scales, lvdt, alpha)
+
+    obs = observations(modelled, char)
     if len(obs) == 0:
         return campaign, damper, cases, None, ("no triangle case with four windows and no sine case of two "
                                                "cycles: nothing to compare"), {}
-    spans = {row["case"]: record_span(load(row)) for _, row in pd.concat([ok, sines]).iterrows()}
-    return campaign, damper, cases, obs, "", {"displacement_scale": scale, "delays": delays,
-                                              "obs_time_s": campaign_times(obs, cases, spans),
-                                              "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans)))}
+    spans = {row["case"]: record_span(load(row)) for _, row in pd.concat([ok, sines, set_aside]).iterrows()}
+    sensor = {"displacement_scale": scale, "delays": delays, "obs_time_s": campaign_times(obs, cases, spans),
+              "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans)))}
+    if not set_aside.empty:
+        sine_obs = observations(set_aside, char.iloc[0:0])
+        if len(sine_obs):
+            sensor.update(sine_obs=sine_obs, sine_time_s=campaign_times(sine_obs, cases, spans))
+    return campaign, damper, cases, obs, "", sensor
+
+
+def two_pass_observations(campaign: str, damper: Damper, modelled: pd.DataFrame, char: pd.DataFrame, load, scaled,
+                          spec: WindowSpec, n_bins: int, scales: dict, lvdt: float, alpha: float) -> Observations:
+    """The observations of the cases ``modelled`` (and the triangle windows ``char``), built twice
+    (:func:`prepare_sensor`): first to profile the load-cell offset against the nominal model, then with the
+    noise model fitted to offset-free samples, the unsteady windows left out of it and, for sine cases, the
+    nominal model's bin means (its cycle-to-cycle convergence is no noise); ``scaled`` applies the LVDT scale."""
+    obs = scaled(build_observations(campaign, modelled, char, load, spec, n_bins, viscosity_scales=scales,
+                                    displacement_scale=lvdt))
+    if not len(obs):
+        return obs
+    dg0 = Diagnoser(obs, damper, alpha)
+    first = dg0.refit((), INSTRUMENT)
+    offset = 0.0 if first is None else first.offset_N
+    sine = np.array([obs.plans[i].waveform == "sine" for i in obs.case_index], dtype=bool)
+    sine_means = {(str(c), int(k)): float(f) for c, k, f in zip(obs.case[sine], obs.start[sine], dg0.nominal[sine],
+                                                               strict=True)}
+    return scaled(build_observations(campaign, modelled, char, load, spec, n_bins, offset,
+                                     unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
+                                     drive_input_variance(obs, damper, dg0.nominal), scales,
+                                     displacement_scale=lvdt, sine_model_means=sine_means))
 
 
 def any_four_windows(char: pd.DataFrame) -> bool:
@@ -236,6 +257,12 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     result, predictions = diagnose_observations(obs, damper, alpha, delays, sensor)
     result["sources"] = observation_sources(obs, cases)
     result["sources"].update(not_used(cases, obs))
+    if "sine_obs" in sensor:   # the sine cases set aside beside the triangles check their verdict
+        result["sine_check"] = sine_check(sensor["sine_obs"], damper, result, sensor["sine_time_s"],
+                                          sensor["time_ref_s"], alpha)
+        if result["explained"] and not result["sine_check"]["consistent"]:
+            result["explained"] = False
+            result.setdefault("unexplained_note", result["sine_check"]["note"])
     return result, obs, predictions
 
 
