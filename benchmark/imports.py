@@ -88,9 +88,16 @@ def parse_importtime(stderr: str) -> ImportProfile:
     return ImportProfile(sum(per.values()) / 1e6, {k: v / 1e6 for k, v in per.items()})
 
 
+#: What Snakemake sets in a one-thread job's environment (snakemake.shell: the linear-algebra libraries' thread
+#: counts); without them numpy's OpenBLAS starts a thread per core at import, 0.05-0.1 CPU-s that no job pays.
+JOB_THREAD_VARIABLES = ("OMP_NUM_THREADS", "GOTO_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                        "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+
+
 def import_once(modules: list[str], src: Path | None = None, cwd: Path | None = None) -> ImportProfile:
-    """One fresh interpreter importing ``modules`` (``src`` first on the path, e.g. another checkout's src/)."""
-    env = dict(os.environ)
+    """One fresh interpreter importing ``modules`` (``src`` first on the path, e.g. another checkout's src/), in
+    a one-thread job's environment (JOB_THREAD_VARIABLES)."""
+    env = {**os.environ, **dict.fromkeys(JOB_THREAD_VARIABLES, "1")}
     if src is not None:
         env["PYTHONPATH"] = os.pathsep.join([str(src), *filter(None, [env.get("PYTHONPATH")])])
     code = "; ".join(f"import {m}" for m in modules)
