@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from isokinetic.diagnosis.result import validate_diagnosis
@@ -93,3 +94,18 @@ def test_campaign_times_put_the_cases_back_to_back_in_table_order():
     # A: starts at 0, motion 0.25 s after its first stamp, samples 10..19 -> middle 1.5 s
     # B: starts after A's 99.9 s record and one sample, motion 0.25 s in, samples 10..29 -> middle 2.0 s
     assert times == pytest.approx([0.25 + 1.5, 100.0 + 0.25 + 2.0])
+
+
+def test_a_sine_check_that_cannot_be_made_is_reported_and_leaves_the_verdict(monkeypatch):
+    def failing(*_args, **_kwargs):
+        raise FloatingPointError("overflow in a model run")
+
+    class SineObservations:   # the one field the report of a failed check reads
+        case = np.array(["H1", "H1", "H2"])
+
+    monkeypatch.setattr(dg, "sine_check", failing)
+    result = {"campaign": "c", "verdict": ["friction"], "explained": True}
+    dg.check_verdict_on_sines(result, {"sine_obs": SineObservations, "sine_time_s": None, "time_ref_s": None},
+                                 None, 1e-3)
+    assert result == {"campaign": "c", "verdict": ["friction"], "explained": True,
+                      "sine_check": {"cases": "H1,H2", "error": "FloatingPointError: overflow in a model run"}}

@@ -271,7 +271,7 @@ def test_beside_triangle_windows_sine_cases_are_named_and_left_out(tmp_path):
     # but they check the verdict: [friction] predicts them within noise, the nominal damper does not
     check = result["sine_check"]
     assert check["cases"] == ",".join(f"H{i:02d}" for i in range(1, 7))
-    assert check["consistent"] is True and result["explained"] is True
+    assert check["consistent"] is True and check["improves_on_nominal"] is True
     assert check["nominal"]["p_value"] < 1e-6
 
 

@@ -55,11 +55,13 @@ def _how_far(diag: Mapping, src: Source) -> Table:
                               f"transient bins; between-period scatter {fmt_pct(noise.get('repeatability_rel'))}",
                       src.title("noise", "noise")))
     check = diag.get("sine_check")
-    if isinstance(check, Mapping) and "verdict" in check:
-        items.append(("sine records (" + esc(check.get("cases", "")) + ") against the verdict",
-                      f"{'consistent' if check.get('consistent') else 'not consistent'}: rms z "
-                      f"{fmt(check['verdict'].get('rms_z'), 3)} (nominal {fmt(check['nominal'].get('rms_z'), 3)}) "
-                      f"over {check.get('dof', '-')} degrees of freedom", src.title("sine_check", "sine_check")))
+    if isinstance(check, Mapping):
+        shown = (f"{'consistent' if check.get('consistent') else 'not consistent'}: rms z "
+                 f"{fmt(check['verdict'].get('rms_z'), 3)} (nominal {fmt(check['nominal'].get('rms_z'), 3)}) "
+                 f"over {check.get('dof', '-')} degrees of freedom") if "verdict" in check \
+            else f"not checked: {esc(check.get('error', ''))}"
+        items.append(("sine records (" + esc(check.get("cases", "")) + ") against the verdict", shown,
+                      src.title("sine_check", "sine_check")))
     if "nominal_p_value" in diag:
         items.append(("nominal test p-value (chi-squared, instrument terms fitted)",
                       fmt(diag.get("nominal_p_value"), 3), src.title("nominal_p_value", "nominal_p_value")))

@@ -258,12 +258,21 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     result["sources"] = observation_sources(obs, cases)
     result["sources"].update(not_used(cases, obs))
     if "sine_obs" in sensor:   # the sine cases set aside beside the triangles check their verdict
-        result["sine_check"] = sine_check(sensor["sine_obs"], damper, result, sensor["sine_time_s"],
-                                          sensor["time_ref_s"], alpha)
-        if result["explained"] and not result["sine_check"]["consistent"]:
-            result["explained"] = False
-            result.setdefault("unexplained_note", result["sine_check"]["note"])
+        check_verdict_on_sines(result, sensor, damper, alpha)
     return result, obs, predictions
+
+
+def check_verdict_on_sines(result: dict, sensor: dict, damper: Damper, alpha: float) -> None:
+    """``result['sine_check']`` (:func:`isokinetic.diagnosis.sine_check.sine_check`) of the sine observations set
+    aside beside the triangles: reported, the verdict left as it is. A check that cannot be made (a model run
+    that fails) is reported with its reason."""
+    sine_obs = sensor["sine_obs"]
+    try:
+        check = sine_check(sine_obs, damper, result, sensor["sine_time_s"], sensor["time_ref_s"], alpha)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        log.warning("%s: the sine check failed: %s", result.get("campaign"), exc)
+        check = {"cases": ",".join(dict.fromkeys(sine_obs.case.tolist())), "error": f"{type(exc).__name__}: {exc}"}
+    result["sine_check"] = check
 
 
 def not_used(cases: pd.DataFrame, obs: Observations) -> dict[str, str]:
