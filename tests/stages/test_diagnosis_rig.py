@@ -276,6 +276,17 @@ def test_beside_triangle_windows_sine_cases_are_named_and_left_out(tmp_path):
 
 
 
+
+@pytest.mark.slow
+def test_the_sine_check_of_a_quiet_nominal_mixed_campaign_passes(tmp_path):
+    # the nominal damper, no sensor chain but noise: the fitted sines' phase error (1 um of LVDT noise against 19 um
+    # of amplitude at 10 Hz) is in the bins' errors; without it the right verdict failed the check (rms_z 1.6)
+    result = diagnose_sweep(tmp_path, "mixed-nominal", seed=3, cases=rig_cases(PLAN[1:4]), chain={})
+    assert result["verdict"] == [] and result["explained"] is True
+    check = result["sine_check"]
+    assert check["consistent"] is True and check["improves_on_nominal"] is None
+
+
 @pytest.mark.slow
 def test_a_damper_effect_behind_a_force_low_pass_is_claimed_alone_with_the_lag(tmp_path):
     # effect + lag fitted jointly (issue 21): more viscous oil behind a 5 Hz low-pass is neither viscosity + air

@@ -38,6 +38,8 @@ from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
 MODEL_STEP = 0.09
 #: Relative step of the drive speeds for the model's speed sensitivity (:func:`drive_input_variance`).
 SPEED_STEP = 1e-4
+#: Phase step of a sine drive for the model's phase sensitivity [rad] (:func:`drive_input_variance`).
+PHASE_STEP = 1e-4
 #: A window whose nominal-model force varies by more than this fraction of the per-sample noise
 #: (standard deviations) is still relaxing and is kept out of the noise fit (:func:`unsteady_windows`).
 UNSTEADY_FRACTION = 0.25
@@ -306,15 +308,25 @@ class Evaluator:
 
 
 def drive_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarray) -> np.ndarray:
-    """Variance [N²] that the error of each measured drive speed propagates into the model means:
-    (∂F/∂ln v · se(v)/v)², ∂F/∂ln v from the nominal model with every speed scaled by 1 + SPEED_STEP."""
+    """Variance [N²] that the error of each measured drive propagates into the model means:
+    (∂F/∂ln v · se(v)/v)², ∂F/∂ln v from the nominal model with every speed scaled by 1 + SPEED_STEP; for a sine
+    drive also its phase's, (∂F/∂φ · se(φ))², with se(φ) = se(Y)/Y (a least-squares sine through white noise
+    pins its phase in radians as well as its relative amplitude), ∂F/∂φ from the drive shifted by PHASE_STEP:
+    near the reversals, where the force turns fastest, a phase error moves the bins most."""
     if obs.speed_rel_se is None or not obs.drives or not any(obs.drives):
         return np.zeros(len(obs))
     scaled = tuple(None if d is None else d.scaled(1.0 + SPEED_STEP) if isinstance(d, SineDrive)
                    else replace(d, speeds_m_s=tuple(v * (1.0 + SPEED_STEP) for v in d.speeds_m_s))
                    for d in obs.drives)
     shifted = Evaluator(replace(obs, drives=scaled), damper).predict(NOMINAL)
-    return ((shifted - nominal_N) / SPEED_STEP * obs.speed_rel_se) ** 2
+    variance = ((shifted - nominal_N) / SPEED_STEP * obs.speed_rel_se) ** 2
+    sine = np.array([isinstance(obs.drives[i], SineDrive) for i in obs.case_index], dtype=bool)
+    if sine.any():
+        later = tuple(replace(d, grid_start_s=d.grid_start_s + PHASE_STEP / (2.0 * math.pi * d.frequency_Hz))
+                      if isinstance(d, SineDrive) else d for d in obs.drives)
+        turned = Evaluator(replace(obs, drives=later), damper).predict(NOMINAL)
+        variance[sine] += ((turned - nominal_N) / PHASE_STEP * obs.speed_rel_se)[sine] ** 2
+    return variance
 
 
 def unsteady_windows(obs: Observations, model_spread_N: np.ndarray) -> frozenset:
