@@ -154,11 +154,11 @@ class Evaluator:
         sample). One simulation for all lags (a pure delay: the force channel's low-frequency group delay);
         triangle cases without friction from the running sums of Δp (:class:`PressureSums`), as :meth:`predict`."""
         lags = np.atleast_1d(np.asarray(lags_s, dtype=float))
+        if effects.coulomb_force_N or effects.stribeck_force_N or any(self._sine):
+            return self._shifted_means(self.forces(effects), lags)
         shift = lags[:, None] * self._fs
         k = np.floor(shift).astype(np.int64)
         frac = shift - k
-        if effects.coulomb_force_N or effects.stribeck_force_N or any(self._sine):
-            return self._shifted_means(self.forces(effects), lags)
         area, run = self._pressure_sums(effects)
         obs = self.obs
         case = np.broadcast_to(obs.case_index, k.shape).ravel()
@@ -195,7 +195,7 @@ class Evaluator:
         sample grid) as a force channel of ``form`` (0: a delay, 1 or 2: a Butterworth low-pass, as :meth:`lagged`
         and :meth:`filtered`) and group delay ``lag_s`` reads it: the column of a profiled friction, which passes
         through the channel as the hydraulic force does (near a reversal the channel still reads the other sign).
-        Without a channel that is ``obs.sign``."""
+        An ideal channel reads ``obs.sign`` (:meth:`isokinetic.diagnosis.search.Diagnoser.friction_signature`)."""
         key = (int(form), float(lag_s))
         hit = self._friction_reads.get(key)
         if hit is None:
