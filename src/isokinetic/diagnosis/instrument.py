@@ -130,6 +130,8 @@ LAG_MAX_S = 0.25
 LAG_STEP_S = 0.0025
 #: Forms of the force channel's dynamics fitted: 0 a pure delay, 1 and 2 Butterworth low-passes of that order.
 LAG_FORMS = (0, 1, 2)
+#: Names of the forms in diagnosis.json (``instrument_tests.force_lag.form``).
+LAG_FORM_NAMES = {0: "delay", 1: "low-pass, 1st order", 2: "low-pass, 2nd order"}
 
 
 def fit_force_lag(dg, forms: tuple[int, ...] = LAG_FORMS, instrument: tuple[str, ...] | None = None,
@@ -158,7 +160,7 @@ def fit_force_lag(dg, forms: tuple[int, ...] = LAG_FORMS, instrument: tuple[str,
         return float(np.sum(((force - g * pred - o - drift) / sigma) ** 2))
 
     def model(form: int, lags) -> np.ndarray:
-        return dg.evaluator.lagged(effects, lags) if form == 0 else dg.evaluator.filtered(effects, lags, form)
+        return dg.evaluator.read(effects, form, lags)
 
     grid = np.arange(LAG_STEP_S, LAG_MAX_S + LAG_STEP_S / 2, LAG_STEP_S)
     best = (math.inf, 0.0, 0, None)

@@ -175,6 +175,12 @@ class Evaluator:
             means.append(area * sums / self._n)
         return (1.0 - frac) * means[0] + frac * means[1]
 
+    def read(self, effects: Effects, form: int, lags_s) -> np.ndarray:
+        """Model mean force of every observation as a force channel of ``form`` reads it, one row per group
+        delay of ``lags_s``: 0 a pure delay (:meth:`lagged`), 1 or 2 a Butterworth low-pass of that order
+        (:meth:`filtered`)."""
+        return self.lagged(effects, lags_s) if form == 0 else self.filtered(effects, lags_s, form)
+
     def _shifted_means(self, forces: list[np.ndarray], lags: np.ndarray) -> np.ndarray:
         """Means of ``forces`` (per case, on its sample grid) over every observation's samples shifted back by
         each lag·fs, one row per lag (:meth:`lagged`)."""

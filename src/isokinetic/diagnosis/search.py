@@ -165,9 +165,7 @@ class Diagnoser:
         ev = self.fit_evaluator if fit else self.evaluator
         if self.channel is None:
             return ev.predict(effects)
-        form = self.channel[0]
-        lag = self.channel[1] if lag is None else lag
-        return ev.lagged(effects, [lag])[0] if form == 0 else ev.filtered(effects, [lag], form)[0]
+        return ev.read(effects, self.channel[0], [self.channel[1] if lag is None else lag])[0]
 
     def _split(self, nonlinear: Sequence[str], x) -> tuple[np.ndarray, float | None]:
         """(effect values, the channel's lag or None) of an optimiser vector."""
@@ -354,11 +352,12 @@ class Diagnoser:
                 if c is not None:
                     found.append(c)
         size, stable = 2, 0
+        pick = parsimonious(found).effects if found else ()
         while found and not any(c.explained for c in found) and size < len(CATALOGUE) and stable < STABLE_SIZES:
-            pick = parsimonious(found).effects
             found += self._extend(found, size, start)
             size += 1
-            stable = stable + 1 if parsimonious(found).effects == pick else 0
+            now = parsimonious(found).effects
+            stable, pick = (stable + 1 if now == pick else 0), now
         return sorted(found, key=lambda c: (not c.explained, len(c.effects) if c.explained else 0, c.score))
 
     def _extend(self, found: Sequence[Candidate], size: int, start: dict[str, float]) -> list[Candidate]:

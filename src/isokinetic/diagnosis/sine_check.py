@@ -18,13 +18,14 @@ from collections.abc import Mapping
 import numpy as np
 
 from isokinetic.diagnosis.candidate import ALPHA, consistent_with_noise
+from isokinetic.diagnosis.instrument import LAG_FORM_NAMES
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.damper import NOMINAL, Damper, Effects
 from isokinetic.stats import chi2_sf
 
 #: Force-channel forms by the names diagnosis.json gives them (``instrument_tests.force_lag.form``).
-LAG_FORMS_BY_NAME = {"delay": 0, "low-pass, 1st order": 1, "low-pass, 2nd order": 2}
+LAG_FORMS_BY_NAME = {name: form for form, name in LAG_FORM_NAMES.items()}
 
 
 def verdict_effects(params: Mapping[str, float]) -> tuple[Effects, float]:
@@ -65,7 +66,7 @@ def read_prediction(ev: Evaluator, effects: Effects, coulomb_N: float, channel: 
     if channel is None:
         return ev.predict(effects) + coulomb_N * sign
     form, lag = channel
-    hydraulic = ev.lagged(effects, [lag])[0] if form == 0 else ev.filtered(effects, [lag], form)[0]
+    hydraulic = ev.read(effects, form, [lag])[0]
     return hydraulic + (coulomb_N * ev.friction_read(form, lag) if coulomb_N else 0.0)
 
 

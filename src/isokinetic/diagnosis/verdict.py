@@ -42,7 +42,14 @@ from isokinetic.diagnosis.candidate import (
 )
 from isokinetic.diagnosis.gap import gap_bands
 from isokinetic.diagnosis.identifiability import identifiability
-from isokinetic.diagnosis.instrument import DRIFT, GAIN_BOUND, LAG_FORMS, displacement_scale, fit_force_lag
+from isokinetic.diagnosis.instrument import (
+    DRIFT,
+    GAIN_BOUND,
+    LAG_FORM_NAMES,
+    LAG_FORMS,
+    displacement_scale,
+    fit_force_lag,
+)
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import CONTRACT_VERSION, FORMAT_VERSION, METRIC, json_safe
 from isokinetic.diagnosis.search import Diagnoser
@@ -78,8 +85,6 @@ DRIFT_CONFOUNDED_CORRELATION = 0.9
 #: a 2nd-order anti-alias low-pass at about 3.7 Hz, within the usual 2-10 Hz corners (16-113 ms); a lag that
 #: air has partly taken up is otherwise underestimated from the first start.
 LAG_SECOND_START_S = 0.06
-#: Names of the force channel's fitted dynamics (:data:`isokinetic.diagnosis.instrument.LAG_FORMS`).
-LAG_FORM_NAMES = {0: "delay", 1: "low-pass, 1st order", 2: "low-pass, 2nd order"}
 #: Score margin (χ² units) by which a damper effect must beat the sensor terms (the nominal model seen
 #: through a lagging force channel) before it is claimed, when the steady windows already pass.
 SENSOR_MARGIN = 10.0
