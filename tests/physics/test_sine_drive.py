@@ -60,12 +60,39 @@ def test_without_backlash_the_pushed_pieces_are_integrated_as_one_and_gaps_stay_
     assert merged[0].t_start_s == with_gap[0].t_start_s and merged[-1].t_end_s == with_gap[-1].t_end_s
 
 
+def sine_segment_system(seg, hyd: Hydraulics, amp: float, omega: float):
+    """rhs and Jacobian of Eq. (1) on one piece of a sine case written with the Hydraulics methods themselves
+    (composite_volume, flow, flow_derivative): the reference of the fused system."""
+    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
+    q_n, dq_n = hyd.flow, hyd.flow_derivative
+    if seg.contact:
+        off = seg.offset_m
+
+        def kin(tt):
+            y = amp * math.sin(omega * tt) + off
+            return a * amp * omega * math.cos(omega * tt), hyd.composite_volume(y)
+    else:
+        vol0 = hyd.composite_volume(seg.piston_start_m)
+
+        def kin(tt):
+            return 0.0, vol0
+
+    def rhs(tt, z):
+        qp, vol = kin(tt)
+        return [(qp - q_n(z[0])) / (beta * vol)]
+
+    def jac(tt, z):
+        return [[-dq_n(z[0]) / (beta * kin(tt)[1])]]
+
+    return rhs, jac
+
+
 @pytest.mark.parametrize("contact", [True, False])
 def test_the_fused_system_is_the_hydraulics_arithmetic_bit_for_bit(contact):
-    """fused_segment_system's rhs and Jacobian equal responses.sine_segment_system's (Hydraulics.flow,
-    flow_derivative, composite_volume) exactly, both flow directions, with leakage and a one-sided path."""
+    """fused_segment_system's rhs and Jacobian equal those written with Hydraulics.flow, flow_derivative and
+    composite_volume (sine_segment_system above) exactly, both flow directions, with leakage and a one-sided
+    path."""
     from isokinetic.physics.excitation import Segment
-    from isokinetic.physics.responses import sine_segment_system
     from isokinetic.physics.sine_drive import fused_segment_system
 
     hyd = Hydraulics.from_damper(TABLE_1, Effects(leakage_conductance_m3_s_Pa=3e-13, asymmetry=0.05,

@@ -57,6 +57,7 @@ from isokinetic.physics.hydraulics import (
 )
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.servo import check_stiffness, servo_response
+from isokinetic.physics.sine_drive import fused_segment_system
 
 
 def triangle_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, step: float = DEFAULT_STEP):
@@ -520,33 +521,6 @@ def scaled_viscosity(hyd: Hydraulics, scale: float) -> Hydraulics:
     return replace(hyd, laminar_coefficient=hyd.laminar_coefficient * scale, laminar_coefficient_neg=neg)
 
 
-def sine_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):
-    """rhs and Jacobian of Eq. (1) on one piece of a sine case: pushed (y = Y sin ωt + offset) or at rest
-    (``seg``: a piece of :func:`isokinetic.physics.excitation.piston_segments`)."""
-    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
-    q_n, dq_n = hyd.flow, hyd.flow_derivative
-    if seg.contact:
-        off = seg.offset_m
-
-        def kin(tt):
-            y = amp * math.sin(omega * tt) + off
-            return a * amp * omega * math.cos(omega * tt), hyd.composite_volume(y)
-    else:
-        vol0 = hyd.composite_volume(seg.piston_start_m)
-
-        def kin(tt):
-            return 0.0, vol0
-
-    def rhs(tt, z):
-        qp, vol = kin(tt)
-        return [(qp - q_n(z[0])) / (beta * vol)]
-
-    def jac(tt, z):
-        return [[-dq_n(z[0]) / (beta * kin(tt)[1])]]
-
-    return rhs, jac
-
-
 def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol: float = 1e-12,
                   method: str = "LSODA"):
     """Δp and piston velocity of a sine case by stiff integration of Eq. (1) (solve_ivp).
@@ -569,7 +543,7 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
     vel = np.zeros(t.size)
     p = 0.0
     for seg, idx in zip(segs, segment_index(t, segs)):
-        rhs, jac = sine_segment_system(seg, hyd, amp, omega)
+        rhs, jac = fused_segment_system(seg, hyd, amp, omega)
         t_eval = t[idx]
         t0, t1 = seg.t_start_s, seg.t_end_s
         sol = solve_ivp(rhs, (t0, t1), [p], method=method, jac=jac, rtol=rtol, atol=atol,

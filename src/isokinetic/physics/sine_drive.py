@@ -73,11 +73,14 @@ def merged_contacts(segs: list) -> list:
 
 
 def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):
-    """rhs and Jacobian of Eq. (1) on one piece of a sine case, pushed (y = Y sin ωt + offset) or at rest: the
-    arithmetic of :func:`isokinetic.physics.responses.sine_segment_system` (Eq. 2's composite volume, Eq. 7's flow
-    plus leakage, operation for operation, so the integration is bit for bit the same) in closures of local
-    Python floats (the state read with ``item()``: numpy scalars cost more): the integrator calls the rhs
-    thousands of times per case, and this makes a sine run about 30 % cheaper."""
+    """rhs and Jacobian of Eq. (1) on one piece of a sine case (``seg``: a piece of
+    :func:`isokinetic.physics.excitation.piston_segments`), pushed (y = Y sin ωt + offset) or at rest: the
+    arithmetic of :meth:`Hydraulics.composite_volume` (Eq. 2), :meth:`Hydraulics.flow` (Eq. 7 plus leakage) and
+    :meth:`Hydraulics.flow_derivative`, operation for operation (tests/physics/test_sine_drive.py checks it bit
+    for bit against those methods), in closures of local Python floats (the state read with ``item()``: numpy
+    scalars cost more): the integrator calls the rhs thousands of times per case, and this makes a sine run
+    about 30 % cheaper than calling the methods. The virtual rig (:func:`isokinetic.physics.responses.sine_response`)
+    and the diagnosis' sine drive both integrate it."""
     a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
     v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
     c1p = hyd.laminar_coefficient
