@@ -124,6 +124,49 @@ def test_the_sine_fit_agrees_with_scipys_curve_fit_on_a_noisy_record():
     assert abs(fit.amplitude_m - truth[1]) < 5 * fit.amplitude_rel_se * truth[1]
 
 
+def test_a_distorted_sines_harmonics_are_fitted_with_it_as_scipys_curve_fit_fits_them():
+    # a servo's distortion: 3 % second and 1 % third harmonic, each of the fundamental's phase u
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 6.0, 0.002)
+    c, amp, f, phi = 3e-6, 25e-6, 1.01, -0.4
+    u = 2 * math.pi * f * t + phi
+    harmonics = ((2, 0.03 * amp, 0.8), (3, 0.01 * amp, -2.0))
+    y = c + amp * np.sin(u) + sum(a * np.sin(k * u + th) for k, a, th in harmonics) + 1e-6 * rng.standard_normal(t.size)
+    fit = fit_sine(t, y, 1.0)
+    kept = [k for k, _a, _th in fit.harmonics]
+    assert {2, 3} <= set(kept)    # and, by chance (about 1 % each), a harmonic of the noise
+
+    def model(t, c, amp, f, phi, *terms):
+        u = 2 * math.pi * f * t + phi
+        return c + amp * np.sin(u) + sum(a * np.sin(k * u + th) for k, a, th in zip(kept, terms[::2], terms[1::2]))
+
+    ref, _cov = curve_fit(model, t, y, p0=[0.0, 20e-6, 1.0, 0.0] + [1e-7, 0.0] * len(kept))
+    assert fit.amplitude_m == pytest.approx(ref[1], rel=1e-7)
+    assert fit.frequency_Hz == pytest.approx(ref[2], rel=1e-9)
+    for j, (_k, a_k, th_k) in enumerate(fit.harmonics):
+        assert a_k == pytest.approx(abs(ref[4 + 2 * j]), rel=1e-6)
+        flip = math.pi if ref[4 + 2 * j] < 0 else 0.0
+        assert math.remainder(th_k - ref[5 + 2 * j] - flip, 2 * math.pi) == pytest.approx(0.0, abs=1e-5)
+    true = {k: (a, th) for k, a, th in harmonics}
+    for k, a_k, th_k in fit.harmonics:
+        se = fit.harmonic_se_m[k - 2]
+        a_true, th_true = true.get(k, (0.0, th_k))
+        assert abs(a_k - a_true) < 5 * se
+        if a_true:
+            assert abs(math.remainder(th_k - th_true, 2 * math.pi)) < 5 * se / a_true
+
+
+def test_a_pure_sine_in_white_noise_rarely_gets_a_harmonic():
+    # 3 standard errors on each of the two harmonics fitted: about 2 % of records get one by chance
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 3.0, 0.002)
+    draws = [fit_sine(t, 20e-6 * np.sin(2 * math.pi * t + 0.3) + 1e-6 * rng.standard_normal(t.size), 1.0)
+             for _ in range(200)]
+    with_any = sum(bool(fit.harmonics) for fit in draws)
+    assert with_any <= 12
+    assert all(len(fit.harmonic_se_m) == 2 for fit in draws)
+
+
 def test_phase_bins_never_straddle_a_reversal():
     bins = phase_bins(16)
     edges = {round(b[0], 12) for b in bins}

@@ -104,3 +104,18 @@ def test_the_fused_system_is_the_hydraulics_arithmetic_bit_for_bit(contact):
     for t, p in zip(rng.uniform(0.01, 0.4, 200), np.concatenate([[0.0], rng.normal(0.0, 2e5, 199)]), strict=True):
         z = np.array([p])   # as the integrator passes the state
         assert rhs(t, z) == ref_rhs(t, z) and jac(t, z) == ref_jac(t, z)
+
+
+def test_a_harmonic_step_moves_one_component_of_the_motion():
+    # the sensitivity steps of the drive's harmonics (diagnosis.model.harmonic_input_variance): ε cos 2u added to a
+    # harmonic the drive holds, ε sin 3u to one it does not
+    drive = SineDrive(1e-4, 2.0, 0.0, 10, ((2, 3e-6, 0.5),))
+    w, eps = 2 * math.pi * 2.0, 1e-7
+    tau = np.linspace(0.01, 0.5, 40)
+    moved = drive.with_harmonic_step(2, True, eps).velocity(tau) - drive.velocity(tau)
+    assert np.allclose(moved, -2 * w * eps * np.sin(2 * w * tau), rtol=1e-6, atol=1e-18)
+    added = drive.with_harmonic_step(3, False, eps)
+    assert [k for k, _a, _th in added.harmonics] == [2, 3]
+    assert np.allclose(added.velocity(tau) - drive.velocity(tau), 3 * w * eps * np.cos(3 * w * tau), rtol=1e-6,
+                       atol=1e-18)
+    assert drive.scaled(2.0).velocity(tau) == pytest.approx(2.0 * drive.velocity(tau), rel=1e-12)

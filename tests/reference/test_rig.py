@@ -16,9 +16,12 @@ import yaml
 from scipy.optimize import brentq
 
 from isokinetic.physics.damper import TABLE_1, Damper, Effects
+from isokinetic.physics.hydraulics import Hydraulics
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import true_response
+from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
 from isokinetic.reference import campaign as rrc
+from isokinetic.reference import motion as rrm
 from isokinetic.reference import rig as rr
 
 MODULES = tuple(sorted(Path(rr.__file__).parent.glob("*.py")))   # every module of isokinetic.reference
@@ -76,6 +79,46 @@ def test_clean_nominal_sine_matches_the_virtual_rigs_sine_response(design, frequ
     assert np.allclose(mine["command_m"], theirs["command_m"], rtol=0, atol=1e-12 * amplitude_m)
     scale = np.max(np.abs(theirs["force_N"]))
     assert np.max(np.abs(mine["force_N"].to_numpy() - theirs["force_N"].to_numpy())) < 1e-6 * scale
+
+
+@pytest.mark.parametrize("frequency_Hz, amplitude_m", [(0.5, 5e-3), (10.0, 2e-3)])
+def test_a_distorted_sine_matches_the_models_drive_with_the_same_harmonics(design, frequency_Hz, amplitude_m):
+    """A servo's distortion (2 % second, 1.5 % third harmonic): the rig's two-state solve_ivp against the project's
+    drive of Eq. 1 by the same periodic motion (physics.sine_drive), both at rtol 1e-12, within 1e-6 of the force
+    scale."""
+    harmonics = ((2, 0.02, 0.4), (3, 0.015, -1.1))
+    case = rr.SineCase("H01", frequency_Hz, amplitude_m, 3, 500.0, harmonics)
+    mine = rr.true_series(case, design, rtol=1e-12)
+    drive = SineDrive(amplitude_m, frequency_Hz, 0.0, len(mine),
+                      tuple((k, h * amplitude_m, phi) for k, h, phi in harmonics))
+    hyd = Hydraulics.from_damper(Damper(**design.to_dict()))
+    _tau, dp, vel = sine_drive_response(drive, 500.0, hyd, rtol=1e-12)
+    assert np.allclose(np.diff(mine["actuator_m"])[1:] * 500.0, 0.5 * (vel[2:] + vel[1:-1]), rtol=0,
+                       atol=0.01 * amplitude_m * 2 * math.pi * frequency_Hz)   # the same motion (trapezoid rule)
+    force = hyd.piston_area_m2 * dp
+    assert np.max(np.abs(mine["force_N"].to_numpy() - force)) < 1e-6 * np.max(np.abs(force))
+
+
+def test_a_distorted_sine_runs_through_the_servo_by_superposition(design):
+    """Each harmonic of the command passes the first-order servo dx/dt = (c - x)/tau on its own: the piece's
+    x(t) starts at rest, its dx/dt is the derivative of its x, and both satisfy the servo's equation."""
+    d, tau, f, amp = 0.02, 0.004, 2.0, 5e-4
+    harmonics = ((2, 0.05, 0.7), (4, 0.01, -0.3))
+    case = rr.SineCase("H01", f, amp, 3, 1000.0, harmonics)
+    piece = rrm.sine_actuator_pieces(case, rr.RigImperfections(delay_s=d, servo_lag_s=tau), case.duration_s)[-1]
+    w = 2 * math.pi * f
+
+    def command(t):
+        s = t - d
+        return amp * (math.sin(w * s) + sum(h * (math.sin(k * w * s + phi) - math.sin(phi))
+                                             for k, h, phi in harmonics))
+
+    assert piece.state(d) == pytest.approx((0.0, 0.0), abs=1e-12 * amp)
+    for t in np.linspace(d + 0.01, case.duration_s, 37):
+        x, v = piece.state(t)
+        numeric = (piece.state(t + 1e-7)[0] - piece.state(t - 1e-7)[0]) / 2e-7
+        assert v == pytest.approx(numeric, rel=1e-6, abs=1e-9 * amp * w)
+        assert v == pytest.approx((command(t) - x) / tau, rel=1e-9, abs=1e-12 * amp * w)
 
 
 def sine_peak_force_error(design, frequency_Hz: float, peak_speed_m_s: float) -> float:

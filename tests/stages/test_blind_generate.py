@@ -269,7 +269,8 @@ def _reference_rms_z(scenario, effects) -> float:
 
 
 def test_sine_detection_level_gives_rms_z_3_checked_on_the_reference_rig(sine_suite):
-    s = next(s for s in sine_suite if s.truth == ("friction",))
+    # the level is the planned sine's: the servo's distortion (which moves it by about a tenth) left out here
+    s = dataclasses.replace(next(s for s in sine_suite if s.truth == ("friction",)), sine_harmonics=())
     level = s.detection_level["friction"]
     at = lambda k: gen.physical_effects(s.damper, {"friction": k * level}, {})  # noqa: E731
     assert _reference_rms_z(s, at(1.0)) == pytest.approx(3.0, rel=2e-3)

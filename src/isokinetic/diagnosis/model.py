@@ -40,6 +40,8 @@ MODEL_STEP = 0.09
 SPEED_STEP = 1e-4
 #: Phase step of a sine drive for the model's phase sensitivity [rad] (:func:`drive_input_variance`).
 PHASE_STEP = 1e-4
+#: Step of a harmonic's sine or cosine component, relative to the fundamental's amplitude, for its sensitivity.
+HARMONIC_STEP = 1e-4
 #: A window whose nominal-model force varies by more than this fraction of the per-sample noise
 #: (standard deviations) is still relaxing and is kept out of the noise fit (:func:`unsteady_windows`).
 UNSTEADY_FRACTION = 0.25
@@ -196,12 +198,20 @@ class Evaluator:
                  for j in (k, k + 1)]
         return (1.0 - frac) * means[0] + frac * means[1]
 
+    def friction_ideal(self) -> np.ndarray:
+        """The column of a profiled Coulomb friction through an ideal force channel: each observation's direction
+        ``obs.sign``; where a sine drive has harmonics, which reverse the motion where its own velocity does, not
+        where its phase bins' sine does, the mean of sign(v) over each observation's samples."""
+        if not any(isinstance(d, SineDrive) and d.harmonics for d in self.obs.drives):
+            return self.obs.sign
+        return self.friction_read(0, 0.0)
+
     def friction_read(self, form: int, lag_s: float) -> np.ndarray:
         """Mean of each observation's unit Coulomb friction sign(v) (Eq. 8's F_f per newton of F_C, on the model's
         sample grid) as a force channel of ``form`` (0: a delay, 1 or 2: a Butterworth low-pass, as :meth:`lagged`
         and :meth:`filtered`) and group delay ``lag_s`` reads it: the column of a profiled friction, which passes
         through the channel as the hydraulic force does (near a reversal the channel still reads the other sign).
-        An ideal channel reads ``obs.sign`` (:meth:`isokinetic.diagnosis.search.Diagnoser.friction_signature`)."""
+        An ideal channel reads :meth:`friction_ideal`."""
         key = (int(form), float(lag_s))
         hit = self._friction_reads.get(key)
         if hit is None:
@@ -332,6 +342,35 @@ def drive_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarra
                       if isinstance(d, SineDrive) else d for d in obs.drives)
         turned = Evaluator(replace(obs, drives=later), damper).predict(NOMINAL)
         variance[sine] += ((turned - nominal_N) / PHASE_STEP * obs.speed_rel_se)[sine] ** 2
+        variance += harmonic_input_variance(obs, damper, nominal_N)
+    return variance
+
+
+def _measured(drive, k: int) -> bool:
+    """Whether ``drive`` is a sine drive whose harmonic ``k`` was measured (has a standard error)."""
+    return isinstance(drive, SineDrive) and k - 2 < len(drive.harmonic_se_m)
+
+
+def harmonic_input_variance(obs: Observations, damper: Damper, nominal_N: np.ndarray) -> np.ndarray:
+    """Variance [N²] that the measured motion's harmonics propagate into a sine case's model means: Σ over the
+    sine and cosine components of harmonics 2 .. of (∂F/∂c · se(c))², the sensitivities from the nominal model
+    with that component of every sine drive moved by HARMONIC_STEP of its fundamental's amplitude (one run per
+    component for all cases). Those the drive holds are known to within se(c); those it leaves out (within
+    :data:`isokinetic.diagnosis.sine_observations.HARMONIC_SIGMAS` of their errors) are zero to within about as
+    much: on a short fast record, where the LVDT's noise is a large share of the amplitude, this is what its
+    bins can tell least."""
+    variance = np.zeros(len(obs))
+    n_harmonics = max((len(d.harmonic_se_m) for d in obs.drives if isinstance(d, SineDrive)), default=0)
+    for j in range(n_harmonics):
+        se = np.array([d.harmonic_se_m[j] / d.amplitude_m if _measured(d, j + 2) else 0.0
+                       for d in obs.drives])[obs.case_index]
+        if not np.any(se > 0.0):
+            continue
+        for cosine in (False, True):
+            moved = tuple(d.with_harmonic_step(j + 2, cosine, HARMONIC_STEP * d.amplitude_m)
+                          if _measured(d, j + 2) else d for d in obs.drives)
+            changed = Evaluator(replace(obs, drives=moved), damper).predict(NOMINAL)
+            variance += ((changed - nominal_N) / HARMONIC_STEP * se) ** 2
     return variance
 
 

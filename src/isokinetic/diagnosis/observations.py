@@ -276,11 +276,11 @@ def sine_case_record(row: pd.Series, series: pd.DataFrame, displacement_scale: f
     fit = fit_sine(t[after], y[after], plan.frequency_Hz)
     if fit is None:
         return None
-    fit = replace(fit, amplitude_m=fit.amplitude_m / displacement_scale)
+    fit = fit.divided(displacement_scale)
     start = fit.start_s(float(t[0]))
     fs = plan.sample_rate_Hz
     n = int(round((t[-1] - t[0]) * fs)) + 1
-    drive = SineDrive(fit.amplitude_m, fit.frequency_Hz, float(t[0]) - start, n)
+    drive = SineDrive(fit.amplitude_m, fit.frequency_Hz, float(t[0]) - start, n, fit.harmonics, fit.harmonic_se_m)
     return CaseRecord(plan=replace(plan, amplitude_m=fit.amplitude_m, frequency_Hz=fit.frequency_Hz), tau_s=t - start,
                       force_N=series["force_N"].to_numpy(dtype=float), displacement_m=y,
                       model_times_s=drive.times(fs), drive=drive, fit=fit)

@@ -19,6 +19,7 @@ import pandas as pd
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.contracts.row_keys import row_keys
 from isokinetic.diagnosis.observations import Observations
+from isokinetic.physics.sine_drive import SineDrive
 
 FORMAT_VERSION = 1
 CONTRACT_VERSION = "1.2"
@@ -81,11 +82,13 @@ def observation_sources(obs: Observations | None, cases: pd.DataFrame | None) ->
     'T01/1,T01/2,...' (:func:`isokinetic.contracts.row_keys.row_keys`); ``transient_bins``: 'case/segment:n'
     per half-period with n transient bins taken from that case's time series (both of triangle cases);
     ``sine_bins``: 'case:n' per sine case with n phase bins (windows and transient bins of its steady cycles,
-    :mod:`isokinetic.diagnosis.sine_observations`) taken from its time series; ``timeseries``: for
+    :mod:`isokinetic.diagnosis.sine_observations`) taken from its time series; ``sine_harmonics``: 'case/k:h'
+    per harmonic k of a sine case's measured motion that drove its model, h its amplitude over the fundamental's
+    (4 significant digits); ``timeseries``: for
     each case used, its time series file and raw file with sha256 (from ``cases.parquet``).
     """
     out = {"characteristic_file": CHARACTERISTIC_FILE, "cases_file": CASES_FILE, "windows": "",
-           "transient_bins": "", "sine_bins": "", "timeseries": {}}
+           "transient_bins": "", "sine_bins": "", "sine_harmonics": "", "timeseries": {}}
     if obs is None or len(obs) == 0:
         return out
     sine = np.array([obs.plans[i].waveform == "sine" for i in obs.case_index], dtype=bool)
@@ -95,6 +98,9 @@ def observation_sources(obs: Observations | None, cases: pd.DataFrame | None) ->
     bins = triangle[triangle["kind"] == "transient"].groupby(["case", "segment"], sort=False).size()
     out["transient_bins"] = ",".join(f"{c}/{k}:{n}" for (c, k), n in bins.items())
     out["sine_bins"] = ",".join(f"{c}:{n}" for c, n in frame[sine].groupby("case", sort=False).size().items())
+    out["sine_harmonics"] = ",".join(f"{plan.case}/{k}:{a_k / drive.amplitude_m:.4g}"
+                                     for plan, drive in zip(obs.plans, obs.drives, strict=False)
+                                     if isinstance(drive, SineDrive) for k, a_k, _theta in drive.harmonics)
     used = list(dict.fromkeys(obs.case.tolist()))
     if cases is not None and len(cases):
         by_case = cases.set_index("case")

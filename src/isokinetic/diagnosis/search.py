@@ -179,11 +179,12 @@ class Diagnoser:
 
     def friction_signature(self, lag: float | None = None, fit: bool = False) -> np.ndarray:
         """The column of a profiled Coulomb friction per observation (``fit``: of period 1): its direction
-        ``obs.sign`` through an ideal channel, else sign(v) as the force channel of group delay ``lag`` (default
-        the channel's starting one) reads it (:meth:`isokinetic.diagnosis.model.Evaluator.friction_read`)."""
+        through an ideal channel (:meth:`isokinetic.diagnosis.model.Evaluator.friction_ideal`), else sign(v) as
+        the force channel of group delay ``lag`` (default the channel's starting one) reads it
+        (:meth:`isokinetic.diagnosis.model.Evaluator.friction_read`)."""
         ev = self.fit_evaluator if fit else self.evaluator
         if self.channel is None:
-            return ev.obs.sign
+            return ev.friction_ideal()
         return ev.friction_read(self.channel[0], self.channel[1] if lag is None else lag)
 
     def z(self, prediction: np.ndarray) -> np.ndarray:

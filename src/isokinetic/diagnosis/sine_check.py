@@ -60,11 +60,11 @@ def channel_of(result: Mapping) -> tuple[int, float] | None:
     return LAG_FORMS_BY_NAME.get(form, 0), float(lag)
 
 
-def read_prediction(ev: Evaluator, effects: Effects, coulomb_N: float, channel: tuple[int, float] | None,
-                    sign: np.ndarray) -> np.ndarray:
+def read_prediction(ev: Evaluator, effects: Effects, coulomb_N: float, channel: tuple[int, float] | None
+                    ) -> np.ndarray:
     """The model's bin means of ``effects`` plus a Coulomb force, as the force channel reads them [N]."""
     if channel is None:
-        return ev.predict(effects) + coulomb_N * sign
+        return ev.predict(effects) + (coulomb_N * ev.friction_ideal() if coulomb_N else 0.0)
     form, lag = channel
     hydraulic = ev.read(effects, form, [lag])[0]
     return hydraulic + (coulomb_N * ev.friction_read(form, lag) if coulomb_N else 0.0)
@@ -101,7 +101,7 @@ def sine_check(obs: Observations, damper: Damper, result: Mapping, time_s: np.nd
     out = {"cases": ",".join(dict.fromkeys(obs.case.tolist())), "n_bins": len(obs), "alpha": alpha}
     dof = len(obs) - 2 * len(set(obs.case.tolist()))
     for name, eff, fc in (("verdict", effects, coulomb), ("nominal", NOMINAL, 0.0)):
-        model = gain * read_prediction(ev, eff, fc, channel, obs.sign) + zero
+        model = gain * read_prediction(ev, eff, fc, channel) + zero
         z = record_residuals(obs, model)
         chi2 = float(z @ z)
         out[name] = {"chi2": chi2, "rms_z": math.sqrt(chi2 / max(dof, 1)), "p_value": float(chi2_sf(chi2, dof))}

@@ -2,7 +2,9 @@
 
 Drive. The measured displacement of a sine case is fitted by least squares with y = c + Y sin(2πf t + φ)
 (offset, amplitude, frequency, phase; :func:`fit_sine`), on the record after its first cycle (the servo's
-start-up transient); the model is then driven by that sine from rest, from where the fitted sine starts
+start-up transient), plus the harmonics 2 and 3 of that frequency that the motion holds beyond its noise (a
+servo's distortion, a crank's kinematics: :func:`significant_harmonics`); the model is then driven by that motion
+from rest, from where the fitted sine starts
 the cycle in which the record starts (:class:`isokinetic.physics.sine_drive.SineDrive`), so it is driven
 by the measured kinematics, not the plan's.
 
@@ -32,7 +34,7 @@ of one case's bins stay correlated, which diagonal standard errors do not descri
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -44,18 +46,38 @@ SKIPPED_CYCLES = 1
 WINDOW_HALF_WIDTH_RAD = math.pi / 4
 #: Gauss-Newton iterations of the frequency refinement (quadratic convergence from the linear fit's start).
 FIT_ITERATIONS = 6
+#: Harmonics 2 .. MAX_HARMONIC of the fundamental are fitted to what the sine leaves of the motion (a servo's
+#: distortion is mostly its second and third, a slider crank's its second; each costs a sine campaign's diagnosis
+#: two model runs for its error, :func:`isokinetic.diagnosis.model.harmonic_input_variance`) ...
+MAX_HARMONIC = 3
+#: ... and those whose amplitude exceeds this many of its standard errors drive the model too (the others' share
+#: of the motion, within their standard errors, is in the bins' errors: ``harmonic_se_m``).
+HARMONIC_SIGMAS = 3.0
+#: A harmonic whose share of the speed, k A_k / Y, is below this is left out however clear (a noise-free record's
+#: quantisation steps show as harmonics of about 1e-5 of its speed).
+HARMONIC_FLOOR = 1e-4
 
 
 @dataclass(frozen=True)
 class SineFit:
     """y = offset + Y sin(2π f t + φ), fitted to a displacement record; ``amplitude_rel_se`` the relative
-    standard error of Y (LVDT noise)."""
+    standard error of Y (LVDT noise). ``harmonics``: the motion's significant harmonics (k, A_k, θ_k), the
+    terms A_k sin(k u + θ_k) of the fundamental's phase u = 2π f t + φ (a servo's distortion, a crank's
+    kinematics; :func:`significant_harmonics`)."""
 
     offset_m: float
     amplitude_m: float
     frequency_Hz: float
     phase_rad: float
     amplitude_rel_se: float
+    harmonics: tuple[tuple[int, float, float], ...] = ()
+    harmonic_se_m: tuple[float, ...] = ()   # standard error of each component of harmonics 2, 3, ... [m]
+
+    def divided(self, scale: float) -> SineFit:
+        """The fit with its amplitudes divided by ``scale`` (an LVDT scale's correction)."""
+        return replace(self, amplitude_m=self.amplitude_m / scale,
+                       harmonics=tuple((k, a_k / scale, theta) for k, a_k, theta in self.harmonics),
+                       harmonic_se_m=tuple(se / scale for se in self.harmonic_se_m))
 
     def start_s(self, t0_s: float) -> float:
         """The fitted sine's cycle start (phase 0, rising) nearest to ``t0_s``: in [t0 - 1/(2f), t0 + 1/(2f)) (a
@@ -65,42 +87,101 @@ class SineFit:
         return first + math.floor((t0_s - first) / period + 0.5) * period
 
 
-def linear_sine(t: np.ndarray, y: np.ndarray, omega: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Least squares of y = c + a sin ωt + b cos ωt: (coefficients, design, residuals)."""
-    design = np.column_stack([np.ones_like(t), np.sin(omega * t), np.cos(omega * t)])
+def linear_sine(t: np.ndarray, y: np.ndarray, omega: float, ks: tuple[int, ...] = ()
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Least squares of y = c + a sin ωt + b cos ωt (+ a_k sin kωt + b_k cos kωt for k in ``ks``): (coefficients,
+    design, residuals)."""
+    cols = [np.ones_like(t), np.sin(omega * t), np.cos(omega * t)]
+    for k in ks:
+        cols += [np.sin(k * omega * t), np.cos(k * omega * t)]
+    design = np.column_stack(cols)
     coef, *_ = np.linalg.lstsq(design, y, rcond=None)
     return coef, design, y - design @ coef
 
 
+def gauss_newton_sine(tc: np.ndarray, y: np.ndarray, omega: float, ks: tuple[int, ...] = ()):
+    """:func:`linear_sine` with its frequency refined by Gauss-Newton (the harmonics ``ks`` move with it):
+    (ω, coefficients, design, residuals)."""
+    coef, design, resid = linear_sine(tc, y, omega, ks)
+    for _ in range(FIT_ITERATIONS):
+        d_omega = tc * (coef[1] * np.cos(omega * tc) - coef[2] * np.sin(omega * tc))
+        for j, k in enumerate(ks):
+            d_omega = d_omega + k * tc * (coef[3 + 2 * j] * np.cos(k * omega * tc)
+                                          - coef[4 + 2 * j] * np.sin(k * omega * tc))
+        jac = np.column_stack([design, d_omega])
+        step, *_ = np.linalg.lstsq(jac, resid, rcond=None)
+        omega += step[-1]
+        coef, design, resid = linear_sine(tc, y, omega, ks)
+        if abs(step[-1]) < 1e-12 * omega:
+            break
+    return omega, coef, design, resid
+
+
 def fit_sine(time_s, displacement_m, frequency_Hz: float) -> SineFit | None:
     """Least-squares sine through a displacement record: the linear fit at the planned frequency, then
-    Gauss-Newton on (c, a, b, ω) (times centred for conditioning); None for fewer than 8 samples or no motion."""
+    Gauss-Newton on (c, a, b, ω) (times centred for conditioning); where the motion holds significant
+    harmonics (:func:`significant_harmonics`), the fit again with them. None for fewer than 8 samples or no
+    motion."""
     t = np.asarray(time_s, dtype=float)
     y = np.asarray(displacement_m, dtype=float)
     if t.size < 8 or not np.all(np.isfinite(y)):
         return None
     mid = 0.5 * (t[0] + t[-1])
     tc = t - mid
-    omega = 2.0 * math.pi * frequency_Hz
-    coef, design, resid = linear_sine(tc, y, omega)
-    for _ in range(FIT_ITERATIONS):
-        d_omega = tc * (coef[1] * np.cos(omega * tc) - coef[2] * np.sin(omega * tc))
-        jac = np.column_stack([design, d_omega])
-        step, *_ = np.linalg.lstsq(jac, resid, rcond=None)
-        omega += step[3]
-        coef, design, resid = linear_sine(tc, y, omega)
-        if abs(step[3]) < 1e-12 * omega:
-            break
+    omega, coef, design, resid = gauss_newton_sine(tc, y, 2.0 * math.pi * frequency_Hz)
+    amp = math.hypot(coef[1], coef[2])
+    ks, harmonic_se = significant_harmonics(tc, resid, omega, 4, amp) if amp > 0.0 else ((), ())
+    if ks:
+        omega, coef, design, resid = gauss_newton_sine(tc, y, omega, ks)
     amp = math.hypot(coef[1], coef[2])
     if not (amp > 0.0 and omega > 0.0):
         return None
-    s2 = float(resid @ resid) / max(t.size - 4, 1)
+    s2 = float(resid @ resid) / max(t.size - 4 - 2 * len(ks), 1)
     cov = s2 * np.linalg.pinv(design.T @ design)
-    grad = np.array([0.0, coef[1], coef[2]]) / amp
+    grad = np.zeros(design.shape[1])
+    grad[1:3] = np.array([coef[1], coef[2]]) / amp
     rel_se = math.sqrt(max(float(grad @ cov @ grad), 0.0)) / amp
-    # a sin ωtc + b cos ωtc = Y sin(ω t + φ) with φ = atan2(b, a) - ω mid
-    phase = math.remainder(math.atan2(coef[2], coef[1]) - omega * mid, 2.0 * math.pi)
-    return SineFit(float(coef[0]), amp, omega / (2.0 * math.pi), phase, rel_se)
+    # a sin ωtc + b cos ωtc = Y sin(ω t + φ) with φ = atan2(b, a) - ω mid; a harmonic a_k sin kωtc + b_k cos kωtc
+    # = A_k sin(k u + θ_k) of the fundamental's phase u = ωtc + ψ_1, θ_k = atan2(b_k, a_k) - k ψ_1
+    psi_1 = math.atan2(coef[2], coef[1])
+    phase = math.remainder(psi_1 - omega * mid, 2.0 * math.pi)
+    harmonics = tuple((k, math.hypot(coef[3 + 2 * j], coef[4 + 2 * j]),
+                       math.remainder(math.atan2(coef[4 + 2 * j], coef[3 + 2 * j]) - k * psi_1, 2.0 * math.pi))
+                      for j, k in enumerate(ks))
+    return SineFit(float(coef[0]), amp, omega / (2.0 * math.pi), phase, rel_se, harmonics, harmonic_se)
+
+
+def significant_harmonics(tc: np.ndarray, resid: np.ndarray, omega: float, n_fitted: int, amplitude_m: float,
+                          max_harmonic: int = MAX_HARMONIC, sigmas: float = HARMONIC_SIGMAS
+                          ) -> tuple[tuple[int, ...], tuple[float, ...]]:
+    """The harmonics k of what a fitted sine (``n_fitted`` parameters, amplitude Y) leaves of a motion that stand
+    out of its noise, and the standard error of each harmonic's sine and cosine components (k = 2 ..
+    ``max_harmonic``, those below the sampling's Nyquist frequency; the mean of the two variances): least squares
+    of a_k sin kωtc + b_k cos kωtc; kept where A_k = hypot(a_k, b_k) exceeds ``sigmas`` of its standard errors
+    (from the residual's scatter) and k A_k / Y exceeds :data:`HARMONIC_FLOOR`."""
+    step = float(np.median(np.diff(tc))) if tc.size > 1 else math.inf
+    below_nyquist = math.ceil(math.pi / (omega * step)) - 1 if step > 0.0 else 0
+    ks = range(2, min(max_harmonic, below_nyquist) + 1)
+    if not ks:
+        return (), ()
+    design = np.column_stack([f(k * omega * tc) for k in ks for f in (np.sin, np.cos)])
+    coef, *_ = np.linalg.lstsq(design, resid, rcond=None)
+    rest = resid - design @ coef
+    s2 = float(rest @ rest) / max(tc.size - n_fitted - design.shape[1], 1)
+    cov = s2 * np.linalg.pinv(design.T @ design)
+    kept, component_se = [], []
+    for j, k in enumerate(ks):
+        block = cov[2 * j:2 * j + 2, 2 * j:2 * j + 2]
+        component_se.append(math.sqrt(max(0.5 * float(np.trace(block)), 0.0)))
+        a, b = coef[2 * j], coef[2 * j + 1]
+        amp = math.hypot(a, b)
+        if not amp > 0.0:
+            continue
+        grad = np.array([a, b]) / amp
+        se = math.sqrt(max(float(grad @ block @ grad), 0.0))
+        if amp > sigmas * se and k * amp > HARMONIC_FLOOR * amplitude_m:
+            kept.append(k)
+    return tuple(kept), tuple(component_se)
 
 
 def phase_bins(n_bins: int = N_SINE_BINS) -> list[tuple[float, float, float, str]]:
@@ -115,10 +196,21 @@ def phase_bins(n_bins: int = N_SINE_BINS) -> list[tuple[float, float, float, str
     return out
 
 
+#: Points of the midpoint rule that averages |dy/dt| over a phase bin of a motion with harmonics.
+SPEED_POINTS = 256
+
+
 def mean_speed(fit: SineFit, a_s: float, b_s: float) -> float:
-    """Mean |dy/dt| of the fitted sine over plan times [a, b) inside one direction of motion [m/s]."""
+    """Mean |dy/dt| of the fitted motion over plan times [a, b) [m/s]: of a sine inside one direction of motion,
+    |y(b) - y(a)| / (b - a); with harmonics (whose reversals need not be the sine's) by the midpoint rule."""
     w = 2.0 * math.pi * fit.frequency_Hz
-    return abs(fit.amplitude_m * (math.sin(w * b_s) - math.sin(w * a_s))) / (b_s - a_s)
+    if not fit.harmonics:
+        return abs(fit.amplitude_m * (math.sin(w * b_s) - math.sin(w * a_s))) / (b_s - a_s)
+    u = w * (a_s + (np.arange(SPEED_POINTS) + 0.5) * (b_s - a_s) / SPEED_POINTS)
+    v = fit.amplitude_m * np.cos(u)
+    for k, a_k, theta in fit.harmonics:
+        v = v + k * a_k * np.cos(k * u + theta)
+    return float(w * np.mean(np.abs(v)))
 
 
 #: A bin with at least this many steady cycles has its noise read from the later half of them

@@ -1,12 +1,13 @@
 """The damper model driven by a measured sine: Δp and piston velocity on any uniform sample grid.
 
-A sine case's displacement record is fitted by y = c + Y sin(2πf t + φ) (the diagnosis' sine
-observations); the model is then driven by that motion, from rest, starting where the fitted sine
-starts its first cycle (plan time τ = 0), and sampled at the record's own sample times, which need
-not fall on τ = k/fs. Equation numbers are those of the paper "A method for the identification of
-hydraulic damper characteristics from steady velocity inputs" (Titurus et al.): Eq. (1) with the
-composite volume of Eq. (2), the flow of Eq. (7) plus leakage, integrated with LSODA and an analytic
-Jacobian (``scipy.integrate.odeint``: its output times in Fortran, about ten times faster than
+A sine case's displacement record is fitted by y = c + Y sin(2πf t + φ), plus its significant harmonics
+where the motion is not a pure sine (the diagnosis' sine observations); the model is then driven by that
+motion, from rest, starting where the fitted sine starts its first cycle (plan time τ = 0), and sampled at
+the record's own sample times, which need not fall on τ = k/fs. Equation numbers are those of the paper
+"A method for the identification of hydraulic damper characteristics from steady velocity inputs"
+(Titurus et al.): Eq. (1) with the composite volume of Eq. (2), the flow of Eq. (7) plus leakage,
+integrated with LSODA and an analytic Jacobian (``scipy.integrate.odeint``: its output times in Fortran,
+about ten times faster than
 ``solve_ivp``'s dense output at a record's thousands of samples), split at the turning points and gap
 contacts of the play operator (:func:`isokinetic.physics.excitation.piston_segments`), as
 :func:`isokinetic.physics.responses.sine_response` does on the plan grid (the tests check the two agree there),
@@ -33,12 +34,19 @@ SINE_RTOL = 1e-10
 class SineDrive:
     """The measured motion of a sine case: y = Y sin(2π f τ) for plan time τ >= 0, at rest at y = 0 before;
     the model is sampled at τ_k = ``grid_start_s`` + k/fs, k = 0 .. ``n_samples`` - 1 (``grid_start_s`` < 0:
-    the record starts before the motion)."""
+    the record starts before the motion).
+
+    ``harmonics``: (k, A_k, θ_k) terms of a periodic motion that is not a pure sine (a servo's distortion, a
+    crank's kinematics), y = Y sin ωτ + Σ A_k (sin(kωτ + θ_k) - sin θ_k) for τ >= 0 (each term starts at 0, so
+    the motion starts at rest at y = 0; k >= 2, A_k [m])."""
 
     amplitude_m: float
     frequency_Hz: float
     grid_start_s: float
     n_samples: int
+    harmonics: tuple[tuple[int, float, float], ...] = ()
+    harmonic_se_m: tuple[float, ...] = ()   # the measured motion's standard error of each harmonic's
+    #                                          sine and cosine components, k = 2, 3, ... [m] (not simulated)
 
     def __post_init__(self):
         for name in ("amplitude_m", "frequency_Hz"):
@@ -47,14 +55,43 @@ class SineDrive:
                 raise ValueError(f"sine drive: {name} must be positive and finite, got {v!r}")
         if not math.isfinite(self.grid_start_s) or self.n_samples < 1:
             raise ValueError(f"sine drive: bad grid ({self.grid_start_s!r}, {self.n_samples!r} samples)")
+        for k, a_k, theta in self.harmonics:
+            if not (int(k) == k and k >= 2 and math.isfinite(a_k) and math.isfinite(theta)):
+                raise ValueError(f"sine drive: a harmonic needs an integer k >= 2 and finite A_k, θ_k, got "
+                                 f"{(k, a_k, theta)!r}")
 
     def times(self, sample_rate_Hz: float) -> np.ndarray:
         """The model's sample times in plan time τ [s]."""
         return self.grid_start_s + np.arange(self.n_samples, dtype=float) / sample_rate_Hz
 
     def scaled(self, factor: float) -> SineDrive:
-        """The same drive with the amplitude times ``factor`` (an LVDT scale, a sensitivity step)."""
-        return SineDrive(self.amplitude_m * factor, self.frequency_Hz, self.grid_start_s, self.n_samples)
+        """The same drive with every amplitude times ``factor`` (an LVDT scale, a sensitivity step)."""
+        return replace(self, amplitude_m=self.amplitude_m * factor,
+                       harmonics=tuple((k, a_k * factor, theta) for k, a_k, theta in self.harmonics),
+                       harmonic_se_m=tuple(se * factor for se in self.harmonic_se_m))
+
+    def with_harmonic_step(self, k: int, cosine: bool, step_m: float) -> SineDrive:
+        """The drive with ``step_m`` added to the sine (``cosine``: cosine) component of harmonic ``k`` of the
+        fundamental's phase u: A_k sin(k u + θ_k) = A_k cos θ_k sin ku + A_k sin θ_k cos ku."""
+        terms = {kk: (a_k * math.cos(theta), a_k * math.sin(theta)) for kk, a_k, theta in self.harmonics}
+        s_k, c_k = terms.get(k, (0.0, 0.0))
+        terms[k] = (s_k, c_k + step_m) if cosine else (s_k + step_m, c_k)
+        return replace(self, harmonics=tuple((kk, math.hypot(*sc), math.atan2(sc[1], sc[0]))
+                                             for kk, sc in sorted(terms.items())))
+
+    @property
+    def stroke_amplitude_m(self) -> float:
+        """A bound on |y - the mean position|: Y + Σ 2|A_k|."""
+        return self.amplitude_m + sum(2.0 * abs(a_k) for _k, a_k, _theta in self.harmonics)
+
+    def velocity(self, tau_s) -> np.ndarray:
+        """dy/dτ for τ > 0 [m/s]."""
+        tau = np.asarray(tau_s, dtype=float)
+        omega = 2.0 * math.pi * self.frequency_Hz
+        v = self.amplitude_m * omega * np.cos(omega * tau)
+        for k, a_k, theta in self.harmonics:
+            v = v + a_k * k * omega * np.cos(k * omega * tau + theta)
+        return v
 
 
 def merged_contacts(segs: list) -> list:
@@ -72,9 +109,11 @@ def merged_contacts(segs: list) -> list:
     return out
 
 
-def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float):
+def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float,
+                         harmonics: tuple[tuple[int, float, float], ...] = ()):
     """rhs and Jacobian of Eq. (1) on one piece of a sine case (``seg``: a piece of
-    :func:`isokinetic.physics.excitation.piston_segments`), pushed (y = Y sin ωt + offset) or at rest: the
+    :func:`isokinetic.physics.excitation.piston_segments`), pushed (y = Y sin ωt + offset, plus the
+    ``harmonics`` of :class:`SineDrive` where given) or at rest: the
     arithmetic of :meth:`Hydraulics.composite_volume` (Eq. 2), :meth:`Hydraulics.flow` (Eq. 7 plus leakage) and
     :meth:`Hydraulics.flow_derivative`, operation for operation (tests/physics/test_sine_drive.py checks it bit
     for bit against those methods), in closures of local Python floats (the state read with ``item()``: numpy
@@ -91,10 +130,12 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
     y0 = seg.piston_start_m
     vol0 = (v01 - a * y0) * (v02 + a * y0) / (v01 + v02)
 
-    def volume(tt):   # Hydraulics.composite_volume of the piston's position
+    terms = tuple((k * omega, a_k, theta, a_k * math.sin(theta), a * a_k * k * omega) for k, a_k, theta in harmonics)
+
+    def volume(tt):   # Hydraulics.composite_volume of the piston's position (the sine plus its harmonics)
         if not contact:
             return vol0
-        y = amp * sin(omega * tt) + off
+        y = amp * sin(omega * tt) + off + sum(a_k * sin(w_k * tt + th) - start for w_k, a_k, th, start, _ in terms)
         return (v01 - a * y) * (v02 + a * y) / (v01 + v02)
 
     c1p2, c1n2, c2p4, c2n4, vsum = c1p * c1p, c1n * c1n, 4.0 * c2p, 4.0 * c2n, v01 + v02
@@ -120,10 +161,21 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
         ay = a * (amp * sin(ph) + off)
         return [(qamp * cos(ph) - q) / (beta * ((v01 - ay) * (v02 + ay) / vsum))]
 
+    def pushed_periodic(tt, z):   # Eq. 1 driven by the sine and its harmonics
+        q = flow(z.item())
+        ph = omega * tt
+        y, qin = amp * sin(ph) + off, qamp * cos(ph)
+        for w_k, a_k, theta, start, qa_k in terms:
+            arg = w_k * tt + theta
+            y += a_k * sin(arg) - start
+            qin += qa_k * cos(arg)
+        ay = a * y
+        return [(qin - q) / (beta * ((v01 - ay) * (v02 + ay) / vsum))]
+
     def resting(tt, z):   # Eq. 1 with the piston at rest
         return [(0.0 - flow(z.item())) / (beta * vol0)]
 
-    rhs = pushed if contact else resting
+    rhs = (pushed_periodic if terms else pushed) if contact else resting
 
     def jac(tt, z):   # Hydraulics.flow_derivative
         p = z.item()
@@ -146,9 +198,12 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
     if not live.any():
         return tau, dp, vel
     amp, omega = drive.amplitude_m, 2.0 * math.pi * drive.frequency_Hz
+    if drive.harmonics and backlash_m > 0.0:
+        raise ValueError("sine drive: a motion with harmonics is modelled without backlash only (its turning "
+                         "points are not the sine's)")
     plan = CasePlan("sine", "sine", sample_rate_Hz, amplitude_m=amp, frequency_Hz=drive.frequency_Hz, phase_rad=0.0,
                     duration_s=float(tau[-1]))
-    check_stroke(plan, hyd)
+    check_stroke(replace(plan, amplitude_m=drive.stroke_amplitude_m) if drive.harmonics else plan, hyd)
     atol = rtol * max(abs(steady_pressure(hyd.piston_area_m2 * amp * omega, hyd)),
                       abs(steady_pressure(-hyd.piston_area_m2 * amp * omega, hyd)), 1.0)
     t = tau[live]
@@ -159,7 +214,7 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
         t_eval, t0, t1 = t[idx], seg.t_start_s, seg.t_end_s
         if t1 <= t0:
             continue
-        rhs, jac = fused_segment_system(seg, hyd, amp, omega)
+        rhs, jac = fused_segment_system(seg, hyd, amp, omega, drive.harmonics)
         times = np.concatenate([[t0], t_eval, [t1]])
         sol, info = odeint(rhs, [p], times, Dfun=jac, rtol=rtol, atol=atol, tfirst=True, full_output=True,
                            mxstep=100_000)
@@ -168,6 +223,6 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
         out_dp[idx] = sol[1:-1, 0]
         p = float(sol[-1, 0])
         if seg.contact:
-            out_vel[idx] = amp * omega * np.cos(omega * t_eval)
+            out_vel[idx] = drive.velocity(t_eval) if drive.harmonics else amp * omega * np.cos(omega * t_eval)
     dp[live], vel[live] = out_dp, out_vel
     return tau, dp, vel

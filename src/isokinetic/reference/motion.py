@@ -73,7 +73,12 @@ def actuator_pieces(case: TriangleCase, rig: RigImperfections, t_end_s: float) -
 class SineActuatorPiece:
     """x(t) on [t_start, t_end) for the delayed sine command c = Y sin(w s), s = t - d >= 0, through the
     first-order servo dx/dt = (c - x)/tau from rest at x = 0: with r = w tau,
-    x = Y (sin ws - r cos ws) / (1 + r^2) + K exp(-s/tau), K = Y r / (1 + r^2); tau = 0: x = c."""
+    x = Y (sin ws - r cos ws) / (1 + r^2) + K exp(-s/tau), K = Y r / (1 + r^2); tau = 0: x = c.
+
+    ``harmonics`` (k, h, phi) add the command terms Y h (sin(k w s + phi) - sin phi) (:class:`SineCase`), each
+    through the same servo by superposition: with R = k w tau and A = Y h, the steady part
+    A (sin(k w s + phi) - R cos(k w s + phi)) / (1 + R^2) - A sin phi, plus the exp(-s/tau) term that starts
+    it at rest."""
 
     t_start_s: float
     t_end_s: float
@@ -81,6 +86,7 @@ class SineActuatorPiece:
     amplitude_m: float
     omega_rad_s: float
     lag_s: float
+    harmonics: tuple[tuple[int, float, float], ...] = ()
 
     def state(self, t: float) -> tuple[float, float]:
         """(x, dx/dt) at a float time t (the ODE's fast path)."""
@@ -90,8 +96,22 @@ class SineActuatorPiece:
         sn, cs = math.sin(w * s), math.cos(w * s)
         if tau > 0.0:
             e = g * r * math.exp(-s / tau)
-            return g * (sn - r * cs) + e, g * w * (cs + r * sn) - e / tau
-        return g * sn, g * w * cs
+            x, v = g * (sn - r * cs) + e, g * w * (cs + r * sn) - e / tau
+        else:
+            x, v = g * sn, g * w * cs
+        for k, h, phi in self.harmonics:
+            big_w, a_k = k * w, self.amplitude_m * h
+            big_r = big_w * tau
+            gk = a_k / (1.0 + big_r * big_r)
+            snk, csk = math.sin(big_w * s + phi), math.cos(big_w * s + phi)
+            if tau > 0.0:
+                ek = (a_k * math.sin(phi) - gk * (math.sin(phi) - big_r * math.cos(phi))) * math.exp(-s / tau)
+                x += gk * (snk - big_r * csk) - a_k * math.sin(phi) + ek
+                v += gk * big_w * (csk + big_r * snk) - ek / tau
+            else:
+                x += a_k * (snk - math.sin(phi))
+                v += a_k * big_w * csk
+        return x, v
 
     def position(self, t):
         return np.vectorize(lambda x: self.state(x)[0], otypes=[float])(np.asarray(t, dtype=float))
@@ -117,7 +137,8 @@ def sine_actuator_pieces(case, rig: RigImperfections, t_end_s: float) -> list:
     d = rig.delay_s
     rest = [ActuatorPiece(0.0, d, 0.0, 0.0, rig.servo_lag_s, 0.0)] if d > 0.0 else []
     return rest + [SineActuatorPiece(min(d, t_end_s), t_end_s, d, case.amplitude_m,
-                                     2.0 * math.pi * case.frequency_Hz, rig.servo_lag_s)]
+                                     2.0 * math.pi * case.frequency_Hz, rig.servo_lag_s,
+                                     tuple(getattr(case, "harmonics", ())))]
 
 
 def _actuator_turning_times(pieces: Sequence) -> list[float]:

@@ -315,13 +315,19 @@ class TriangleCase:
 
 @dataclass(frozen=True)
 class SineCase:
-    """One sine test: command c(t) = Y sin(2 pi f t) for t >= 0, 0 before; ``n_cycles`` periods recorded."""
+    """One sine test: command c(t) = Y sin(2 pi f t) for t >= 0, 0 before; ``n_cycles`` periods recorded.
+
+    ``harmonics``: (k, h, phi) terms that distort the actuator's motion, as a servo's distortion or a crank's
+    kinematics do: the actuator moves as if commanded Y [sin(2 pi f t) + sum_k h (sin(2 pi k f t + phi) - sin phi)]
+    (each term starts at 0; k >= 2), while the command channel (:meth:`command_m`) and the manifest declare
+    the sine (f, Y)."""
 
     case_id: str
     frequency_Hz: float
     amplitude_m: float
     n_cycles: float = 4.0
     sample_rate_Hz: float = 500.0
+    harmonics: tuple[tuple[int, float, float], ...] = ()
 
     def __post_init__(self):
         if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]*", self.case_id):
@@ -330,6 +336,15 @@ class SineCase:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"case {self.case_id}: {name} must be > 0, got {v!r}")
+        for k, h, phi in self.harmonics:
+            if not (int(k) == k and k >= 2 and math.isfinite(h) and math.isfinite(phi)):
+                raise ValueError(f"case {self.case_id}: a harmonic needs an integer k >= 2 and finite h, phi, "
+                                 f"got {(k, h, phi)!r}")
+
+    @property
+    def stroke_amplitude_m(self) -> float:
+        """A bound on |c(t)|: Y (1 + sum 2|h|)."""
+        return self.amplitude_m * (1.0 + sum(2.0 * abs(h) for _k, h, _phi in self.harmonics))
 
     @property
     def duration_s(self) -> float:
@@ -591,7 +606,7 @@ def _check_stroke(case: RigCase, model: ChamberModel) -> None:
     """The stroke must leave oil in both chambers (Eq. 12: T_max < T_lim)."""
     a = model.piston_area_m2
     for v0, gas in ((model.chamber_volume_1_m3, model.gas_1_Pa_m3), (model.chamber_volume_2_m3, model.gas_2_Pa_m3)):
-        if not a * case.amplitude_m < 0.95 * (v0 - gas / model.charge_pressure_Pa):
+        if not a * getattr(case, "stroke_amplitude_m", case.amplitude_m) < 0.95 * (v0 - gas / model.charge_pressure_Pa):
             raise ValueError(f"case {case.case_id}: amplitude {case.amplitude_m:g} m empties a chamber")
 
 

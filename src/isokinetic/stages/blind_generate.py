@@ -33,7 +33,9 @@ Sine-only scenario (issue 21)
     0.03-0.1 to 0.6-1.5 mm/s, four cycles each at 1 kHz, in a random test order), with no effect or
     one catalogue effect at 1x-5x its sine detection level. The load cell's full scale follows the
     largest force the sweep reaches (:func:`plan_peak_force_N`: a stiff damper's force at a few Hz is
-    held far below the steady force at the same peak speed by compressibility).
+    held far below the steady force at the same peak speed by compressibility). The servo distorts the
+    sine (:data:`DISTORTION_RANGES`, :func:`draw_sine_harmonics`): second and third harmonics of the
+    actuator's motion, which the manifest and the command channel do not show.
 
 Magnitude of an effect (what "1x detection" is measured in)
     friction: Coulomb force F_C [N]; leakage: conductance g [m3/(s Pa)]; asymmetry: |a| (random
@@ -139,6 +141,12 @@ RIG_RANGES = {"delay_s": (0.0, 0.025), "servo_lag_s": (0.002, 0.010), "force_noi
 #: either sign); the fraction of samples dropped from the record.
 SENSOR_RANGES = {"force_filter_p": 0.5, "force_filter_Hz": (2.0, 10.0), "displacement_gain_error": 0.015,
                  "force_drift_fs": 0.002, "dropout_fraction": (0.0, 0.01)}
+
+
+#: A servo's distortion of a sine command (every scenario draws it, its sine cases carry it): the actuator's
+#: second and third harmonics, relative to the fundamental, each with a uniform phase (a total harmonic
+#: distortion of up to 3.6 %).
+DISTORTION_RANGES = {"harmonic_2": (0.0, 0.03), "harmonic_3": (0.0, 0.02)}
 
 
 DESCRIPTION = "Blind-test scenario: simulated damper test campaign; its unmodelled effects are withheld."
@@ -362,6 +370,7 @@ class Scenario:
     detection_level: dict[str, float] = field(default_factory=dict)
     multiple: dict[str, float] = field(default_factory=dict)        # magnitude / detection level
     redraws: int = 0
+    sine_harmonics: tuple[tuple[int, float, float], ...] = ()       # the servo's distortion of its sine cases
 
     @property
     def truth_text(self) -> str:
@@ -379,7 +388,7 @@ class Scenario:
 
     def rig_cases(self) -> list[rr.TriangleCase | rr.SineCase]:
         return [rr.SineCase(c.case, c.frequency_Hz, c.amplitude_m, round(c.duration_s * c.frequency_Hz, 9),
-                            c.sample_rate_Hz) if c.waveform == "sine"
+                            c.sample_rate_Hz, self.sine_harmonics) if c.waveform == "sine"
                 else rr.TriangleCase(c.case, c.velocity_m_s, c.period_s, c.sample_rate_Hz) for c in self.cases]
 
     def truth_params(self) -> dict[str, float]:
@@ -411,7 +420,7 @@ class Scenario:
             "params": self.truth_params(),
             "instrument": self.instrument_truth(),
             "effects": dataclasses.asdict(self.effects),
-            "rig": dataclasses.asdict(self.rig),
+            "rig": {**dataclasses.asdict(self.rig), "sine_harmonics": [list(h) for h in self.sine_harmonics]},
             "magnitude": dict(self.magnitude),
             "magnitude_unit": {e: UNITS[e] for e in self.truth},
             "sign": dict(self.sign),
@@ -538,6 +547,13 @@ def draw_rig(rng: np.random.Generator, full_scale: float, duration_s: float = 1.
                                                                                       duration_s))
 
 
+def draw_sine_harmonics(rng: np.random.Generator) -> tuple[tuple[int, float, float], ...]:
+    """The servo's distortion of a sine (:data:`DISTORTION_RANGES`): (k, relative amplitude, phase) of the
+    second and third harmonics (:class:`isokinetic.reference.rig.SineCase`), 3 significant digits."""
+    return tuple((k, _sig(rng.uniform(*DISTORTION_RANGES[f"harmonic_{k}"]), 3),
+                  _sig(rng.uniform(-math.pi, math.pi), 3)) for k in (2, 3))
+
+
 def charge_pressure_Pa(damper: Damper, cases: Sequence[CasePlan]) -> float:
     """Charge (accumulator) pressure of the drawn damper: twice the plan's largest steady Δp, at least
     5 MPa (2 significant digits), so that neither chamber comes near zero absolute pressure."""
@@ -633,7 +649,8 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
     ``multiples`` missing an effect: drawn U[1, 5]. Damper, plan and rig are re-drawn (up to
     MAX_REDRAWS times) while an effect's 5x detection level exceeds its bound. ``rig`` overrides
     the drawn nuisances (tests); ``sensor_chain`` False leaves the sensor chain ideal (:func:`draw_rig`; its
-    own stream, child 21 of ``seed_seq``: everything else is drawn as without it). ``waveform`` 'sine': a
+    own stream, child 21 of ``seed_seq``: everything else is drawn as without it). The servo's distortion of
+    the sine cases has its own stream too (child 22, :func:`draw_sine_harmonics`). ``waveform`` 'sine': a
     sine-only campaign (:func:`draw_sine_plan`, the plan ranges unused), its detection levels on its phase bins
     (:class:`SineDetectionProblem`).
     """
@@ -642,6 +659,8 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
     rng = np.random.default_rng(seed_seq)
     chain_rng = np.random.default_rng(np.random.SeedSequence(seed_seq.entropy, spawn_key=(*seed_seq.spawn_key, 21))) \
         if sensor_chain else None
+    harmonics = draw_sine_harmonics(np.random.default_rng(
+        np.random.SeedSequence(seed_seq.entropy, spawn_key=(*seed_seq.spawn_key, 22))))
     truth = tuple(e for e in EFFECTS if e in set(truth))
     multiples = dict(multiples or {})
     for redraw in range(MAX_REDRAWS + 1):
@@ -666,7 +685,7 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
         return Scenario(name=name, damper=damper, cases=cases, effects=effects, rig=the_rig, noise_seed=noise_seed,
                         truth=truth, out_of_catalogue=out_of_catalogue, magnitude=magnitude,
                         sign={e: signs[e] for e in truth}, detection_level={e: detection[e] for e in truth},
-                        multiple=mult, redraws=redraw)
+                        multiple=mult, redraws=redraw, sine_harmonics=harmonics)
     raise RuntimeError(f"{name}: no plan within {MAX_REDRAWS} re-draws makes {truth} detectable within bounds")
 
 
