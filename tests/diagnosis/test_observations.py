@@ -12,7 +12,13 @@ from scipy.optimize import curve_fit
 
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.observations import build_observations
-from isokinetic.diagnosis.sine_observations import between_case_scatter, bin_variance_model, fit_sine, phase_bins
+from isokinetic.diagnosis.sine_observations import (
+    between_case_scatter,
+    bin_variance_model,
+    fit_sine,
+    periodic_motion,
+    phase_bins,
+)
 from isokinetic.measurement.windows import WindowSpec
 from isokinetic.physics.damper import NOMINAL, Effects
 from isokinetic.physics.sine_drive import SineDrive
@@ -165,6 +171,24 @@ def test_a_pure_sine_in_white_noise_rarely_gets_a_harmonic():
     with_any = sum(bool(fit.harmonics) for fit in draws)
     assert with_any <= 12
     assert all(len(fit.harmonic_se_m) == 2 for fit in draws)
+
+
+def test_a_cranks_free_record_is_periodic_and_a_two_tone_or_sweeping_one_is_not():
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 5.0, 0.001)
+    noise = 1e-6 * rng.standard_normal(t.size)
+    r, rod = 100e-6, 400e-6                       # a slider crank at 1 Hz, its rod four times its radius
+    theta = 2 * math.pi * 1.0 * t
+    crank = r * np.cos(theta) + np.sqrt(rod**2 - (r * np.sin(theta)) ** 2) - rod
+    fit, unexplained = periodic_motion(t, crank + noise)
+    assert fit.frequency_Hz == pytest.approx(1.0, rel=1e-4) and unexplained < 0.005
+    assert [k for k, _a, _th in fit.harmonics][:1] == [2]
+    assert fit.harmonics[0][1] / fit.amplitude_m == pytest.approx(r / (4 * rod), rel=0.05)   # r/4l
+    two_tone = 100e-6 * np.sin(2 * math.pi * t) + 30e-6 * np.sin(2 * math.pi * 1.37 * t)
+    sweep = 100e-6 * np.sin(2 * math.pi * (0.8 * t + 0.05 * t**2))
+    for record in (two_tone, sweep):
+        assert periodic_motion(t, record + noise)[1] > 0.005
+    assert periodic_motion(t[:2000], crank[:2000])[0] is None       # two cycles: too short
 
 
 def test_phase_bins_never_straddle_a_reversal():

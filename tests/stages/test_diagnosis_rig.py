@@ -280,6 +280,24 @@ def test_a_distorted_sine_sweep_with_friction_gets_friction_and_no_lag(tmp_path)
 
 
 @pytest.mark.slow
+def test_a_crank_sweep_declared_free_is_diagnosed_as_periodic_records(tmp_path):
+    # init-campaign calls a slider crank's record free (its second harmonic is 6 % of the fundamental): without a
+    # period in the manifest it was "not yet supported"; its motion is periodic, so it drives the model as a sine's
+    raw = tmp_path / "raw" / "crank-free"
+    sines = [rr.SineCase(f"H{i:02d}", f, v * 1e-3 / (2 * math.pi * f), 4, 1000.0, DISTORTIONS["crank"])
+             for i, (f, v) in enumerate(SWEEP, start=1)]
+    rrc.write_campaign(raw, sines, rr.TABLE1, rr.TrueEffects(coulomb_force_N=10.0),
+                       rr.RigImperfections(**{**QUIET, **CHAIN}), 11, write_phase=False)
+    manifest = yaml.safe_load((raw / "campaign.yaml").read_text())
+    manifest["cases"] = [{"id": c["id"], "waveform": "free", "file": c["file"]} for c in manifest["cases"]]
+    (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
+    result = diagnose_raw_campaign(raw, tmp_path / "work")
+    assert result["verdict"] == ["friction"] and result["explained"] is True
+    assert result["params"]["coulomb_force_N"] == pytest.approx(10.0, rel=0.15)
+    assert result["sources"]["periodic"].startswith(",".join(f"H{i:02d}" for i in range(1, 7)) + ":")
+
+
+@pytest.mark.slow
 def test_a_sine_sweep_of_the_nominal_damper_gets_no_effect(tmp_path):
     result = diagnose_sweep(tmp_path, "sweep-nominal")
     assert result["status"] == "ok"

@@ -56,6 +56,11 @@ HARMONIC_SIGMAS = 3.0
 #: A harmonic whose share of the speed, k A_k / Y, is below this is left out however clear (a noise-free record's
 #: quantisation steps show as harmonics of about 1e-5 of its speed).
 HARMONIC_FLOOR = 1e-4
+#: A free record is diagnosed as a periodic motion (:func:`periodic_motion`) where its fitted sine and harmonics
+#: leave at most this share of its amplitude unexplained beyond the LVDT's noise ...
+PERIODIC_RESIDUAL = 0.005
+#: ... over at least this many cycles of its dominant period (the first one is the drive's start-up).
+PERIODIC_MIN_CYCLES = 3.0
 
 
 @dataclass(frozen=True)
@@ -72,6 +77,14 @@ class SineFit:
     amplitude_rel_se: float
     harmonics: tuple[tuple[int, float, float], ...] = ()
     harmonic_se_m: tuple[float, ...] = ()   # standard error of each component of harmonics 2, 3, ... [m]
+
+    def position(self, time_s) -> np.ndarray:
+        """The fitted motion y(t) [m]: offset, sine and harmonics."""
+        u = 2.0 * math.pi * self.frequency_Hz * np.asarray(time_s, dtype=float) + self.phase_rad
+        y = self.offset_m + self.amplitude_m * np.sin(u)
+        for k, a_k, theta in self.harmonics:
+            y = y + a_k * np.sin(k * u + theta)
+        return y
 
     def divided(self, scale: float) -> SineFit:
         """The fit with its amplitudes divided by ``scale`` (an LVDT scale's correction)."""
@@ -149,6 +162,33 @@ def fit_sine(time_s, displacement_m, frequency_Hz: float) -> SineFit | None:
                        math.remainder(math.atan2(coef[4 + 2 * j], coef[3 + 2 * j]) - k * psi_1, 2.0 * math.pi))
                       for j, k in enumerate(ks))
     return SineFit(float(coef[0]), amp, omega / (2.0 * math.pi), phase, rel_se, harmonics, harmonic_se)
+
+
+def periodic_motion(time_s, displacement_m) -> tuple[SineFit | None, float]:
+    """A free record's motion as a periodic one: (the sine and harmonics fitted after its first cycle of the
+    dominant period, :func:`isokinetic.measurement.loops.dominant_period_s` and :func:`fit_sine`; the share of its
+    amplitude they leave unexplained beyond the noise, sqrt(r² - s²)/Y with r the residual's rms and s its noise
+    from successive differences, 0 where r² - s² is within 3 of its standard errors, about 2 s²/√n for n samples of
+    white noise: a short record's noise hides a small departure). (None, inf) for a record of fewer than
+    PERIODIC_MIN_CYCLES cycles or without motion. A crank's motion is periodic; a road profile or a random input
+    is not."""
+    from isokinetic.measurement.loops import dominant_period_s
+
+    t = np.asarray(time_s, dtype=float)
+    y = np.asarray(displacement_m, dtype=float)
+    if t.size < 8 or not np.all(np.isfinite(y)):
+        return None, math.inf
+    period = dominant_period_s(t, y)
+    if not (period > 0.0 and t[-1] - t[0] >= PERIODIC_MIN_CYCLES * period):
+        return None, math.inf
+    after = t >= t[0] + SKIPPED_CYCLES * period
+    fit = fit_sine(t[after], y[after], 1.0 / period)
+    if fit is None:
+        return None, math.inf
+    resid = y[after] - fit.position(t[after])
+    noise2 = 0.5 * float(np.mean(np.diff(resid) ** 2))
+    excess = float(np.mean(resid ** 2)) - noise2
+    return fit, (math.sqrt(excess) / fit.amplitude_m if excess > 6.0 * noise2 / math.sqrt(resid.size) else 0.0)
 
 
 def significant_harmonics(tc: np.ndarray, resid: np.ndarray, omega: float, n_fitted: int, amplitude_m: float,

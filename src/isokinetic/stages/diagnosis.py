@@ -42,6 +42,7 @@ from isokinetic.diagnosis.result import (
 )
 from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.diagnosis.sine_check import sine_check
+from isokinetic.diagnosis.sine_observations import PERIODIC_RESIDUAL, periodic_motion
 from isokinetic.diagnosis.verdict import diagnose_observations
 from isokinetic.io import write_json
 from isokinetic.measurement.windows import WindowSpec, motion_start
@@ -58,6 +59,12 @@ log = logging.getLogger(__name__)
 SINES_BESIDE_TRIANGLES = ("sine cases beside triangle windows are not diagnosed: their phase bins share a slow-noise "
                           "error per record that the bins' standard errors do not describe; the triangles decide, "
                           "and the sine cases check their verdict (sine_check)")
+#: What a periodic free record is diagnosed as (``sources.periodic``), and why one that is not periodic is not.
+PERIODIC_FREE = (f"free records whose motion a sine and its second and third harmonics explain to within "
+                 f"{100 * PERIODIC_RESIDUAL:g} % beyond the noise (a crank's) are diagnosed as sine records of their "
+                 "measured fundamental")
+NOT_PERIODIC = ("a free record that is not periodic (a road profile, a random input) is not diagnosed: the model has "
+                "no drive for it")
 #: Why a campaign's triangle cases are not diagnosed where its sine cases are (``sources.not_used``).
 TRIANGLES_WITHOUT_FOUR_WINDOWS = ("no triangle case has its four windows (two periods, both directions), which "
                                   "the model's drive needs: the sine cases are diagnosed instead")
@@ -113,6 +120,14 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     campaign, damper, cases, char, scales = load_campaign(root)
     if damper is None:
         return campaign, None, cases, None, "campaign.yaml has no damper block: there is no nominal model", {}
+    cache: dict[str, pd.DataFrame] = {}
+
+    def load(row):
+        key = str(row["timeseries_file"])
+        if key not in cache:
+            cache[key] = pd.read_parquet(root / key)
+        return cache[key]
+
     sines = cases[(cases["status"] == "ok") & (cases["waveform"] == "sine")]
     if not char.empty and not sines.empty and not any_four_windows(char):   # TRIANGLES_WITHOUT_FOUR_WINDOWS
         log.info("%s: no triangle case has its four windows: its sine cases are diagnosed", campaign)
@@ -121,19 +136,18 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     if not char.empty and not sines.empty:  # the triangles' windows and bins decide (SINES_BESIDE_TRIANGLES)
         log.info("%s: sine cases %s not diagnosed beside the triangle windows", campaign, ",".join(sines["case"]))
         set_aside, sines = sines, sines.iloc[0:0]
-    modelled = cases[(cases["waveform"] != "sine") | cases["case"].isin(sines["case"])]
+    periodic: dict[str, float] = {}
     if char.empty and sines.empty:
-        if ((cases["status"] == "ok") & (cases["waveform"] == "free")).any():
-            return campaign, damper, cases, None, ("no triangle or sine case: diagnosis of free records "
-                                                   "not yet supported"), {}
-        return campaign, damper, cases, None, "no status-ok triangle or sine case: nothing to compare", {}
-    cache: dict[str, pd.DataFrame] = {}
-
-    def load(row):
-        key = str(row["timeseries_file"])
-        if key not in cache:
-            cache[key] = pd.read_parquet(root / key)
-        return cache[key]
+        free = cases[(cases["status"] == "ok") & (cases["waveform"] == "free")]
+        if free.empty:
+            return campaign, damper, cases, None, "no status-ok triangle or sine case: nothing to compare", {}
+        cases, periodic, refused = periodic_free_cases(cases, free, load)
+        if not periodic:
+            return campaign, damper, cases, None, (f"no triangle or sine case, and no free record is periodic "
+                                                   f"({refused}): {NOT_PERIODIC}"), {}
+        log.info("%s: free records %s diagnosed as periodic motions", campaign, ",".join(periodic))
+        sines = cases[cases["case"].isin(list(periodic))]
+    modelled = cases[(cases["waveform"] != "sine") | cases["case"].isin(sines["case"])]
 
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     scale, delays = motion_terms(ok if not char.empty else ok.iloc[0:0], sines, load)
@@ -151,12 +165,32 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
                                                "cycles: nothing to compare"), {}
     spans = {row["case"]: record_span(load(row)) for _, row in pd.concat([ok, sines, set_aside]).iterrows()}
     sensor = {"displacement_scale": scale, "delays": delays, "obs_time_s": campaign_times(obs, cases, spans),
-              "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans)))}
+              "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans))), "periodic": periodic}
     if not set_aside.empty:
         sine_obs = observations(set_aside, char.iloc[0:0])
         if len(sine_obs):
             sensor.update(sine_obs=sine_obs, sine_time_s=campaign_times(sine_obs, cases, spans))
     return campaign, damper, cases, obs, "", sensor
+
+
+def periodic_free_cases(cases: pd.DataFrame, free: pd.DataFrame, load) -> tuple[pd.DataFrame, dict[str, float], str]:
+    """(``cases`` with each periodic free record as a sine case of its measured fundamental, {case: the share of its
+    amplitude its periodic fit leaves unexplained beyond noise}, the others as 'case (x %)'): a free record whose
+    motion a sine and its harmonics explain to within PERIODIC_RESIDUAL (a crank's) is diagnosed as a sine record
+    (:func:`isokinetic.diagnosis.sine_observations.periodic_motion`); one they do not (a road profile, a random
+    input) is not, for the model has no drive for it."""
+    periodic, refused, out = {}, [], cases.copy()
+    for idx, row in free.iterrows():
+        series = load(row)
+        fit, unexplained = periodic_motion(series["time_s"].to_numpy(float), series["displacement_m"].to_numpy(float))
+        if fit is None or not unexplained <= PERIODIC_RESIDUAL:
+            why = "not three cycles of motion" if fit is None else f"{100 * unexplained:.2g} % of it not periodic"
+            refused.append(f"{row['case']}: {why}")
+            continue
+        periodic[str(row["case"])] = unexplained
+        out.loc[idx, ["waveform", "frequency_Hz", "amplitude_m", "phase_rad", "period_s"]] = [
+            "sine", fit.frequency_Hz, fit.amplitude_m, 0.0, 1.0 / fit.frequency_Hz]
+    return out, periodic, ", ".join(refused)
 
 
 def two_pass_observations(campaign: str, damper: Damper, modelled: pd.DataFrame, char: pd.DataFrame, load, scaled,
@@ -257,6 +291,8 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     result, predictions = diagnose_observations(obs, damper, alpha, delays, sensor)
     result["sources"] = observation_sources(obs, cases)
     result["sources"].update(not_used(cases, obs))
+    if sensor.get("periodic"):
+        result["sources"]["periodic"] = (f"{','.join(sensor['periodic'])}: {PERIODIC_FREE}")
     if "sine_obs" in sensor:   # the sine cases set aside beside the triangles check their verdict
         check_verdict_on_sines(result, sensor, damper, alpha)
     return result, obs, predictions
