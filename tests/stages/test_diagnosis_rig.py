@@ -8,6 +8,7 @@ The rig shares no code with the diagnosis' model; its campaigns go through the r
 import json
 import math
 
+import numpy as np
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
@@ -290,11 +291,23 @@ def test_a_crank_sweep_declared_free_is_diagnosed_as_periodic_records(tmp_path):
                        rr.RigImperfections(**{**QUIET, **CHAIN}), 11, write_phase=False)
     manifest = yaml.safe_load((raw / "campaign.yaml").read_text())
     manifest["cases"] = [{"id": c["id"], "waveform": "free", "file": c["file"]} for c in manifest["cases"]]
+    # and a record that is not periodic (its LVDT channel replaced by two incommensurate tones and 1 um of noise):
+    # set aside
+    lines = (raw / "H01.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    rows = [line.split(",") for line in lines[1:]]
+    noise = np.random.default_rng(3).standard_normal(len(rows))
+    for row, e in zip(rows, noise, strict=True):
+        t = float(row[0]) * 1e-3
+        row[1] = f"{40 * math.sin(2 * math.pi * 0.2 * t) + 15 * math.sin(2 * math.pi * 0.37 * t) + e:.3f}"
+    (raw / "R01.csv").write_text("\n".join([",".join(header), *(",".join(r) for r in rows)]) + "\n")
+    manifest["cases"].append({"id": "R01", "waveform": "free", "file": "R01.csv"})
     (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
     result = diagnose_raw_campaign(raw, tmp_path / "work")
     assert result["verdict"] == ["friction"] and result["explained"] is True
     assert result["params"]["coulomb_force_N"] == pytest.approx(10.0, rel=0.15)
     assert result["sources"]["periodic"].startswith(",".join(f"H{i:02d}" for i in range(1, 7)) + ":")
+    assert result["sources"]["not_used"].startswith("R01: ") and "not periodic" in result["sources"]["not_used"]
 
 
 @pytest.mark.slow

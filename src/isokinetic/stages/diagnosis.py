@@ -137,6 +137,7 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
         log.info("%s: sine cases %s not diagnosed beside the triangle windows", campaign, ",".join(sines["case"]))
         set_aside, sines = sines, sines.iloc[0:0]
     periodic: dict[str, float] = {}
+    refused = ""
     if char.empty and sines.empty:
         free = cases[(cases["status"] == "ok") & (cases["waveform"] == "free")]
         if free.empty:
@@ -165,7 +166,8 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
                                                "cycles: nothing to compare"), {}
     spans = {row["case"]: record_span(load(row)) for _, row in pd.concat([ok, sines, set_aside]).iterrows()}
     sensor = {"displacement_scale": scale, "delays": delays, "obs_time_s": campaign_times(obs, cases, spans),
-              "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans))), "periodic": periodic}
+              "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans))), "periodic": periodic,
+              "not_periodic": refused}
     if not set_aside.empty:
         sine_obs = observations(set_aside, char.iloc[0:0])
         if len(sine_obs):
@@ -292,7 +294,9 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     result["sources"] = observation_sources(obs, cases)
     result["sources"].update(not_used(cases, obs))
     if sensor.get("periodic"):
-        result["sources"]["periodic"] = (f"{','.join(sensor['periodic'])}: {PERIODIC_FREE}")
+        result["sources"]["periodic"] = f"{','.join(sensor['periodic'])}: {PERIODIC_FREE}"
+    if sensor.get("not_periodic"):
+        result["sources"]["not_used"] = f"{sensor['not_periodic']}: {NOT_PERIODIC}"
     if "sine_obs" in sensor:   # the sine cases set aside beside the triangles check their verdict
         check_verdict_on_sines(result, sensor, damper, alpha)
     return result, obs, predictions
