@@ -138,15 +138,10 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
         set_aside, sines = sines, sines.iloc[0:0]
     periodic: dict[str, float] = {}
     refused = ""
-    if char.empty and sines.empty:
-        free = cases[(cases["status"] == "ok") & (cases["waveform"] == "free")]
-        if free.empty:
-            return campaign, damper, cases, None, "no status-ok triangle or sine case: nothing to compare", {}
-        cases, periodic, refused = periodic_free_cases(cases, free, load)
-        if not periodic:
-            return campaign, damper, cases, None, (f"no triangle or sine case, and no free record is periodic "
-                                                   f"({refused}): {NOT_PERIODIC}"), {}
-        log.info("%s: free records %s diagnosed as periodic motions", campaign, ",".join(periodic))
+    if char.empty and sines.empty:   # free records, where they are periodic (PERIODIC_FREE)
+        cases, periodic, refused, reason = periodic_free_cases(cases, load)
+        if reason:
+            return campaign, damper, cases, None, reason, {}
         sines = cases[cases["case"].isin(list(periodic))]
     modelled = cases[(cases["waveform"] != "sine") | cases["case"].isin(sines["case"])]
 
@@ -175,12 +170,16 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     return campaign, damper, cases, obs, "", sensor
 
 
-def periodic_free_cases(cases: pd.DataFrame, free: pd.DataFrame, load) -> tuple[pd.DataFrame, dict[str, float], str]:
-    """(``cases`` with each periodic free record as a sine case of its measured fundamental, {case: the share of its
-    amplitude its periodic fit leaves unexplained beyond noise}, the others as 'case (x %)'): a free record whose
-    motion a sine and its harmonics explain to within PERIODIC_RESIDUAL (a crank's) is diagnosed as a sine record
+def periodic_free_cases(cases: pd.DataFrame, load) -> tuple[pd.DataFrame, dict[str, float], str, str]:
+    """(``cases`` with each periodic status-ok free record as a sine case of its measured fundamental, {case: the
+    share of its amplitude its periodic fit leaves unexplained beyond noise}, the others as 'case: why', the
+    reason there is nothing to diagnose or ''): a free record whose motion a sine and its harmonics explain to
+    within PERIODIC_RESIDUAL (a crank's) is diagnosed as a sine record
     (:func:`isokinetic.diagnosis.sine_observations.periodic_motion`); one they do not (a road profile, a random
     input) is not, for the model has no drive for it."""
+    free = cases[(cases["status"] == "ok") & (cases["waveform"] == "free")]
+    if free.empty:
+        return cases, {}, "", "no status-ok triangle or sine case: nothing to compare"
     periodic, refused, out = {}, [], cases.copy()
     for idx, row in free.iterrows():
         series = load(row)
@@ -192,7 +191,11 @@ def periodic_free_cases(cases: pd.DataFrame, free: pd.DataFrame, load) -> tuple[
         periodic[str(row["case"])] = unexplained
         out.loc[idx, ["waveform", "frequency_Hz", "amplitude_m", "phase_rad", "period_s"]] = [
             "sine", fit.frequency_Hz, fit.amplitude_m, 0.0, 1.0 / fit.frequency_Hz]
-    return out, periodic, ", ".join(refused)
+    if not periodic:
+        return out, {}, ", ".join(refused), (f"no triangle or sine case, and no free record is periodic "
+                                             f"({', '.join(refused)}): {NOT_PERIODIC}")
+    log.info("free records %s diagnosed as periodic motions", ",".join(periodic))
+    return out, periodic, ", ".join(refused), ""
 
 
 def two_pass_observations(campaign: str, damper: Damper, modelled: pd.DataFrame, char: pd.DataFrame, load, scaled,
