@@ -280,6 +280,31 @@ def test_a_distorted_sine_sweep_with_friction_gets_friction_and_no_lag(tmp_path)
     assert result["instrument"]["force_lag_s"] is None
 
 
+def two_tone_copy(raw, source: str, name: str) -> str:
+    """A copy of a written record whose LVDT channel (um) is two incommensurate tones (0.2 and 0.37 Hz) and 1 um of
+    noise: a motion that is not periodic (its force no longer matches it, which nothing reaches)."""
+    lines = (raw / source).read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    noise = np.random.default_rng(3).standard_normal(len(rows))
+    for row, e in zip(rows, noise, strict=True):
+        t = float(row[0]) * 1e-3
+        row[1] = f"{40 * math.sin(2 * math.pi * 0.2 * t) + 15 * math.sin(2 * math.pi * 0.37 * t) + e:.3f}"
+    (raw / name).write_text("\n".join([lines[0], *(",".join(r) for r in rows)]) + "\n")
+    return name
+
+
+def test_a_campaign_of_free_records_none_periodic_is_not_diagnosed_and_says_why(tmp_path):
+    raw = tmp_path / "raw" / "road"
+    rrc.write_campaign(raw, [rr.SineCase("H01", 0.2, 40e-6, 4, 100.0)], rr.TABLE1, rr.NOMINAL_EFFECTS,
+                       rr.RigImperfections(**QUIET), 3, write_phase=False)
+    manifest = yaml.safe_load((raw / "campaign.yaml").read_text())
+    manifest["cases"] = [{"id": "R01", "waveform": "free", "file": two_tone_copy(raw, "H01.csv", "R01.csv")}]
+    (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
+    result = diagnose_raw_campaign(raw, tmp_path / "work")
+    assert result["status"] == "not_diagnosed"
+    assert "no free record is periodic (R01: " in result["reason"] and "not periodic" in result["reason"]
+
+
 @pytest.mark.slow
 def test_a_crank_sweep_declared_free_is_diagnosed_as_periodic_records(tmp_path):
     # init-campaign calls a slider crank's record free (its second harmonic is 6 % of the fundamental): without a
@@ -291,17 +316,8 @@ def test_a_crank_sweep_declared_free_is_diagnosed_as_periodic_records(tmp_path):
                        rr.RigImperfections(**{**QUIET, **CHAIN}), 11, write_phase=False)
     manifest = yaml.safe_load((raw / "campaign.yaml").read_text())
     manifest["cases"] = [{"id": c["id"], "waveform": "free", "file": c["file"]} for c in manifest["cases"]]
-    # and a record that is not periodic (its LVDT channel replaced by two incommensurate tones and 1 um of noise):
-    # set aside
-    lines = (raw / "H01.csv").read_text().splitlines()
-    header = lines[0].split(",")
-    rows = [line.split(",") for line in lines[1:]]
-    noise = np.random.default_rng(3).standard_normal(len(rows))
-    for row, e in zip(rows, noise, strict=True):
-        t = float(row[0]) * 1e-3
-        row[1] = f"{40 * math.sin(2 * math.pi * 0.2 * t) + 15 * math.sin(2 * math.pi * 0.37 * t) + e:.3f}"
-    (raw / "R01.csv").write_text("\n".join([",".join(header), *(",".join(r) for r in rows)]) + "\n")
-    manifest["cases"].append({"id": "R01", "waveform": "free", "file": "R01.csv"})
+    # and a record that is not periodic: set aside
+    manifest["cases"].append({"id": "R01", "waveform": "free", "file": two_tone_copy(raw, "H01.csv", "R01.csv")})
     (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False))
     result = diagnose_raw_campaign(raw, tmp_path / "work")
     assert result["verdict"] == ["friction"] and result["explained"] is True
