@@ -25,8 +25,9 @@ from isokinetic.physics.excitation import Segment, check_stroke, piston_segments
 from isokinetic.physics.hydraulics import Hydraulics, steady_pressure
 from isokinetic.physics.plan import CasePlan
 
-#: Relative tolerance of the model's integration: ~1e-7 of the force scale (measured against rtol 1e-12),
-#: far below any bin's noise, and smooth enough in the parameters for finite-difference Jacobians.
+#: Relative tolerance of the model's integration: ~1e-7 of the force scale up to 13 mm/s of peak speed, ~1e-5 at
+#: 0.13-0.16 m/s (measured against rtol 1e-12), far below any bin's noise, and smooth enough in the parameters for
+#: finite-difference Jacobians.
 SINE_RTOL = 1e-10
 
 
