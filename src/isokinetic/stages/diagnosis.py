@@ -299,7 +299,8 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
     if sensor.get("periodic"):
         result["sources"]["periodic"] = f"{','.join(sensor['periodic'])}: {PERIODIC_FREE}"
     if sensor.get("not_periodic"):
-        result["sources"]["not_used"] = f"{sensor['not_periodic']}: {NOT_PERIODIC}"
+        note, prior = f"{sensor['not_periodic']}: {NOT_PERIODIC}", result["sources"].get("not_used")
+        result["sources"]["not_used"] = f"{prior}; {note}" if prior else note
     if "sine_obs" in sensor:   # the sine cases set aside beside the triangles check their verdict
         check_verdict_on_sines(result, sensor, damper, alpha)
     return result, obs, predictions
