@@ -158,9 +158,7 @@ class Evaluator:
         lags = np.atleast_1d(np.asarray(lags_s, dtype=float))
         if effects.coulomb_force_N or effects.stribeck_force_N or any(self._sine):
             return self._shifted_means(self.forces(effects), lags)
-        shift = lags[:, None] * self._fs
-        k = np.floor(shift).astype(np.int64)
-        frac = shift - k
+        k, frac = self._lag_steps(lags)
         area, run = self._pressure_sums(effects)
         obs = self.obs
         case = np.broadcast_to(obs.case_index, k.shape).ravel()
@@ -177,6 +175,13 @@ class Evaluator:
             means.append(area * sums / self._n)
         return (1.0 - frac) * means[0] + frac * means[1]
 
+    def _lag_steps(self, lags: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each lag in whole samples k and the fraction of the next, per lag (rows) and observation (columns):
+        lag·fs = k + frac, the means of :meth:`lagged` interpolated between shifts k and k + 1."""
+        shift = lags[:, None] * self._fs
+        k = np.floor(shift).astype(np.int64)
+        return k, shift - k
+
     def read(self, effects: Effects, form: int, lags_s) -> np.ndarray:
         """Model mean force of every observation as a force channel of ``form`` reads it, one row per group
         delay of ``lags_s``: 0 a pure delay (:meth:`lagged`), 1 or 2 a Butterworth low-pass of that order
@@ -186,9 +191,7 @@ class Evaluator:
     def _shifted_means(self, forces: list[np.ndarray], lags: np.ndarray) -> np.ndarray:
         """Means of ``forces`` (per case, on its sample grid) over every observation's samples shifted back by
         each lag·fs, one row per lag (:meth:`lagged`)."""
-        shift = lags[:, None] * self._fs
-        k = np.floor(shift).astype(np.int64)
-        frac = shift - k
+        k, frac = self._lag_steps(lags)
         self._means(forces, 1)
         cs, first = self._sums, self._first[self._hole_row]
         means = [(cs[np.maximum(self._hi - j, self._first)] - cs[np.maximum(self._lo - j, self._first)]

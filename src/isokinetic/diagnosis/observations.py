@@ -229,7 +229,7 @@ class _Collector:
                     break
                 before = len(self.cols["case"])
                 last = max(last, self.add(rec, kind, 2 * steady + (1 if sign > 0 else 2), sign, a, b,
-                                          1 + steady % 2, mean_speed(fit, a, b), j, m))
+                                          1 + steady % 2, mean_speed(rec.drive, a, b), j, m))
                 self.cols["speed_rel_se"] += [fit.amplitude_rel_se] * (len(self.cols["case"]) - before)
         if last == 0:
             return

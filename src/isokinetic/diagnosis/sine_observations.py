@@ -38,6 +38,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from isokinetic.physics.sine_drive import SineDrive
+
 #: Phase bins per cycle (a multiple of 4).
 N_SINE_BINS = 16
 #: Cycles left out at the start of a record: the servo's start-up, which the fitted sine does not describe.
@@ -240,17 +242,14 @@ def phase_bins(n_bins: int = N_SINE_BINS) -> list[tuple[float, float, float, str
 SPEED_POINTS = 256
 
 
-def mean_speed(fit: SineFit, a_s: float, b_s: float) -> float:
-    """Mean |dy/dt| of the fitted motion over plan times [a, b) [m/s]: of a sine inside one direction of motion,
-    |y(b) - y(a)| / (b - a); with harmonics (whose reversals need not be the sine's) by the midpoint rule."""
-    w = 2.0 * math.pi * fit.frequency_Hz
-    if not fit.harmonics:
-        return abs(fit.amplitude_m * (math.sin(w * b_s) - math.sin(w * a_s))) / (b_s - a_s)
+def mean_speed(drive: SineDrive, a_s: float, b_s: float) -> float:
+    """Mean |dy/dt| of a sine record's drive over plan times [a, b) [m/s]: of a sine inside one direction of
+    motion, |y(b) - y(a)| / (b - a); with harmonics (whose reversals need not be the sine's) by the midpoint rule."""
+    w = 2.0 * math.pi * drive.frequency_Hz
+    if not drive.harmonics:
+        return abs(drive.amplitude_m * (math.sin(w * b_s) - math.sin(w * a_s))) / (b_s - a_s)
     u = w * (a_s + (np.arange(SPEED_POINTS) + 0.5) * (b_s - a_s) / SPEED_POINTS)
-    v = fit.amplitude_m * np.cos(u)
-    for k, a_k, theta in fit.harmonics:
-        v = v + k * a_k * np.cos(k * u + theta)
-    return float(w * np.mean(np.abs(v)))
+    return float(w * np.mean(np.abs(drive.phase_velocity(u))))
 
 
 #: A bin with at least this many steady cycles has its noise read from the later half of them

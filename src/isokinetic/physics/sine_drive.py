@@ -87,11 +87,15 @@ class SineDrive:
 
     def velocity(self, tau_s) -> np.ndarray:
         """dy/dτ for τ > 0 [m/s]."""
-        tau = np.asarray(tau_s, dtype=float)
         omega = 2.0 * math.pi * self.frequency_Hz
-        v = self.amplitude_m * omega * np.cos(omega * tau)
+        return omega * self.phase_velocity(omega * np.asarray(tau_s, dtype=float))
+
+    def phase_velocity(self, u) -> np.ndarray:
+        """dy/du at the fundamental's phases u = ωτ [m/rad]: Y cos u + Σ k A_k cos(k u + θ_k)."""
+        u = np.asarray(u, dtype=float)
+        v = self.amplitude_m * np.cos(u)
         for k, a_k, theta in self.harmonics:
-            v = v + a_k * k * omega * np.cos(k * omega * tau + theta)
+            v = v + k * a_k * np.cos(k * u + theta)
         return v
 
 

@@ -138,7 +138,7 @@ def sine_actuator_pieces(case, rig: RigImperfections, t_end_s: float) -> list:
     rest = [ActuatorPiece(0.0, d, 0.0, 0.0, rig.servo_lag_s, 0.0)] if d > 0.0 else []
     return rest + [SineActuatorPiece(min(d, t_end_s), t_end_s, d, case.amplitude_m,
                                      2.0 * math.pi * case.frequency_Hz, rig.servo_lag_s,
-                                     tuple(getattr(case, "harmonics", ())))]
+                                     case.harmonics)]
 
 
 def _actuator_turning_times(pieces: Sequence) -> list[float]:

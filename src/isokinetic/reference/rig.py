@@ -290,6 +290,11 @@ class TriangleCase:
         return self.velocity_m_s * self.period_s / 4.0
 
     @property
+    def stroke_amplitude_m(self) -> float:
+        """The largest |c(t)|: Y."""
+        return self.amplitude_m
+
+    @property
     def duration_s(self) -> float:
         return 2.0 * self.period_s
 
@@ -606,7 +611,7 @@ def _check_stroke(case: RigCase, model: ChamberModel) -> None:
     """The stroke must leave oil in both chambers (Eq. 12: T_max < T_lim)."""
     a = model.piston_area_m2
     for v0, gas in ((model.chamber_volume_1_m3, model.gas_1_Pa_m3), (model.chamber_volume_2_m3, model.gas_2_Pa_m3)):
-        if not a * getattr(case, "stroke_amplitude_m", case.amplitude_m) < 0.95 * (v0 - gas / model.charge_pressure_Pa):
+        if not a * case.stroke_amplitude_m < 0.95 * (v0 - gas / model.charge_pressure_Pa):
             raise ValueError(f"case {case.case_id}: amplitude {case.amplitude_m:g} m empties a chamber")
 
 
