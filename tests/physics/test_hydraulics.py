@@ -11,6 +11,7 @@ import pytest
 from isokinetic.physics import damper as dm
 from isokinetic.physics import hydraulics as hyd_module
 from isokinetic.physics.damper import TABLE_1
+from isokinetic.physics.gas_law import compressibility_ratio
 from isokinetic.physics.hydraulics import (
     Hydraulics,
     compressibility_time,
@@ -172,5 +173,89 @@ def test_one_sided_path_table_matches_an_ode_solution(dp0, w):
         return [(qp - hyd.flow(y[0])) / (hyd.compressibility_1_Pa * hyd.composite_volume(w * tt))]
 
     sol = solve_ivp(rate, (0.0, 5.0), [dp0], t_eval=t, method="LSODA", rtol=1e-12, atol=1e-6)
+    scale = max(abs(steady_pressure(qp, hyd)), abs(dp0))
+    assert np.max(np.abs(got - sol.y[0])) < 1e-8 * scale
+
+
+# --------------------------------------------------------------------------------------------
+# air under the gas law (a damper with a charge pressure)
+# --------------------------------------------------------------------------------------------
+
+GAS_DAMPER = dataclasses.replace(TABLE_1, chamber_volume_2_m3=2.2e-4, charge_pressure_Pa=1.0e7)
+
+
+def test_without_a_charge_pressure_air_keeps_the_constant_compressibility_of_eq_3():
+    hyd = Hydraulics.from_damper(TABLE_1, dm.Effects(air_volume_fraction=3e-4))
+    assert not hyd.gas_law and hyd.tau_compressibility_1_Pa == hyd.compressibility_1_Pa
+    assert hyd.gas_volumes_m3 == (0.0, 0.0)
+    ratio, slope = hyd.compressibility_ratio(np.array([-3e6, 0.0, 3e6]))
+    assert np.array_equal(ratio, np.ones(3)) and np.array_equal(slope, np.zeros(3))
+
+
+def test_the_gas_laws_compliance_at_rest_is_the_mixture_of_oil_and_gas_at_the_charge_pressure():
+    """𝒞_i(p0) = β_oil V_i (1 - φ0) + φ0 V_i/p0 in series, φ0 = φ_cat 9.9e-6 p0 (Eq. 3 without its approximation)."""
+    hyd = Hydraulics.from_damper(GAS_DAMPER, dm.Effects(air_volume_fraction=3e-4))
+    phi0 = 3e-4 * 9.9e-6 * 1.0e7
+    c1, c2 = ((3.8e-9 * (1 - phi0) + phi0 / 1.0e7) * v for v in (3.0e-4, 2.2e-4))
+    assert hyd.rest_compliance(0.0) == pytest.approx(c1 * c2 / (c1 + c2), rel=1e-13)
+    ratio, _ = hyd.compressibility_ratio(0.0)
+    assert float(ratio) == pytest.approx(1.0, abs=1e-14)
+
+
+def test_the_gas_laws_pure_gas_split_is_the_quadratic_of_boyles_law():
+    """Without oil compressibility the chambers keep their gas volume: V1/p1 + V2/p2 = (V1 + V2)/p0, a quadratic in
+    p1 solved here by hand; the compliance ratio is then that of G_i/p_i² in series."""
+    p0, v1, v2, dp = 1.0e7, 3.0e-4, 2.2e-4, 4.0e6
+    k = (v1 + v2) / p0
+    b = k * dp + v1 + v2
+    p1 = (b + math.sqrt(b * b - 4 * k * v1 * dp)) / (2 * k)
+    p2 = p1 - dp
+    c = [v * p0 / p**2 for v, p in ((v1, p1), (v2, p2))]
+    c0 = [v / p0 for v in (v1, v2)]
+    expected = (c[0] * c[1] / (c[0] + c[1])) / (c0[0] * c0[1] / (c0[0] + c0[1]))
+    ratio, _ = compressibility_ratio(dp, 1e-30, 1.0 / p0, p0, v1, v2)
+    assert float(ratio) == pytest.approx(expected, rel=1e-10)
+
+
+def test_the_gas_laws_ratio_slope_is_its_derivative():
+    hyd = Hydraulics.from_damper(GAS_DAMPER, dm.Effects(air_volume_fraction=3e-4))
+    dp = np.array([-4e6, -5e5, 0.0, 2e6, 6e6])
+    for y, stored in ((0.0, 0.0), (3e-3, 2e-7)):
+        _, slope = hyd.compressibility_ratio(dp, y, stored)
+        up, down = (hyd.compressibility_ratio(dp + h, y, stored)[0] for h in (1e2, -1e2))
+        np.testing.assert_allclose(slope, (up - down) / 2e2, rtol=1e-6, atol=1e-16)
+
+
+def test_the_gas_laws_ratio_of_floats_is_its_ratio_of_arrays():
+    """An ODE right-hand side takes the float closure (math, warm-started): the numbers of the vectorised one."""
+    hyd = Hydraulics.from_damper(GAS_DAMPER, dm.Effects(air_volume_fraction=3e-4))
+    dp, y, stored = np.array([-4e6, 0.0, 3e6, 3.1e6]), np.array([1e-3, 0.0, -2e-3, -2e-3]), \
+        np.array([1e-7, 0.0, -3e-7, -3e-7])
+    arrays = hyd.compressibility_ratio(dp, y, stored)
+    ratio = hyd.scalar_compressibility_ratio()
+    for k in range(dp.size):
+        floats = ratio(float(dp[k]), float(y[k]), float(stored[k]))
+        assert all(isinstance(x, float) for x in floats)
+        np.testing.assert_allclose(floats, [arrays[0][k], arrays[1][k]], rtol=1e-12, atol=1e-20)
+
+
+@pytest.mark.parametrize("dp0, w, y0, stored", [(0.0, 1e-3, -5e-3, 0.0), (5e6, -1e-3, 5e-3, 3e-7),
+                                                (-2e6, 3e-4, -2e-3, -1e-7)],
+                         ids=["from rest", "reversal to -", "reversal to +"])
+def test_gas_law_table_matches_an_ode_solution(dp0, w, y0, stored):
+    """The segment table with the gas law's r(Δp, y0, K) against solve_ivp of 𝒞(0, y) r dΔp/dt = A_p W - Q_N."""
+    from scipy.integrate import solve_ivp
+
+    hyd = Hydraulics.from_damper(GAS_DAMPER, dm.Effects(air_volume_fraction=3e-4, leakage_conductance_m3_s_Pa=1e-13))
+    qp = hyd.piston_area_m2 * w
+    t = np.linspace(0.0, 1.5, 300)
+    table = hyd_module.relaxation_batch([dp0], [qp], hyd, y_start_m=[y0], stored_m3=[stored]).relaxation(0)
+    got = table.pressure(compressibility_time(t, y0, w, hyd))
+
+    def rate(tt, y):
+        r = float(hyd.compressibility_ratio(y[0], y0, stored)[0])
+        return [(qp - hyd.flow(y[0])) / (hyd.rest_compliance(y0 + w * tt) * r)]
+
+    sol = solve_ivp(rate, (0.0, 1.5), [dp0], t_eval=t, method="LSODA", rtol=1e-12, atol=1e-4)
     scale = max(abs(steady_pressure(qp, hyd)), abs(dp0))
     assert np.max(np.abs(got - sol.y[0])) < 1e-8 * scale

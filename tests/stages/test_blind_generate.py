@@ -187,7 +187,8 @@ def test_export_holds_no_truth_and_is_byte_reproducible(suite, tmp_path):
             assert repr(value) not in text and f"{value:.6g}" not in text
         assert manifest["source"] == "simulation" and manifest["campaign"] == s.name
         assert manifest["description"] == gen.DESCRIPTION
-        assert manifest["damper"] == s.damper.to_dict()  # nominal: no off-nominal C_D or viscosity
+        # nominal: no off-nominal C_D or viscosity; the charge pressure is design data (air follows the gas law)
+        assert manifest["damper"] == {**s.damper.to_dict(), "charge_pressure_Pa": s.effects.charge_pressure_Pa}
         truth = json.loads((tmp_path / "a" / "truth" / f"{s.name}.json").read_text(encoding="utf-8"))
         assert truth["truth"] == list(s.truth) and truth["multiple"] == s.multiple
         assert truth["out_of_catalogue"] == s.out_of_catalogue

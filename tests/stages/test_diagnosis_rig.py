@@ -32,11 +32,12 @@ def rig_cases(plan=PLAN, fs: float = 50.0):
     return [rr.TriangleCase(f"T{i:02d}", w * 1e-3, t, fs) for i, (w, t) in enumerate(plan, start=1)]
 
 
-def diagnose_rig(tmp_path, name: str, effects=rr.NOMINAL_EFFECTS, seed: int = 7, plan=PLAN, **rig) -> dict:
+def diagnose_rig(tmp_path, name: str, effects=rr.NOMINAL_EFFECTS, seed: int = 7, plan=PLAN,
+                 declare_charge_pressure: bool = False, **rig) -> dict:
     """Simulate a campaign on the reference rig, write it as raw data and run the whole chain."""
     raw = tmp_path / "raw" / name
     rrc.write_campaign(raw, rig_cases(plan), rr.TABLE1, effects, rr.RigImperfections(**{**QUIET, **rig}), seed,
-                      write_phase=False)
+                      write_phase=False, declare_charge_pressure=declare_charge_pressure)
     return diagnose_raw_campaign(raw, tmp_path / "work")
 
 
@@ -156,6 +157,23 @@ def test_a_force_channel_low_pass_is_reported_as_a_lag_not_as_damper_physics(tmp
     assert result["verdict"] == []
     assert result["instrument"]["force_lag_s"] == pytest.approx(rig.force_group_delay_s(), abs=0.005)
     assert "transient mismatch is consistent with sensor dynamics" in result["sensor_note"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("declared", [True, False], ids=["charge declared", "no charge pressure"])
+def test_air_under_the_gas_law_behind_a_force_low_pass(tmp_path, declared):
+    """Air that follows the gas law at up to 0.8 of a 10 MPa charge (the rig's two chambers) behind a 5 Hz
+    low-pass: with the charge pressure declared, air explained, its size and the lag measured; without it, Eq. 3's
+    constant compressibility does not explain the transients, and the verdict says so."""
+    effects = rr.TrueEffects(air_fraction_at_charge=rrc.air_fraction_from_catalogue(3e-4, 1e7), charge_pressure_Pa=1e7)
+    rig = rr.RigImperfections(**{**QUIET, **CHAIN, "force_filter_Hz": 5.0, "force_filter_order": 2})
+    result = diagnose_rig(tmp_path, "gas-law-air", effects, seed=11, declare_charge_pressure=declared, **CHAIN,
+                          force_filter_Hz=5.0, force_filter_order=2)
+    assert result["verdict"] == ["air"]
+    assert result["explained"] is declared
+    if declared:
+        assert result["params"]["air_volume_fraction"] == pytest.approx(3e-4, rel=0.15)
+        assert result["instrument"]["force_lag_s"] == pytest.approx(rig.force_group_delay_s(), abs=0.005)
 
 
 def test_without_a_force_lag_no_lag_is_reported(tmp_path):

@@ -361,6 +361,8 @@ def _damper(block, where: str) -> tuple[Damper | None, dict]:
     values = {}
     for f in fields(Damper):
         if f.name not in block:
+            if f.name in Damper.OPTIONAL:
+                continue
             raise ManifestError(where, f"damper.{f.name}", "missing")
         value = number(block[f.name])
         if value is None or value <= 0:

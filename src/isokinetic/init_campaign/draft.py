@@ -37,6 +37,7 @@ DAMPER_HELP = {
     "density_kg_m3": "oil density",
     "viscosity_Pa_s": "dynamic viscosity at the test temperature",
     "oil_compressibility_1_Pa": "oil compressibility",
+    "charge_pressure_Pa": "optional: absolute chamber pressure at rest (precharge)",
 }
 _CONTROL = re.compile(r"[\x00-\x1f\x7f\u2028\u2029\x85]")
 
@@ -141,7 +142,8 @@ def campaign_lines(survey: Survey) -> list[str]:
 
 def damper_lines() -> list[str]:
     out = ["# damper:   nominal design data in SI units. It cannot be inferred from the records: fill in all nine",
-           "#           keys and uncomment the block (without it there is no nominal model to compare against)."]
+           "#           keys and uncomment the block (without it there is no nominal model to compare against).",
+           "#           charge_pressure_Pa is optional: with it, entrained air follows the gas law."]
     for f in fields(Damper):
         out.append(line(0, f"#   {f.name}:", DAMPER_HELP.get(f.name, "")))
     return out

@@ -19,7 +19,12 @@ AIR_COMPRESSIBILITY_1_PA = 9.9e-6
 
 @dataclass(frozen=True)
 class Damper:
-    """Nominal design data of a two-chamber symmetric damper (Table 1 quantities)."""
+    """Nominal design data of a two-chamber symmetric damper (Table 1 quantities).
+
+    ``charge_pressure_Pa`` (optional, not in Table 1) is the absolute pressure p0 of both chambers at
+    rest (the accumulator's precharge). Declared, entrained air follows the isothermal gas law around
+    it (:mod:`isokinetic.physics.gas_law`); without it the air term of Eq. (3) is constant.
+    """
 
     piston_area_m2: float
     chamber_volume_1_m3: float
@@ -30,24 +35,37 @@ class Damper:
     density_kg_m3: float
     viscosity_Pa_s: float
     oil_compressibility_1_Pa: float
+    charge_pressure_Pa: float | None = None
+
+    #: Design data a damper block may leave out.
+    OPTIONAL = ("charge_pressure_Pa",)
+
+    @classmethod
+    def required(cls) -> list[str]:
+        """The field names a damper block must give."""
+        return [f.name for f in dataclasses.fields(cls) if f.name not in cls.OPTIONAL]
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, float]) -> Damper:
-        """Build from a mapping with exactly the field names; raises KeyError naming the key."""
+        """Build from a mapping of the field names (the optional ones may be absent or None); raises
+        KeyError naming a missing key, ValueError naming one that is not a positive number."""
         names = [f.name for f in dataclasses.fields(cls)]
-        missing = [n for n in names if n not in values]
+        missing = [n for n in cls.required() if n not in values]
         if missing:
             raise KeyError(f"damper: missing key {missing[0]!r}")
         out = {}
         for n in names:
-            v = values[n]
+            v = values.get(n)
+            if v is None and n in cls.OPTIONAL:
+                continue
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
                 raise ValueError(f"damper: key {n!r} must be a positive number, got {v!r}")
             out[n] = float(v)
         return cls(**out)
 
     def to_dict(self) -> dict[str, float]:
-        return dataclasses.asdict(self)
+        """The design data by field name; an optional datum left out is absent."""
+        return {k: v for k, v in dataclasses.asdict(self).items() if not (v is None and k in self.OPTIONAL)}
 
 
 @dataclass(frozen=True)
@@ -70,7 +88,9 @@ class Effects:
     discharge, viscosity
         ``discharge_coefficient`` / ``viscosity_Pa_s`` replacing the nominal value.
     air
-        Entrained air volume fraction V_G/V_C in Eq. (3).
+        Entrained air volume fraction V_G/V_C in Eq. (3): the gas term of β_eff is φ β_G at rest. With
+        the damper's ``charge_pressure_Pa`` it follows the gas law as the chamber pressures move
+        (:mod:`isokinetic.physics.gas_law`).
     backlash
         Total free play ``backlash_m`` in the attachment (a play operator between actuator
         and piston).

@@ -43,6 +43,7 @@ from functools import cached_property
 import numpy as np
 
 from isokinetic.physics.damper import (
+    AIR_COMPRESSIBILITY_1_PA,
     NOMINAL,
     Damper,
     Effects,
@@ -50,6 +51,7 @@ from isokinetic.physics.damper import (
     laminar_coefficient,
     turbulent_coefficient,
 )
+from isokinetic.physics.gas_law import compressibility_ratio, hermite, scalar_compressibility_ratio
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,8 @@ class Hydraulics:
     ``turbulent_coefficient_pos``/``_neg`` are c2 for Δp > 0 / Δp < 0 (asymmetric C_D);
     ``laminar_coefficient_neg`` is c1 for Δp < 0 (None: ``laminar_coefficient``, the same both ways;
     a one-sided flow path). c1 = 0 (pure turbulent) or c2 = 0 (pure laminar) are allowed, not both.
+    ``charge_pressure_Pa`` set: the part ``air_compressibility_1_Pa`` of ``compressibility_1_Pa`` (the gas
+    term of Eq. 3 at rest) follows the gas law around it (:meth:`compressibility_ratio`, :mod:`.gas_law`).
     """
 
     piston_area_m2: float
@@ -70,6 +74,8 @@ class Hydraulics:
     turbulent_coefficient_neg: float
     leakage_conductance_m3_s_Pa: float = 0.0
     laminar_coefficient_neg: float | None = None
+    air_compressibility_1_Pa: float = 0.0
+    charge_pressure_Pa: float | None = None
 
     def __post_init__(self):
         if self.laminar_coefficient_neg == self.laminar_coefficient:
@@ -82,10 +88,16 @@ class Hydraulics:
             raise ValueError("hydraulics: c1 = 0 needs c2 > 0 in that direction")
         if self.leakage_conductance_m3_s_Pa < 0:
             raise ValueError("hydraulics: leakage conductance must be >= 0")
+        if not 0.0 <= self.air_compressibility_1_Pa < self.compressibility_1_Pa:
+            raise ValueError("hydraulics: the air's compressibility must lie in [0, compressibility_1_Pa)")
+        if self.charge_pressure_Pa is not None and not self.charge_pressure_Pa > 0:
+            raise ValueError("hydraulics: the charge pressure must be > 0")
 
     @classmethod
     def from_damper(cls, damper: Damper, effects: Effects = NOMINAL) -> Hydraulics:
-        """Truth coefficients: Table 1 data with the effects (Eq. 3, 7, leakage, asymmetry)."""
+        """Truth coefficients: Table 1 data with the effects (Eq. 3, 7, leakage, asymmetry); air follows the
+        gas law where the damper declares its charge pressure."""
+        gas_law = damper.charge_pressure_Pa is not None and effects.air_volume_fraction > 0
         return cls(piston_area_m2=damper.piston_area_m2,
                    chamber_volume_1_m3=damper.chamber_volume_1_m3,
                    chamber_volume_2_m3=damper.chamber_volume_2_m3,
@@ -94,7 +106,53 @@ class Hydraulics:
                    turbulent_coefficient_pos=float(turbulent_coefficient(damper, effects, +1.0)),
                    turbulent_coefficient_neg=float(turbulent_coefficient(damper, effects, -1.0)),
                    leakage_conductance_m3_s_Pa=effects.leakage_conductance_m3_s_Pa,
-                   laminar_coefficient_neg=float(laminar_coefficient(damper, effects, -1.0)))
+                   laminar_coefficient_neg=float(laminar_coefficient(damper, effects, -1.0)),
+                   air_compressibility_1_Pa=effects.air_volume_fraction * AIR_COMPRESSIBILITY_1_PA if gas_law else 0.0,
+                   charge_pressure_Pa=damper.charge_pressure_Pa if gas_law else None)
+
+    @property
+    def gas_law(self) -> bool:
+        """Whether the compressibility depends on Δp (air under the gas law)."""
+        return self.charge_pressure_Pa is not None and self.air_compressibility_1_Pa > 0.0
+
+    @property
+    def tau_compressibility_1_Pa(self) -> float:
+        """The β of Eq. (14)'s τ: β_eff, or the oil's β with the gas law (and :attr:`gas_volumes_m3`)."""
+        return self.compressibility_1_Pa - self.air_compressibility_1_Pa if self.gas_law else self.compressibility_1_Pa
+
+    @property
+    def gas_volumes_m3(self) -> tuple[float, float]:
+        """With the gas law, V0,i φ0 (1/(β_oil p0) - 1), φ0 = γ p0: chamber i at rest has the compliance
+        β_oil (V_i(y) + this), its gas fixed as the piston moves (:mod:`.gas_law`). (0, 0) without."""
+        if not self.gas_law:
+            return 0.0, 0.0
+        oil, phi0 = self.tau_compressibility_1_Pa, self.air_compressibility_1_Pa * self.charge_pressure_Pa
+        k = phi0 * (1.0 / (oil * self.charge_pressure_Pa) - 1.0)
+        return self.chamber_volume_1_m3 * k, self.chamber_volume_2_m3 * k
+
+    def rest_compliance(self, y_m):
+        """𝒞(Δp = 0) at piston position y [m³/Pa]: β_eff 𝒱(y), Eq. (2)-(3), with the gas law's gas volumes."""
+        (g1, g2), a = self.gas_volumes_m3, self.piston_area_m2
+        v1, v2 = self.chamber_volume_1_m3 + g1 - a * y_m, self.chamber_volume_2_m3 + g2 + a * y_m
+        return self.tau_compressibility_1_Pa * v1 * v2 / (v1 + v2)
+
+    def compressibility_ratio(self, dp_Pa, y_m=0.0, stored_m3=0.0) -> tuple[np.ndarray, np.ndarray]:
+        """(r, dr/dΔp): 𝒞(Δp, y, K) = :meth:`rest_compliance` (y) r(Δp, y, K) with the gas law, K the stored
+        volume (:func:`isokinetic.physics.gas_law.compressibility_ratio`); r = 1 without."""
+        if not self.gas_law:
+            shape = np.broadcast(np.asarray(dp_Pa), np.asarray(y_m), np.asarray(stored_m3)).shape
+            return np.ones(shape), np.zeros(shape)
+        return compressibility_ratio(dp_Pa, *self._gas, y_m, self.piston_area_m2, stored_m3)
+
+    def scalar_compressibility_ratio(self):
+        """:meth:`compressibility_ratio` of floats, (Δp, y, K) -> (r, dr/dΔp), for an ODE's right-hand side
+        (:func:`isokinetic.physics.gas_law.scalar_compressibility_ratio`)."""
+        return scalar_compressibility_ratio(*self._gas, self.piston_area_m2)
+
+    @property
+    def _gas(self) -> tuple[float, ...]:
+        return (self.tau_compressibility_1_Pa, self.air_compressibility_1_Pa, self.charge_pressure_Pa,
+                self.chamber_volume_1_m3, self.chamber_volume_2_m3)
 
     def c1(self, sign):
         """c1 of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
@@ -180,9 +238,8 @@ def compressibility_time(dt_s, y_start_m: float, velocity_m_s: float, hyd: Hydra
     Δt / (β 𝒱(y_s)) when W = 0.
     """
     dt = np.asarray(dt_s, dtype=float)
-    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
-    v1 = hyd.chamber_volume_1_m3 - a * y_start_m
-    v2 = hyd.chamber_volume_2_m3 + a * y_start_m
+    a, beta = hyd.piston_area_m2, hyd.tau_compressibility_1_Pa
+    v1, v2 = start_volumes(y_start_m, hyd)
     if velocity_m_s == 0.0:
         return dt * (1.0 / v1 + 1.0 / v2) / beta
     qp = a * velocity_m_s
@@ -412,9 +469,12 @@ def _sum(x: np.ndarray, axis: int | None = None):
 
 
 def _integrand(uu: np.ndarray, n: int, pp: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray,
-               p_star: np.ndarray, hyd: Hydraulics):
+               p_star: np.ndarray, hyd: Hydraulics, y0: np.ndarray | None = None, k0: np.ndarray | None = None,
+               panel_nodes: np.ndarray | None = None):
     """dτ/du at points u of their problems (``pp``: the problem of each point; q*, s, A_p W, Δp* per problem), and
-    at the first ``n`` points (the nodes) also dΔp/dτ, δ = Δp - Δp* and dΔp/dq.
+    at the first ``n`` points (the nodes) also dΔp/dτ, δ = Δp - Δp* and dΔp/dq; with the gas law also r and
+    dr/dΔp at the nodes (else None), r at the problem's start position ``y0`` and stored volume ``k0``
+    (``panel_nodes``: the first node of each Gauss point's panel).
 
     On the side of q*: A_pW - Q_N = (q* - q)(1 + g c1 + g c2 (|q*| + |q|)), exactly; across q = 0
     from the other side the direct form.
@@ -460,7 +520,19 @@ def _integrand(uu: np.ndarray, n: int, pp: np.ndarray, q_star: np.ndarray, s: np
         o_nodes = o[:int(o.searchsorted(n))]
         f[o_nodes] = fo[:o_nodes.size]
         delta[o_nodes] = po[:o_nodes.size] - p_star.take(pp.take(o_nodes))
-    return dtau, f, delta, dpdq[:n]
+    if not hyd.gas_law:
+        return dtau, f, delta, dpdq[:n], None
+    # the gas law: 𝒞(0, y) r(Δp) dΔp/dt = A_p W - Q_N, so dτ/du and dΔp/dτ carry r; r at the nodes, at the
+    # Gauss points the cubic Hermite interpolant in Δp between their panel's nodes (``panel_nodes``)
+    dp = c1 * q + c2 * q * aq
+    nodes = pp[:n]
+    ratio, slope = hyd.compressibility_ratio(dp[:n], 0.0 if y0 is None else y0.take(nodes),
+                                             0.0 if k0 is None else k0.take(nodes))
+    f /= ratio
+    dtau[:n] *= ratio
+    dtau[n:] *= hermite(dp[n:], dp.take(panel_nodes), dp.take(panel_nodes + 1), ratio.take(panel_nodes),
+                         ratio.take(panel_nodes + 1), slope.take(panel_nodes), slope.take(panel_nodes + 1))
+    return dtau, f, delta, dpdq[:n], (ratio, slope)
 
 
 def _node_tau(panel_integrals: np.ndarray, hi: np.ndarray, sizes: np.ndarray, first: np.ndarray,
@@ -587,7 +659,8 @@ def _pairs(k: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 def _tables(u: np.ndarray, sizes: np.ndarray, q_star: np.ndarray, s: np.ndarray, qp: np.ndarray,
-            p_star: np.ndarray, dp0: np.ndarray, hyd: Hydraulics) -> tuple[np.ndarray, np.ndarray]:
+            p_star: np.ndarray, dp0: np.ndarray, hyd: Hydraulics, y0: np.ndarray | None = None,
+            k0: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(τ at the nodes, panel polynomials) of every problem from its nodes u (descending, concatenated)."""
     g = hyd.leakage_conductance_m3_s_Pa
     first = sizes.cumsum() - sizes
@@ -604,10 +677,15 @@ def _tables(u: np.ndarray, sizes: np.ndarray, q_star: np.ndarray, s: np.ndarray,
         np.multiply(half, x, out=pts[:, k])
         pts[:, k] += mid
     pp = np.concatenate([prob, prob.take(hi).repeat(_GL_X.size)])
-    dtau, f, delta, dpdq = _integrand(uu, n, pp, q_star, s, qp, p_star, hyd)
+    dtau, f, delta, dpdq, gas = _integrand(uu, n, pp, q_star, s, qp, p_star, hyd, y0, k0,
+                                           hi.repeat(_GL_X.size) if hyd.gas_law else None)
     tau = _node_tau(half * (dtau[n:].reshape(pts.shape) @ _GL_W), hi, sizes, first, prob)
     # d²Δp/dτ² = f'(q) dq/dτ = -(1 + g dΔp/dq) f / (dΔp/dq); infinite where dΔp/dq = 0
     curv = np.divide(-(1.0 + g * dpdq) * f, dpdq, out=np.full(n, np.inf), where=dpdq > 0)
+    if gas is not None:     # f = (A_p W - Q_N)/r: d²Δp/dτ² = (f F' - f² r')/r, F' = -(1 + g dΔp/dq)/(dΔp/dq)
+        ratio, slope = gas
+        curv -= f * f * slope
+        curv /= ratio
     if hyd.laminar_coefficient_neg is not None:     # c1 jumps at q = 0: d²Δp/dτ² is one-sided there (cubic)
         qs = q_star.take(prob)
         q_nodes = qs - s.take(prob) * np.exp(u)
@@ -618,17 +696,22 @@ def _tables(u: np.ndarray, sizes: np.ndarray, q_star: np.ndarray, s: np.ndarray,
     return tau, coef
 
 
-def relaxation_batch(dp0_Pa, piston_flows_m3_s, hyd: Hydraulics, step: float = DEFAULT_STEP) -> RelaxationBatch:
-    """:func:`relaxations` as one :class:`RelaxationBatch` (no per-problem objects): the batched form."""
+def relaxation_batch(dp0_Pa, piston_flows_m3_s, hyd: Hydraulics, step: float = DEFAULT_STEP,
+                     y_start_m=None, stored_m3=None) -> RelaxationBatch:
+    """:func:`relaxations` as one :class:`RelaxationBatch` (no per-problem objects): the batched form.
+    ``y_start_m``, ``stored_m3``: each problem's piston position and stored volume at its start, where the gas
+    law's r(Δp, y, K) is taken (:meth:`Hydraulics.compressibility_ratio`; 0 when None)."""
     dp0 = np.asarray(dp0_Pa, dtype=float).reshape(-1)
     qp = np.asarray(piston_flows_m3_s, dtype=float).reshape(-1)
     if dp0.size != qp.size:
         raise ValueError(f"{dp0.size} start pressures for {qp.size} piston flows")
+    y0, k0 = ((None if x is None or not hyd.gas_law else np.broadcast_to(np.asarray(x, dtype=float), dp0.shape))
+              for x in (y_start_m, stored_m3))
     q_star, s, p_star, q0, dist = _problems(dp0, qp, hyd)
     moving = (dist != 0.0) & np.isfinite(dist)
     if moving.all():
         u, sizes = _node_sets(q_star, q0, dist, hyd, step)
-        tau, coef = _tables(u, sizes, q_star, s, qp, p_star, dp0, hyd)
+        tau, coef = _tables(u, sizes, q_star, s, qp, p_star, dp0, hyd, y0, k0)
         return RelaxationBatch(tau, coef, sizes.cumsum() - sizes, sizes, p_star)
     sizes = np.ones(dp0.size, dtype=np.int64)
     steady = np.where(moving, p_star, dp0)
@@ -636,7 +719,8 @@ def relaxation_batch(dp0_Pa, piston_flows_m3_s, hyd: Hydraulics, step: float = D
         return RelaxationBatch(np.zeros(dp0.size), np.zeros((6, 0)), np.arange(dp0.size), sizes, steady)
     m = np.flatnonzero(moving)
     u, node_sizes = _node_sets(q_star[m], q0[m], dist[m], hyd, step)
-    tau_m, coef = _tables(u, node_sizes, q_star[m], s[m], qp[m], p_star[m], dp0[m], hyd)
+    tau_m, coef = _tables(u, node_sizes, q_star[m], s[m], qp[m], p_star[m], dp0[m], hyd,
+                          None if y0 is None else y0[m], None if k0 is None else k0[m])
     sizes[m] = node_sizes
     first = np.cumsum(sizes) - sizes
     tau = np.zeros(int(sizes.sum()))                 # a constant's single node is τ = 0
@@ -676,8 +760,12 @@ def relaxation(dp0_Pa: float, piston_flow_m3_s: float, hyd: Hydraulics, step: fl
 
 
 def start_volumes(y_start_m, hyd: Hydraulics):
-    """Chamber volumes (V1, V2) at piston positions y, Eq. (2) [m³]."""
+    """Chamber volumes (V1, V2) at piston positions y, Eq. (2), plus the gas law's gas volumes
+    (:attr:`Hydraulics.gas_volumes_m3`) [m³]."""
     a = hyd.piston_area_m2
+    if hyd.gas_law:
+        g1, g2 = hyd.gas_volumes_m3
+        return hyd.chamber_volume_1_m3 + g1 - a * y_start_m, hyd.chamber_volume_2_m3 + g2 + a * y_start_m
     return hyd.chamber_volume_1_m3 - a * y_start_m, hyd.chamber_volume_2_m3 + a * y_start_m
 
 
@@ -704,8 +792,9 @@ def compressibility_logs(dt_s: np.ndarray, volume_1_m3: np.ndarray, volume_2_m3:
 
 
 def compressibility_divisors(piston_flow_m3_s: np.ndarray, hyd: Hydraulics) -> np.ndarray:
-    """β_eff A_p W of Eq. (14) (β_eff where A_p W = 0), element by element [Pa m³/s]."""
-    beta = hyd.compressibility_1_Pa
+    """β_eff A_p W of Eq. (14) (β_eff where A_p W = 0), element by element [Pa m³/s]; the oil's β with the
+    gas law (:attr:`Hydraulics.tau_compressibility_1_Pa`)."""
+    beta = hyd.tau_compressibility_1_Pa
     out = beta * piston_flow_m3_s
     out[piston_flow_m3_s == 0.0] = beta
     return out

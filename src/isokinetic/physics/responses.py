@@ -44,6 +44,7 @@ from isokinetic.physics.excitation import (
     segment_index,
     turning_times,
 )
+from isokinetic.physics.gas_law import stored_volume_rate
 from isokinetic.physics.hydraulics import (
     DEFAULT_STEP,
     Hydraulics,
@@ -52,12 +53,11 @@ from isokinetic.physics.hydraulics import (
     compressibility_logs,
     compressibility_times,
     relaxation_batch,
-    start_volumes,
     steady_pressure,
 )
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.servo import check_stiffness, servo_response
-from isokinetic.physics.sine_drive import fused_segment_system
+from isokinetic.physics.sine_drive import fused_segment_system, initial_state
 
 
 def triangle_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, step: float = DEFAULT_STEP):
@@ -170,12 +170,26 @@ class _Layout:
     qp: np.ndarray                  # A_p W as Eq. (14) computes it from W [m³/s]
     v1: np.ndarray                  # chamber volumes at the start (Eq. 2) [m³]
     v2: np.ndarray
+    y0: np.ndarray                  # piston position at the start [m]
     lo: np.ndarray                  # first sample (index in times_all)
     count: np.ndarray               # samples
     rate_Hz: np.ndarray             # sample rate of the segment's case [Hz]
     steps: tuple[np.ndarray, ...]   # the segments of step j (the j-th of each case), case after case
     memo: dict = field(default_factory=lambda: {"lock": threading.Lock()}, compare=False, repr=False)
-    # ^ what depends on the layout alone, computed when first needed (:func:`_sample_logs`)
+    # ^ what depends on the layout alone (and the gas law's gas volumes), computed when first needed
+    # (:func:`_sample_logs`, :meth:`volumes`)
+
+    def volumes(self, hyd: Hydraulics) -> tuple[np.ndarray, np.ndarray]:
+        """The start volumes of Eq. (14)'s τ: (v1, v2), plus the gas law's gas volumes
+        (:attr:`Hydraulics.gas_volumes_m3`; remembered for the last ones)."""
+        if not hyd.gas_law:
+            return self.v1, self.v2
+        gas = hyd.gas_volumes_m3
+        with self.memo["lock"]:
+            hit = self.memo.get("gas")
+            if hit is None or hit[0] != gas:
+                hit = self.memo["gas"] = (gas, self.v1 + gas[0], self.v2 + gas[1])
+        return hit[1], hit[2]
 
 
 def _build_layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd: Hydraulics,
@@ -195,7 +209,8 @@ def _build_layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd
         count += [sl.stop - sl.start for sl in index]
     flow = np.array([q for _, flows in plans for q in flows], dtype=float)
     w = flow / hyd.piston_area_m2
-    v1, v2 = start_volumes(np.array([x.piston_start_m for x in segs], dtype=float), hyd)
+    y0 = np.array([x.piston_start_m for x in segs], dtype=float)
+    v1, v2 = hyd.chamber_volume_1_m3 - hyd.piston_area_m2 * y0, hyd.chamber_volume_2_m3 + hyd.piston_area_m2 * y0
     case = np.repeat(np.arange(n_seg.size), n_seg)
     j = np.arange(case.size) - np.repeat(np.cumsum(n_seg) - n_seg, n_seg)
     by_step = np.argsort(j, kind="stable")
@@ -204,7 +219,7 @@ def _build_layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd
                   j=j,
                   t0=np.array([x.t_start_s for x in segs], dtype=float),
                   t1=np.array([x.t_end_s for x in segs], dtype=float), flow=flow, w=w,
-                  qp=hyd.piston_area_m2 * w, v1=v1, v2=v2, lo=np.array(lo, dtype=np.int64),
+                  qp=hyd.piston_area_m2 * w, v1=v1, v2=v2, y0=y0, lo=np.array(lo, dtype=np.int64),
                   count=np.array(count, dtype=np.int64),
                   rate_Hz=np.array([c.sample_rate_Hz for c in cases], dtype=float)[case],
                   steps=tuple(by_step[a:b] for a, b in zip(bounds[:-1], bounds[1:])))
@@ -249,28 +264,32 @@ def _same_objects(a: tuple, b: tuple) -> bool:
     return len(a) == len(b) and all(map(operator.is_, a, b))
 
 
-def _sample_logs(lay: _Layout, n_live: np.ndarray) -> np.ndarray:
+def _sample_logs(lay: _Layout, n_live: np.ndarray, hyd: Hydraulics) -> np.ndarray:
     """Eq. (14) without β_eff (:func:`compressibility_logs`) at the samples of the layout, each with its
-    segment's start volumes and flow, valid for the first ``n_live`` samples of every segment (at least): it holds
-    no damper coefficient, so each sample is computed once per layout, when a run first needs it."""
+    segment's start volumes (:meth:`_Layout.volumes`) and flow, valid for the first ``n_live`` samples of every
+    segment (at least): it holds no damper coefficient (but the gas law's gas volumes), so each sample is computed
+    once per layout (and gas volumes), when a run first needs it."""
+    v1, v2 = lay.volumes(hyd)
     with lay.memo["lock"]:
         logs, done = lay.memo.get("logs"), lay.memo.get("done")
-        if logs is None:
+        if logs is None or lay.memo.get("logs_volumes") is not v1:
             logs, done = lay.memo["logs"], lay.memo["done"] = np.empty(lay.times_all.size), np.zeros_like(lay.count)
+            lay.memo["logs_volumes"] = v1
         more = (n_live > done).nonzero()[0]
         if more.size:
             grow = n_live.take(more) - done.take(more)
             seg = more.repeat(grow)
             at = (lay.lo.take(more) + done.take(more)).repeat(grow) + _ranks(grow)
-            logs[at] = compressibility_logs(lay.times_all.take(at) - lay.t0.take(seg), lay.v1.take(seg),
-                                            lay.v2.take(seg), lay.qp.take(seg))
+            logs[at] = compressibility_logs(lay.times_all.take(at) - lay.t0.take(seg), v1.take(seg), v2.take(seg),
+                                            lay.qp.take(seg))
             done[more] = n_live.take(more)
     return logs
 
 
 def _sample_tau(lay: _Layout, seg: np.ndarray, at: np.ndarray, hyd: Hydraulics) -> np.ndarray:
     """τ (Eq. 14, as :func:`compressibility_time`) of the samples ``times_all[at]``, sample i in segment ``seg[i]``."""
-    return compressibility_times(lay.times_all.take(at) - lay.t0.take(seg), lay.v1.take(seg), lay.v2.take(seg),
+    v1, v2 = lay.volumes(hyd)
+    return compressibility_times(lay.times_all.take(at) - lay.t0.take(seg), v1.take(seg), v2.take(seg),
                                  lay.qp.take(seg), hyd)
 
 
@@ -288,7 +307,8 @@ def _live_counts(lay: _Layout, tau_end: np.ndarray, table_end: np.ndarray, hyd: 
     act = (lo < hi).nonzero()[0]
     if act.size == 0:
         return lo
-    beta, v1, v2, qp, x = hyd.compressibility_1_Pa, lay.v1[act], lay.v2[act], lay.qp[act], table_end[act]
+    v1, v2 = lay.volumes(hyd)
+    beta, v1, v2, qp, x = hyd.tau_compressibility_1_Pa, v1[act], v2[act], lay.qp[act], table_end[act]
     with np.errstate(all="ignore"):
         dt = np.where(qp == 0.0, beta * x / (1.0 / v1 + 1.0 / v2),
                       np.expm1(beta * qp * x) / (qp * (1.0 / v2 + np.exp(beta * qp * x) / v1)))
@@ -308,28 +328,66 @@ def _live_counts(lay: _Layout, tau_end: np.ndarray, table_end: np.ndarray, hyd: 
 
 def _chain(lay: _Layout, tau_end: np.ndarray, hyd: Hydraulics, step: float) -> tuple[RelaxationBatch, np.ndarray]:
     """Tables of all segments, chained from Δp(0) = 0 with Δp continuous: (the tables, index of each
-    segment's table). Step j of all cases at once; one table per distinct (start Δp, flow)."""
+    segment's table). Step j of all cases at once; one table per distinct (start Δp, flow), and with the gas law
+    start position and stored volume K (which the compliance depends on; K carried from segment to segment,
+    :func:`_stored_change`)."""
     start = np.zeros(len(lay.times))
+    stored = np.zeros(len(lay.times)) if hyd.gas_law else None
     batches: list[RelaxationBatch] = []
-    known: dict[tuple[float, float], int] = {}
+    known: dict[tuple, int] = {}
     table = np.empty(lay.j.size, dtype=np.int64)
     built = 0
     for live in lay.steps:
         cases = lay.case.take(live)
-        keys = list(zip(start.take(cases).tolist(), lay.flow.take(live).tolist()))
+        columns = [start.take(cases), lay.flow.take(live)]
+        if stored is not None:
+            columns += [lay.y0.take(live), stored.take(cases)]
+        keys = list(zip(*(c.tolist() for c in columns)))
         new = list(dict.fromkeys(key for key in keys if key not in known))
         if new:
             known.update(zip(new, range(built, built + len(new))))
-            batches.append(relaxation_batch([p for p, _ in new], [q for _, q in new], hyd, step))
+            batches.append(_batch(new, hyd, step))
             built += len(new)
         ref = np.array([known[key] for key in keys], dtype=np.int64)
         table[live] = ref
         first_new = built - len(new)
         if ref.min() >= first_new:                  # all from this step's batch (the usual case)
-            start[cases] = batches[-1].pressure(ref - first_new, tau_end.take(live))
+            tabs, ref_in = batches[-1], ref - first_new
         else:
-            start[cases] = RelaxationBatch.concatenate(batches).pressure(ref, tau_end.take(live))
+            tabs, ref_in = RelaxationBatch.concatenate(batches), ref
+        if stored is not None:
+            stored[cases] += _stored_change(tabs, ref_in, lay, live, start.take(cases), hyd)
+        start[cases] = tabs.pressure(ref_in, tau_end.take(live))
     return RelaxationBatch.concatenate(batches), table
+
+
+def _batch(keys: list[tuple], hyd: Hydraulics, step: float) -> RelaxationBatch:
+    """The tables of problems ``keys``: (start Δp, flow) or (start Δp, flow, start position, stored volume)."""
+    columns = [list(c) for c in zip(*keys)]
+    return relaxation_batch(columns[0], columns[1], hyd, step, *columns[2:])
+
+
+#: Intervals of the composite Simpson rule of :func:`_stored_change`.
+STORED_INTERVALS = 16
+
+
+def _stored_change(tabs: RelaxationBatch, ref: np.ndarray, lay: _Layout, live: np.ndarray, dp_start: np.ndarray,
+                   hyd: Hydraulics) -> np.ndarray:
+    """ΔK = -β_oil A_p W ∫ Δp dt over each segment ``live`` (:func:`isokinetic.physics.gas_law.stored_volume_rate`;
+    composite Simpson on :data:`STORED_INTERVALS`, Δp from the segment's table ``ref``)."""
+    n = STORED_INTERVALS
+    dt = lay.t1.take(live) - lay.t0.take(live)
+    frac = np.arange(1, n + 1) / n
+    v1, v2 = lay.volumes(hyd)
+    tau = compressibility_times(np.outer(dt, frac).ravel(), v1.take(live).repeat(n), v2.take(live).repeat(n),
+                                lay.qp.take(live).repeat(n), hyd)
+    dp = np.empty((live.size, n + 1))
+    dp[:, 0] = dp_start
+    dp[:, 1:] = tabs.pressure(ref.repeat(n), tau).reshape(live.size, n)
+    weights = np.ones(n + 1)
+    weights[1:-1:2], weights[2:-1:2] = 4.0, 2.0
+    integral = dp @ weights * (dt / (3.0 * n))
+    return stored_volume_rate(integral, lay.w.take(live), hyd.tau_compressibility_1_Pa, hyd.piston_area_m2)
 
 
 #: Samples evaluated together (numpy passes over arrays that stay in cache).
@@ -342,7 +400,7 @@ def _live_pressures(tabs: RelaxationBatch, table: np.ndarray, lay: _Layout, n_li
     runs of ascending samples of one table grouped into cache-sized chunks."""
     owners = n_live.nonzero()[0]
     counts = n_live.take(owners)
-    logs = _sample_logs(lay, n_live)
+    logs = _sample_logs(lay, n_live, hyd)
     tau = np.concatenate([logs[a:a + n] for a, n in zip(lay.lo.take(owners).tolist(), counts.tolist())]) \
         if owners.size else np.zeros(0)
     tau /= compressibility_divisors(lay.qp.take(owners), hyd).repeat(counts)   # τ: Eq. (14), as _sample_tau
@@ -376,7 +434,7 @@ def _segment_tables(cases: Sequence[CasePlan], hyd: Hydraulics, backlash_m: floa
         lay = _layout(cases, drives, hyd, backlash_m)
     except TypeError:                               # unhashable cases or drives: not remembered
         lay = _build_layout(cases, drives, hyd, backlash_m)
-    tau_end = compressibility_times(lay.t1 - lay.t0, lay.v1, lay.v2, lay.qp, hyd)
+    tau_end = compressibility_times(lay.t1 - lay.t0, *lay.volumes(hyd), lay.qp, hyd)
     tabs, table = _chain(lay, tau_end, hyd, step)
     return lay, tabs, table, _live_counts(lay, tau_end, tabs.end_tau[table], hyd)
 
@@ -541,17 +599,18 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
     segs = piston_segments(case, backlash_m)
     dp = np.empty(t.size)
     vel = np.zeros(t.size)
-    p = 0.0
+    state = initial_state(0.0, 0.0, hyd)
+    atol = atol if len(state) == 1 else [atol, atol * hyd.tau_compressibility_1_Pa * hyd.chamber_volume_1_m3]
     for seg, idx in zip(segs, segment_index(t, segs)):
         rhs, jac = fused_segment_system(seg, hyd, amp, omega)
         t_eval = t[idx]
         t0, t1 = seg.t_start_s, seg.t_end_s
-        sol = solve_ivp(rhs, (t0, t1), [p], method=method, jac=jac, rtol=rtol, atol=atol,
+        sol = solve_ivp(rhs, (t0, t1), state, method=method, jac=jac, rtol=rtol, atol=atol,
                         t_eval=np.append(t_eval, t1) if t_eval.size == 0 or t_eval[-1] < t1 else t_eval)
         if not sol.success:
             raise RuntimeError(f"case {case.case}: sine integration failed: {sol.message}")
         dp[idx] = sol.y[0, :t_eval.size]
-        p = float(sol.y[0, -1])
+        state = [float(x) for x in sol.y[:, -1]]
         if seg.contact:
             vel[idx] = amp * omega * np.cos(omega * t_eval)
     return t, dp, vel

@@ -390,7 +390,11 @@ def servo_response(case: CasePlan, hyd: Hydraulics, effects: Effects = NOMINAL,
     velocity therefore jumps up for b/|ċ| at each force zero crossing. With k = inf there is no
     lag and no spike (use :func:`responses.sine_response` / :func:`responses.triangle_responses` then).
 
-    Returns (t_s, dp_Pa, piston_velocity_m_s, force_N, actuator_m, piston_m).
+    Returns (t_s, dp_Pa, piston_velocity_m_s, force_N, actuator_m, piston_m). Air under the gas law
+    (a damper with a charge pressure) is refused: this model carries Δp alone, not the chambers' mean pressure.
     """
+    if hyd.gas_law:
+        raise ValueError(f"case {case.case}: a servo of finite stiffness is modelled without the gas law's air "
+                         "(declare no charge pressure, or an infinitely stiff servo)")
     return ServoRig.of(case, hyd, effects, servo_stiffness_N_m, rtol, method).run()
 

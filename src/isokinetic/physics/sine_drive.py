@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from isokinetic.physics.excitation import Segment, check_stroke, piston_segments, segment_index
-from isokinetic.physics.hydraulics import Hydraulics, steady_pressure
+from isokinetic.physics.hydraulics import Hydraulics, start_volumes, steady_pressure
 from isokinetic.physics.plan import CasePlan
 
 #: Relative tolerance of the model's integration: ~1e-7 of the force scale up to 13 mm/s of peak speed, ~1e-5 at
@@ -125,23 +125,25 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
     scalars cost more): the integrator calls the rhs thousands of times per case, and this makes a sine run
     about 30 % cheaper than calling the methods. The virtual rig (:func:`isokinetic.physics.responses.sine_response`)
     and the diagnosis' sine drive both integrate it."""
-    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
-    v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
+    a, beta = hyd.piston_area_m2, hyd.tau_compressibility_1_Pa
+    v01, v02 = start_volumes(0.0, hyd)              # V0,i (plus the gas law's gas volumes)
     c1p = hyd.laminar_coefficient
     c1n = c1p if hyd.laminar_coefficient_neg is None else hyd.laminar_coefficient_neg
     c2p, c2n, leak = hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg, hyd.leakage_conductance_m3_s_Pa
     sqrt, copysign, sin, cos = math.sqrt, math.copysign, math.sin, math.cos
     contact, off, qamp = seg.contact, seg.offset_m, a * amp * omega
-    y0 = seg.piston_start_m
-    vol0 = (v01 - a * y0) * (v02 + a * y0) / (v01 + v02)
-
     terms = tuple((k * omega, a_k, theta, a_k * math.sin(theta), a * a_k * k * omega) for k, a_k, theta in harmonics)
 
-    def volume(tt):   # Hydraulics.composite_volume of the piston's position (the sine plus its harmonics)
+    def volume_at(y):   # Hydraulics.composite_volume
+        return (v01 - a * y) * (v02 + a * y) / (v01 + v02)
+
+    vol0 = volume_at(seg.piston_start_m)
+
+    def volume(tt):   # of the piston's position (the sine plus its harmonics)
         if not contact:
             return vol0
-        y = amp * sin(omega * tt) + off + sum(a_k * sin(w_k * tt + th) - start for w_k, a_k, th, start, _ in terms)
-        return (v01 - a * y) * (v02 + a * y) / (v01 + v02)
+        return volume_at(amp * sin(omega * tt) + off + sum(a_k * sin(w_k * tt + th) - start
+                                                            for w_k, a_k, th, start, _ in terms))
 
     c1p2, c1n2, c2p4, c2n4, vsum = c1p * c1p, c1n * c1n, 4.0 * c2p, 4.0 * c2n, v01 + v02
 
@@ -166,14 +168,11 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
         ay = a * (amp * sin(ph) + off)
         return [(qamp * cos(ph) - q) / (beta * ((v01 - ay) * (v02 + ay) / vsum))]
 
+    motion = _piston_motion(seg, a, amp, omega, terms)
+
     def pushed_periodic(tt, z):   # Eq. 1 driven by the sine and its harmonics
         q = flow(z.item())
-        ph = omega * tt
-        y, qin = amp * sin(ph) + off, qamp * cos(ph)
-        for w_k, a_k, theta, start, qa_k in terms:
-            arg = w_k * tt + theta
-            y += a_k * sin(arg) - start
-            qin += qa_k * cos(arg)
+        y, qin = motion(tt)
         ay = a * y
         return [(qin - q) / (beta * ((v01 - ay) * (v02 + ay) / vsum))]
 
@@ -182,13 +181,62 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
 
     rhs = (pushed_periodic if terms else pushed) if contact else resting
 
-    def jac(tt, z):   # Hydraulics.flow_derivative
-        p = z.item()
+    def dflow(p):   # Hydraulics.flow_derivative
         c1, c2 = (c1p, c2p) if p >= 0 else (c1n, c2n)
         root = sqrt(c1**2 + 4.0 * c2 * abs(p))
-        return [[-((1.0 / root if root > 0 else 1e300) + leak) / (beta * volume(tt))]]
+        return (1.0 / root if root > 0 else 1e300) + leak
+
+    def jac(tt, z):
+        return [[-dflow(z.item()) / (beta * volume(tt))]]
+    return _gas_law_system(hyd, motion, flow, dflow, volume_at) if hyd.gas_law else (rhs, jac)
+
+
+def _piston_motion(seg: Segment, a: float, amp: float, omega: float, terms: tuple):
+    """(y, A_p ẏ) of the piston on ``seg`` as a function of time: the sine plus its harmonics (``terms`` of
+    :func:`fused_segment_system`) in contact, standing at its start position at rest."""
+    sin, cos, y0, off, qamp = math.sin, math.cos, seg.piston_start_m, seg.offset_m, a * amp * omega
+
+    def motion(tt):
+        if not seg.contact:
+            return y0, 0.0
+        ph = omega * tt
+        y, qin = amp * sin(ph) + off, qamp * cos(ph)
+        for w_k, a_k, theta, start, qa_k in terms:
+            arg = w_k * tt + theta
+            y += a_k * sin(arg) - start
+            qin += qa_k * cos(arg)
+        return y, qin
+
+    return motion
+
+
+def _gas_law_system(hyd: Hydraulics, motion, flow, dflow, volume_at):
+    """rhs and Jacobian of the two-state model with the gas law, z = (Δp, K): 𝒞(0, y) r(Δp, y, K) dΔp/dt =
+    A_p ẏ - Q_N(Δp) (:meth:`Hydraulics.rest_compliance`, :meth:`Hydraulics.scalar_compressibility_ratio`) and
+    dK/dt = -β_oil A_p Δp ẏ (:func:`isokinetic.physics.gas_law.stored_volume_rate`), from the piston's ``motion``,
+    the flow and its derivative, and 𝒱 of the gas law's volumes (``volume_at``). The Jacobian leaves out
+    ∂(dΔp/dt)/∂K (a small term; the step control keeps the accuracy)."""
+    ratio, beta = hyd.scalar_compressibility_ratio(), hyd.tau_compressibility_1_Pa
+
+    def rhs(tt, z):
+        p = z.item(0)
+        y, qin = motion(tt)
+        r, _ = ratio(p, y, z.item(1))
+        return [(qin - flow(p)) / (beta * volume_at(y) * r), -beta * p * qin]
+
+    def jac(tt, z):
+        p = z.item(0)
+        y, qin = motion(tt)
+        r, dr = ratio(p, y, z.item(1))
+        rest = beta * volume_at(y)
+        return [[(-dflow(p) / rest - (qin - flow(p)) / rest * dr / r) / r, 0.0], [-beta * qin, 0.0]]
 
     return rhs, jac
+
+
+def initial_state(dp_Pa: float, stored_m3: float, hyd: Hydraulics) -> list[float]:
+    """The state of :func:`fused_segment_system`: [Δp], or [Δp, K] with the gas law."""
+    return [dp_Pa, stored_m3] if hyd.gas_law else [dp_Pa]
 
 
 def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics, backlash_m: float = 0.0,
@@ -214,19 +262,20 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
     t = tau[live]
     out_dp, out_vel = np.zeros(t.size), np.zeros(t.size)
     segs = merged_contacts(piston_segments(plan, backlash_m))
-    p = 0.0
+    state = initial_state(0.0, 0.0, hyd)
+    atol = atol if len(state) == 1 else [atol, atol * hyd.tau_compressibility_1_Pa * hyd.chamber_volume_1_m3]
     for seg, idx in zip(segs, segment_index(t, segs), strict=True):
         t_eval, t0, t1 = t[idx], seg.t_start_s, seg.t_end_s
         if t1 <= t0:
             continue
         rhs, jac = fused_segment_system(seg, hyd, amp, omega, drive.harmonics)
         times = np.concatenate([[t0], t_eval, [t1]])
-        sol, info = odeint(rhs, [p], times, Dfun=jac, rtol=rtol, atol=atol, tfirst=True, full_output=True,
+        sol, info = odeint(rhs, state, times, Dfun=jac, rtol=rtol, atol=atol, tfirst=True, full_output=True,
                            mxstep=100_000)
         if info["message"] != "Integration successful.":
             raise RuntimeError(f"sine drive ({drive.frequency_Hz:g} Hz): integration failed: {info['message']}")
         out_dp[idx] = sol[1:-1, 0]
-        p = float(sol[-1, 0])
+        state = [float(x) for x in sol[-1]]
         if seg.contact:
             out_vel[idx] = drive.velocity(t_eval) if drive.harmonics else amp * omega * np.cos(omega * t_eval)
     dp[live], vel[live] = out_dp, out_vel

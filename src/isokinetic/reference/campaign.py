@@ -410,8 +410,10 @@ def _sig(x: float, digits: int = 4) -> float:
 
 
 def campaign_manifest(campaign: str, cases: Sequence[RigCase], damper, description: str = "",
-                      temperature_C: float = 40.0, write_phase: bool = True, oil: OilTemperature | None = None) -> dict:
-    """campaign.yaml content (raw-campaign format v1): nominal damper only, rounded numbers."""
+                      temperature_C: float = 40.0, write_phase: bool = True, oil: OilTemperature | None = None,
+                      charge_pressure_Pa: float | None = None) -> dict:
+    """campaign.yaml content (raw-campaign format v1): nominal damper only, rounded numbers; the damper's
+    ``charge_pressure_Pa`` (its precharge, a design datum) when given, to 3 significant digits."""
     rates = [c.sample_rate_Hz for c in cases]
     default_rate = max(rates, key=lambda r: (rates.count(r), -rates.index(r)))
     entries = []
@@ -433,6 +435,8 @@ def campaign_manifest(campaign: str, cases: Sequence[RigCase], damper, descripti
     if oil is not None:
         columns["temperature"] = {"name": TEMPERATURE_COLUMN[0], "unit": TEMPERATURE_COLUMN[1]}
         design["viscosity_law"] = oil.law(damper.viscosity_Pa_s, temperature_C)
+    if charge_pressure_Pa is not None:
+        design["charge_pressure_Pa"] = _sig(charge_pressure_Pa, 3)
     return {
         "format_version": 1,
         "campaign": campaign,
@@ -450,7 +454,8 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[RigCase], damper=T
                    effects: TrueEffects = NOMINAL_EFFECTS, rig: RigImperfections = IDEAL_RIG, seed: int = 0, *,
                    description: str = "Low-velocity mapping, triangular excitation", temperature_C: float = 40.0,
                    write_phase: bool = True, invert_force: bool = False, time_offset_s: float = 0.0,
-                   rtol: float = 1e-10, oil: OilTemperature | None = None) -> dict[str, pd.DataFrame]:
+                   rtol: float = 1e-10, oil: OilTemperature | None = None,
+                   declare_charge_pressure: bool = False) -> dict[str, pd.DataFrame]:
     """Simulate ``cases`` (triangles and sines, :class:`SineCase`: manifest ``waveform: sine``) and write
     ``<folder>/campaign.yaml`` plus one CSV per case.
 
@@ -459,7 +464,9 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[RigCase], damper=T
     the force with the opposite sign without declaring ``invert: true``; ``time_offset_s`` is
     added to the time column; ``write_phase`` False omits phase_rad. Case i (0-based, in order) uses noise stream
     [seed, i] and the viscosity drift fraction i/(n-1). ``oil`` (:class:`OilTemperature`) runs case i at its
-    temperature's viscosity, logs the temperature channel and writes the law's datasheet points. Same inputs
+    temperature's viscosity, logs the temperature channel and writes the law's datasheet points.
+    ``declare_charge_pressure`` writes the chambers' charge pressure (``effects.charge_pressure_Pa``, a design
+    datum of the damper like its volumes) into the damper block. Same inputs
     -> identical bytes.
     Returns {case id: true and measured series (SI, unshifted, force in this spec's sign)}.
     """
@@ -486,7 +493,8 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[RigCase], damper=T
         logged = None if oil is None else oil.logged_K(s["time_s"].to_numpy(), i, seed)
         with open(folder / f"{case.case_id}.csv", "w", encoding="utf-8", newline="\n") as fh:
             fh.write(case_csv(s, case, rig, invert_force, time_offset_s, logged))
-    manifest = campaign_manifest(name, cases, damper, description, temperature_C, write_phase, oil)
+    manifest = campaign_manifest(name, cases, damper, description, temperature_C, write_phase, oil,
+                                 effects.charge_pressure_Pa if declare_charge_pressure else None)
     with open(folder / "campaign.yaml", "w", encoding="utf-8", newline="\n") as fh:
         yaml.safe_dump(manifest, fh, sort_keys=False, default_flow_style=False, allow_unicode=True, width=100)
     return series

@@ -727,13 +727,13 @@ def generate_scenarios(seed: int, n_per_effect: int, n_pairs: int, n_none: int, 
 # --------------------------------------------------------------------------------------------
 
 def export_scenario(scenario: Scenario, raw_root: str | os.PathLike, truth_root: str | os.PathLike) -> Path:
-    """Raw campaign folder ``raw_root/<name>/`` written by the reference rig (nominal damper only,
-    its own units and column names, the phase rounded as a person writes it) and the truth
+    """Raw campaign folder ``raw_root/<name>/`` written by the reference rig (nominal damper only, its
+    charge pressure included, its own units and column names, the phase rounded as a person writes it) and the truth
     ``truth_root/<name>.json``."""
     out = Path(raw_root) / scenario.name
     rrc.write_campaign(out, scenario.rig_cases(), rr.DamperDesign.from_mapping(scenario.damper.to_dict()),
                       scenario.effects, scenario.rig, scenario.noise_seed, description=DESCRIPTION,
-                      write_phase=scenario.noise_seed % 2 == 0)
+                      write_phase=scenario.noise_seed % 2 == 0, declare_charge_pressure=True)
     write_json(scenario.truth_record(), Path(truth_root) / f"{scenario.name}.json")
     return out
 

@@ -1,0 +1,126 @@
+"""Entrained air under the isothermal gas law around the damper's charge pressure (Eq. 3 without its
+approximation, in the two chambers of Eq. 2).
+
+Chamber i holds a fixed amount of gas G_i = φ0 V0,i p0 and oil; its compliance is 𝒞_i = β_oil (V_i - G_i/p_i) +
+G_i/p_i², and the chambers act in series on Δp (Eq. 1). How Δp splits into p1 and p2 is fixed by the stored volume
+K = Σ ∫_{p0}^{p_i} 𝒞_i dp, the model's second state (:func:`stored_volume_rate`). :func:`compressibility_ratio`
+gives r = 𝒞(Δp)/𝒞(0) for arrays (the segment tables of :mod:`isokinetic.physics.hydraulics`),
+:func:`scalar_compressibility_ratio` the same for floats (an ODE's right-hand side).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def compressibility_ratio(dp_Pa, oil_1_Pa: float, gas_1_Pa: float, charge_pressure_Pa: float,
+                                   volume_1_m3: float, volume_2_m3: float, y_m=0.0, piston_area_m2: float = 0.0,
+                                   stored_m3=0.0, floor: float = 0.05):
+    """r(Δp) = 𝒞(Δp)/𝒞(0) and dr/dΔp [1/Pa]: the two chambers' series compliance when the gas of Eq. (3)
+    is isothermal around the charge pressure p0, at piston position ``y_m`` (chambers V0,i = ``volume_*_m3``
+    at y = 0, Eq. 2).
+
+    Chamber i holds gas of the fixed amount G_i = φ0 V0,i p0 (isothermal: volume G_i/p), with φ0/p0 = γ =
+    ``gas_1_Pa``, the gas term of Eq. (3) at p0, and oil (β_oil = ``oil_1_Pa``) in the rest of V_i(y): the
+    mixture of Eq. (3) without its approximation, 𝒞_i = β_oil (V_i - G_i/p_i) + G_i/p_i², and
+    𝒞 = 𝒞_1 𝒞_2/(𝒞_1 + 𝒞_2). The chamber pressures p_1 = p0 + δ_1, p_2 = p_1 - Δp satisfy
+    Σ ∫_{p0}^{p_i} 𝒞_i dp = K = ``stored_m3`` (Newton's method from the linear split): 𝒞_1 ṗ_1 = -𝒞_2 ṗ_2
+    (Eq. 1 of each chamber) keeps K while the piston stands, and a moving piston changes it
+    (:func:`stored_volume_rate`): K is the model's second state, which the chambers' mean pressure follows.
+    Pressures are held at ``floor`` p0 or above (the gas law has no cavitation).
+    """
+    dp, y = np.asarray(dp_Pa, dtype=float), np.asarray(y_m, dtype=float)
+    b, p0 = oil_1_Pa, charge_pressure_Pa
+    g1, g2 = gas_1_Pa * p0 * p0 * volume_1_m3, gas_1_Pa * p0 * p0 * volume_2_m3     # G_i
+    bv1, bv2 = b * (volume_1_m3 - piston_area_m2 * y), b * (volume_2_m3 + piston_area_m2 * y)
+    low = floor * p0
+
+    def cap(u, bv, g):                              # 𝒞_i = β_oil (V_i - G_i/p) + G_i/p², u = 1/p
+        return bv + g * u * (u - b)
+
+    def held(d, p, u, bv, g):                       # ∫ 𝒞_i dp from p0 to p = p0 + d
+        return bv * d - b * g * np.log(p / p0) + (g / p0) * d * u
+
+    u0 = 1.0 / p0
+    r1, r2 = cap(u0, bv1, g1), cap(u0, bv2, g2)
+    d1 = (stored_m3 + r2 * dp) / (r1 + r2)          # the linear split: 𝒞_1 δ_1 + 𝒞_2 δ_2 = K at p0
+    d2 = d1 - dp                                    # and its second-order correction, 𝒞_i' = G_i u0² (β_oil - 2 u0)
+    d1 = d1 - 0.5 * u0 * u0 * (b - 2.0 * u0) * (g1 * d1 * d1 + g2 * d2 * d2) / (r1 + r2)
+    for _ in range(30):
+        p1, p2 = np.maximum(p0 + d1, low), np.maximum(p0 + d1 - dp, low)
+        u1, u2 = 1.0 / p1, 1.0 / p2
+        step = (held(d1, p1, u1, bv1, g1) + held(d1 - dp, p2, u2, bv2, g2) - stored_m3) / (
+            cap(u1, bv1, g1) + cap(u2, bv2, g2))
+        d1 = d1 - step
+        if not np.abs(step).max(initial=0.0) > 1e-9 * p0:
+            break
+    p1, p2 = np.maximum(p0 + d1, low), np.maximum(p0 + d1 - dp, low)
+    u1, u2 = 1.0 / p1, 1.0 / p2
+    c1, c2 = cap(u1, bv1, g1), cap(u2, bv2, g2)
+    total = c1 + c2
+    c = c1 * c2 / total
+    c_ref = r1 * r2 / (r1 + r2)
+    # d𝒞_i/dp = G_i u² (β_oil - 2u); dδ_1/dΔp = 𝒞_2/(𝒞_1 + 𝒞_2), dδ_2/dΔp = -𝒞_1/(𝒞_1 + 𝒞_2)
+    dc1 = g1 * u1 * u1 * (b - 2.0 * u1) * (c2 / total)
+    dc2 = -g2 * u2 * u2 * (b - 2.0 * u2) * (c1 / total)
+    dc = c * c * (dc1 / (c1 * c1) + dc2 / (c2 * c2))
+    return c / c_ref, dc / c_ref
+
+
+def stored_volume_rate(dp_Pa, velocity_m_s, oil_1_Pa: float, piston_area_m2: float):
+    """dK/dt = -β_oil A_p Δp ẏ [m³/s] of K = Σ ∫_{p0}^{p_i} 𝒞_i dp (:func:`gas_law_compressibility_ratio`).
+
+    Each chamber's Eq. (1), 𝒞_i ṗ_i = ±(A_p ẏ - Q), gives Σ 𝒞_i ṗ_i = 0; K changes only through the oil
+    volumes in 𝒞_i = β_oil (V_i(y) - G_i/p_i) + G_i/p_i², ∂𝒞_i/∂y = ∓β_oil A_p (Eq. 2).
+    """
+    return -oil_1_Pa * piston_area_m2 * np.asarray(dp_Pa, dtype=float) * velocity_m_s
+
+
+def scalar_compressibility_ratio(oil_1_Pa: float, gas_1_Pa: float, charge_pressure_Pa: float, volume_1_m3: float,
+                                 volume_2_m3: float, piston_area_m2: float):
+    """:func:`compressibility_ratio` of floats, (Δp, y, K) -> (r, dr/dΔp), as a closure of local floats for an
+    ODE's right-hand side (thousands of calls a record): the same formulas, each Newton iteration started from the
+    last call's chamber split."""
+    b, gas, p0, log = oil_1_Pa, gas_1_Pa, charge_pressure_Pa, math.log
+    v01, v02, area = volume_1_m3, volume_2_m3, piston_area_m2
+    g1, g2, low, tol = gas * p0 * p0 * v01, gas * p0 * p0 * v02, 0.05 * p0, 1e-9 * p0
+    last = [None]
+
+    def ratio(dp: float, y: float, stored: float) -> tuple[float, float]:
+        bv1, bv2 = b * (v01 - area * y), b * (v02 + area * y)
+        u0 = 1.0 / p0
+        r1, r2 = bv1 + g1 * u0 * (u0 - b), bv2 + g2 * u0 * (u0 - b)
+        d1 = (stored + r2 * dp) / (r1 + r2) if last[0] is None else last[0]
+        for _ in range(30):
+            p1, p2 = max(p0 + d1, low), max(p0 + d1 - dp, low)
+            u1, u2 = 1.0 / p1, 1.0 / p2
+            d2 = d1 - dp
+            resid = (bv1 * d1 - b * g1 * log(p1 * u0) + g1 * u0 * d1 * u1
+                     + bv2 * d2 - b * g2 * log(p2 * u0) + g2 * u0 * d2 * u2 - stored)
+            step = resid / (bv1 + g1 * u1 * (u1 - b) + bv2 + g2 * u2 * (u2 - b))
+            d1 -= step
+            if not abs(step) > tol:
+                break
+        last[0] = d1
+        p1, p2 = max(p0 + d1, low), max(p0 + d1 - dp, low)
+        u1, u2 = 1.0 / p1, 1.0 / p2
+        c1, c2 = bv1 + g1 * u1 * (u1 - b), bv2 + g2 * u2 * (u2 - b)
+        total = c1 + c2
+        c = c1 * c2 / total
+        c_ref = r1 * r2 / (r1 + r2)
+        dc1 = g1 * u1 * u1 * (b - 2.0 * u1) * (c2 / total)
+        dc2 = -g2 * u2 * u2 * (b - 2.0 * u2) * (c1 / total)
+        return c / c_ref, c * c * (dc1 / (c1 * c1) + dc2 / (c2 * c2)) / c_ref
+
+    return ratio
+
+
+def hermite(x, x0, x1, f0, f1, d0, d1):
+    """The cubic Hermite interpolant of values f and slopes d at x0, x1, at x (f0 where x1 = x0)."""
+    h = x1 - x0
+    t = np.divide(x - x0, h, out=np.zeros(x.size), where=h != 0.0)
+    t2 = t * t
+    return (f0 * (2.0 * t2 * t - 3.0 * t2 + 1.0) + h * d0 * (t2 * t - 2.0 * t2 + t)
+            + f1 * (3.0 * t2 - 2.0 * t2 * t) + h * d1 * (t2 * t - t2))
