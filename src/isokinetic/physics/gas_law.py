@@ -15,9 +15,9 @@ import math
 import numpy as np
 
 
-def compressibility_ratio(dp_Pa, oil_1_Pa: float, gas_1_Pa: float, charge_pressure_Pa: float,
-                                   volume_1_m3: float, volume_2_m3: float, y_m=0.0, piston_area_m2: float = 0.0,
-                                   stored_m3=0.0, floor: float = 0.05):
+def compressibility_ratio(dp_Pa, oil_1_Pa: float, gas_1_Pa: float, charge_pressure_Pa: float, volume_1_m3: float,
+                          volume_2_m3: float, y_m=0.0, piston_area_m2: float = 0.0, stored_m3=0.0,
+                          floor: float = 0.05):
     """r(Δp) = 𝒞(Δp)/𝒞(0) and dr/dΔp [1/Pa]: the two chambers' series compliance when the gas of Eq. (3)
     is isothermal around the charge pressure p0, at piston position ``y_m`` (chambers V0,i = ``volume_*_m3``
     at y = 0, Eq. 2).
@@ -70,7 +70,7 @@ def compressibility_ratio(dp_Pa, oil_1_Pa: float, gas_1_Pa: float, charge_pressu
 
 
 def stored_volume_rate(dp_Pa, velocity_m_s, oil_1_Pa: float, piston_area_m2: float):
-    """dK/dt = -β_oil A_p Δp ẏ [m³/s] of K = Σ ∫_{p0}^{p_i} 𝒞_i dp (:func:`gas_law_compressibility_ratio`).
+    """dK/dt = -β_oil A_p Δp ẏ [m³/s] of K = Σ ∫_{p0}^{p_i} 𝒞_i dp (:func:`compressibility_ratio`).
 
     Each chamber's Eq. (1), 𝒞_i ṗ_i = ±(A_p ẏ - Q), gives Σ 𝒞_i ṗ_i = 0; K changes only through the oil
     volumes in 𝒞_i = β_oil (V_i(y) - G_i/p_i) + G_i/p_i², ∂𝒞_i/∂y = ∓β_oil A_p (Eq. 2).

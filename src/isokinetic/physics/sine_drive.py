@@ -124,7 +124,7 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
     for bit against those methods), in closures of local Python floats (the state read with ``item()``: numpy
     scalars cost more): the integrator calls the rhs thousands of times per case, and this makes a sine run
     about 30 % cheaper than calling the methods. The virtual rig (:func:`isokinetic.physics.responses.sine_response`)
-    and the diagnosis' sine drive both integrate it."""
+    and the diagnosis' sine drive both integrate it. With the gas law, the two-state system (:func:`initial_state`)."""
     a, beta = hyd.piston_area_m2, hyd.tau_compressibility_1_Pa
     v01, v02 = start_volumes(0.0, hyd)              # V0,i (plus the gas law's gas volumes)
     c1p = hyd.laminar_coefficient
@@ -188,6 +188,7 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
 
     def jac(tt, z):
         return [[-dflow(z.item()) / (beta * volume(tt))]]
+
     return _gas_law_system(hyd, motion, flow, dflow, volume_at) if hyd.gas_law else (rhs, jac)
 
 
