@@ -226,19 +226,6 @@ def test_the_gas_laws_ratio_slope_is_its_derivative():
         np.testing.assert_allclose(slope, (up - down) / 2e2, rtol=1e-6, atol=1e-16)
 
 
-def test_the_gas_laws_ratio_of_floats_is_its_ratio_of_arrays():
-    """An ODE right-hand side takes the float closure (math, warm-started): the numbers of the vectorised one."""
-    hyd = Hydraulics.from_damper(GAS_DAMPER, dm.Effects(air_volume_fraction=3e-4))
-    dp, y, stored = np.array([-4e6, 0.0, 3e6, 3.1e6]), np.array([1e-3, 0.0, -2e-3, -2e-3]), \
-        np.array([1e-7, 0.0, -3e-7, -3e-7])
-    arrays = hyd.compressibility_ratio(dp, y, stored)
-    ratio = hyd.scalar_compressibility_ratio()
-    for k in range(dp.size):
-        floats = ratio(float(dp[k]), float(y[k]), float(stored[k]))
-        assert all(isinstance(x, float) for x in floats)
-        np.testing.assert_allclose(floats, [arrays[0][k], arrays[1][k]], rtol=1e-12, atol=1e-20)
-
-
 @pytest.mark.parametrize("dp0, w, y0, stored", [(0.0, 1e-3, -5e-3, 0.0), (5e6, -1e-3, 5e-3, 3e-7),
                                                 (-2e6, 3e-4, -2e-3, -1e-7)],
                          ids=["from rest", "reversal to -", "reversal to +"])

@@ -81,17 +81,24 @@ def test_clean_nominal_sine_matches_the_virtual_rigs_sine_response(design, frequ
     assert np.max(np.abs(mine["force_N"].to_numpy() - theirs["force_N"].to_numpy())) < 1e-6 * scale
 
 
-@pytest.mark.parametrize("frequency_Hz, amplitude_m", [(0.5, 5e-3), (10.0, 2e-3)])
-def test_a_distorted_sine_matches_the_models_drive_with_the_same_harmonics(design, frequency_Hz, amplitude_m):
+@pytest.mark.parametrize("frequency_Hz, amplitude_m, charge_Pa", [(0.5, 5e-3, None), (10.0, 2e-3, None),
+                                                                   (0.5, 5e-3, 5e6)],
+                         ids=["0.5 Hz", "10 Hz", "0.5 Hz, gas-law air"])
+def test_a_distorted_sine_matches_the_models_drive_with_the_same_harmonics(design, frequency_Hz, amplitude_m,
+                                                                           charge_Pa):
     """A servo's distortion (2 % second, 1.5 % third harmonic): the rig's two-state solve_ivp against the project's
     drive of Eq. 1 by the same periodic motion (physics.sine_drive), both at rtol 1e-12, within 1e-6 of the force
-    scale."""
+    scale; with air under the gas law, the two chambers' pressures of each."""
     harmonics = ((2, 0.02, 0.4), (3, 0.015, -1.1))
     case = rr.SineCase("H01", frequency_Hz, amplitude_m, 3, 500.0, harmonics)
-    mine = rr.true_series(case, design, rtol=1e-12)
+    phi_cat = 0.0 if charge_Pa is None else 1e-3
+    effects = rr.NOMINAL_EFFECTS if charge_Pa is None else rr.TrueEffects(
+        air_fraction_at_charge=rrc.air_fraction_from_catalogue(phi_cat, charge_Pa), charge_pressure_Pa=charge_Pa)
+    mine = rr.true_series(case, design, effects, rtol=1e-12)
     drive = SineDrive(amplitude_m, frequency_Hz, 0.0, len(mine),
                       tuple((k, h * amplitude_m, phi) for k, h, phi in harmonics))
-    hyd = Hydraulics.from_damper(Damper(**design.to_dict()))
+    hyd = Hydraulics.from_damper(Damper(**design.to_dict(), charge_pressure_Pa=charge_Pa),
+                                 Effects(air_volume_fraction=phi_cat))
     _tau, dp, vel = sine_drive_response(drive, 500.0, hyd, rtol=1e-12)
     assert np.allclose(np.diff(mine["actuator_m"])[1:] * 500.0, 0.5 * (vel[2:] + vel[1:-1]), rtol=0,
                        atol=0.01 * amplitude_m * 2 * math.pi * frequency_Hz)   # the same motion (trapezoid rule)

@@ -4,13 +4,11 @@ approximation, in the two chambers of Eq. 2).
 Chamber i holds a fixed amount of gas G_i = φ0 V0,i p0 and oil; its compliance is 𝒞_i = β_oil (V_i - G_i/p_i) +
 G_i/p_i², and the chambers act in series on Δp (Eq. 1). How Δp splits into p1 and p2 is fixed by the stored volume
 K = Σ ∫_{p0}^{p_i} 𝒞_i dp, the model's second state (:func:`stored_volume_rate`). :func:`compressibility_ratio`
-gives r = 𝒞(Δp)/𝒞(0) for arrays (the segment tables of :mod:`isokinetic.physics.hydraulics`),
-:func:`scalar_compressibility_ratio` the same for floats (an ODE's right-hand side).
+gives r = 𝒞(Δp)/𝒞(0) for the segment tables of :mod:`isokinetic.physics.hydraulics`; a sine record integrates
+the two chamber pressures themselves (:mod:`isokinetic.physics.sine_drive`).
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -76,45 +74,6 @@ def stored_volume_rate(dp_Pa, velocity_m_s, oil_1_Pa: float, piston_area_m2: flo
     volumes in 𝒞_i = β_oil (V_i(y) - G_i/p_i) + G_i/p_i², ∂𝒞_i/∂y = ∓β_oil A_p (Eq. 2).
     """
     return -oil_1_Pa * piston_area_m2 * np.asarray(dp_Pa, dtype=float) * velocity_m_s
-
-
-def scalar_compressibility_ratio(oil_1_Pa: float, gas_1_Pa: float, charge_pressure_Pa: float, volume_1_m3: float,
-                                 volume_2_m3: float, piston_area_m2: float):
-    """:func:`compressibility_ratio` of floats, (Δp, y, K) -> (r, dr/dΔp), as a closure of local floats for an
-    ODE's right-hand side (thousands of calls a record): the same formulas, each Newton iteration started from the
-    last call's chamber split."""
-    b, gas, p0, log = oil_1_Pa, gas_1_Pa, charge_pressure_Pa, math.log
-    v01, v02, area = volume_1_m3, volume_2_m3, piston_area_m2
-    g1, g2, low, tol = gas * p0 * p0 * v01, gas * p0 * p0 * v02, 0.05 * p0, 1e-9 * p0
-    last = [None]
-
-    def ratio(dp: float, y: float, stored: float) -> tuple[float, float]:
-        bv1, bv2 = b * (v01 - area * y), b * (v02 + area * y)
-        u0 = 1.0 / p0
-        r1, r2 = bv1 + g1 * u0 * (u0 - b), bv2 + g2 * u0 * (u0 - b)
-        d1 = (stored + r2 * dp) / (r1 + r2) if last[0] is None else last[0]
-        for _ in range(30):
-            p1, p2 = max(p0 + d1, low), max(p0 + d1 - dp, low)
-            u1, u2 = 1.0 / p1, 1.0 / p2
-            d2 = d1 - dp
-            resid = (bv1 * d1 - b * g1 * log(p1 * u0) + g1 * u0 * d1 * u1
-                     + bv2 * d2 - b * g2 * log(p2 * u0) + g2 * u0 * d2 * u2 - stored)
-            step = resid / (bv1 + g1 * u1 * (u1 - b) + bv2 + g2 * u2 * (u2 - b))
-            d1 -= step
-            if not abs(step) > tol:
-                break
-        last[0] = d1
-        p1, p2 = max(p0 + d1, low), max(p0 + d1 - dp, low)
-        u1, u2 = 1.0 / p1, 1.0 / p2
-        c1, c2 = bv1 + g1 * u1 * (u1 - b), bv2 + g2 * u2 * (u2 - b)
-        total = c1 + c2
-        c = c1 * c2 / total
-        c_ref = r1 * r2 / (r1 + r2)
-        dc1 = g1 * u1 * u1 * (b - 2.0 * u1) * (c2 / total)
-        dc2 = -g2 * u2 * u2 * (b - 2.0 * u2) * (c1 / total)
-        return c / c_ref, c * c * (dc1 / (c1 * c1) + dc2 / (c2 * c2)) / c_ref
-
-    return ratio
 
 
 def hermite(x, x0, x1, f0, f1, d0, d1):

@@ -51,7 +51,7 @@ from isokinetic.physics.damper import (
     laminar_coefficient,
     turbulent_coefficient,
 )
-from isokinetic.physics.gas_law import compressibility_ratio, hermite, scalar_compressibility_ratio
+from isokinetic.physics.gas_law import compressibility_ratio, hermite
 
 
 @dataclass(frozen=True)
@@ -142,17 +142,9 @@ class Hydraulics:
         if not self.gas_law:
             shape = np.broadcast(np.asarray(dp_Pa), np.asarray(y_m), np.asarray(stored_m3)).shape
             return np.ones(shape), np.zeros(shape)
-        return compressibility_ratio(dp_Pa, *self._gas, y_m, self.piston_area_m2, stored_m3)
-
-    def scalar_compressibility_ratio(self):
-        """:meth:`compressibility_ratio` of floats, (Δp, y, K) -> (r, dr/dΔp), for an ODE's right-hand side
-        (:func:`isokinetic.physics.gas_law.scalar_compressibility_ratio`)."""
-        return scalar_compressibility_ratio(*self._gas, self.piston_area_m2)
-
-    @property
-    def _gas(self) -> tuple[float, ...]:
-        return (self.tau_compressibility_1_Pa, self.air_compressibility_1_Pa, self.charge_pressure_Pa,
-                self.chamber_volume_1_m3, self.chamber_volume_2_m3)
+        return compressibility_ratio(dp_Pa, self.tau_compressibility_1_Pa, self.air_compressibility_1_Pa,
+                                     self.charge_pressure_Pa, self.chamber_volume_1_m3, self.chamber_volume_2_m3,
+                                     y_m, self.piston_area_m2, stored_m3)
 
     def c1(self, sign):
         """c1 of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""

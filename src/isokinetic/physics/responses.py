@@ -57,7 +57,7 @@ from isokinetic.physics.hydraulics import (
 )
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.servo import check_stiffness, servo_response
-from isokinetic.physics.sine_drive import fused_segment_system, initial_state
+from isokinetic.physics.sine_drive import fused_segment_system, initial_state, state_pressure
 
 
 def triangle_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, step: float = DEFAULT_STEP):
@@ -599,8 +599,7 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
     segs = piston_segments(case, backlash_m)
     dp = np.empty(t.size)
     vel = np.zeros(t.size)
-    state = initial_state(0.0, 0.0, hyd)
-    atol = atol if len(state) == 1 else [atol, atol * hyd.tau_compressibility_1_Pa * hyd.chamber_volume_1_m3]
+    state = initial_state(hyd)
     for seg, idx in zip(segs, segment_index(t, segs)):
         rhs, jac = fused_segment_system(seg, hyd, amp, omega)
         t_eval = t[idx]
@@ -609,7 +608,7 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
                         t_eval=np.append(t_eval, t1) if t_eval.size == 0 or t_eval[-1] < t1 else t_eval)
         if not sol.success:
             raise RuntimeError(f"case {case.case}: sine integration failed: {sol.message}")
-        dp[idx] = sol.y[0, :t_eval.size]
+        dp[idx] = state_pressure(sol.y[:, :t_eval.size].T, hyd)
         state = [float(x) for x in sol.y[:, -1]]
         if seg.contact:
             vel[idx] = amp * omega * np.cos(omega * t_eval)

@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from isokinetic.physics.excitation import Segment, check_stroke, piston_segments, segment_index
-from isokinetic.physics.hydraulics import Hydraulics, start_volumes, steady_pressure
+from isokinetic.physics.hydraulics import Hydraulics, steady_pressure
 from isokinetic.physics.plan import CasePlan
 
 #: Relative tolerance of the model's integration: ~1e-7 of the force scale up to 13 mm/s of peak speed, ~1e-5 at
@@ -124,26 +124,23 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
     for bit against those methods), in closures of local Python floats (the state read with ``item()``: numpy
     scalars cost more): the integrator calls the rhs thousands of times per case, and this makes a sine run
     about 30 % cheaper than calling the methods. The virtual rig (:func:`isokinetic.physics.responses.sine_response`)
-    and the diagnosis' sine drive both integrate it. With the gas law, the two-state system (:func:`initial_state`)."""
-    a, beta = hyd.piston_area_m2, hyd.tau_compressibility_1_Pa
-    v01, v02 = start_volumes(0.0, hyd)              # V0,i (plus the gas law's gas volumes)
+    and the diagnosis' sine drive both integrate it. With the gas law: the two chambers (:func:`initial_state`)."""
+    a, beta = hyd.piston_area_m2, hyd.compressibility_1_Pa
+    v01, v02 = hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3
     c1p = hyd.laminar_coefficient
     c1n = c1p if hyd.laminar_coefficient_neg is None else hyd.laminar_coefficient_neg
     c2p, c2n, leak = hyd.turbulent_coefficient_pos, hyd.turbulent_coefficient_neg, hyd.leakage_conductance_m3_s_Pa
     sqrt, copysign, sin, cos = math.sqrt, math.copysign, math.sin, math.cos
     contact, off, qamp = seg.contact, seg.offset_m, a * amp * omega
+    y0 = seg.piston_start_m
+    vol0 = (v01 - a * y0) * (v02 + a * y0) / (v01 + v02)
     terms = tuple((k * omega, a_k, theta, a_k * math.sin(theta), a * a_k * k * omega) for k, a_k, theta in harmonics)
 
-    def volume_at(y):   # Hydraulics.composite_volume
-        return (v01 - a * y) * (v02 + a * y) / (v01 + v02)
-
-    vol0 = volume_at(seg.piston_start_m)
-
-    def volume(tt):   # of the piston's position (the sine plus its harmonics)
+    def volume(tt):   # Hydraulics.composite_volume of the piston's position (the sine plus its harmonics)
         if not contact:
             return vol0
-        return volume_at(amp * sin(omega * tt) + off + sum(a_k * sin(w_k * tt + th) - start
-                                                            for w_k, a_k, th, start, _ in terms))
+        y = amp * sin(omega * tt) + off + sum(a_k * sin(w_k * tt + th) - start for w_k, a_k, th, start, _ in terms)
+        return (v01 - a * y) * (v02 + a * y) / (v01 + v02)
 
     c1p2, c1n2, c2p4, c2n4, vsum = c1p * c1p, c1n * c1n, 4.0 * c2p, 4.0 * c2n, v01 + v02
 
@@ -189,7 +186,7 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
     def jac(tt, z):
         return [[-dflow(z.item()) / (beta * volume(tt))]]
 
-    return _gas_law_system(hyd, motion, flow, dflow, volume_at) if hyd.gas_law else (rhs, jac)
+    return _gas_law_system(hyd, motion, flow, dflow) if hyd.gas_law else (rhs, jac)
 
 
 def _piston_motion(seg: Segment, a: float, amp: float, omega: float, terms: tuple):
@@ -211,33 +208,43 @@ def _piston_motion(seg: Segment, a: float, amp: float, omega: float, terms: tupl
     return motion
 
 
-def _gas_law_system(hyd: Hydraulics, motion, flow, dflow, volume_at):
-    """rhs and Jacobian of the two-state model with the gas law, z = (Δp, K): 𝒞(0, y) r(Δp, y, K) dΔp/dt =
-    A_p ẏ - Q_N(Δp) (:meth:`Hydraulics.rest_compliance`, :meth:`Hydraulics.scalar_compressibility_ratio`) and
-    dK/dt = -β_oil A_p Δp ẏ (:func:`isokinetic.physics.gas_law.stored_volume_rate`), from the piston's ``motion``,
-    the flow and its derivative, and 𝒱 of the gas law's volumes (``volume_at``). The Jacobian leaves out
-    ∂(dΔp/dt)/∂K (a small term; the step control keeps the accuracy)."""
-    ratio, beta = hyd.scalar_compressibility_ratio(), hyd.tau_compressibility_1_Pa
+def _gas_law_system(hyd: Hydraulics, motion, flow, dflow):
+    """rhs and Jacobian of the two chambers with the gas law, z = (p1, p2): 𝒞_1 ṗ1 = A_p ẏ - Q_N(Δp) = -𝒞_2 ṗ2,
+    𝒞_i = β_oil (V_i(y) - G_i/p_i) + G_i/p_i² (Eq. 1-3 per chamber, :mod:`isokinetic.physics.gas_law`), from the
+    piston's ``motion`` (y, A_p ẏ) and the flow and its derivative; Δp = p1 - p2 (:func:`state_pressure`). The
+    same model as the triangle tables' (Δp, K), written without K's Newton iteration."""
+    b, a, p0 = hyd.tau_compressibility_1_Pa, hyd.piston_area_m2, hyd.charge_pressure_Pa
+    g1, g2 = (hyd.air_compressibility_1_Pa * p0 * p0 * v for v in (hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3))
+    bv1, bv2, low = b * hyd.chamber_volume_1_m3, b * hyd.chamber_volume_2_m3, 0.05 * p0
+
+    def chambers(tt, z):   # (Δp, A_p ẏ, 𝒞_1, 𝒞_2, u1, u2)
+        p1, p2 = z.item(0), z.item(1)
+        y, qin = motion(tt)
+        u1, u2 = 1.0 / max(p1, low), 1.0 / max(p2, low)
+        return p1 - p2, qin, bv1 - b * a * y + g1 * u1 * (u1 - b), bv2 + b * a * y + g2 * u2 * (u2 - b), u1, u2
 
     def rhs(tt, z):
-        p = z.item(0)
-        y, qin = motion(tt)
-        r, _ = ratio(p, y, z.item(1))
-        return [(qin - flow(p)) / (beta * volume_at(y) * r), -beta * p * qin]
+        dp, qin, c1, c2, _, _ = chambers(tt, z)
+        net = qin - flow(dp)
+        return [net / c1, -net / c2]
 
     def jac(tt, z):
-        p = z.item(0)
-        y, qin = motion(tt)
-        r, dr = ratio(p, y, z.item(1))
-        rest = beta * volume_at(y)
-        return [[(-dflow(p) / rest - (qin - flow(p)) / rest * dr / r) / r, 0.0], [-beta * qin, 0.0]]
+        dp, qin, c1, c2, u1, u2 = chambers(tt, z)
+        net, d = qin - flow(dp), dflow(dp)
+        s1, s2 = g1 * u1 * u1 * (b - 2.0 * u1), g2 * u2 * u2 * (b - 2.0 * u2)     # d𝒞_i/dp_i
+        return [[(-d - net / c1 * s1) / c1, d / c1], [d / c2, (-d + net / c2 * s2) / c2]]
 
     return rhs, jac
 
 
-def initial_state(dp_Pa: float, stored_m3: float, hyd: Hydraulics) -> list[float]:
-    """The state of :func:`fused_segment_system`: [Δp], or [Δp, K] with the gas law."""
-    return [dp_Pa, stored_m3] if hyd.gas_law else [dp_Pa]
+def initial_state(hyd: Hydraulics) -> list[float]:
+    """The state of :func:`fused_segment_system` at rest: [Δp = 0], or the chambers at the charge pressure."""
+    return [hyd.charge_pressure_Pa] * 2 if hyd.gas_law else [0.0]
+
+
+def state_pressure(rows: np.ndarray, hyd: Hydraulics) -> np.ndarray:
+    """Δp of states ``rows`` (one a row, :func:`fused_segment_system`'s order) [Pa]."""
+    return rows[:, 0] - rows[:, 1] if hyd.gas_law else rows[:, 0]
 
 
 def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics, backlash_m: float = 0.0,
@@ -263,8 +270,7 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
     t = tau[live]
     out_dp, out_vel = np.zeros(t.size), np.zeros(t.size)
     segs = merged_contacts(piston_segments(plan, backlash_m))
-    state = initial_state(0.0, 0.0, hyd)
-    atol = atol if len(state) == 1 else [atol, atol * hyd.tau_compressibility_1_Pa * hyd.chamber_volume_1_m3]
+    state = initial_state(hyd)
     for seg, idx in zip(segs, segment_index(t, segs), strict=True):
         t_eval, t0, t1 = t[idx], seg.t_start_s, seg.t_end_s
         if t1 <= t0:
@@ -275,7 +281,7 @@ def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics
                            mxstep=100_000)
         if info["message"] != "Integration successful.":
             raise RuntimeError(f"sine drive ({drive.frequency_Hz:g} Hz): integration failed: {info['message']}")
-        out_dp[idx] = sol[1:-1, 0]
+        out_dp[idx] = state_pressure(sol[1:-1], hyd)
         state = [float(x) for x in sol[-1]]
         if seg.contact:
             out_vel[idx] = drive.velocity(t_eval) if drive.harmonics else amp * omega * np.cos(omega * t_eval)
