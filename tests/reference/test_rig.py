@@ -250,7 +250,7 @@ def test_gas_law_air_matches_the_rigs_two_chamber_solution(w_m_s, charge_Pa, phi
 
 
 def test_gas_law_air_in_a_sine_matches_the_rigs_two_chamber_solution():
-    """A sine case integrates (Δp, K) directly: the rig's two chambers within 1e-5 of the force scale."""
+    """A sine case integrates the two chamber pressures: the rig's two chambers within 1e-5 of the force scale."""
     design, charge = rr.TABLE1, 5e6
     case = rr.SineCase("H01", 1.0, 2e-3, 3, 500.0)
     effects = rr.TrueEffects(air_fraction_at_charge=rrc.air_fraction_from_catalogue(1e-3, charge),
