@@ -114,6 +114,19 @@ def test_from_config_errors_name_the_key(config_mapping, mutate, key):
         VirtualCampaign.from_config("paper-lag-damper", mapping)
 
 
+def test_a_virtual_campaign_may_declare_its_charge_pressure_and_its_air_follows_the_gas_law(config_mapping):
+    mapping = yaml.safe_load(yaml.safe_dump(config_mapping))
+    mapping["damper"]["charge_pressure_Pa"] = 1.0e7
+    mapping["effects"] = {"air": {"volume_fraction": 3e-4}}
+    mapping.get("measurement", {}).pop("servo_stiffness_N_m", None)
+    vc = VirtualCampaign.from_config("paper-lag-damper", mapping)
+    assert vc.damper.charge_pressure_Pa == 1.0e7 and vc.damper.to_dict()["charge_pressure_Pa"] == 1.0e7
+    case = triangle(w_m_s=1.2e-3)
+    with_gas = true_response(case, vc.damper, vc.effects)["force_N"].to_numpy()
+    constant = true_response(case, dataclasses.replace(vc.damper, charge_pressure_Pa=None), vc.effects)
+    assert np.max(np.abs(with_gas - constant["force_N"].to_numpy())) > 1e-3 * np.max(np.abs(with_gas))
+
+
 # ---------------------------------------------------------------------------------- outputs
 
 def small(paper) -> VirtualCampaign:

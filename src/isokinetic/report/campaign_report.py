@@ -41,6 +41,7 @@ DAMPER_LABELS = {
     "orifice_length_m": ("orifice length l_O", "m"), "discharge_coefficient": ("discharge coefficient C_D", "-"),
     "density_kg_m3": ("oil density rho", "kg/m^3"), "viscosity_Pa_s": ("oil viscosity mu", "Pa s"),
     "oil_compressibility_1_Pa": ("oil compressibility beta", "1/Pa"),
+    "charge_pressure_Pa": ("charge pressure p_0", "Pa"),
 }
 MODEL_NAMES = {"wallaschek": "Wallaschek (symmetric: F = sign(v) F_C + D_L v + D_Q v|v|)",
                "surace": "Surace (one parameter set per direction)"}
