@@ -12,10 +12,29 @@ from __future__ import annotations
 
 import numpy as np
 
+#: Chamber pressures are held at this fraction of the charge pressure or above (the gas law has no cavitation).
+PRESSURE_FLOOR = 0.05
+
+
+def gas_amounts(gas_1_Pa: float, charge_pressure_Pa: float, volume_1_m3: float, volume_2_m3: float):
+    """G_i = φ0 V0,i p0 = γ p0² V0,i of the two chambers [Pa m³], γ = ``gas_1_Pa`` the gas term of Eq. (3) at p0."""
+    p0 = charge_pressure_Pa
+    return gas_1_Pa * p0 * p0 * volume_1_m3, gas_1_Pa * p0 * p0 * volume_2_m3
+
+
+def chamber_compliance(u, oil_volume_term, gas_amount: float, oil_1_Pa: float):
+    """𝒞_i = β_oil (V_i - G_i/p) + G_i/p² [m³/Pa] at u = 1/p, ``oil_volume_term`` = β_oil V_i."""
+    return oil_volume_term + gas_amount * u * (u - oil_1_Pa)
+
+
+def chamber_compliance_slope(u, gas_amount: float, oil_1_Pa: float):
+    """d𝒞_i/dp = G_i u² (β_oil - 2u) at u = 1/p [m³/Pa²]."""
+    return gas_amount * u * u * (oil_1_Pa - 2.0 * u)
+
 
 def compressibility_ratio(dp_Pa, oil_1_Pa: float, gas_1_Pa: float, charge_pressure_Pa: float, volume_1_m3: float,
                           volume_2_m3: float, y_m=0.0, piston_area_m2: float = 0.0, stored_m3=0.0,
-                          floor: float = 0.05):
+                          floor: float = PRESSURE_FLOOR):
     """r(Δp) = 𝒞(Δp)/𝒞(0) and dr/dΔp [1/Pa]: the two chambers' series compliance when the gas of Eq. (3)
     is isothermal around the charge pressure p0, at piston position ``y_m`` (chambers V0,i = ``volume_*_m3``
     at y = 0, Eq. 2).
@@ -31,12 +50,12 @@ def compressibility_ratio(dp_Pa, oil_1_Pa: float, gas_1_Pa: float, charge_pressu
     """
     dp, y = np.asarray(dp_Pa, dtype=float), np.asarray(y_m, dtype=float)
     b, p0 = oil_1_Pa, charge_pressure_Pa
-    g1, g2 = gas_1_Pa * p0 * p0 * volume_1_m3, gas_1_Pa * p0 * p0 * volume_2_m3     # G_i
+    g1, g2 = gas_amounts(gas_1_Pa, p0, volume_1_m3, volume_2_m3)
     bv1, bv2 = b * (volume_1_m3 - piston_area_m2 * y), b * (volume_2_m3 + piston_area_m2 * y)
     low = floor * p0
 
-    def cap(u, bv, g):                              # 𝒞_i = β_oil (V_i - G_i/p) + G_i/p², u = 1/p
-        return bv + g * u * (u - b)
+    def cap(u, bv, g):
+        return chamber_compliance(u, bv, g, b)
 
     def held(d, p, u, bv, g):                       # ∫ 𝒞_i dp from p0 to p = p0 + d
         return bv * d - b * g * np.log(p / p0) + (g / p0) * d * u
@@ -60,9 +79,9 @@ def compressibility_ratio(dp_Pa, oil_1_Pa: float, gas_1_Pa: float, charge_pressu
     total = c1 + c2
     c = c1 * c2 / total
     c_ref = r1 * r2 / (r1 + r2)
-    # d𝒞_i/dp = G_i u² (β_oil - 2u); dδ_1/dΔp = 𝒞_2/(𝒞_1 + 𝒞_2), dδ_2/dΔp = -𝒞_1/(𝒞_1 + 𝒞_2)
-    dc1 = g1 * u1 * u1 * (b - 2.0 * u1) * (c2 / total)
-    dc2 = -g2 * u2 * u2 * (b - 2.0 * u2) * (c1 / total)
+    # dδ_1/dΔp = 𝒞_2/(𝒞_1 + 𝒞_2), dδ_2/dΔp = -𝒞_1/(𝒞_1 + 𝒞_2)
+    dc1 = chamber_compliance_slope(u1, g1, b) * (c2 / total)
+    dc2 = -chamber_compliance_slope(u2, g2, b) * (c1 / total)
     dc = c * c * (dc1 / (c1 * c1) + dc2 / (c2 * c2))
     return c / c_ref, dc / c_ref
 

@@ -132,8 +132,7 @@ class Hydraulics:
 
     def rest_compliance(self, y_m):
         """𝒞(Δp = 0) at piston position y [m³/Pa]: β_eff 𝒱(y), Eq. (2)-(3), with the gas law's gas volumes."""
-        (g1, g2), a = self.gas_volumes_m3, self.piston_area_m2
-        v1, v2 = self.chamber_volume_1_m3 + g1 - a * y_m, self.chamber_volume_2_m3 + g2 + a * y_m
+        v1, v2 = tau_volumes(*start_volumes(y_m, self), self)
         return self.tau_compressibility_1_Pa * v1 * v2 / (v1 + v2)
 
     def compressibility_ratio(self, dp_Pa, y_m=0.0, stored_m3=0.0) -> tuple[np.ndarray, np.ndarray]:
@@ -231,7 +230,7 @@ def compressibility_time(dt_s, y_start_m: float, velocity_m_s: float, hyd: Hydra
     """
     dt = np.asarray(dt_s, dtype=float)
     a, beta = hyd.piston_area_m2, hyd.tau_compressibility_1_Pa
-    v1, v2 = start_volumes(y_start_m, hyd)
+    v1, v2 = tau_volumes(*start_volumes(y_start_m, hyd), hyd)
     if velocity_m_s == 0.0:
         return dt * (1.0 / v1 + 1.0 / v2) / beta
     qp = a * velocity_m_s
@@ -752,13 +751,18 @@ def relaxation(dp0_Pa: float, piston_flow_m3_s: float, hyd: Hydraulics, step: fl
 
 
 def start_volumes(y_start_m, hyd: Hydraulics):
-    """Chamber volumes (V1, V2) at piston positions y, Eq. (2), plus the gas law's gas volumes
-    (:attr:`Hydraulics.gas_volumes_m3`) [m³]."""
+    """Chamber volumes (V1, V2) at piston positions y, Eq. (2) [m³]."""
     a = hyd.piston_area_m2
-    if hyd.gas_law:
-        g1, g2 = hyd.gas_volumes_m3
-        return hyd.chamber_volume_1_m3 + g1 - a * y_start_m, hyd.chamber_volume_2_m3 + g2 + a * y_start_m
     return hyd.chamber_volume_1_m3 - a * y_start_m, hyd.chamber_volume_2_m3 + a * y_start_m
+
+
+def tau_volumes(volume_1_m3, volume_2_m3, hyd: Hydraulics):
+    """The volumes of Eq. (14)'s τ: the chamber volumes, plus the gas law's gas volumes
+    (:attr:`Hydraulics.gas_volumes_m3`) [m³]."""
+    if not hyd.gas_law:
+        return volume_1_m3, volume_2_m3
+    g1, g2 = hyd.gas_volumes_m3
+    return volume_1_m3 + g1, volume_2_m3 + g2
 
 
 def compressibility_times(dt_s: np.ndarray, volume_1_m3: np.ndarray, volume_2_m3: np.ndarray,

@@ -53,7 +53,9 @@ from isokinetic.physics.hydraulics import (
     compressibility_logs,
     compressibility_times,
     relaxation_batch,
+    start_volumes,
     steady_pressure,
+    tau_volumes,
 )
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.servo import check_stiffness, servo_response
@@ -188,7 +190,7 @@ class _Layout:
         with self.memo["lock"]:
             hit = self.memo.get("gas")
             if hit is None or hit[0] != gas:
-                hit = self.memo["gas"] = (gas, self.v1 + gas[0], self.v2 + gas[1])
+                hit = self.memo["gas"] = (gas, *tau_volumes(self.v1, self.v2, hyd))
         return hit[1], hit[2]
 
 
@@ -210,7 +212,7 @@ def _build_layout(cases: Sequence[CasePlan], drives: Sequence[Drive | None], hyd
     flow = np.array([q for _, flows in plans for q in flows], dtype=float)
     w = flow / hyd.piston_area_m2
     y0 = np.array([x.piston_start_m for x in segs], dtype=float)
-    v1, v2 = hyd.chamber_volume_1_m3 - hyd.piston_area_m2 * y0, hyd.chamber_volume_2_m3 + hyd.piston_area_m2 * y0
+    v1, v2 = start_volumes(y0, hyd)
     case = np.repeat(np.arange(n_seg.size), n_seg)
     j = np.arange(case.size) - np.repeat(np.cumsum(n_seg) - n_seg, n_seg)
     by_step = np.argsort(j, kind="stable")

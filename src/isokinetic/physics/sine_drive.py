@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from isokinetic.physics.excitation import Segment, check_stroke, piston_segments, segment_index
+from isokinetic.physics.gas_law import PRESSURE_FLOOR, chamber_compliance, chamber_compliance_slope, gas_amounts
 from isokinetic.physics.hydraulics import Hydraulics, steady_pressure
 from isokinetic.physics.plan import CasePlan
 
@@ -214,14 +215,15 @@ def _gas_law_system(hyd: Hydraulics, motion, flow, dflow):
     piston's ``motion`` (y, A_p ẏ) and the flow and its derivative; Δp = p1 - p2 (:func:`state_pressure`). The
     same model as the triangle tables' (Δp, K), written without K's Newton iteration."""
     b, a, p0 = hyd.tau_compressibility_1_Pa, hyd.piston_area_m2, hyd.charge_pressure_Pa
-    g1, g2 = (hyd.air_compressibility_1_Pa * p0 * p0 * v for v in (hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3))
-    bv1, bv2, low = b * hyd.chamber_volume_1_m3, b * hyd.chamber_volume_2_m3, 0.05 * p0
+    g1, g2 = gas_amounts(hyd.air_compressibility_1_Pa, p0, hyd.chamber_volume_1_m3, hyd.chamber_volume_2_m3)
+    bv1, bv2, low = b * hyd.chamber_volume_1_m3, b * hyd.chamber_volume_2_m3, PRESSURE_FLOOR * p0
 
     def chambers(tt, z):   # (Δp, A_p ẏ, 𝒞_1, 𝒞_2, u1, u2)
         p1, p2 = z.item(0), z.item(1)
         y, qin = motion(tt)
         u1, u2 = 1.0 / max(p1, low), 1.0 / max(p2, low)
-        return p1 - p2, qin, bv1 - b * a * y + g1 * u1 * (u1 - b), bv2 + b * a * y + g2 * u2 * (u2 - b), u1, u2
+        return (p1 - p2, qin, chamber_compliance(u1, bv1 - b * a * y, g1, b),
+                chamber_compliance(u2, bv2 + b * a * y, g2, b), u1, u2)
 
     def rhs(tt, z):
         dp, qin, c1, c2, _, _ = chambers(tt, z)
@@ -231,7 +233,7 @@ def _gas_law_system(hyd: Hydraulics, motion, flow, dflow):
     def jac(tt, z):
         dp, qin, c1, c2, u1, u2 = chambers(tt, z)
         net, d = qin - flow(dp), dflow(dp)
-        s1, s2 = g1 * u1 * u1 * (b - 2.0 * u1), g2 * u2 * u2 * (b - 2.0 * u2)     # d𝒞_i/dp_i
+        s1, s2 = chamber_compliance_slope(u1, g1, b), chamber_compliance_slope(u2, g2, b)
         return [[(-d - net / c1 * s1) / c1, d / c1], [d / c2, (-d + net / c2 * s2) / c2]]
 
     return rhs, jac
