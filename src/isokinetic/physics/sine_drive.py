@@ -153,6 +153,16 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
             return copysign(2.0 * m / (c1p + sqrt(c1p2 + c2p4 * m)), p) + leak * p
         return copysign(2.0 * m / (c1n + sqrt(c1n2 + c2n4 * m)), p) + leak * p
 
+    def dflow(p):   # Hydraulics.flow_derivative
+        c1, c2 = (c1p, c2p) if p >= 0 else (c1n, c2n)
+        root = sqrt(c1**2 + 4.0 * c2 * abs(p))
+        return (1.0 / root if root > 0 else 1e300) + leak
+
+    motion = _piston_motion(seg, a, amp, omega, terms)
+
+    if hyd.gas_law:   # the two chambers: none of the one-state closures below
+        return _gas_law_system(hyd, motion, flow, dflow)
+
     def pushed(tt, z):   # Eq. 1 driven by the sine; z.item(): a Python float (numpy scalars cost more)
         p = z.item()
         m = abs(p)
@@ -166,8 +176,6 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
         ay = a * (amp * sin(ph) + off)
         return [(qamp * cos(ph) - q) / (beta * ((v01 - ay) * (v02 + ay) / vsum))]
 
-    motion = _piston_motion(seg, a, amp, omega, terms)
-
     def pushed_periodic(tt, z):   # Eq. 1 driven by the sine and its harmonics
         q = flow(z.item())
         y, qin = motion(tt)
@@ -179,15 +187,10 @@ def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float
 
     rhs = (pushed_periodic if terms else pushed) if contact else resting
 
-    def dflow(p):   # Hydraulics.flow_derivative
-        c1, c2 = (c1p, c2p) if p >= 0 else (c1n, c2n)
-        root = sqrt(c1**2 + 4.0 * c2 * abs(p))
-        return (1.0 / root if root > 0 else 1e300) + leak
-
     def jac(tt, z):
         return [[-dflow(z.item()) / (beta * volume(tt))]]
 
-    return _gas_law_system(hyd, motion, flow, dflow) if hyd.gas_law else (rhs, jac)
+    return rhs, jac
 
 
 def _piston_motion(seg: Segment, a: float, amp: float, omega: float, terms: tuple):
