@@ -368,3 +368,201 @@ def write_crank_folder(folder: str | Path, frequencies_Hz: Sequence[float] = (0.
                              pd.DataFrame({"time_s": truth["time_s"], "force_true_N": truth["force_N"],
                                            "velocity_true_m_s": truth["piston_velocity_m_s"]})))
     return runs
+
+
+# --------------------------------------------------------------------------------------------
+# A damper law of the test instruments' own (for records the virtual rig cannot drive)
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class LaggedDamper:
+    """A damper whose force follows its steady law F_ss(v) = c1 v + c2 v|v| + F_c tanh(v / v_c) through a
+    first-order lag of time constant ``tau_s`` (the oil's compressibility, linearised: tau dF/dt = F_ss - F).
+
+    The virtual rig drives pure sines and triangles only; the servo-distorted sweep and the random record
+    need an arbitrary displacement, so they use this law, written here and nowhere in the package. The
+    defaults are a passenger-car shock absorber (0.8 m/s: about 2.8 kN; 16 mm/s: about 49 N)."""
+
+    c1_N_s_m: float = 1500.0
+    c2_N_s2_m2: float = 2500.0
+    coulomb_N: float = 25.0
+    coulomb_velocity_m_s: float = 2.0e-4
+    tau_s: float = 1.5e-3
+
+    def steady_force_N(self, velocity_m_s):
+        """F_ss(v), the steady characteristic."""
+        v = np.asarray(velocity_m_s, dtype=float)
+        friction = self.coulomb_N * np.tanh(v / self.coulomb_velocity_m_s)
+        return self.c1_N_s_m * v + self.c2_N_s2_m2 * v * np.abs(v) + friction
+
+    def force_N(self, time_s, velocity_m_s) -> np.ndarray:
+        """The lagged force on an even time grid, from F = F_ss(v(0)): the lag's exact solution for an input
+        linear between samples (tau = 0: the steady force)."""
+        from scipy.signal import lfilter
+
+        steady = self.steady_force_N(velocity_m_s)
+        if self.tau_s <= 0.0:
+            return steady
+        h = float(time_s[1] - time_s[0])
+        a = math.exp(-h / self.tau_s)
+        c = (1.0 - a) * self.tau_s / h
+        out, _ = lfilter([1.0 - c, c - a], [1.0, -a], steady, zi=[c * steady[0]])   # F(0) = F_ss(v(0))
+        return out
+
+
+# --------------------------------------------------------------------------------------------
+# An MTS-style stepped sweep whose servo distorts the fast steps, 2-3 cycles a step
+# --------------------------------------------------------------------------------------------
+
+#: (frequency Hz, cycles, second-harmonic share, third-harmonic share) of each step: the servo distorts the steps at
+#: 5 and 10 Hz by 2-4 % harmonics of the displacement (6-12 % of the velocity).
+SERVO_STEPS = ((0.2, 2, 0.0, 0.0), (0.5, 3, 0.0, 0.0), (1.0, 2, 0.0, 0.0), (2.0, 3, 0.01, 0.0),
+               (5.0, 3, 0.03, 0.02), (10.0, 2, 0.04, 0.02))
+
+
+@dataclass(frozen=True)
+class ServoStep:
+    """One step of :func:`servo_sweep`: record times [s], and per direction the noise-free velocity extrema of
+    its cycles (instants, velocities) and the noise-free force at them."""
+
+    frequency_Hz: float
+    cycles: int
+    harmonics: tuple[float, float]
+    start_s: float
+    end_s: float
+    peak_times_s: Mapping[str, tuple[float, ...]]
+    peak_velocities_m_s: Mapping[str, tuple[float, ...]]
+    peak_forces_N: Mapping[str, tuple[float, ...]]
+
+
+def distorted_sine(theta, amplitude_m: float, h2: float, h3: float):
+    """Displacement Y [sin θ + h2 (cos 2θ + 1) + h3 (sin 3θ + 1)] and dy/dθ: at the fundamental's turning point
+    θ = π/2 (mod 2π) the harmonics add neither displacement nor velocity, so a step joins its rests smoothly."""
+    y = amplitude_m * (np.sin(theta) + h2 * (np.cos(2 * theta) + 1.0) + h3 * (np.sin(3 * theta) + 1.0))
+    dy = amplitude_m * (np.cos(theta) - 2.0 * h2 * np.sin(2 * theta) + 3.0 * h3 * np.cos(3 * theta))
+    return y, dy
+
+
+def _servo_motion(steps, amplitude_m: float, standstill_s: float, dwell_s: float, rate_Hz: float):
+    """(t, y, v, [(f, k, h2, h3, start, end)]) of the sweep on a grid of ``rate_Hz``: at rest at +Y, then each step
+    from θ = π/2 for k cycles, ``dwell_s`` at rest after each."""
+    total = standstill_s + sum(k / f + dwell_s for f, k, _, _ in steps)
+    t = np.arange(int(math.floor(total * rate_Hz)) + 1) / rate_Hz
+    y, v = np.full(t.size, amplitude_m), np.zeros(t.size)
+    start, spans = standstill_s, []
+    for f, k, h2, h3 in steps:
+        end = start + k / f
+        inside = (t >= start) & (t <= end)
+        theta = 2.0 * math.pi * f * (t[inside] - start) + 0.5 * math.pi
+        y[inside], dy = distorted_sine(theta, amplitude_m, h2, h3)
+        v[inside] = 2.0 * math.pi * f * dy
+        spans.append((f, k, h2, h3, start, end))
+        start = end + dwell_s
+    return t, y, v, spans
+
+
+def _step_extrema(f: float, k: int, h2: float, h3: float, start: float, amplitude_m: float, t_fine, force_fine):
+    """Per direction, each cycle's noise-free velocity extremum (instant, value) and the force there."""
+    out = {"+": ([], [], []), "-": ([], [], [])}
+    for j in range(k):
+        theta = 0.5 * math.pi + 2.0 * math.pi * (j + np.linspace(0.0, 1.0, 200_001))
+        v = 2.0 * math.pi * f * distorted_sine(theta, amplitude_m, h2, h3)[1]
+        instants = start + (theta - 0.5 * math.pi) / (2.0 * math.pi * f)
+        for d, i in (("+", int(np.argmax(v))), ("-", int(np.argmin(v)))):
+            out[d][0].append(float(instants[i]))
+            out[d][1].append(float(v[i]))
+            out[d][2].append(float(np.interp(instants[i], t_fine, force_fine)))
+    return {d: tuple(map(tuple, lists)) for d, lists in out.items()}
+
+
+def servo_sweep(steps=SERVO_STEPS, amplitude_m: float = 0.0127, standstill_s: float = 4.0, dwell_s: float = 1.0,
+                sample_rate_Hz: float = 1024.0, damper: LaggedDamper = LaggedDamper(), force_noise_N: float = 0.5,
+                force_noise_rel: float = 0.002, displacement_noise_m: float = 2.0e-6, seed: int = 23
+                ) -> tuple[pd.DataFrame, list[ServoStep]]:
+    """An MTS-style stepped sine sweep at ±``amplitude_m`` whose steps hold 2-3 cycles and whose fast steps carry
+    servo harmonics (:data:`SERVO_STEPS`, :func:`distorted_sine`), on :class:`LaggedDamper`.
+
+    Returns the record (time_s, displacement_m, force_N measured; force_true_N, velocity_true_m_s noise free) and
+    the steps with their truth: the noise-free force at each cycle's noise-free velocity extremum (found on a grid
+    of 200 000 points a cycle; the force computed on a grid 16 times finer than the samples, interpolated).
+    Noise: Gaussian, seeded, additive plus |F|-proportional on the force, additive on the displacement."""
+    fine = 16
+    t_f, y_f, v_f, spans = _servo_motion(steps, amplitude_m, standstill_s, dwell_s, sample_rate_Hz * fine)
+    force_f = damper.force_N(t_f, v_f)
+    out = []
+    for f, k, h2, h3, start, end in spans:
+        ext = _step_extrema(f, k, h2, h3, start, amplitude_m, t_f, force_f)
+        out.append(ServoStep(f, k, (h2, h3), start, end, {d: e[0] for d, e in ext.items()},
+                             {d: e[1] for d, e in ext.items()}, {d: e[2] for d, e in ext.items()}))
+    t, y, v, force = t_f[::fine], y_f[::fine], v_f[::fine], force_f[::fine]
+    rng = np.random.default_rng(seed)
+    measured = force + force_noise_N * rng.standard_normal(t.size) \
+        + force_noise_rel * np.abs(force) * rng.standard_normal(t.size)
+    record = pd.DataFrame({"time_s": t, "displacement_m": y + displacement_noise_m * rng.standard_normal(t.size),
+                           "force_N": measured, "force_true_N": force, "velocity_true_m_s": v})
+    return record, out
+
+
+# --------------------------------------------------------------------------------------------
+# A random-excitation record with a switching control voltage
+# --------------------------------------------------------------------------------------------
+
+RANDOM_HEADER = ("Time [s]", "X [cm]", "F [N]", "Y [V]")
+
+
+def random_motion(duration_s: float, rate_Hz: float, band_Hz: tuple[float, float] = (0.1, 2.0),
+                  rms_m: float = 0.004, taper_s: float = 2.0, seed: int = 29):
+    """White-noise-like displacement: the sum of sines of every frequency k/T in ``band_Hz`` with equal amplitudes
+    and seeded random phases, scaled to ``rms_m``, tapered in and out (raised cosine over ``taper_s``).
+    Returns (t, displacement, its exact derivative)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(round(duration_s * rate_Hz)) + 1) / rate_Hz
+    freqs = np.arange(math.ceil(band_Hz[0] * duration_s), math.floor(band_Hz[1] * duration_s) + 1) / duration_s
+    phases = rng.uniform(0.0, 2.0 * math.pi, freqs.size)
+    arg = 2.0 * math.pi * freqs[None, :] * t[:, None] + phases[None, :]
+    s, ds = np.sin(arg).sum(axis=1), (2.0 * math.pi * freqs[None, :] * np.cos(arg)).sum(axis=1)
+    scale = rms_m / float(np.sqrt(np.mean(s ** 2)))
+    u = np.clip(np.minimum(t, t[-1] - t) / taper_s, 0.0, 1.0)
+    w = 0.5 - 0.5 * np.cos(math.pi * u)
+    side = np.where(t < 0.5 * t[-1], 1.0, -1.0)
+    dw = np.where((u > 0) & (u < 1), 0.5 * math.pi / taper_s * np.sin(math.pi * u), 0.0) * side
+    return t, scale * w * s, scale * (dw * s + w * ds)
+
+
+def switching_levels(t, levels_V=(0.0, 1.5, 3.0), mean_hold_s: float = 4.0, noise_V: float = 0.002,
+                     seed: int = 31) -> np.ndarray:
+    """A control voltage holding each of ``levels_V`` for random spans (exponential, mean ``mean_hold_s``), seeded,
+    with a little noise."""
+    rng = np.random.default_rng(seed)
+    out = np.empty(t.size)
+    start, level = 0.0, 0
+    while start <= t[-1]:
+        stop = start + max(0.5, rng.exponential(mean_hold_s))
+        out[(t >= start) & (t < stop)] = levels_V[level]
+        level = (level + int(rng.integers(1, len(levels_V)))) % len(levels_V)
+        start = stop
+    return out + noise_V * rng.standard_normal(t.size)
+
+
+def random_record(duration_s: float = 60.0, sample_rate_Hz: float = 300.0,
+                  damper: LaggedDamper = LaggedDamper(tau_s=0.0), force_noise_N: float = 0.5,
+                  displacement_noise_m: float = 2.0e-6, seed: int = 37) -> pd.DataFrame:
+    """A random-excitation test of a passive damper (:func:`random_motion`, quasi-static by construction: the
+    default damper has no lag) while the logger also records a controller's switching voltage (the semi-active
+    valve command of another set-up; it does not act on this damper). Columns: time_s, displacement_m, force_N,
+    voltage_V measured; velocity_true_m_s, force_true_N noise free."""
+    t, y, v = random_motion(duration_s, sample_rate_Hz)
+    force = damper.force_N(t, v)
+    rng = np.random.default_rng(seed)
+    return pd.DataFrame({"time_s": t, "displacement_m": y + displacement_noise_m * rng.standard_normal(t.size),
+                         "force_N": force + force_noise_N * rng.standard_normal(t.size),
+                         "voltage_V": switching_levels(t), "velocity_true_m_s": v, "force_true_N": force})
+
+
+def write_random_csv(path: str | Path, record: pd.DataFrame) -> Path:
+    """The random record as its logger writes it: ``Time [s], X [cm], F [N], Y [V]``, time stamps with 5 significant
+    digits (so intervals vary by up to ±10 % of a step once t >= 10 s), displacement in cm with 5 decimals."""
+    return write_csv(path, {RANDOM_HEADER[0]: significant(record["time_s"], 5),
+                            RANDOM_HEADER[1]: fixed(record["displacement_m"] * 100.0, 5),
+                            RANDOM_HEADER[2]: fixed(record["force_N"], 2),
+                            RANDOM_HEADER[3]: fixed(record["voltage_V"], 3)})
