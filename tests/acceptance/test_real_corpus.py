@@ -224,15 +224,16 @@ def peak_reference(rec: Record) -> pd.DataFrame:
 
 
 def energy_reference_J(rec: Record) -> tuple[float, float, int]:
-    """(mean, standard error, count) of the loop energy of the steady cycles: the trapezoid integral of F dx over
-    the samples from one steady positive velocity peak to the next."""
+    """(mean, standard error, count) of the loop energy of the steady cycles: the integral of F dx from one steady
+    positive velocity peak to the next, x and F interpolated linearly between samples (so the cycle starts and ends
+    at the peaks, not at the nearest samples: a sample of the fast stroke holds a few % of a loop's energy)."""
     tops = np.sort(steady_peaks(rec).query("direction == '+'")["time_s"].to_numpy())
     period = period_s(rec.t_s, rec.x_m)
     energies = []
     for a, b in zip(tops[:-1], tops[1:]):
         if b - a < 1.5 * period:
-            m = (rec.t_s >= a) & (rec.t_s <= b)
-            energies.append(float(np.trapezoid(rec.f_N[m], rec.x_m[m])))
+            grid = np.linspace(a, b, 20_001)
+            energies.append(float(np.trapezoid(np.interp(grid, rec.t_s, rec.f_N), np.interp(grid, rec.t_s, rec.x_m))))
     e = np.asarray(energies)
     return float(e.mean()), float(e.std(ddof=1) / math.sqrt(e.size)) if e.size > 1 else 0.0, int(e.size)
 
