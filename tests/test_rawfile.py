@@ -217,7 +217,7 @@ def test_mts793_rows_ending_in_a_tab_read_as_without(tmp_path):
     assert a.units == b.units
 
 
-@pytest.mark.parametrize("kwargs", [{"delimiter": "mts793"}, {"format": "xlsx"}, {"decimal": ";"},
+@pytest.mark.parametrize("kwargs", [{"delimiter": "mts793"}, {"format": "xls"}, {"decimal": ";"},
                                     {"delimiter": ",", "decimal": ","}, {"encoding": "klingon"}, {"units_row": "yes"}])
 def test_a_format_no_reader_reads_is_refused_when_made(kwargs):
     with pytest.raises((ValueError, LookupError)):

@@ -37,33 +37,55 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from isokinetic.rawlayout import (  # noqa: F401  (RawFileError, ENCODING_HINT, MAX_QUOTED: re-exported)
+    ENCODING_HINT,
+    MAX_PREAMBLE_ROWS,
+    MAX_QUOTED,
+    RawFileError,
+    SheetError,
+    _csv_problem,
+    _data_lines,
+    _decode_problem,
+    _field_count_problem,
+    _file_error,
+    _headerless_problem,
+    _listed,
+    _positional,
+    _preamble_note,
+    _quoted,
+    _split,
+    _texts,
+    all_numbers,
+    data_like,
+    find_start,
+    is_number,
+    marker_rows,
+    ragged_marker,
+    sheet_rows,
+)
+
 if TYPE_CHECKING:  # pandas is imported where a table is read: the raw check's job, which reads the manifest's
     import pandas as pd  # formats only, never loads it (issue 23)
 
 #: File formats :func:`read_raw_table` reads.
-FORMATS = ("delimited", "mts793")
+FORMATS = ("delimited", "mts793", "xlsx")
 #: Field delimiters of the ``delimited`` format, with the words used in messages (``whitespace``: runs of
 #: spaces and tabs).
 DELIMITERS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'", "whitespace": "whitespace"}
 DECIMALS = (".", ",")
+#: Whether a file has a header row (``row``, after any preamble) or none (columns ``col1``, ``col2``, ...).
+HEADER_KINDS = ("row", "none")
 #: Byte-order marks of encodings other than UTF-8, refused under a UTF-8 (default) encoding.
 FOREIGN_BOMS = {codecs.BOM_UTF32_LE: "UTF-32", codecs.BOM_UTF32_BE: "UTF-32",
                 codecs.BOM_UTF16_LE: "UTF-16", codecs.BOM_UTF16_BE: "UTF-16"}
-#: The fix named when a file is not in the declared encoding.
-ENCODING_HINT = "set `encoding:` in the manifest's csv block (for example cp1252)"
 MTS_MAGIC = "MTS793"
 MTS_BLOCK = "Data Acquisition"
-#: Longest cell text quoted in a reason.
-MAX_QUOTED = 40
 #: Leading bytes of binary formats a case file is sometimes mistaken for, with their names.
 BINARY_MAGIC = {b"\x1f\x8b": "gzip", b"PK\x03\x04": "zip (an .xlsx workbook?)", b"BZh": "bzip2",
                 b"\xfd7zXZ\x00": "xz", b"7z\xbc\xaf": "7-Zip", b"PAR1": "Parquet", b"\x89HDF": "HDF5",
                 b"\x89PNG": "PNG", b"%PDF": "PDF", b"\xd0\xcf\x11\xe0": "OLE (an .xls workbook?)"}
 #: Bytes decoded at a time when an encoding is checked without decoding the whole file at once.
 DECODE_CHUNK = 1 << 22
-_INTEGER = re.compile(r"[+-]?\d+")
-_DIGITS = re.compile(r"\d+(?:[eE][+-]?\d+)?")
-_WHITESPACE = re.compile(r"[ \t]+")
 
 
 @dataclass(frozen=True)
@@ -77,6 +99,8 @@ class FileFormat:
     encoding: str = "utf-8"
     units_row: bool = False
     format: str = "delimited"
+    header: str = "row"
+    sheet: str | None = None
 
     def __post_init__(self):
         """Refuse a format that no reader reads (a positional slip such as ``FileFormat("mts793")`` included)."""
@@ -90,117 +114,29 @@ class FileFormat:
         codecs.lookup(self.encoding)            # LookupError for an unknown encoding
         if not isinstance(self.units_row, bool):
             raise ValueError(f"FileFormat.units_row must be true or false, got {self.units_row!r}")
+        if self.header not in HEADER_KINDS or (self.header == "none" and self.units_row):
+            raise ValueError(f"FileFormat.header must be one of {HEADER_KINDS} (none without a units row), "
+                             f"got {self.header!r}")
 
     def to_dict(self) -> dict:
-        return {"format": self.format, "delimiter": self.delimiter, "decimal": self.decimal,
-                "encoding": self.encoding, "units_row": self.units_row}
+        """The manifest's csv block (1.4 keys ``header`` and ``sheet`` only when not their defaults)."""
+        out = {"format": self.format, "delimiter": self.delimiter, "decimal": self.decimal,
+               "encoding": self.encoding, "units_row": self.units_row}
+        return out | {k: v for k, v in (("header", self.header), ("sheet", self.sheet)) if v not in ("row", None)}
 
 
 @dataclass(frozen=True)
 class RawTable:
-    """One case file as text: ``frame`` (str cells, NaN for empty ones; columns: stripped header names),
-    ``units`` (column -> unit text of a units row, {} without one), ``rows`` (0-based data-row numbers of the
-    frame's rows in the file), ``warnings`` and ``decimal`` (the decimal mark to read the cells with)."""
+    """One case file as text: ``frame`` (str cells, NaN for empty ones; columns: stripped header names, or
+    ``col1``, ``col2``, ... of a headerless file), ``units`` (column -> unit text of a units row, {} without one),
+    ``rows`` (0-based data-row numbers of the frame's rows in the file: marker rows left out), ``warnings`` (the
+    preamble and marker rows skipped among them) and ``decimal`` (the decimal mark to read the cells with)."""
 
     frame: pd.DataFrame
     units: dict[str, str]
     rows: np.ndarray
     warnings: list[str] = field(default_factory=list)
     decimal: str = "."
-
-
-class RawFileError(Exception):
-    """A case file that cannot be read as a table. ``column``: the file's column name, or ``file`` (then
-    ``kind`` is ``key``: the manifest's ``file`` key); ``row``: 0-based data row, None when no row is at fault."""
-
-    def __init__(self, column: str, reason: str, row: int | None = None, kind: str = "column"):
-        super().__init__(reason)
-        self.column, self.reason, self.row, self.kind = column, reason, row, kind
-
-
-def _file_error(reason: str) -> RawFileError:
-    return RawFileError("file", reason, kind="key")
-
-
-def _quoted(raw: bytes) -> str:
-    return repr(raw if len(raw) <= MAX_QUOTED else raw[:MAX_QUOTED] + b"...")
-
-
-def _split(line: str, delimiter: str) -> list[str]:
-    """The fields of one line: csv quoting for a one-character delimiter, runs of blanks for ``whitespace``."""
-    if delimiter == "whitespace":
-        return _WHITESPACE.split(line.strip())
-    return next(csv.reader([line], delimiter=delimiter))
-
-
-def _header_index(lines: list[str]) -> int | None:
-    return next((i for i, line in enumerate(lines) if line.strip() and not line.startswith("#")), None)
-
-
-def _data_lines(lines: list[str], start: int) -> list[tuple[int, str]]:
-    """(data row, line) of the non-blank lines from ``start`` on: rows as pandas numbers them."""
-    out = []
-    for line in lines[start:]:
-        if line.strip():
-            out.append((len(out), line))
-    return out
-
-
-def _decode_problem(data: bytes, exc: UnicodeDecodeError, fmt: FileFormat) -> RawFileError:
-    """The row and column of the first byte ``fmt.encoding`` cannot decode (ASCII-compatible codecs; others
-    name the byte offset)."""
-    start, bad = exc.start, data[exc.start]
-    hint = f": {ENCODING_HINT}" if codecs.lookup(fmt.encoding).name == "utf-8" else ""
-    what = "not UTF-8" if hint else f"not {fmt.encoding}"
-    if codecs.lookup(fmt.encoding).name.startswith(("utf-16", "utf-32")) or fmt.format != "delimited":
-        line_no = data.count(b"\n", 0, start) + 1
-        return _file_error(f"{what}: byte 0x{bad:02x} in line {line_no}{hint}")
-    delimiter = "\t" if fmt.delimiter == "whitespace" else fmt.delimiter
-    line_start = data.rfind(b"\n", 0, start) + 1
-    line_end = data.find(b"\n", start)
-    line_end = len(data) if line_end < 0 else line_end
-    lines = data[:line_start].decode(fmt.encoding, errors="replace").split("\n")[:-1]
-    header = _header_index(lines)
-    if header is None:     # in a comment or the header itself
-        text = data[line_start:line_end].rstrip(b"\r")
-        return _file_error(f"{what}: byte 0x{bad:02x} in line {len(lines) + 1} ({_quoted(text)}), "
-                           f"before the data{hint}")
-    names = _split(lines[header].rstrip("\r"), fmt.delimiter)
-    row = len(_data_lines(lines, header + 1)) - (1 if fmt.units_row else 0)
-    if row < 0:             # in the units row
-        text = data[line_start:line_end].rstrip(b"\r")
-        return _file_error(f"{what}: byte 0x{bad:02x} in the units row ({_quoted(text)}){hint}")
-    if fmt.delimiter == "whitespace":
-        fields = _WHITESPACE.split(data[line_start:line_end].rstrip(b"\r").decode("latin-1").strip())
-        field_no = len(_WHITESPACE.split(data[line_start:start + 1].decode("latin-1").lstrip())) - 1
-        raw = fields[field_no].encode("latin-1") if field_no < len(fields) else data[start:start + 1]
-    else:
-        sep = delimiter.encode()
-        field_no = data.count(sep, line_start, start)
-        parts = data[line_start:line_end].rstrip(b"\r").split(sep)
-        raw = parts[field_no] if field_no < len(parts) else b""
-    if field_no < len(names):
-        return RawFileError(names[field_no].strip(), f"{what}: byte 0x{bad:02x} in {_quoted(raw)}{hint}", row=row)
-    return RawFileError("file", f"{what}: byte 0x{bad:02x} in {_quoted(raw)}{hint}", row=row, kind="key")
-
-
-def _field_count_problem(names: list[str], row: int, fields: list[str], last: bool, ends_in_newline: bool,
-                         delimiter: str) -> RawFileError:
-    """A data row whose field count differs from the header's (cut off, ragged, decimal commas when the
-    fields are separated by ',')."""
-    n, want = len(fields), len(names)
-    if n < want:
-        cut = last and not ends_in_newline
-        what = "the file is cut off mid-row" if cut else "a ragged row"
-        return RawFileError(names[n], f"row ends after {n} of {want} fields: {what}", row=row)
-    extra, i = n - want, 0
-    while delimiter == "," and extra > 0 and i < want and i + 1 < n:
-        if _INTEGER.fullmatch(fields[i].strip()) and _DIGITS.fullmatch(fields[i + 1].strip()):
-            return RawFileError(names[i], f"decimal comma in '{fields[i].strip()},{fields[i + 1].strip()}' (row "
-                                          f"has {n} fields, the header {want}): the format needs ',' between "
-                                          f"fields and '.' as the decimal mark", row=row)
-        i += 1
-    return RawFileError("file", f"row has {n} fields, the header {want}", row=row, kind="key")
 
 
 def _delimiter_problem(header: str, fmt: FileFormat | None) -> RawFileError | None:
@@ -326,18 +262,6 @@ def _check_names(names: list[str]) -> list[str]:
     return names
 
 
-def _csv_problem(exc: csv.Error, names: list[str], row: int, line: str, delimiter: str) -> RawFileError:
-    """The csv module's refusal of a data row (a field beyond its length limit), naming row and column (the
-    longest field's) with its length, never the field itself."""
-    sep = None if delimiter == "whitespace" else delimiter
-    parts = line.split(sep)
-    longest = max(range(len(parts)), key=lambda i: len(parts[i])) if parts else 0
-    what = (f"a field of {len(parts[longest])} characters, more than the {csv.field_size_limit()} a field may have"
-            if "field limit" in str(exc) else f"unreadable row: {str(exc)[:120]}")
-    column = names[longest] if longest < len(names) else "file"
-    return RawFileError(column, what, row=row, kind="column" if column != "file" else "key")
-
-
 #: Text that is the same in ASCII and in an encoding the fast path reads byte by byte.
 _ASCII_PROBE = "azAZ09,;\t|\n\r.#-+eE\" :/"
 #: Bytes that make a line non-blank (anything but space, tab, CR, LF).
@@ -431,20 +355,19 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
     if b'"' in data or data.count(b"\r") != data.count(b"\r\n"):
         return None
     _check_encoding(data, fmt)
-    pos, header = 0, None
-    while pos < len(data):
+    content, ends, pos = [], [], 0          # the first lines that may hold a preamble, the header and data
+    while pos < len(data) and len(content) < MAX_PREAMBLE_ROWS + 4:
+        at = pos
         line, pos = _next_line(data, pos, fmt.encoding)
         if line.strip() and not line.startswith("#"):
-            header = line
-            break
-    if header is None:
-        raise _file_error("no header row")
-    names = _split(header, fmt.delimiter)
-    if len(names) == 1:
-        problem = _delimiter_problem(header, declared)
-        if problem is not None:
-            raise problem
-    names = _check_names(names)
+            content.append((data.count(b"\n", 0, at), line))
+            ends.append((at, pos))
+    if not content:
+        raise _file_error("no header row" if fmt.header == "row" else "no data rows")
+    k = _start(content, fmt)
+    notes = _preamble_note(content[:k], fmt.header == "row")
+    names = _names([line for _, line in content], k, fmt, declared)
+    pos = ends[k][1] if fmt.header == "row" else ends[k][0]
     units: dict[str, str] = {}
     if fmt.units_row:
         line = ""
@@ -457,12 +380,14 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
     n_rows, bad = _line_checks(data, pos, fmt.delimiter, len(names))
     if bad is not None:
         line, after = _next_line(data, bad[0], fmt.encoding)
+        if ragged_marker(_split(line, fmt.delimiter), _reference_at(data, pos, fmt, len(names)), fmt.decimal):
+            return None         # marker rows of another width: the careful reader leaves them out
         last = after >= len(data) or not data[after:].strip()
         raise _field_count_problem(names, bad[1], _split(line, fmt.delimiter), last, ends_in_newline, fmt.delimiter)
     del data
     if n_rows == 0:
         return RawTable(frame=_frame([], names, fmt.delimiter), units=units, rows=np.arange(0, dtype="int64"),
-                        decimal=fmt.decimal)
+                        warnings=notes, decimal=fmt.decimal)
     options = {"decimal": fmt.decimal} if numeric else {"dtype": str}
     try:
         with warnings.catch_warnings():      # a column numeric in one chunk, text in another: mixed, as documented
@@ -473,25 +398,95 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
                                     engine="c", encoding=fmt.encoding, **options)
     except (pd.errors.ParserError, ValueError, OSError):
         return None
-    return _whole_table(frame, n_rows, ends_in_newline, units, fmt.decimal)
+    table = _whole_table(frame, n_rows, ends_in_newline, units, fmt.decimal)
+    if table is None:
+        return None
+    return _finish(table.frame, table.rows, names, fmt.decimal, numeric, notes + table.warnings, [], units)
+
+
+def _start(content: list[tuple[int, str]], fmt: FileFormat) -> int:
+    """Index in ``content`` ((line, text) of non-blank, non-comment lines) of the header row, or of a headerless
+    file's first data row (:func:`isokinetic.rawlayout.find_start`)."""
+    try:
+        split = [_split(line, fmt.delimiter) for _, line in content[:MAX_PREAMBLE_ROWS + 4]]
+    except csv.Error:
+        return 0
+    return find_start(split, fmt.header == "row", fmt.units_row, fmt.decimal)
+
+
+def _finish(frame: pd.DataFrame, rows: np.ndarray, names: list[str], fmt_decimal: str, numeric: bool,
+            notes: list[str], ragged: list[tuple[int, list[str]]], units: dict[str, str]) -> RawTable:
+    """The table with its marker rows (:func:`isokinetic.rawlayout.marker_rows`; ``ragged``: (row, fields) of marker
+    rows already left out for their field count) left out and noted; ``numeric``: columns that held a marker's
+    text are numbers again."""
+    import pandas as pd
+
+    drop = marker_rows(frame, names, fmt_decimal)
+    found = sorted([(int(rows[i]), _texts(frame.iloc[i], fmt_decimal)) for i in drop]
+                   + [(r, _texts(fields, fmt_decimal)) for r, fields in ragged])
+    if drop.size:
+        keep = np.ones(len(frame), dtype=bool)
+        keep[drop] = False
+        frame, rows = frame[keep].reset_index(drop=True), rows[keep]
+        for name in names if numeric and fmt_decimal == "." else ():
+            if frame[name].dtype == object:
+                converted = pd.to_numeric(frame[name], errors="coerce")
+                if not (converted.isna() & frame[name].notna()).any():
+                    frame[name] = converted
+    if found:
+        notes = notes + [f"skipped {len(found)} marker row(s) without a sample (text inside the data): data rows "
+                         f"{_listed(r for r, _ in found)}, the first {found[0][1][:MAX_QUOTED]!r}"]
+    return RawTable(frame=frame, units=units, rows=rows.astype("int64"), warnings=notes, decimal=fmt_decimal)
+
+
+def _reference(rows: list[tuple[int, str]], names: list[str], delimiter: str) -> list[str] | None:
+    """The first data row of the header's width, split (what a marker row's text is compared with)."""
+    for _, line in rows:
+        fields = _split(line, delimiter)
+        if len(fields) == len(names):
+            return fields
+    return None
+
+
+def _reference_at(data: bytes, pos: int, fmt: FileFormat, width: int) -> list[str] | None:
+    """:func:`_reference` on the bytes from ``pos`` (the first data row)."""
+    while pos < len(data):
+        line, pos = _next_line(data, pos, fmt.encoding)
+        fields = _split(line, fmt.delimiter) if line.strip() else []
+        if len(fields) == width:
+            return fields
+    return None
+
+
+def _names(lines: list[str], at: int, fmt: FileFormat, declared: FileFormat | None) -> list[str]:
+    """The header's column names (checked: another delimiter, names twice, numbers like the data), or a
+    headerless file's ``col1`` .. ``colN``."""
+    names = _split(lines[at], fmt.delimiter)
+    if fmt.header == "none":
+        return _positional(len(names))
+    if len(names) == 1:
+        problem = _delimiter_problem(lines[at], declared)
+        if problem is not None:
+            raise problem
+    if all_numbers(names, fmt.decimal):
+        raise _headerless_problem(lines[at])
+    return _check_names(names)
 
 
 def read_delimited(path: Path, fmt: FileFormat | None = None, numeric: bool = False) -> RawTable:
-    """A delimited text file (``fmt=None``: the format's ',' and '.' with no ``csv`` block, as before 1.1)."""
+    """A delimited text file (``fmt=None``: the format's ',' and '.' with no ``csv`` block, as before 1.1): a
+    preamble before the header and marker rows inside the data are skipped with a note (1.4)."""
     declared = fmt
     fmt = fmt or FileFormat()
     _, lines = _text(path, fmt)
     lines, ends_in_newline = _lines(lines)
-    header = _header_index(lines)
-    if header is None:
-        raise _file_error("no header row")
-    names = _split(lines[header], fmt.delimiter)
-    if len(names) == 1:
-        problem = _delimiter_problem(lines[header], declared)
-        if problem is not None:
-            raise problem
-    names = _check_names(names)
-    start, units = header + 1, {}
+    content = [(i, line) for i, line in enumerate(lines) if line.strip() and not line.startswith("#")]
+    if not content:
+        raise _file_error("no header row" if fmt.header == "row" else "no data rows")
+    k = _start(content, fmt)
+    header, notes = content[k][0], _preamble_note(content[:k], fmt.header == "row")
+    names = _names(lines, header, fmt, declared)
+    start, units = header + (fmt.header == "row"), {}
     if fmt.units_row:
         unit_at = next((i for i in range(start, len(lines)) if lines[i].strip()), None)
         if unit_at is None:
@@ -503,19 +498,24 @@ def read_delimited(path: Path, fmt: FileFormat | None = None, numeric: bool = Fa
         split_rows = (_split(line, "whitespace") for _, line in rows)
     else:
         split_rows = csv.reader([line for _, line in rows], delimiter=fmt.delimiter)
+    ragged, kept, reference = [], [], None
     try:
-        for (row, _), fields in zip(rows, split_rows):
-            if len(fields) != len(names):
+        for (row, line), fields in zip(rows, split_rows):
+            if len(fields) == len(names):
+                kept.append((row, line))
+                reference = reference or fields
+            elif ragged_marker(fields, reference or _reference(rows, names, fmt.delimiter), fmt.decimal):
+                ragged.append((row, fields))
+            else:
                 raise _field_count_problem(names, row, fields, row == len(rows) - 1, ends_in_newline, fmt.delimiter)
     except csv.Error as exc:
         at = min(max(getattr(split_rows, "line_num", 1) - 1, 0), len(rows) - 1)
         raise _csv_problem(exc, names, at, rows[at][1], fmt.delimiter) from None
-    warnings = []
     if rows and not ends_in_newline:
-        warnings.append(f"no line end after the last row ({rows[-1][0]}): it may be cut off in its last value")
-    frame = _frame([line for _, line in rows], names, fmt.delimiter, numeric, fmt.decimal)
-    return RawTable(frame=frame, units=units, rows=np.arange(len(frame), dtype="int64"), warnings=warnings,
-                    decimal=fmt.decimal)
+        notes.append(f"no line end after the last row ({rows[-1][0]}): it may be cut off in its last value")
+    frame = _frame([line for _, line in kept], names, fmt.delimiter, numeric, fmt.decimal)
+    return _finish(frame, np.array([r for r, _ in kept], dtype="int64"), names, fmt.decimal, numeric, notes, ragged,
+                   units)
 
 
 def mts_decimal(first_line: str) -> str:
@@ -662,6 +662,49 @@ def read_mts793(path: Path, fmt: FileFormat, numeric: bool = False) -> RawTable:
                     decimal=decimal)
 
 
+def _sheet_text(value) -> str:
+    return "" if value is None else value if isinstance(value, str) else repr(value)
+
+
+def read_xlsx(path: Path, fmt: FileFormat, numeric: bool = False) -> RawTable:
+    """A worksheet of an ``.xlsx`` export (1.4; ``fmt.sheet``, None: the first) read through openpyxl
+    (:func:`isokinetic.rawlayout.sheet_rows`, bounded), then as a delimited file is: preamble, header (or
+    none), units row, marker rows. Numbers come as the workbook holds them ('.' decimals)."""
+    import pandas as pd
+
+    try:
+        cells = [[_sheet_text(v) for v in row] for row in sheet_rows(path, fmt.sheet)]
+    except SheetError as exc:
+        raise _file_error(str(exc)) from None
+    if not cells:
+        raise _file_error(f"worksheet {fmt.sheet or '(the first)'} holds no cells")
+    k = find_start(cells[:MAX_PREAMBLE_ROWS + 4], fmt.header == "row", fmt.units_row)
+    notes = _preamble_note([(i, " ".join(r)) for i, r in enumerate(cells[:k])], fmt.header == "row")
+    if fmt.header == "none":
+        names, start = _positional(max(len(r) for r in cells[k:])), k
+    else:
+        if all_numbers(cells[k]):
+            raise _headerless_problem(",".join(cells[k]))
+        names, start = _check_names(cells[k]), k + 1
+    units = {}
+    if fmt.units_row:
+        if start >= len(cells):
+            raise _file_error("no units row under the header (the manifest's csv block sets units_row: true)")
+        units, start = _units(names, "\t".join(cells[start]), "\t"), start + 1
+    data = cells[start:]
+    wide = next((i for i, r in enumerate(data) if len(r) > len(names)), None)
+    if wide is not None:
+        raise _file_error(f"row {wide} has {len(data[wide])} cells, the header {len(names)}")
+    frame = pd.DataFrame([r + [""] * (len(names) - len(r)) for r in data], columns=names, dtype=object)
+    frame = frame.mask(frame.map(lambda v: not str(v).strip()))
+    if numeric:
+        for name in names:
+            converted = pd.to_numeric(frame[name], errors="coerce")
+            if not (converted.isna() & frame[name].notna()).any():
+                frame[name] = converted
+    return _finish(frame, np.arange(len(frame), dtype="int64"), names, ".", numeric, notes, [], units)
+
+
 def read_raw_table(path: str | Path, fmt: FileFormat | None = None, numeric: bool = False) -> RawTable:
     """One case file read in ``fmt`` (None: the format's default CSV, ',' and '.', as without a ``csv``
     block); raises :class:`RawFileError` naming row and column. ``numeric``: columns whose every cell is a
@@ -669,6 +712,8 @@ def read_raw_table(path: str | Path, fmt: FileFormat | None = None, numeric: boo
     fraction of the memory (the rest stay text); without it every cell is text."""
     path = Path(path)
     try:
+        if fmt is not None and fmt.format == "xlsx":
+            return read_xlsx(path, fmt, numeric)
         if fmt is not None and fmt.format == "mts793":
             table = _read_mts793_fast(path, fmt, numeric) if ascii_compatible(fmt.encoding) else None
             return table if table is not None else read_mts793(path, fmt, numeric)
@@ -693,7 +738,8 @@ def sniff_format(path: str | Path, notes: list[str] | None = None) -> FileFormat
     """A guess at a file's :class:`FileFormat`: ``mts793`` from a first line ``MTS793|...``; encoding UTF-8
     (UTF-16/32 from a byte-order mark), else cp1252 (with a note appended to ``notes``); the delimiter that
     splits the header and the next lines into the same number (> 1) of fields (``whitespace`` last); a
-    decimal comma when numbers hold ',' and no '.'; a units row when the row under the header is text."""
+    decimal comma when numbers hold ',' and no '.'; a units row when the row under the header is text; ``header:
+    none`` (1.4) when the first row (after any preamble) is numbers like the rest."""
     data = Path(path).read_bytes()
     encoding = "utf-8"
     for bom, name in FOREIGN_BOMS.items():
@@ -719,21 +765,30 @@ def sniff_format(path: str | Path, notes: list[str] | None = None) -> FileFormat
         header = next((line for line in lines[block + 1:] if line.strip()), "") if block is not None else ""
         return FileFormat(format="mts793", delimiter="\t" if "\t" in header or not header else "whitespace",
                           decimal=decimal, encoding=encoding, units_row=True)
-    content = [line for line in lines if line.strip() and not line.startswith("#")][:20]
+    content = [line for line in lines if line.strip() and not line.startswith("#")][:MAX_PREAMBLE_ROWS + 20]
     if not content:
         return FileFormat(encoding=encoding)
     delimiter = ","
-    for candidate in (",", ";", "\t", "|", "whitespace"):
-        counts = {len(_split(line, candidate)) for line in content}
-        if len(counts) == 1 and counts.pop() > 1:
-            delimiter = candidate
+    for lines_ in (content[:20], content[-10:]):        # the first lines, else (a preamble) the last lines read
+        found = next((c for c in (",", ";", "\t", "|", "whitespace")
+                      if len(counts := {len(_split(line, c)) for line in lines_}) == 1 and counts.pop() > 1), None)
+        if found is not None:
+            delimiter = found
             break
-    names_n = len(_split(content[0], delimiter))
-    rows = [_split(line, delimiter) for line in content[1:]]
-    units_row = bool(rows) and not any(_numeric(c) for c in rows[0] if c.strip()) and any(c.strip() for c in rows[0])
+    rows = [_split(line, delimiter) for line in content]
+    first = find_start(rows, False, False)          # the first data row: a header of its width just above it?
+    headed = any(len(rows[i]) == len(rows[first]) and not data_like(rows[i]) for i in range(max(0, first - 2), first))
+    headerless = not headed and all_numbers(rows[first])
+    plain, with_units = find_start(rows, True, False), find_start(rows, True, True)
+    k = first if headerless else min(plain, with_units)
+    names_n = len(rows[k])
+    rows = rows[k + (not headerless):]
+    units_row = not headerless and (with_units < plain or (bool(rows) and any(c.strip() for c in rows[0])
+                                                           and not any(_numeric(c) for c in rows[0] if c.strip())))
     cells = [c.strip() for r in rows[1 if units_row else 0:] for c in r if len(r) == names_n]
     decimal = "."
     if delimiter != "," and any(re.fullmatch(r"[+-]?\d+,\d+(?:[eE][+-]?\d+)?", c) for c in cells) \
             and not any(re.fullmatch(r"[+-]?\d*\.\d+(?:[eE][+-]?\d+)?", c) for c in cells):
         decimal = ","
-    return FileFormat(delimiter=delimiter, decimal=decimal, encoding=encoding, units_row=units_row)
+    return FileFormat(delimiter=delimiter, decimal=decimal, encoding=encoding, units_row=units_row,
+                      header="none" if headerless else "row")

@@ -113,7 +113,8 @@ def _problems(m, case):
     ("sample_rate_Hz", 0, ("key", "sample_rate_Hz", "must be a positive number, got 0")),
     ("file", None, ("key", "file", "missing")),
     ("columns", {"force": {"unit": "ton"}},
-     ("column", "force_kN", "unknown unit 'ton' for force; expected one of N, kN, lbf, kgf")),
+     ("column", "force_kN", "unit 'ton' is a mass unit (ton), not a force unit; nearest known force units: newton, "
+                            "pond, ton_force")),
     ("columns", {"force": {"invert": "yes"}}, ("key", "columns.force.invert", "must be true or false, got 'yes'")),
     ("columns", {"force": None}, ("key", "columns.force", "a required channel cannot be removed")),
 ])
@@ -208,7 +209,8 @@ def test_csv_block_keys_default_to_the_format(raw_campaign, block, dialect):
 
 
 @pytest.mark.parametrize("block, key, words", [
-    (";", "csv", "expected a mapping with keys format, delimiter, decimal, encoding, units_row, got ';'"),
+    (";", "csv", "expected a mapping with keys format, delimiter, decimal, encoding, units_row, header, sheet, "
+                 "got ';'"),
     ({"delimiter": ";", "thousands": "."}, "csv.thousands",
      "unknown key: the csv block declares only format, delimiter"),
     ({"delimiter": ":"}, "csv.delimiter", "must be one of ',', ';', \"\\t\" (tab), '|' or whitespace, got ':'"),
@@ -247,7 +249,7 @@ def test_csv_block_format_encoding_and_units_row(raw_campaign, block, dialect):
     ({"encoding": "base64"}, "csv.encoding", "'base64' is not a text encoding"),
     ({"encoding": 1252}, "csv.encoding", "must be a text encoding name"),
     ({"units_row": "yes"}, "csv.units_row", "must be true or false, got 'yes'"),
-    ({"format": "xlsx"}, "csv.format", "must be one of delimited, mts793, got 'xlsx'"),
+    ({"format": "xls"}, "csv.format", "must be one of delimited, mts793, xlsx, got 'xls'"),
     ({"format": "mts793", "delimiter": ";"}, "csv.delimiter", "an mts793 export is tab or whitespace separated"),
     ({"format": "mts793", "units_row": False}, "csv.units_row", "an mts793 export always has a units row"),
     ({"encodng": "cp1252"}, "csv.encodng", "did you mean 'encoding'?"),

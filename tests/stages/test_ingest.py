@@ -91,11 +91,11 @@ def test_file_name_with_a_path(raw_campaign, name):
 
 
 def test_unknown_unit_in_a_case(raw_campaign):
-    raw_campaign.edit_manifest(lambda m: raw_campaign.case_entry(m, "H01").update(columns={"force": {"unit": "ton"}}))
+    raw_campaign.edit_manifest(lambda m: raw_campaign.case_entry(m, "H01").update(columns={"force": {"unit": "kp"}}))
     cases, quarantine = raw_campaign.run()
     assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "H01", "ingest", "force_kN", None)])
     assert quarantine["reason"].iloc[0] == ("campaign demo, case H01, column 'force_kN': "
-                                           "unknown unit 'ton' for force; expected one of N, kN, lbf, kgf")
+                                           "unknown unit 'kp'; nearest known force units: kip, kN")
 
 
 def test_unknown_unit_in_campaign_columns_quarantines_every_case(raw_campaign):

@@ -23,7 +23,7 @@ import pandas as pd
 from isokinetic.audit.provenance import VIRTUAL_PREFIX
 from isokinetic.audit.trace_core import Context, MissingFile, RawFileChanged, TraceStop, read_lineage, sha_text
 from isokinetic.contracts.campaign import write_ingested
-from isokinetic.contracts.manifest import MANIFEST_NAME, UNIT_OFFSETS, UNITS, load_manifest
+from isokinetic.contracts.manifest import MANIFEST_NAME, load_manifest, si_conversion
 from isokinetic.io import sha256_file
 from isokinetic.stages.ingest import CANONICAL, campaign_meta, ingest_case
 from isokinetic.stages.validate import quarantine_frame, quarantine_rows, write_validated
@@ -270,9 +270,9 @@ def column_mapping(src: RawSource, case: str) -> list[str]:
         out.append(f"read with {spec.csv.delimiter!r} between fields and {spec.csv.decimal!r} as the decimal mark "
                    "(manifest csv block)")
     for ch, col in spec.columns.items():
-        factor = UNITS[ch][col.unit]
+        conversion = si_conversion(ch, col)
+        factor, offset = conversion if conversion is not None else (None, 0.0)
         how = "ISO 8601 -> seconds from the first sample" if factor is None else f"x {factor:g}"
-        offset = UNIT_OFFSETS.get((ch, col.unit))
         how += f" {offset:+g}" if offset else ""
         invert = " x (-1) (invert)" if col.invert and ch != "temperature" else ""
         out.append(f"{col.name} [{col.unit}] {how}{invert} -> {CANONICAL[ch]}")

@@ -38,12 +38,17 @@ Format 1.2 additions (docs/raw-campaign-format.md, "1.2 additions"): the ``csv``
 slice of its file (``time_range_s`` or ``rows``), its own ``gas_force_N`` and the ``standstill`` waveform;
 case files in subfolders; a channel's ``full_scale`` (issue 20: ingest refuses samples beyond
 :data:`FULL_SCALE_FACTOR` times it).
+
+Format 1.4 additions (docs/raw-campaign-format.md, "1.4 additions"): a unit is any unit of the channel's
+dimension that :mod:`isokinetic.units` reads (pint: ``kip``, ``cm``, ``daN``, ``ozf``, ``µm``, ``Sec``,
+``degC``; :data:`CHANNEL_DIMENSIONS`), an unknown one named with the nearest known ones; a column's ``scale``
+and ``offset`` (a logger writing volts: value = raw x scale + offset, in the column's unit); a headerless
+file's columns named by 1-based position (``name: 4`` or ``col4``, with ``csv: {header: none}``); the csv block's
+``header`` and, for ``format: xlsx``, ``sheet`` (:mod:`isokinetic.contracts.manifest_csv`).
 """
 
 from __future__ import annotations
 
-import codecs
-import difflib
 import hashlib
 import math
 import re
@@ -51,6 +56,18 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 
+from isokinetic.contracts.manifest_csv import (  # noqa: F401  (re-exported: the manifest's public names)
+    CSV_DECIMALS,
+    CSV_DELIMITERS,
+    CSV_KEYS,
+    CSV_TAB_SPELLINGS,
+    HEADER_KINDS,
+    NEAR_MISS_RATIO,
+    CsvDialect,
+    csv_dialect,
+    near_miss,
+    near_miss_warnings,
+)
 from isokinetic.contracts.manifest_yaml import (  # noqa: F401  (re-exported: the manifest's public names)
     MAX_DEPTH,
     MAX_MANIFEST_BYTES,
@@ -66,8 +83,7 @@ from isokinetic.contracts.problem import Problem
 from isokinetic.physics.damper import Damper
 from isokinetic.physics.plan import WAVEFORMS, CasePlan
 from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
-from isokinetic.rawfile import FORMATS as FILE_FORMATS
-from isokinetic.rawfile import FileFormat
+from isokinetic.units import Unit, UnitError, parse_unit
 
 FORMAT_VERSION = 1
 MANIFEST_NAME = "campaign.yaml"
@@ -79,30 +95,16 @@ CASE_ID_PATTERN = re.compile(CASE_ID_RULE)
 #: Longest case id: ids name the case's result files, and file names are limited (255 bytes).
 MAX_CASE_ID_LENGTH = 64
 
-#: Channel -> unit -> factor to SI; ``None`` marks ISO 8601 stamps (seconds from the first sample).
-UNITS: dict[str, dict[str, float | None]] = {
-    "time": {"s": 1.0, "ms": 1e-3, "datetime": None},
-    "displacement": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},              # in: 1.2
-    "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605, "kgf": 9.80665},       # lbf, kgf: 1.2 (exact)
-    "command": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},
-    "temperature": {"C": 1.0, "K": 1.0, "F": 5.0 / 9.0},   # (1.1) oil or body temperature; kept in C (UNIT_OFFSETS)
-}
-#: (channel, unit) -> offset added after the factor: the temperature channel is kept in degrees Celsius.
-UNIT_OFFSETS = {("temperature", "K"): -273.15, ("temperature", "F"): -32.0 * 5.0 / 9.0}
-#: Other spellings of a unit a manifest may use (1.2): MTS 793 writes seconds as ``Sec``.
-UNIT_ALIASES = {"time": {"Sec": "s", "sec": "s"}}
-#: Unit texts of a file's units row (lower case, brackets and a degree sign dropped) -> the manifest's unit.
-UNIT_TEXTS = {
-    "s": "s", "sec": "s", "secs": "s", "second": "s", "seconds": "s", "ms": "ms", "msec": "ms",
-    "m": "m", "mm": "mm", "um": "um", "µm": "um", "μm": "um", "micron": "um", "in": "in", "inch": "in",
-    "inches": "in", "n": "N", "newton": "N", "kn": "kN", "lbf": "lbf", "lb": "lbf", "lbs": "lbf", "kgf": "kgf",
-    "c": "C", "degc": "C", "deg c": "C", "celsius": "C", "k": "K", "kelvin": "K", "f": "F", "degf": "F",
-    "deg f": "F", "fahrenheit": "F",
-}
+#: Channel -> the dimension of its unit (format 1.4: any unit of it that :mod:`isokinetic.units` reads: ``kip``,
+#: ``cm``, ``daN``, ``Sec``, ``degC``, ...). The temperature channel is kept in degrees Celsius.
+CHANNEL_DIMENSIONS = {"time": "time", "displacement": "length", "force": "force", "command": "length",
+                      "temperature": "temperature"}
+#: The time unit of ISO 8601 stamps (seconds from the first sample), the one unit that is no pint unit.
+TIME_STAMPS = "datetime"
 #: Plausible temperatures of a damper under test [C] (cold tests to beyond any oil's flash point); a value
 #: outside is a unit error: any temperature above -73 C written in K and declared as C lies above it.
 TEMPERATURE_RANGE_C = (-60.0, 200.0)
-CHANNELS = tuple(UNITS)
+CHANNELS = tuple(CHANNEL_DIMENSIONS)
 REQUIRED_CHANNELS = ("time", "displacement", "force")
 
 TOP_KEYS = frozenset({"format_version", "campaign", "description", "source", "temperature_C",
@@ -113,11 +115,13 @@ CASE_KEYS = frozenset({"id", "waveform", "file", "sample_rate_Hz", "columns", "p
 #: Case-file suffixes (1.2: .txt and .dat for vendor exports); a manifest may name any, init-campaign looks
 #: for these.
 CASE_FILE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
-#: How alike (difflib ratio, lower case) an unknown key must be to a known one to be warned about as a slip.
-NEAR_MISS_RATIO = 0.8
 #: Largest data-row number a case's ``rows`` slice may name (1.2): far beyond any record.
 MAX_ROW = 1_000_000_000
-COLUMN_KEYS = ("name", "unit", "invert", "full_scale")     # full_scale: 1.2
+COLUMN_KEYS = ("name", "unit", "invert", "full_scale", "scale", "offset")     # full_scale: 1.2; scale, offset: 1.4
+#: Largest 1-based column position a headerless file's column may be named by (1.4).
+MAX_COLUMN_POSITION = 10_000
+#: A headerless file's column names (1.4): ``col1``, ``col2``, ... (what :mod:`isokinetic.rawfile` names them).
+POSITION_NAME = re.compile(r"col([1-9][0-9]*)")
 #: A sample beyond this many times its channel's declared ``full_scale`` is no reading of the sensor (ingest
 #: sets the case aside, naming the row).
 FULL_SCALE_FACTOR = 100.0
@@ -130,14 +134,6 @@ MAX_CASES = 1_000
 #: Largest |gas_force_N| (format 1.1) a manifest may declare: 1 MN, far above any damper's gas force; a
 #: larger value is a unit error (kN written as N?) and refuses the campaign.
 MAX_GAS_FORCE_N = 1.0e6
-#: Field delimiters a manifest's ``csv`` block (format 1.1) may declare, with the words used in messages.
-CSV_DELIMITERS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'"}
-#: Spellings of the tab delimiter besides a real tab (YAML ``"\t"``): ``'\t'`` in single quotes (a
-#: backslash and a t, the usual slip) and the word ``tab``.
-CSV_TAB_SPELLINGS = ("\\t", "tab")
-#: Decimal marks a ``csv`` block may declare.
-CSV_DECIMALS = (".", ",")
-CSV_KEYS = ("format", "delimiter", "decimal", "encoding", "units_row")
 #: Upper bounds (inclusive) of positive sizes, campaign-level or per case. A value above its bound
 #: is a unit or typing error, or hostile: the campaign is refused. Lower bounds: > 0 as before.
 BOUNDS = {
@@ -153,21 +149,19 @@ BOUNDS = {
 MAX_PLANNED_SAMPLES = 10_000_000
 
 
-#: The case files' format declared by a manifest's ``csv`` block: :class:`isokinetic.rawfile.FileFormat`
-#: (format 1.1: delimiter and decimal mark; 1.2: format, encoding, units row).
-CsvDialect = FileFormat
-
-
 @dataclass(frozen=True)
 class Column:
-    """Where one channel lives in a case CSV: column name, unit as written, sign flip, and the sensor's full
-    scale in that unit (1.2, ``full_scale``; None: not declared): ingest refuses a sample beyond
-    ``FULL_SCALE_FACTOR`` times it."""
+    """Where one channel lives in a case CSV: column name (``col4`` for a headerless file's 4th column, 1.4),
+    unit (its canonical symbol, :mod:`isokinetic.units`), sign flip, and the sensor's full scale in that unit
+    (1.2, ``full_scale``; None: not declared): ingest refuses a sample beyond ``FULL_SCALE_FACTOR`` times it.
+    ``scale`` and ``offset`` (1.4, a logger writing volts): the value in ``unit`` is raw x scale + offset."""
 
     name: str
     unit: str
     invert: bool = False
     full_scale: float | None = None
+    scale: float = 1.0
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -249,59 +243,93 @@ def relative_file_name(name) -> bool:
     return isinstance(name, str) and all(bare_file_name(part) for part in name.split("/"))
 
 
-def unit_from_text(text: str) -> str | None:
-    """The manifest unit a units-row cell means (``Sec`` -> s, ``[mm]`` -> mm, ``°C`` -> C, ``lbs`` -> lbf),
-    None for a text :data:`UNIT_TEXTS` does not know."""
-    key = text.strip().strip("[]()").strip().replace("°", "").replace("º", "").lower()
-    return UNIT_TEXTS.get(key)
+def channel_unit(channel: str, unit: str) -> Unit:
+    """The :class:`isokinetic.units.Unit` of a channel's unit text (of the channel's dimension,
+    :data:`CHANNEL_DIMENSIONS`); raises :class:`isokinetic.units.UnitError` naming the nearest known units."""
+    return parse_unit(unit, CHANNEL_DIMENSIONS[channel])
 
 
-def canonical_unit(channel: str, unit):
-    """A manifest unit with its :data:`UNIT_ALIASES` spelling resolved (``Sec`` -> ``s``)."""
-    return UNIT_ALIASES.get(channel, {}).get(unit, unit) if isinstance(unit, str) else unit
-
-
-def near_miss(key, known) -> str | None:
-    """The known key an unknown ``key`` is probably a slip for (difflib, case ignored), or None."""
-    if not isinstance(key, str) or key in known:
+def si_conversion(channel: str, column: Column) -> tuple[float, float] | None:
+    """(factor, offset) taking a column's raw numbers to the channel's internal unit (SI; temperatures in C):
+    the column's ``scale``/``offset`` (1.4) then its unit's; None for ISO 8601 stamps."""
+    if column.unit == TIME_STAMPS:
         return None
-    lowered = {k.lower(): k for k in known}
-    if key.lower() in lowered:
-        return lowered[key.lower()]
-    match = difflib.get_close_matches(key.lower(), list(lowered), n=1, cutoff=NEAR_MISS_RATIO)
-    return lowered[match[0]] if match else None
+    unit = channel_unit(channel, column.unit)
+    return column.scale * unit.scale, column.offset * unit.scale + unit.offset
 
 
-def near_miss_warnings(where: str, entries: Mapping, known, prefix: str = "") -> list[str]:
-    """One warning per key of ``entries`` that is not in ``known`` but close to a key that is."""
-    out = []
-    for key in entries:
-        meant = near_miss(key, known)
-        if meant is not None:
-            out.append(f"{where}: key {prefix + str(key)!r} is not a key of the format, kept as metadata; "
-                       f"did you mean {meant!r}?")
-    return out
+def unit_from_text(text: str) -> str | None:
+    """The canonical symbol (:func:`isokinetic.units.parse_unit`) of a units-row cell (``Sec`` -> s, ``[mm]`` ->
+    mm, ``°C`` -> degC, ``lbs`` -> lbf, ``kip``), None for a text that names no unit. (Kept for
+    init_campaign until it reads units through :mod:`isokinetic.units` itself.)"""
+    try:
+        return parse_unit(text).symbol
+    except UnitError:
+        return None
 
 
-def column_problems(channel: str, spec) -> list[Problem]:
-    """Problems of one channel's ``{name, unit, invert}`` mapping.
+def column_name(name, headerless: bool = False) -> str | None:
+    """The frame column a manifest's ``name`` means: the header's name (stripped), or with ``headerless`` (1.4,
+    ``csv: {header: none}``) a 1-based position, ``4`` or ``col4`` -> ``col4``; None when it means none."""
+    if isinstance(name, int) and not isinstance(name, bool):
+        return f"col{name}" if headerless and 1 <= name <= MAX_COLUMN_POSITION else None
+    if not isinstance(name, str) or not name.strip():
+        return None
+    if headerless:
+        match = POSITION_NAME.fullmatch(name.strip())
+        return name.strip() if match and int(match.group(1)) <= MAX_COLUMN_POSITION else None
+    return name.strip()
+
+
+def _name_problem(key: str, name, headerless: bool) -> Problem:
+    if name is None:
+        return Problem(f"{key}.name", "missing", kind="key")
+    if headerless:
+        return Problem(f"{key}.name", f"a headerless file's columns are named by 1-based position (4 or col4, at most "
+                                      f"{MAX_COLUMN_POSITION}), got {name!r}", kind="key")
+    if isinstance(name, int) and not isinstance(name, bool):
+        return Problem(f"{key}.name", f"a position ({name!r}) names a column of a headerless file only (csv: {{header: "
+                                      "none}}); give the header's name", kind="key")
+    return Problem(f"{key}.name", f"must be a column name, got {name!r}", kind="key")
+
+
+def _scale_problems(key: str, spec: Mapping) -> list[Problem]:
+    """A scaled channel's ``scale`` (finite, non-zero) and ``offset`` (finite) (1.4); not on ISO 8601 stamps."""
+    problems = []
+    for field_name, zero_ok in (("scale", False), ("offset", True)):
+        if spec.get(field_name) is None:
+            continue
+        value = number(spec[field_name])
+        if spec.get("unit") == TIME_STAMPS:
+            problems.append(Problem(f"{key}.{field_name}", "ISO 8601 stamps are not scaled", kind="key"))
+        elif value is None or (value == 0 and not zero_ok):
+            what = "a finite, non-zero number" if not zero_ok else "a finite number"
+            problems.append(Problem(f"{key}.{field_name}", f"must be {what} (value = raw x scale + offset, in the "
+                                                           f"column's unit), got {spec[field_name]!r}", kind="key"))
+    return problems
+
+
+def column_problems(channel: str, spec, headerless: bool = False) -> list[Problem]:
+    """Problems of one channel's ``{name, unit, invert, full_scale, scale, offset}`` mapping (``headerless``:
+    the file has no header, columns are named by position).
 
     Structural problems name the manifest key (``kind="key"``); an unknown unit names the
-    CSV column (``kind="column"``).
+    CSV column (``kind="column"``), with the nearest known units (:mod:`isokinetic.units`).
     """
     key = f"columns.{channel}"
     if not isinstance(spec, Mapping):
         return [Problem(key, f"expected a mapping with keys {', '.join(COLUMN_KEYS)}, got {spec!r}", kind="key")]
-    name, unit = spec.get("name"), spec.get("unit")
-    if not isinstance(name, str) or not name.strip():
-        return [Problem(f"{key}.name", "missing" if name is None else f"must be a column name, got {name!r}",
-                        kind="key")]
+    name, unit = column_name(spec.get("name"), headerless), spec.get("unit")
+    if name is None:
+        return [_name_problem(key, spec.get("name"), headerless)]
     problems = []
     if "unit" not in spec:
         problems.append(Problem(f"{key}.unit", "missing", kind="key"))
-    elif canonical_unit(channel, unit) not in UNITS[channel]:
-        problems.append(Problem(name.strip(), f"unknown unit {unit!r} for {channel}; expected one of "
-                                              f"{', '.join(UNITS[channel])}"))
+    elif not (channel == "time" and unit == TIME_STAMPS):
+        try:
+            channel_unit(channel, unit)
+        except UnitError as exc:
+            problems.append(Problem(name, str(exc)))
     if not isinstance(spec.get("invert", False), bool):
         problems.append(Problem(f"{key}.invert", f"must be true or false, got {spec['invert']!r}", kind="key"))
     if spec.get("full_scale") is not None:
@@ -312,17 +340,22 @@ def column_problems(channel: str, spec) -> list[Problem]:
         elif value is None or value <= 0:
             problems.append(Problem(f"{key}.full_scale", f"must be a positive number (the sensor's full scale in the "
                                                          f"column's unit), got {spec['full_scale']!r}", kind="key"))
-    return problems
+    return problems + _scale_problems(key, spec)
 
 
-def _column(spec: Mapping) -> Column:
-    return Column(name=spec["name"].strip(), unit=spec.get("unit"), invert=bool(spec.get("invert", False)),
-                  full_scale=number(spec.get("full_scale")))
-
-
-def _column_of(channel: str, spec: Mapping) -> Column:
-    """A channel's Column, its unit spelled as :data:`UNITS` does (:func:`canonical_unit`)."""
-    return replace(_column(spec), unit=canonical_unit(channel, spec.get("unit")))
+def _column_of(channel: str, spec: Mapping, headerless: bool = False) -> Column:
+    """A channel's Column (its problems checked already), its unit spelled by its canonical symbol (``Sec`` ->
+    ``s``, ``lbs`` -> ``lbf``, ``°C`` -> ``degC``)."""
+    unit = spec.get("unit")
+    if unit != TIME_STAMPS:
+        try:
+            unit = channel_unit(channel, unit).symbol
+        except UnitError:       # the manifest's columns as written: each case using it reports the unit
+            pass
+    return Column(name=column_name(spec["name"], headerless), invert=bool(spec.get("invert", False)), unit=unit,
+                  full_scale=number(spec.get("full_scale")),
+                  scale=1.0 if spec.get("scale") is None else number(spec["scale"]),
+                  offset=0.0 if spec.get("offset") is None else number(spec["offset"]))
 
 
 def _bounded(value: float, key: str, where: str, name: str | None = None) -> float:
@@ -334,7 +367,7 @@ def _bounded(value: float, key: str, where: str, name: str | None = None) -> flo
     return value
 
 
-def _campaign_columns(block, where: str) -> tuple[dict[str, Mapping], dict]:
+def _campaign_columns(block, where: str, headerless: bool = False) -> tuple[dict[str, Mapping], dict]:
     """The campaign-level ``columns`` mappings, structure checked; unknown channels as metadata.
 
     Unknown units are left for each case to report (every case using the column is quarantined).
@@ -346,10 +379,10 @@ def _campaign_columns(block, where: str) -> tuple[dict[str, Mapping], dict]:
             raise ManifestError(where, f"columns.{channel}", "missing")
     specs = {ch: block[ch] for ch in CHANNELS if block.get(ch) is not None}
     for channel, spec in specs.items():
-        structural = [p for p in column_problems(channel, spec) if p.kind == "key"]
+        structural = [p for p in column_problems(channel, spec, headerless) if p.kind == "key"]
         if structural:
             raise ManifestError(where, structural[0].column, structural[0].message)
-    return specs, {k: v for k, v in block.items() if k not in UNITS}
+    return specs, {k: v for k, v in block.items() if k not in CHANNEL_DIMENSIONS}
 
 
 def _damper(block, where: str) -> tuple[Damper | None, dict]:
@@ -431,77 +464,6 @@ def _campaign_temperature(doc: Mapping, where: str) -> float | None:
     return value
 
 
-def _csv_delimiter(value, where: str) -> str:
-    if isinstance(value, str) and value.strip().lower() in CSV_TAB_SPELLINGS:
-        return "\t"
-    if isinstance(value, str) and value.strip().lower() == "whitespace":
-        return "whitespace"
-    if not isinstance(value, str) or value not in CSV_DELIMITERS:
-        raise ManifestError(where, "csv.delimiter", f"must be one of ',', ';', \"\\t\" (tab), '|' or whitespace, "
-                                                    f"got {value!r}")
-    return value
-
-
-def _csv_encoding(value, where: str) -> str:
-    """A Python codec name (``codecs.lookup``), as written."""
-    if not isinstance(value, str) or not value.strip():
-        raise ManifestError(where, "csv.encoding", f"must be a text encoding name (utf-8, cp1252, latin-1, utf-16, "
-                                                   f"...), got {value!r}")
-    try:
-        info = codecs.lookup(value.strip())
-    except LookupError:
-        raise ManifestError(where, "csv.encoding", f"unknown encoding {value!r} (for example utf-8, cp1252, latin-1, "
-                                                   "utf-16)") from None
-    if not info._is_text_encoding:
-        raise ManifestError(where, "csv.encoding", f"{value!r} is not a text encoding")
-    return value.strip()
-
-
-def csv_dialect(block, where: str) -> CsvDialect | None:
-    """The optional ``csv`` block, e.g. ``{delimiter: ";", decimal: ","}`` (format 1.1) or ``{format: mts793,
-    encoding: cp1252}`` (1.2 additions); None when absent.
-
-    Any key may be left out (defaults: delimited, ',', '.', utf-8, no units row). The tab delimiter is written
-    ``"\\t"`` (double quotes), ``'\\t'`` or ``tab``; ``whitespace`` splits on runs of blanks. Refused as a broken
-    manifest, naming the key: a block that is not a mapping, a key not in :data:`CSV_KEYS` (a ``thousands`` key
-    would otherwise be silently ignored), a format not in :data:`isokinetic.rawfile.FORMATS`, a delimiter not in
-    :data:`CSV_DELIMITERS` (or whitespace), a decimal mark not in :data:`CSV_DECIMALS`, the same character for
-    both, an encoding ``codecs.lookup`` does not know, a ``units_row`` that is not true/false. An ``mts793``
-    file's delimiter (tab or whitespace) and decimal mark are the file's own: a delimiter declared with it must
-    be tab or whitespace.
-    """
-    if block is None:
-        return None
-    if not isinstance(block, Mapping):
-        raise ManifestError(where, "csv", f"expected a mapping with keys {', '.join(CSV_KEYS)}, got {block!r}")
-    unknown = [k for k in block if k not in CSV_KEYS]
-    if unknown:
-        meant = near_miss(unknown[0], CSV_KEYS)
-        raise ManifestError(where, f"csv.{unknown[0]}", f"unknown key: the csv block declares only "
-                                                        f"{', '.join(CSV_KEYS)} (ingest reads nothing else)"
-                            + (f"; did you mean {meant!r}?" if meant else ""))
-    fmt = block.get("format", "delimited")
-    if fmt not in FILE_FORMATS:
-        raise ManifestError(where, "csv.format", f"must be one of {', '.join(FILE_FORMATS)}, got {fmt!r}")
-    delimiter = _csv_delimiter(block.get("delimiter", "\t" if fmt == "mts793" else ","), where)
-    if fmt == "mts793" and delimiter not in ("\t", "whitespace"):
-        raise ManifestError(where, "csv.delimiter", f"an mts793 export is tab or whitespace separated, "
-                                                    f"got {delimiter!r}")
-    decimal = block.get("decimal", ".")
-    if decimal not in CSV_DECIMALS:
-        raise ManifestError(where, "csv.decimal", f"must be '.' or ',', got {decimal!r}")
-    if delimiter == decimal:
-        raise ManifestError(where, "csv", f"delimiter and decimal mark are both {decimal!r}: numbers could not be "
-                                          "told from fields (a decimal comma needs another delimiter, e.g. ';')")
-    encoding = _csv_encoding(block.get("encoding", "utf-8"), where)
-    units_row = block.get("units_row", fmt == "mts793")
-    if not isinstance(units_row, bool):
-        raise ManifestError(where, "csv.units_row", f"must be true or false, got {units_row!r}")
-    if fmt == "mts793" and not units_row:
-        raise ManifestError(where, "csv.units_row", "an mts793 export always has a units row")
-    return FileFormat(format=fmt, delimiter=delimiter, decimal=decimal, encoding=encoding, units_row=units_row)
-
-
 def _case_id(entry, index: int, where: str) -> str:
     if not isinstance(entry, Mapping):
         raise ManifestError(where, f"cases[{index}]", f"expected a mapping, got {entry!r}")
@@ -530,13 +492,14 @@ def _positive(entry: Mapping, key: str, problems: list[Problem], required: bool 
     return value
 
 
-def _case_columns(base: dict[str, Mapping], override) -> tuple[dict[str, Column], list[Problem]]:
+def _case_columns(base: dict[str, Mapping], override, headerless: bool = False) -> tuple[dict[str, Column],
+                                                                                        list[Problem]]:
     """Campaign columns merged field by field with a case's ``columns``; ``command: null`` drops it."""
     if override is not None and not isinstance(override, Mapping):
         return {}, [Problem("columns", f"expected a mapping of channels, got {override!r}", kind="key")]
     merged, problems = dict(base), []
     for channel, spec in (override or {}).items():
-        if channel not in UNITS:
+        if channel not in CHANNEL_DIMENSIONS:
             continue
         if spec is None:
             if channel in REQUIRED_CHANNELS:
@@ -544,14 +507,14 @@ def _case_columns(base: dict[str, Mapping], override) -> tuple[dict[str, Column]
             merged.pop(channel, None)
         else:
             merged[channel] = {**base.get(channel, {}), **spec} if isinstance(spec, Mapping) else spec
-    problems += [p for channel, spec in merged.items() for p in column_problems(channel, spec)]
+    problems += [p for channel, spec in merged.items() for p in column_problems(channel, spec, headerless)]
     if problems:
         return {}, problems
-    return {channel: _column_of(channel, spec) for channel, spec in merged.items()}, []
+    return {channel: _column_of(channel, spec, headerless) for channel, spec in merged.items()}, []
 
 
 def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[str, Mapping],
-          where: str, folder: Path) -> CaseSpec:
+          where: str, folder: Path, headerless: bool = False) -> CaseSpec:
     """Parse one case entry; problems that concern only this case go to ``problems``."""
     waveform = entry.get("waveform")
     if waveform not in WAVEFORMS:
@@ -569,7 +532,7 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
     elif _escapes(folder, file):
         raise ManifestError(where, f"cases.{case}.file", f"{file!r} is a symlink to "
                             f"{(folder / file).resolve().as_posix()}, outside the campaign folder")
-    columns, column_issues = _case_columns(base_columns, entry.get("columns"))
+    columns, column_issues = _case_columns(base_columns, entry.get("columns"), headerless)
     problems += column_issues
     plan = dict(amplitude_m=math.nan, period_s=math.nan, frequency_Hz=math.nan, phase_rad=math.nan)
     if waveform in ("triangle", "sine"):
@@ -697,7 +660,9 @@ def load_manifest(path: str | Path) -> Manifest:
         raise ManifestError(where, "sample_rate_Hz", "missing" if doc.get("sample_rate_Hz") is None
                             else f"must be a positive number, got {doc['sample_rate_Hz']!r}")
     _bounded(rate, "sample_rate_Hz", where)
-    base_columns, extra_columns = _campaign_columns(doc.get("columns"), where)
+    dialect = csv_dialect(doc.get("csv"), where)
+    headerless = dialect is not None and dialect.header == "none"
+    base_columns, extra_columns = _campaign_columns(doc.get("columns"), where, headerless)
     damper, extra_damper = _damper(doc.get("damper"), where)
     law = viscosity_law(doc.get("damper"), damper, where)
     entries = doc.get("cases")
@@ -711,9 +676,8 @@ def load_manifest(path: str | Path) -> Manifest:
         if case in seen:
             raise ManifestError(where, f"cases[{index}].id", f"duplicate case id {case!r}")
         seen.add(case)
-        cases.append(_case(entry, case, rate, base_columns, where, Path(path).parent))
+        cases.append(_case(entry, case, rate, base_columns, where, Path(path).parent, headerless))
     gas_force_N = _gas_force(doc, where)
-    dialect = csv_dialect(doc.get("csv"), where)
     metadata = {k: v for k, v in doc.items() if k not in TOP_KEYS}
     for key, extra in (("columns", extra_columns), ("damper", extra_damper)):
         if extra:
@@ -726,7 +690,7 @@ def load_manifest(path: str | Path) -> Manifest:
         description=_optional(doc, "description", str, where), source=_optional(doc, "source", str, where),
         temperature_C=_campaign_temperature(doc, where), sample_rate_Hz=rate,
         gas_force_N=gas_force_N, csv=dialect, viscosity_law=law,
-        columns={ch: _column_of(ch, spec) for ch, spec in base_columns.items()}, damper=damper,
+        columns={ch: _column_of(ch, spec, headerless) for ch, spec in base_columns.items()}, damper=damper,
         cases=tuple(replace(c, gas_force_N=gas_force_N if c.case_gas_force_N is None else c.case_gas_force_N,
                             csv=dialect) for c in cases), metadata=metadata,
         sha256=hashlib.sha256(data).hexdigest(), warnings=tuple(_near_misses(doc, where)))
@@ -736,7 +700,7 @@ def _near_misses(doc: Mapping, where: str) -> list[str]:
     """Warnings for keys that look like slips of known ones: top level, columns, csv, damper, each case."""
     out = near_miss_warnings(where, doc, TOP_KEYS)
     if isinstance(doc.get("columns"), Mapping):
-        out += near_miss_warnings(where, doc["columns"], UNITS, "columns.")
+        out += near_miss_warnings(where, doc["columns"], CHANNEL_DIMENSIONS, "columns.")
     if isinstance(doc.get("damper"), Mapping):
         out += near_miss_warnings(where, doc["damper"], {f.name for f in fields(Damper)} | {"viscosity_law"},
                                   "damper.")
@@ -745,5 +709,5 @@ def _near_misses(doc: Mapping, where: str) -> list[str]:
             prefix = f"cases.{entry.get('id')}."
             out += near_miss_warnings(where, entry, CASE_KEYS, prefix)
             if isinstance(entry.get("columns"), Mapping):
-                out += near_miss_warnings(where, entry["columns"], UNITS, prefix + "columns.")
+                out += near_miss_warnings(where, entry["columns"], CHANNEL_DIMENSIONS, prefix + "columns.")
     return out

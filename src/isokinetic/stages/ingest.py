@@ -51,22 +51,24 @@ import pandas as pd
 
 from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
 from isokinetic.contracts.manifest import (
+    CHANNEL_DIMENSIONS,
     FULL_SCALE_FACTOR,
     MANIFEST_NAME,
     TEMPERATURE_RANGE_C,
-    UNIT_OFFSETS,
-    UNITS,
+    TIME_STAMPS,
     CaseSpec,
     Column,
     Manifest,
+    channel_unit,
     load_manifest,
-    unit_from_text,
+    si_conversion,
 )
 from isokinetic.contracts.problem import Problem
 from isokinetic.io import sha256_file
 from isokinetic.rawfile import FOREIGN_BOMS as FOREIGN_BOMS  # re-exported for init_campaign
 from isokinetic.rawfile import FileFormat, RawFileError, RawTable, read_raw_table
 from isokinetic.stages.validate import quarantine_frame, quarantine_rows, timeseries_problems
+from isokinetic.units import UnitError, parse_unit, unit_in_name
 
 log = logging.getLogger("isokinetic")
 
@@ -143,15 +145,17 @@ def decimal_point(raw: pd.Series) -> pd.Series:
 
 
 def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".") -> tuple[np.ndarray | None, Problem | None]:
-    """One CSV column in SI (float64), or the first value that does not parse. ``decimal`` is the files'
-    decimal mark (the manifest's ``csv`` block): with ',' numbers go through :func:`decimal_point`, and
-    ISO 8601 stamps may carry a decimal comma in their seconds (``10:59:59,95``)."""
+    """One CSV column in SI (float64; a temperature in C), or the first value that does not parse: the column's
+    ``scale``/``offset`` (1.4) and its unit's factor applied (:func:`isokinetic.contracts.manifest.si_conversion`,
+    through :mod:`isokinetic.units`). ``decimal`` is the files' decimal mark (the manifest's ``csv`` block): with
+    ',' numbers go through :func:`decimal_point`, and ISO 8601 stamps may carry a decimal comma in their seconds
+    (``10:59:59,95``)."""
     note = ""
-    if column.unit == "datetime" and pd.api.types.is_numeric_dtype(raw):     # plain numbers are no ISO stamps
+    if column.unit == TIME_STAMPS and pd.api.types.is_numeric_dtype(raw):     # plain numbers are no ISO stamps
         first = int(np.argmax(raw.notna().to_numpy())) if len(raw) else 0
         return None, Problem(column.name, f"invalid ISO 8601 timestamp {excerpt(raw.iloc[first])} (a number: "
                                           "declare the unit s or ms?)", row=first)
-    if column.unit == "datetime":
+    if column.unit == TIME_STAMPS:
         text = raw if decimal == "." else raw.astype(object).str.replace(",", ".", regex=False)
         stamps = pd.to_datetime(text, format="ISO8601", utc=True, errors="coerce")
         bad = stamps.isna() & raw.notna()
@@ -161,9 +165,9 @@ def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".") -> t
         text = raw if decimal == "." or pd.api.types.is_numeric_dtype(raw) else decimal_point(raw)
         numbers = pd.to_numeric(text, errors="coerce")
         bad = numbers.isna() & raw.notna()
+        factor, offset = si_conversion(channel, column)
         with np.errstate(over="ignore", invalid="ignore"):
-            values = (numbers.to_numpy(float) * UNITS[channel][column.unit]
-                      + UNIT_OFFSETS.get((channel, column.unit), 0.0))
+            values = numbers.to_numpy(float) * factor + offset
         what = "non-numeric value"
         if decimal != ".":
             note = (": the manifest's csv block declares ',' as the decimal mark, and a '.' is not read (a thousands "
@@ -264,20 +268,41 @@ def subtract_gas_force(series: pd.DataFrame, gas_force_N: float | None) -> pd.Da
 
 
 def units_problems(units: dict[str, str], columns: dict[str, Column]) -> list[Problem]:
-    """Columns whose unit in the file's units row differs from the manifest's (1.2), one Problem each naming
-    the column: ``in`` declared as ``mm`` would be read 25.4 x off. Empty cells and ISO 8601 stamps are not
-    checked; a unit text :data:`isokinetic.contracts.manifest.UNIT_TEXTS` does not know (``V``) is refused."""
+    """Columns whose unit in the file differs from the manifest's, one Problem each naming the column: the units
+    row's cell (1.2), else a unit in the column's header (1.4, ``friction force (kip)``, ``force_kN``:
+    :func:`isokinetic.units.unit_in_name`), read by :func:`isokinetic.units.parse_unit`: ``in`` declared as ``mm``
+    would be read 25.4 x off. Empty cells, ISO 8601 stamps and scaled columns (1.4: the file then holds the
+    logger's unit, volts) are not checked; a units-row text that is no unit of the channel (``V``) is refused."""
     problems = []
     for channel, col in columns.items():
-        text = str(units.get(col.name) or "").strip()
-        if not text or col.unit == "datetime":
+        if col.unit == TIME_STAMPS or (col.scale, col.offset) != (1.0, 0.0):
             continue
-        said = unit_from_text(text)
-        if said != col.unit:
-            known = f"means {said!r}" if said else "is not a unit of " + channel
-            problems.append(Problem(col.name, f"the file's units row says {text!r} ({known}), the manifest declares "
-                                              f"{col.unit!r} for {channel}: fix the manifest's unit"))
+        text, said = str(units.get(col.name) or "").strip(), "units row"
+        if not text:
+            text, said = unit_in_name(col.name)[1] or "", "header"
+            if not text or not _known(text, channel):
+                continue
+        try:
+            unit = parse_unit(text, CHANNEL_DIMENSIONS[channel])
+        except UnitError:
+            problems.append(Problem(col.name, f"the file's {said} says {text!r} (is not a unit of {channel}), the "
+                                              f"manifest declares {col.unit!r} for {channel}: fix the manifest's unit"))
+            continue
+        declared = channel_unit(channel, col.unit)
+        if not (math.isclose(unit.scale, declared.scale, rel_tol=1e-9)
+                and math.isclose(unit.offset, declared.offset, abs_tol=1e-9)):
+            problems.append(Problem(col.name, f"the file's {said} says {text!r} (means {unit.symbol!r}), the manifest "
+                                              f"declares {col.unit!r} for {channel}: fix the manifest's unit"))
     return problems
+
+
+def _known(text: str, channel: str) -> bool:
+    """True when ``text`` is a unit of the channel's dimension (a header's unit is checked only then)."""
+    try:
+        parse_unit(text, CHANNEL_DIMENSIONS[channel])
+    except UnitError:
+        return False
+    return True
 
 
 class FileCache:
@@ -325,10 +350,15 @@ def slice_rows(spec: CaseSpec, table: RawTable, cache: FileCache, path: Path) ->
     axis [s], problem) of a case with ``time_range_s`` or ``rows`` (1.2); (None, NaN, None) without a slice."""
     n = len(table.frame)
     if spec.rows is not None:
-        first, stop = spec.rows
-        if stop > n:
-            return None, math.nan, Problem("rows", f"rows [{first}, {stop}) run beyond the file's {n} data rows",
-                                           kind="key")
+        rows_in_file = int(table.rows[-1]) + 1 if n else 0
+        if spec.rows[1] > rows_in_file:
+            return None, math.nan, Problem("rows", f"rows [{spec.rows[0]}, {spec.rows[1]}) run beyond the file's "
+                                                   f"{rows_in_file} data rows", kind="key")
+        # data-row numbers to the table's positions (marker rows, 1.4, are not in the table)
+        first, stop = (int(np.searchsorted(table.rows, r)) for r in spec.rows)
+        if first >= stop:
+            return None, math.nan, Problem("rows", f"rows [{spec.rows[0]}, {spec.rows[1]}) hold no sample (marker "
+                                                   "rows only)", kind="key")
         start_s = math.nan
         time_col = spec.columns["time"]
         if time_col.name in table.frame:
@@ -378,7 +408,7 @@ def range_problems(df: pd.DataFrame, columns: dict[str, Column]) -> list[Problem
         if name not in PHYSICAL_LIMITS or name not in df:
             continue
         x = np.abs(df[name].to_numpy(float))
-        factor = abs(UNITS[channel][col.unit])
+        factor = abs(channel_unit(channel, col.unit).scale)       # SI per the column's unit
         limits = [(PHYSICAL_LIMITS[name], f"the {PHYSICAL_LIMITS[name]:g} {name.split('_')[-1]} no rig produces")]
         if col.full_scale is not None:
             limits.append((FULL_SCALE_FACTOR * col.full_scale * factor,
