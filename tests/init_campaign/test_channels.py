@@ -14,8 +14,8 @@ from isokinetic.physics.plan import triangle_displacement
     ("disp_mm", "displacement", "mm"), ("x_um", "displacement", "um"), ("position (mm)", "displacement", "mm"),
     ("pos / m", "displacement", "m"), ("force_kN", "force", "kN"), ("F[N]", "force", "N"),
     ("load in kN", "force", "kN"),
-    ("cmd_mm", "command", "mm"), ("x_cmd_um", "command", "um"), ("oil_C", "temperature", "C"),
-    ("T_C", "temperature", "C"), ("t_oil", "temperature", None), ("time", "time", None), ("x", "displacement", None),
+    ("cmd_mm", "command", "mm"), ("x_cmd_um", "command", "um"), ("oil_C", "temperature", "degC"),
+    ("T_C", "temperature", "degC"), ("t_oil", "temperature", None), ("time", "time", None), ("x", "displacement", None),
     ("ch1", None, None), ("mm", "displacement", "mm"),
 ])
 def test_role_and_unit_from_the_name(name, role, unit):
@@ -24,7 +24,7 @@ def test_role_and_unit_from_the_name(name, role, unit):
 
 
 def test_a_unit_word_that_does_not_fit_the_role_is_left_to_the_magnitudes():
-    guess = ch.guess_from_name("force_k")
+    guess = ch.guess_from_name("force_ms")
     assert (guess.role, guess.unit) == ("force", None) and "does not fit" in guess.how
 
 
@@ -46,7 +46,7 @@ def test_a_time_axis_both_units_fit_is_only_likely():
 @pytest.mark.parametrize("amplitude_m, period_s", [(0.3e-3, 240.0), (1.22e-3, 20.0), (7.5e-3, 20.0)])
 def test_displacement_unit_from_amplitude_and_speed(unit, amplitude_m, period_s):
     t = np.arange(int(2 * period_s * 100)) / 100.0
-    y = triangle_displacement(t, amplitude_m, period_s) / ch.FACTORS["length"][unit]
+    y = triangle_displacement(t, amplitude_m, period_s) / ch.factor(unit)
     choice = ch.choose_unit([ch.unit_scores("displacement", y, t)])
     assert choice.unit == unit and choice.sure in ("sure", "likely")
 
@@ -54,7 +54,7 @@ def test_displacement_unit_from_amplitude_and_speed(unit, amplitude_m, period_s)
 @pytest.mark.parametrize("unit", ["N", "kN"])
 @pytest.mark.parametrize("peak_N", [60.0, 800.0, 4000.0])
 def test_force_unit_from_its_range(unit, peak_N):
-    f = peak_N * np.sin(np.linspace(0, 20, 2000)) / ch.FACTORS["force"][unit]
+    f = peak_N * np.sin(np.linspace(0, 20, 2000)) / ch.factor(unit)
     choice = ch.choose_unit([ch.unit_scores("force", f, None)])
     assert choice.unit == unit
     assert choice.sure == ("likely" if peak_N == 4000.0 and unit == "kN" else "sure")   # 4 kN, or 4 N?
@@ -104,8 +104,60 @@ def test_a_damper_force_follows_the_velocity_in_every_cycle():
 
 
 @pytest.mark.parametrize("text, expected", [("in", ("length", "in")), ("lbf", ("force", "lbf")),
-                                            ("Sec", ("time", "s")), ("°C", ("temperature", "C")),
-                                            ("F", ("temperature", "F")), ("kN", ("force", "kN")), ("V", None),
-                                            ("", None)])
+                                            ("Sec", ("time", "s")), ("°C", ("temperature", "degC")),
+                                            ("F", ("temperature", "degF")), ("kN", ("force", "kN")),
+                                            ("kip", ("force", "kip")), ("[cm]", ("length", "cm")),
+                                            ("V", ("voltage", "V")), ("blorps", None), ("", None)])
 def test_a_units_row_cell_gives_dimension_and_unit(text, expected):
     assert ch.unit_from_units_row(text) == expected
+
+
+def mr_like_record(seed: int = 4) -> dict[str, np.ndarray]:
+    """A ramped 5 Hz sine of an MR damper at 200 Hz as a preprocessor writes it: t [s], x [mm], v [mm/s] by backward
+    differences of x, and a force [N] with the hysteresis of a Bingham-like damper (a loop: it leads the velocity)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(450) * 0.005
+    envelope = np.clip(np.minimum(t / 0.4, (t[-1] - t) / 0.4), 0.0, 1.0)
+    x = 2.0 * envelope * np.sin(2 * np.pi * 5.0 * t) + 0.002 * rng.standard_normal(t.size)
+    v = np.r_[0.0, np.diff(x) / 0.005]
+    lead = np.r_[v[3:], v[-3:]]                   # the force's loop: it follows the velocity 15 ms ahead
+    force = 0.8 * v + 80.0 * np.tanh(lead / 10.0) + 2.0 * rng.standard_normal(t.size)
+    return {"t": t, "x": x, "v": v, "F": force}
+
+
+def test_a_column_equal_to_the_displacements_derivative_is_a_velocity_and_the_force_is_not():
+    r = mr_like_record()
+    velocity_fit = ch.derivative_fit(r["t"], r["x"], r["v"])
+    assert velocity_fit.is_velocity and velocity_fit.unit_ratio == 1.0 and velocity_fit.quotient == "backward"
+    assert not ch.derivative_fit(r["t"], r["x"], r["F"]).is_velocity
+    found = ch.velocity_columns(r["t"], {"x": r["x"], "v": r["v"], "F": r["F"]})
+    assert set(found) == {"v"} and found["v"][0] == "x"
+
+
+def test_a_velocity_in_other_units_is_found_by_its_unit_ratio():
+    r = mr_like_record()
+    fit = ch.derivative_fit(r["t"], r["x"] / 25.4, r["v"] * 1e-3)        # x in inches, v in m/s
+    assert fit.is_velocity and fit.unit_ratio == pytest.approx(0.0254)
+
+
+def test_a_switching_control_voltage_has_levels_and_a_moving_channel_has_none():
+    rng = np.random.default_rng(12)
+    voltage = np.repeat(rng.choice([0.0, 1.0, 2.0, 2.5], 60), 80) + 0.01 * rng.standard_normal(4800)
+    t = np.arange(4800) / 400.0
+    assert ch.switched_levels(voltage) == 4
+    assert ch.switched_levels(np.sin(2 * np.pi * t)) == 0
+    assert ch.switched_levels(rng.standard_normal(4800)) == 0
+    assert ch.switched_levels(np.round(0.002 * rng.standard_normal(4800), 3)) == 0     # a quantised standstill
+
+
+@pytest.mark.parametrize("name, role, unit", [("friction force (kip)", "force", "kip"),
+                                              ("disp [cm]", "displacement", "cm"), ("Load (daN)", "force", "daN"),
+                                              ("stroke_in", "displacement", "in")])
+def test_units_in_headers_are_read_by_the_units_library(name, role, unit):
+    guess = ch.guess_from_name(name)
+    assert (guess.role, guess.unit) == (role, unit)
+    assert ch.factor("kip") == pytest.approx(4448.2216, rel=1e-6) and ch.factor("cm") == pytest.approx(0.01)
+
+
+def test_a_header_in_a_unit_of_velocity_is_never_the_force():
+    assert ch.guess_from_name("v [mm/s]").role == "velocity"

@@ -191,7 +191,7 @@ def test_a_folder_name_that_is_not_a_campaign_id_is_said_clearly(exported, tmp_p
 def test_a_temperature_column_is_drafted_as_the_temperature_channel(exported, tmp_path):
     folder = rewrite_campaign(exported, tmp_path / CAMPAIGN, LAYOUTS[2])
     text = write_draft(folder)[0].read_text(encoding="utf-8")
-    assert re.search(r"^  temperature: \{name: oil_C, unit: C\} +# from header 'oil_C'", text, flags=re.M)
+    assert re.search(r"^  temperature: \{name: oil_C, unit: degC\} +# from header 'oil_C'", text, flags=re.M)
     assert "# temperature_C: 40.0" in text
 
 

@@ -62,10 +62,11 @@ def test_a_windows_1252_file_with_a_units_row_is_read_and_declared(tmp_path):
 def test_a_units_row_naming_an_unknown_unit_sets_the_file_aside(tmp_path):
     folder = tmp_path / "camp"
     write_case(folder / "T1.csv", units=["s", "mm", "N"])
-    write_case(folder / "T2.csv", units=["s", "mm", "kip"])
+    write_case(folder / "T2.csv", units=["s", "mm", "kipp"])
     path, survey = write_draft(folder)
     problems = {f.file: f.problem for f in survey.files}
     assert problems["T1.csv"] is None
-    assert problems["T2.csv"] == ("column 'force_N': the units row says 'kip', a unit the format does not know "
-                                  "(ingest would set the case aside)")
+    assert problems["T2.csv"].startswith("column 'force_N': the units row says 'kipp': unknown unit 'kipp'; nearest "
+                                         "known units: ")
+    assert "kip" in problems["T2.csv"] and problems["T2.csv"].endswith("(ingest would set the case aside)")
     assert [c.id for c in load_manifest(path).cases] == ["T1"]

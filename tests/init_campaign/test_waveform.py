@@ -94,3 +94,12 @@ def test_line_fits_are_bounded_by_the_samples_whatever_the_last_time_stamp():
         broken[-1] = last
         fits = line_fits(broken, y, period, phase)
         np.testing.assert_array_equal(fits[:-1], good[:-1])
+
+
+def test_a_fast_sine_with_servo_harmonics_is_a_sine():
+    """An MTS sweep's 10 Hz step: the servo adds 3 % of a second and 2 % of a third harmonic."""
+    t = np.arange(2048) / 1024.0
+    w = 2 * np.pi * 10.0
+    y = 0.0127 * (np.sin(w * t) + 0.03 * np.sin(2 * w * t + 0.4) + 0.02 * np.sin(3 * w * t - 1.0))
+    found = detect_waveform(t, y)
+    assert found.kind == "sine" and found.frequency_Hz.value == pytest.approx(10.0, rel=1e-4)

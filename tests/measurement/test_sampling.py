@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
+from isokinetic.measurement.sampling import (
+    SAMPLE_RATE_TOLERANCE,
+    find_gaps,
+    rate_offset,
+    sample_interval_error_s,
+    sample_interval_s,
+    span_sampling,
+)
 
 DT = 0.01
 
@@ -76,3 +83,19 @@ def test_a_gap_of_1e308_seconds_counts_without_overflow():
     t = np.append(np.arange(10) * 0.01, 1e308)
     gaps = find_gaps(t, 0.01)
     assert gaps.before.tolist() == [9] and gaps.missing[0] == 2 ** 62 - 1 and gaps.total_missing > 0
+
+
+def test_rounded_time_stamps_give_the_interval_from_long_spans_not_one_step():
+    """Time stamps rounded to 5 significant digits (12.345 s): at 900 Hz most steps are 1 ms, one in nine 2 ms."""
+    t = np.array([float(f"{x:.5g}") for x in 10.0 + np.arange(20000) / 900.0])
+    assert np.median(np.diff(t)) == pytest.approx(1e-3)                  # one step: 10 % short
+    assert sample_interval_s(t) == pytest.approx(1.0 / 900.0, rel=2e-3)
+    assert abs(rate_offset(t, 900.0)) < 2e-3 and abs(rate_offset(t, 1000.0)) > SAMPLE_RATE_TOLERANCE
+
+
+def test_rounded_time_stamps_with_dropouts_keep_their_interval():
+    """A burst and scattered single dropouts (in fewer than half of the spans: the median leaves them out)."""
+    t = np.array([float(f"{x:.5g}") for x in 10.0 + np.arange(20000) / 900.0])
+    t = drop(t, [*range(3000, 3030), *range(5000, 15000, 997)])
+    assert sample_interval_s(t) == pytest.approx(1.0 / 900.0, rel=2e-3)
+    assert sample_interval_error_s(t) < 1e-3 / 900.0

@@ -1,8 +1,12 @@
 """Each column's role (time, displacement, force, command, temperature) and unit, from its name and magnitudes.
 
-Names first: ``time_s``, ``t[ms]``, ``disp_mm``, ``x_um``, ``force_kN``, ``F [N]``, ``cmd_mm``, ``oil_C`` are split
-into words and a unit (the last word, or what stands in brackets, after ``/`` or ``in``); the words name
-the role (:data:`ROLE_WORDS`), the unit its dimension.
+Names first: ``time_s``, ``t[ms]``, ``disp_mm``, ``x_um``, ``force_kN``, ``F [N]``, ``cmd_mm``, ``oil_C``,
+``friction force (kip)`` are split into words and a unit (:func:`isokinetic.units.unit_in_name`: a bracket,
+a suffix, or after ``/``), read by the units library (:func:`isokinetic.units.parse_unit`, pint: any
+length, force, time or temperature unit); the words name the role (:data:`ROLE_WORDS`), the unit its
+dimension. A column in a unit of velocity, or equal to the displacement's derivative (:func:`derivative_fit`),
+is a velocity and never the force; a column switching between a few levels (:func:`switched_levels`) is
+never the displacement or the force.
 
 Magnitudes next, for what the names leave open. A unit is chosen by how plausible each candidate makes the
 record (:func:`unit_scores`): the sample interval and length of a numeric time axis (s or ms), the amplitude
@@ -22,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from isokinetic.contracts.manifest import unit_from_text
 from isokinetic.init_campaign.steps import upward_crossings
 from isokinetic.measurement.motion import noise_level
 
@@ -40,46 +43,57 @@ ROLE_WORDS = {
 }
 #: One-letter role words that a unit of another dimension overrules (``T_C`` is a temperature).
 WEAK_WORDS = {"t", "x", "y", "z", "f"}
-#: Unit words (lowercase) -> (dimension, manifest unit).
-UNIT_WORDS = {
-    **dict.fromkeys(("s", "sec", "secs", "second", "seconds"), ("time", "s")),
-    **dict.fromkeys(("ms", "msec", "millisecond", "milliseconds"), ("time", "ms")),
-    **dict.fromkeys(("m", "meter", "metre", "meters", "metres"), ("length", "m")),
-    **dict.fromkeys(("mm", "millimeter", "millimetre", "millimeters", "millimetres"), ("length", "mm")),
-    **dict.fromkeys(("um", "µm", "μm", "micron", "microns", "micrometer", "micrometre", "mum"), ("length", "um")),
-    **dict.fromkeys(("n", "newton", "newtons"), ("force", "N")),
-    **dict.fromkeys(("kn", "kilonewton", "kilonewtons"), ("force", "kN")),
-    **dict.fromkeys(("c", "degc", "°c", "celsius", "gradc"), ("temperature", "C")),
-    **dict.fromkeys(("k", "kelvin"), ("temperature", "K")),
-    **dict.fromkeys(("in", "inch", "inches"), ("length", "in")),
-    **dict.fromkeys(("lbf", "lbs", "lb"), ("force", "lbf")),
-    **dict.fromkeys(("kgf", "kp"), ("force", "kgf")),
-    **dict.fromkeys(("degf", "°f", "fahrenheit"), ("temperature", "F")),
-}
-#: Words (a column name's last word, or its bracketed unit, or a units row's text) saying a column is in volts.
-VOLT_WORDS = {"v", "mv", "volt", "volts", "voltage", "millivolt", "millivolts", "vdc", "uv", "µv"}
-#: The dimension of each channel's unit.
+#: Words in a column name saying it holds a voltage (besides a unit of voltage: ``(V)``, ``_mV``).
+VOLT_WORDS = {"volt", "volts", "voltage", "vdc"}
+#: The dimension of each channel's unit (:mod:`isokinetic.units`).
 DIMENSION = {"time": "time", "displacement": "length", "command": "length", "force": "force",
              "temperature": "temperature"}
-#: Units of each dimension and their factor to SI (temperature: offset to kelvin is not needed here).
-FACTORS = {"time": {"s": 1.0, "ms": 1e-3}, "length": {"m": 1.0, "mm": 1e-3, "um": 1e-6, "in": 0.0254},
-           "force": {"N": 1.0, "kN": 1e3, "lbf": 4.4482216152605, "kgf": 9.80665},
-           "temperature": {"C": 1.0, "K": 1.0, "F": 1.0}}
-#: The dimension of each manifest unit.
-UNIT_DIMENSION = {unit: dimension for dimension, units in FACTORS.items() for unit in units}
-#: Units the magnitudes choose between (inches, pounds and kilograms-force only from a name or a units row).
-SCORED = {"time": ("s", "ms"), "length": ("m", "mm", "um"), "force": ("N", "kN"), "temperature": ("C", "K")}
+#: The role a unit's dimension names when the words name none.
+ROLE_OF_DIMENSION = {"time": "time", "length": "displacement", "force": "force", "temperature": "temperature"}
+#: Units the magnitudes choose between (others, inches, kips and pounds, only from a name or a units row).
+SCORED = {"time": ("s", "ms"), "length": ("m", "mm", "um"), "force": ("N", "kN"), "temperature": ("degC", "K")}
 #: Typical values of a damper rig (decades away from them cost score) and physical bounds (outside: implausible).
 TYPICAL = {"rate_Hz": 300.0, "duration_s": 60.0, "amplitude_m": 1e-3, "speed_m_s": 1e-3, "force_N": 300.0}
 BOUNDS = {"rate_Hz": (5.0, 1e6), "duration_s": (0.05, 1e6), "amplitude_m": (1e-6, 1.0), "speed_m_s": (1e-8, 50.0),
-          "force_N": (0.5, 2e6), "C": (-60.0, 250.0), "K": (200.0, 550.0)}
+          "force_N": (0.5, 2e6), "degC": (-60.0, 250.0), "K": (200.0, 550.0)}
 #: Margin (decades per file) between the best and the next unit above which a guess is sure / likely.
 SURE_MARGIN, LIKELY_MARGIN = 1.5, 0.75
 
-_BRACKETS = re.compile(r"^(.*?)\s*[\[({]\s*([^\])}]*?)\s*[\])}]\s*$")
-_SLASH = re.compile(r"^(.*?)\s*/\s*([^/]+?)\s*$")
-_IN = re.compile(r"^(.*?)\s+in\s+(\S+)\s*$", re.IGNORECASE)
+_SLASH = re.compile(r"^(.*?[^/\s])\s*/\s*([^/]+?)\s*$")
 _SPLIT = re.compile(r"[^a-z0-9µμ°]+")
+
+
+def read_unit(text: str | None, dimension: str | None = None):
+    """The :class:`isokinetic.units.Unit` a text names (of ``dimension`` when given), None when it names none."""
+    from isokinetic.units import UnitError, parse_unit
+
+    if not text or not text.strip():
+        return None
+    try:
+        return parse_unit(text, dimension)
+    except UnitError:
+        return None
+
+
+def unit_error(text: str) -> str:
+    """Why the units library refuses ``text`` (the nearest known units named), "" when it reads it."""
+    from isokinetic.units import UnitError, parse_unit
+
+    try:
+        parse_unit(text)
+    except UnitError as exc:
+        return str(exc)
+    return ""
+
+
+def factor(unit: str) -> float:
+    """The factor from ``unit`` (a symbol the draft writes) to SI."""
+    return read_unit(unit).scale
+
+
+def to_si(values: np.ndarray, unit: str) -> np.ndarray:
+    """``values`` in SI (temperatures in degrees Celsius) from ``unit``."""
+    return read_unit(unit).to_si(values)
 
 
 @dataclass(frozen=True)
@@ -91,39 +105,48 @@ class NameGuess:
     how: str
 
 
+def split_name(name: str) -> tuple[tuple[str, ...], str | None]:
+    """(words, unit text or None) of a column name by :func:`isokinetic.units.unit_in_name` (``'F [kN]'`` ->
+    (('f',), 'kN'), ``disp_mm`` -> (('disp',), 'mm'), ``friction force (kip)`` -> (('friction', 'force'),
+    'kip')), or a unit after a slash (``x/mm``), or a header of two letters or more that is only a unit (``mm``)."""
+    from isokinetic.units import unit_in_name
+
+    text, unit = unit_in_name(name)
+    if unit is None:
+        match = _SLASH.match(name.strip())
+        slashed = read_unit(match.group(2)) if match else None
+        whole = read_unit(name) if len(name.strip()) > 1 and role_of((name.strip().lower(),)) is None else None
+        if slashed is not None and slashed.dimension in DIMENSION.values():
+            text, unit = match.group(1), match.group(2)
+        elif whole is not None and whole.dimension in DIMENSION.values():
+            text, unit = "", name.strip()          # a header that is only a unit (``mm``)
+    return tuple(w for w in _SPLIT.split(text.lower()) if w), unit
+
+
 def name_words(name: str) -> tuple[tuple[str, ...], str | None]:
-    """(words, unit word or None) of a column name: ``'F [kN]'`` -> (('f',), 'kn'), ``disp_mm`` -> (('disp',), 'mm')."""
-    text = name.strip().lower()
-    for pattern in (_BRACKETS, _SLASH, _IN):
-        match = pattern.match(text)
-        if match and match.group(2).replace(" ", "") in UNIT_WORDS:
-            return tuple(w for w in _SPLIT.split(match.group(1)) if w), match.group(2).replace(" ", "")
-    words = [w for w in _SPLIT.split(text) if w]
-    if words and words[-1] in UNIT_WORDS:
-        return tuple(words[:-1]), words[-1]
-    return tuple(words), None
+    """(words, the unit's symbol or None) of a column name (:func:`split_name`; a unit text no library knows: None)."""
+    words, text = split_name(name)
+    unit = read_unit(text)
+    return words, None if unit is None else unit.symbol
 
 
 def says_volts(name: str, unit_text: str | None = None) -> bool:
     """Whether a column name (``Force (V)``, ``disp_V``, ``Load [mV]``, ``LVDT volts``) or its units-row text says
     the column holds a transducer's voltage rather than engineering units."""
-    if unit_text is not None and unit_text.strip().lower() in VOLT_WORDS:
-        return True
-    text = name.strip().lower()
-    for pattern in (_BRACKETS, _SLASH, _IN):
-        match = pattern.match(text)
-        if match and match.group(2).replace(" ", "") in VOLT_WORDS:
+    for text in (unit_text, split_name(name)[1]):
+        unit = read_unit(text)
+        if unit is not None and unit.dimension == "voltage":
             return True
-    words = [w for w in _SPLIT.split(text) if w]
-    return bool(words) and (words[-1] in VOLT_WORDS or any(w.startswith("volt") for w in words))
+    words = [w for w in _SPLIT.split(name.strip().lower()) if w]
+    return bool(words) and (words[-1] in VOLT_WORDS or words[-1] in ("v", "mv") or
+                            any(w.startswith("volt") for w in words))
 
 
 def unit_from_units_row(text: str | None) -> tuple[str, str] | None:
-    """(dimension, manifest unit) of a units row's cell (``in``, ``lbf``, ``Sec``, ``mm``, ``kN``, ``°C``, ``F``),
-    read as ingest reads it (:func:`isokinetic.contracts.manifest.unit_from_text`); None when it names no
-    unit the format knows."""
-    unit = unit_from_text(text) if text and text.strip() else None
-    return None if unit is None else (UNIT_DIMENSION[unit], unit)
+    """(dimension, unit symbol) of a units row's cell (``in``, ``lbf``, ``Sec``, ``mm``, ``kN``, ``°C``, ``kip``),
+    read as ingest reads it (:func:`isokinetic.units.parse_unit`); None when it names no unit."""
+    unit = read_unit(text)
+    return None if unit is None else (unit.dimension, unit.symbol)
 
 
 def role_of(words: tuple[str, ...]) -> str | None:
@@ -136,29 +159,32 @@ def role_of(words: tuple[str, ...]) -> str | None:
 
 def guess_from_name(name: str, unit_text: str | None = None) -> NameGuess:
     """Role and unit of a column from its name and its cell of a units row (the row's unit wins: ingest checks
-    the manifest's unit against it); either may be None."""
-    words, unit_word = name_words(name)
+    the manifest's unit against it); either may be None. A unit of velocity makes the role ``velocity`` (not a
+    channel: such a column is never the force); a unit no library knows is said, and left to the magnitudes."""
+    words, unit_word = split_name(name)
     role = role_of(words)
-    row_unit = unit_from_units_row(unit_text)          # what ingest checks the manifest's unit against
-    if unit_word is None and row_unit is None:
+    named, row = read_unit(unit_word), read_unit(unit_text)
+    if unit_word is not None and named is None and row is None:
+        return NameGuess(role, None, f"from header {name!r} (its unit {unit_word!r} is not one the units library "
+                                     "knows: unit from magnitudes)" if role else "")
+    if named is None and row is None:
         return NameGuess(role, None, f"from header {name!r}" if role else "")
-    if row_unit is not None:
-        dimension, unit = row_unit
-        name_said = f"{name!r} [{unit_text.strip()}]"
-        if unit_word is not None and UNIT_WORDS[unit_word] != row_unit:
-            name_said += f" (the units row's unit; CHECK: the name says {unit_word!r})"
-    else:
-        dimension, unit = UNIT_WORDS[unit_word]
-        name_said = repr(name)
-    name = name_said
-    if role is None or DIMENSION[role] == dimension:
-        role = role or {"time": "time", "length": "displacement", "force": "force",
-                        "temperature": "temperature"}[dimension]
-        return NameGuess(role, unit, f"from header {name}")
+    unit = row if row is not None else named
+    said = repr(name)
+    if row is not None:
+        said = f"{name!r} [{unit_text.strip()}]"
+        if named is not None and (named.symbol, named.dimension) != (row.symbol, row.dimension):
+            said += f" (the units row's unit; CHECK: the name says {unit_word!r})"
+    if unit.dimension == "velocity":
+        return NameGuess("velocity", unit.symbol, f"from header {said} (a velocity)")
+    if unit.dimension not in ROLE_OF_DIMENSION:
+        return NameGuess(role, None, f"from header {said} (its unit {unit.symbol!r} is a {unit.dimension}: unit "
+                                     "from magnitudes)" if role else "")
+    if role is None or DIMENSION[role] == unit.dimension:
+        return NameGuess(role or ROLE_OF_DIMENSION[unit.dimension], unit.symbol, f"from header {said}")
     if all(w in WEAK_WORDS for w in words if role_of((w,)) == role):
-        role = {"time": "time", "length": "displacement", "force": "force", "temperature": "temperature"}[dimension]
-        return NameGuess(role, unit, f"from header {name} (its unit)")
-    return NameGuess(role, None, f"from header {name} (its unit {unit!r} does not fit a {role}: "
+        return NameGuess(ROLE_OF_DIMENSION[unit.dimension], unit.symbol, f"from header {said} (its unit)")
+    return NameGuess(role, None, f"from header {said} (its unit {unit.symbol!r} does not fit a {role}: "
                                  "unit from magnitudes)")
 
 
@@ -190,8 +216,9 @@ def time_scores(t: np.ndarray) -> dict[str, float]:
     step = float(np.median(steps)) if steps.size else math.nan
     span = float(t[-1] - t[0]) if t.size else math.nan
     out = {}
-    for unit, factor in FACTORS["time"].items():
-        rate, duration = 1.0 / (step * factor) if step > 0 else math.nan, span * factor
+    for unit in SCORED["time"]:
+        f = factor(unit)
+        rate, duration = 1.0 / (step * f) if step > 0 else math.nan, span * f
         out[unit] = 0.5 * (_decades(rate, TYPICAL["rate_Hz"], BOUNDS["rate_Hz"])
                            + _decades(duration, TYPICAL["duration_s"], BOUNDS["duration_s"]))
     return out
@@ -200,23 +227,22 @@ def time_scores(t: np.ndarray) -> dict[str, float]:
 def length_scores(y: np.ndarray, t_s: np.ndarray) -> dict[str, float]:
     """Score of m, mm and um for a displacement: its amplitude and its speed against a damper's."""
     amplitude, speed = robust_range(y) / 2.0, typical_speed(t_s, y)
-    return {unit: _decades(amplitude * f, TYPICAL["amplitude_m"], BOUNDS["amplitude_m"])
-            + 0.5 * _decades(speed * f, TYPICAL["speed_m_s"], BOUNDS["speed_m_s"])
-            for unit, f in FACTORS["length"].items() if unit in SCORED["length"]}
+    return {unit: _decades(amplitude * factor(unit), TYPICAL["amplitude_m"], BOUNDS["amplitude_m"])
+            + 0.5 * _decades(speed * factor(unit), TYPICAL["speed_m_s"], BOUNDS["speed_m_s"])
+            for unit in SCORED["length"]}
 
 
 def force_scores(f: np.ndarray) -> dict[str, float]:
     """Score of N and kN for a force: its 99th percentile of |F| against a damper's tens to thousands of N."""
     peak = float(np.percentile(np.abs(f), 99.0))
-    return {unit: _decades(peak * factor, TYPICAL["force_N"], BOUNDS["force_N"])
-            for unit, factor in FACTORS["force"].items() if unit in SCORED["force"]}
+    return {unit: _decades(peak * factor(unit), TYPICAL["force_N"], BOUNDS["force_N"]) for unit in SCORED["force"]}
 
 
 def temperature_scores(values: np.ndarray) -> dict[str, float]:
-    """Score of C and K for a temperature: its median inside the plausible range of each."""
+    """Score of degC and K for a temperature: its median inside the plausible range of each."""
     median = float(np.median(values))
     return {unit: (0.0 if BOUNDS[unit][0] <= median <= BOUNDS[unit][1] else math.inf) + (0.5 if unit == "K" else 0.0)
-            for unit in ("C", "K")}
+            for unit in SCORED["temperature"]}
 
 
 def describe(channel: str, values: np.ndarray, t_s: np.ndarray | None) -> str:
@@ -308,12 +334,8 @@ def velocity(t: np.ndarray, y: np.ndarray, k: int) -> np.ndarray:
 
 
 def temperature_C(values: np.ndarray, unit: str) -> np.ndarray:
-    """A temperature column in degrees Celsius from C, K or F."""
-    if unit == "K":
-        return values - 273.15
-    if unit == "F":
-        return (values - 32.0) * 5.0 / 9.0
-    return values
+    """A temperature column in degrees Celsius from any temperature unit (degC, K, degF)."""
+    return to_si(values, unit)
 
 
 @dataclass(frozen=True)
@@ -378,6 +400,123 @@ def force_follows_velocity(t: np.ndarray, displacement_m: np.ndarray, force_N: n
     return ForceVerdict(r, len(signs), opposed, damping, problem)
 
 
+#: Factors between a velocity column and the displacement's derivative that units make: powers of ten (m, mm, um;
+#: s, ms) and the inch's 25.4 mm.
+UNIT_RATIOS = np.array(sorted({f * 10.0 ** k for k in range(-6, 7) for f in (1.0, 25.4, 1.0 / 25.4)}))
+#: A column within this relative rms of a unit ratio times the displacement's derivative is its velocity: a derived
+#: velocity matches one of the difference quotients exactly (the MR damper's preprocessed files: backward
+#: differences, 0 % rms), a calibrated velocity transducer to its noise; a damper's force, with its hysteresis (a
+#: loop, not a curve) and noise, lies percents to tens of percent off any function of the velocity alone (a
+#: simulated shock absorber at 5 Hz: 3 %, the MR damper: 25 %).
+DERIVATIVE_RESIDUAL = 0.02
+#: ... with a least-squares factor within this fraction of a unit ratio (a force over velocity rarely falls this
+#: close to a power of ten by chance; when it does, and the force has no hysteresis, the draft says CHECK).
+UNIT_RATIO_TOLERANCE = 0.005
+
+
+@dataclass(frozen=True)
+class DerivativeFit:
+    """How a column fits the displacement's derivative: the least-squares factor, the relative rms residual, the
+    unit ratio the factor is (None: none within :data:`UNIT_RATIO_TOLERANCE`) and the difference quotient that fits."""
+
+    factor: float
+    residual: float
+    unit_ratio: float | None
+    quotient: str
+
+    @property
+    def is_velocity(self) -> bool:
+        return self.unit_ratio is not None and self.residual < DERIVATIVE_RESIDUAL
+
+
+def difference_quotients(t: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
+    """The derivative of ``y`` by the quotients a preprocessor uses: backward, forward, central, and central over
+    ±k samples (noise averaged), all on the samples of ``y`` (NaN where undefined)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        step = np.diff(y) / np.diff(t)
+        k = max(2, t.size // 500)
+        wide = np.full(t.size, np.nan)
+        wide[k:-k] = velocity(t, y, k)
+        return {"backward": np.r_[np.nan, step], "forward": np.r_[step, np.nan],
+                "central": np.gradient(y, t), f"central over ±{k} samples": wide}
+
+
+def nearest_unit_ratio(factor: float) -> float | None:
+    """The unit ratio (:data:`UNIT_RATIOS`) within :data:`UNIT_RATIO_TOLERANCE` of ``factor``, or None."""
+    if not (math.isfinite(factor) and factor > 0):
+        return None
+    ratio = float(UNIT_RATIOS[np.argmin(np.abs(np.log(UNIT_RATIOS / factor)))])
+    return ratio if abs(factor / ratio - 1.0) <= UNIT_RATIO_TOLERANCE else None
+
+
+def derivative_fit(t: np.ndarray, displacement: np.ndarray, column: np.ndarray) -> DerivativeFit:
+    """The best fit ``column`` ≈ c·dy/dt over the :func:`difference_quotients` of the displacement (any units: c
+    takes them up)."""
+    best = DerivativeFit(math.nan, math.inf, None, "")
+    for name, dydt in difference_quotients(t, displacement).items():
+        ok = np.isfinite(dydt) & np.isfinite(column)
+        norm = float(column[ok] @ column[ok]) if ok.sum() >= 8 else 0.0
+        gram = float(dydt[ok] @ dydt[ok]) if ok.sum() >= 8 else 0.0
+        if norm <= 0 or gram <= 0:
+            continue
+        c = float(column[ok] @ dydt[ok]) / gram
+        r = column[ok] - c * dydt[ok]
+        residual = math.sqrt(float(r @ r) / norm)
+        if residual < best.residual:
+            best = DerivativeFit(c, residual, nearest_unit_ratio(c), name)
+    return best
+
+
+def velocity_columns(t: np.ndarray, candidates: dict[str, np.ndarray]) -> dict[str, tuple[str, DerivativeFit]]:
+    """{column: (the column it is the derivative of, the fit)}: each candidate that equals another's derivative
+    times a unit ratio (:meth:`DerivativeFit.is_velocity`), the best fitting of them."""
+    out: dict[str, tuple[str, DerivativeFit]] = {}
+    for b, column in candidates.items():
+        for a, displacement in candidates.items():
+            if a == b:
+                continue
+            fit = derivative_fit(t, displacement, column)
+            if fit.is_velocity and (b not in out or fit.residual < out[b][1].residual):
+                out[b] = (a, fit)
+    return out
+
+
+def velocity_note(fit: DerivativeFit, of: str) -> str:
+    """What a derivative fit shows, in words."""
+    return (f"equals the derivative of {of} ({fit.quotient} differences) times {fit.unit_ratio:g} to "
+            f"{fit.residual:.1%} rms: a velocity")
+
+
+#: A switched signal (a control voltage, a current, a valve state) spends at least LEVEL_SHARE of its samples on
+#: 2 to MAX_LEVELS levels, found in at most MAX_LEVEL_BINS bins of LEVEL_WIDTH of its range, and stays on a level
+#: MIN_RUN samples on average. A displacement or force moves through its range; an ADC-quantised standstill
+#: flickers between its levels from sample to sample.
+LEVEL_WIDTH, LEVEL_SHARE, MAX_LEVELS, MAX_LEVEL_BINS, MIN_RUN = 0.02, 0.95, 8, 10, 20
+
+
+def switched_levels(values: np.ndarray) -> int:
+    """How many levels a switched signal switches between; 0 when ``values`` is not one."""
+    v = values[np.isfinite(values)]
+    span = float(np.ptp(v)) if v.size else 0.0
+    if span <= 0:
+        return 0
+    nbins = int(round(1.0 / LEVEL_WIDTH))
+    bins = np.minimum(((v - v.min()) / span * nbins).astype(int), nbins - 1)
+    counts = np.bincount(bins, minlength=nbins)
+    order = np.argsort(counts)[::-1]
+    k = int(np.searchsorted(np.cumsum(counts[order]), LEVEL_SHARE * v.size)) + 1
+    if k > MAX_LEVEL_BINS:
+        return 0
+    top = np.zeros(nbins, dtype=bool)
+    top[order[:k]] = True
+    edges = np.diff(np.r_[0, top.astype(int), 0])
+    level_of_bin = np.cumsum(edges[:-1] == 1)          # adjacent populated bins are one level
+    labels = level_of_bin[bins][top[bins]]
+    levels = int((edges == 1).sum())
+    mean_run = labels.size / (np.count_nonzero(np.diff(labels)) + 1)
+    return levels if 2 <= levels <= MAX_LEVELS and mean_run >= MIN_RUN else 0
+
+
 def roughness(values: np.ndarray) -> float:
     """Noise (1 sigma, second differences) over range: low for a command, higher for a measured channel."""
     span = robust_range(values)
@@ -385,11 +524,12 @@ def roughness(values: np.ndarray) -> float:
 
 
 def pair_by_velocity(t: np.ndarray, candidates: dict[str, np.ndarray], displacement: str | None,
-                     force: str | None) -> tuple[str | None, str | None, float]:
+                     force: str | None, never_displacement: set[str] = frozenset()
+                     ) -> tuple[str | None, str | None, float]:
     """(displacement, force, correlation): the pair of candidate columns (a given one kept) in which the force
-    follows the displacement's velocity best."""
+    follows the displacement's velocity best; ``never_displacement``: columns that cannot be it (switched ones)."""
     best = (displacement, force, 0.0)
-    for a in ([displacement] if displacement else candidates):
+    for a in ([displacement] if displacement else [c for c in candidates if c not in never_displacement]):
         for b in ([force] if force else candidates):
             if a == b or a not in candidates or b not in candidates:
                 continue

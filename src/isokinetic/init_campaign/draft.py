@@ -133,8 +133,11 @@ def campaign_lines(survey: Survey) -> list[str]:
         out.append(line(2, f"{channel}: {column_entry(choice.name, choice.unit, choice.invert)}",
                         f"{choice.how}, {choice.sure}"))
     extras = sorted({e for f in survey.usable for e in f.extras})
-    if extras:
-        out.append(line(2, f"# not used: {', '.join(repr(e) for e in extras)} (extra columns are ignored by ingest)"))
+    why = {name: said for f in survey.usable for name, said in f.unused.items()}
+    plain = [e for e in extras if e not in why]
+    if plain:
+        out.append(line(2, f"# not used: {', '.join(repr(e) for e in plain)} (extra columns are ignored by ingest)"))
+    out += [line(2, f"# not used: {comment(repr(e))}: {comment(why[e])}") for e in extras if e in why]
     refused = sorted({why for f in survey.usable for why in f.refused.values()})
     out += [line(2, f"# REFUSED: {why}") for why in refused]
     return out
@@ -202,12 +205,14 @@ def case_lines(f: FileSurvey, survey: Survey) -> list[str]:
     own = round_to_uncertainty(f.rate.value, f.rate.se, floor=RATE_FLOOR)
     common = []
     if own != survey.sample_rate_Hz:
-        common.append(line(4, f"sample_rate_Hz: {scalar(own)}", f"mean time step {1.0 / own:.6g} s, sure"))
+        common.append(line(4, f"sample_rate_Hz: {scalar(own)}", f"time step {1.0 / own:.6g} s, sure"))
     common += override_lines(f, survey)
     notes = [line(4, f"# NOTE: {w_}") for w_ in f.warnings]
     if f.steps:
-        out = [line(2, f"# {comment(f.file)}: a stepped record, {len(f.steps)} cases (the whole record: "
-                       f"{f.waveform.kind}; {comment(f.waveform.how)})")]
+        said = ("a record with ramps, one case: its steady part" if f.steps[0].case_id == f.case_id else
+                f"a stepped record, {len(f.steps)} cases")
+        out = [line(2, f"# {comment(f.file)}: {said} (the whole record: {f.waveform.kind}; "
+                       f"{comment(f.waveform.how)})")]
         for step in f.steps:
             out += step_lines(f, step) + common
         return out + notes

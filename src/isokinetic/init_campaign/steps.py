@@ -209,3 +209,17 @@ def is_stepped(steps: list[Step], t_s: np.ndarray) -> bool:
         return False
     covered = sum(s.end_s - (s.start_s if s.kind == "standstill" else s.onset_s) for s in steps)
     return covered >= (t_s[-1] - t_s[0]) / 3.0
+
+
+#: A single record's steady cycles (between a ramp-in and a ramp-out) must cover this fraction of it.
+MIN_STEADY_FRACTION = 0.3
+
+
+def steady_part(steps: list[Step], t_s: np.ndarray) -> Step | None:
+    """The steady cycles of a single record with a ramp-in and ramp-out (one step of cycles, no standstill, covering
+    at least :data:`MIN_STEADY_FRACTION` of it), None otherwise."""
+    cycles = [s for s in steps if s.kind == "cycles"]
+    if len(cycles) != 1 or len(steps) != 1:
+        return None
+    step = cycles[0]
+    return step if step.end_s - step.start_s >= MIN_STEADY_FRACTION * (t_s[-1] - t_s[0]) else None

@@ -39,6 +39,7 @@ from isokinetic.init_campaign import channels as ch
 from isokinetic.init_campaign import steps as st
 from isokinetic.init_campaign.sniff import ColumnData, parse_column
 from isokinetic.init_campaign.waveform import Estimate, Waveform, detect_waveform, round_to_uncertainty
+from isokinetic.measurement.sampling import SPAN_STEPS, sample_interval_error_s, sample_interval_s
 from isokinetic.rawfile import DELIMITERS, FileFormat, RawFileError, read_raw_table, sniff_format
 from isokinetic.stages.validate import MIN_SAMPLES
 
@@ -90,6 +91,7 @@ class FileSurvey:
     volts: dict[str, str | None] = field(default_factory=dict)   # volts column -> the role its name says
     refused: dict[str, str] = field(default_factory=dict)    # channel -> why no column was taken for it
     invert: str = ""                 # why the force is drafted with `invert: true` ("" when it is not)
+    unused: dict[str, str] = field(default_factory=dict)     # column -> why it takes no role (a velocity, a switch)
     steps: list[StepCase] = field(default_factory=list)
 
     @property
@@ -282,7 +284,12 @@ def assign_by_name(survey: FileSurvey) -> None:
         if guess.role != "time" and ch.says_volts(name, survey.units_row.get(name)):
             survey.volts[name] = guess.role          # no role from magnitudes either
             continue
+        if guess.role == "velocity":
+            survey.unused[name] = f"a velocity by its unit ({guess.unit}): never the force"
+            continue
         if guess.role is None or not _usable(data, guess.role):
+            continue
+        if guess.role in ("displacement", "command") and switch_note(survey, name, guess.role):
             continue
         candidates.setdefault(guess.role, []).append((name, guess))
     for role, found in candidates.items():
@@ -305,9 +312,23 @@ def assign_by_name(survey: FileSurvey) -> None:
                                     f"(a {role} in engineering units is needed; scale it, or name the scaled column)")
 
 
+def switch_note(survey: FileSurvey, name: str, role: str | None) -> bool:
+    """Whether column ``name`` is a switched signal (:func:`channels.switched_levels`): then it is noted as unused
+    and is never the displacement (a displacement moves through its range, a control voltage switches)."""
+    values = survey.data[name].numbers
+    levels = ch.switched_levels(values) if values is not None else 0
+    if levels:
+        named = f" (named like a {role})" if role else ""
+        survey.unused[name] = (f"switches between {levels} levels{named}: a control voltage, a current or a valve "
+                               "state, never the displacement, and not the force: it does not follow the velocity")
+    return bool(levels)
+
+
 def assign_by_magnitude(survey: FileSurvey) -> None:
     """Roles the names left open: time (the column that only increases), displacement and force (the force
-    follows the displacement's velocity), command (a smoother near-copy of the displacement)."""
+    follows the displacement's velocity), command (a smoother near-copy of the displacement). A column that is
+    another's derivative (:func:`channels.velocity_columns`) is a velocity and never the force; it shows which
+    column is the displacement. A switched column takes no role."""
     taken = set(survey.roles.values())
     if "time" not in survey.roles:
         for name, data in survey.data.items():
@@ -321,20 +342,52 @@ def assign_by_magnitude(survey: FileSurvey) -> None:
     t_data = survey.data[survey.roles["time"]]
     t = t_data.stamps_s if t_data.stamps_s is not None else t_data.numbers
     free = {n: d.numbers for n, d in survey.data.items()
-            if d.numbers is not None and n not in taken and n not in survey.volts
+            if d.numbers is not None and n not in taken and n not in survey.volts and n not in survey.unused
             and np.ptp(d.numbers[np.isfinite(d.numbers)]) > 0
             and not ch.increasing(d.numbers) and ch.guess_from_name(n).role in (None, "displacement", "force")}
+    switched = {n for n in free if switch_note(survey, n, None)}
     named = {c: survey.data[survey.roles[c]].numbers for c in ("displacement", "force") if c in survey.roles}
     if len(named) < 2:
         pool = {**free, **{survey.roles[c]: v for c, v in named.items()}}
-        d, f, r = ch.pair_by_velocity(t, pool, survey.roles.get("displacement"), survey.roles.get("force"))
+        derived = velocity_roles(survey, t, pool)
+        pool = {n: v for n, v in pool.items() if n not in derived}
+        d, f, r = ch.pair_by_velocity(t, pool, survey.roles.get("displacement"), survey.roles.get("force"), switched)
+        if f in switched and r < LIKELY_CORRELATION:      # a switch that happens to correlate a little: no force
+            d, f, r = d if "displacement" in survey.roles else None, None, 0.0
+        survey.unused.pop(f, None)       # a force switching with the velocity's sign (a triangle's): a force
         sure = "likely" if r >= LIKELY_CORRELATION else "guess"
         for channel, name in (("displacement", d), ("force", f)):
             if channel not in survey.roles and channel not in survey.refused and name is not None and r > 0.3:
                 survey.roles[channel] = name
                 survey.role_how[channel] = (f"column {name!r} from magnitudes: the force follows the displacement's "
                                             f"velocity (correlation {r:.2f})", sure)
-    assign_command(survey, free)
+        if "force" not in survey.roles and derived and "force" not in survey.refused:
+            survey.refused["force"] = (f"{', '.join(repr(n) for n in derived)} "
+                                       f"{'is' if len(derived) == 1 else 'are'} the displacement's derivative (a "
+                                       "velocity, not a force) and no other column follows the velocity as a damper's "
+                                       "force does: name the force column")
+        free = {n: v for n, v in free.items() if n not in derived}
+    assign_command(survey, {n: v for n, v in free.items() if n not in switched})
+
+
+def velocity_roles(survey: FileSurvey, t: np.ndarray, pool: dict[str, np.ndarray]) -> dict[str, str]:
+    """{column: why}: the columns of ``pool`` that are another's derivative (:func:`channels.velocity_columns`),
+    noted as unused velocities; the displacement, when no name gives it, is the column they are the derivative
+    of (``likely``: physics, not a name)."""
+    found = ch.velocity_columns(t, pool)
+    derived = {}
+    for name, (of, fit) in sorted(found.items(), key=lambda item: item[1][1].residual):
+        if of in found:                       # the derivative of a velocity: an acceleration
+            derived[name] = f"equals the derivative of {of!r}, a velocity: an acceleration, not a force"
+            continue
+        derived[name] = f"{ch.velocity_note(fit, repr(of))}, not a force"
+        if "displacement" not in survey.roles and "displacement" not in survey.refused:
+            survey.roles["displacement"] = of
+            survey.role_how["displacement"] = (f"column {of!r} from magnitudes: column {name!r} equals its "
+                                               f"derivative times {fit.unit_ratio:g} ({fit.residual:.1%} rms)",
+                                               "likely")
+    survey.unused.update(derived)
+    return derived
 
 
 def assign_command(survey: FileSurvey, free: dict[str, np.ndarray]) -> None:
@@ -428,7 +481,7 @@ def unit_for(channel: str, name: str, files: list[FileSurvey]) -> ch.UnitChoice:
     shown = f"{sample.file}: {ch.describe(channel, sample.data[name].numbers, sample.time_s)}" \
         if sample is not None and sample.data[name].numbers is not None else ""
     guess = ch.guess_from_name(name, sample.units_row.get(name) if sample is not None else None)
-    if guess.unit is not None and guess.role is not None and ch.DIMENSION[guess.role] == ch.DIMENSION[channel]:
+    if guess.unit is not None and guess.role in ch.DIMENSION and ch.DIMENSION[guess.role] == ch.DIMENSION[channel]:
         said = guess.how.split(" (its unit)")[0]
         scored = guess.unit in ch.SCORED[ch.DIMENSION[channel]]
         if scored and magnitudes.unit not in (None, guess.unit) and magnitudes.sure == "sure":
@@ -446,18 +499,15 @@ def time_in_seconds(survey: FileSurvey, unit: str | None) -> np.ndarray | None:
     data = survey.data[survey.roles["time"]]
     if data.stamps_s is not None:
         return data.stamps_s
-    return None if unit is None else data.numbers * ch.FACTORS["time"][unit]
+    return None if unit is None else ch.to_si(data.numbers, unit)
 
 
 def sample_rate(t_s: np.ndarray) -> Estimate:
-    """1 / the mean sample interval (intervals over 1.5 median ones, dropped samples, left out: time stamps
-    rounded to fewer digits than the interval has average out), with a standard error from the intervals'
-    spread [Hz]."""
-    steps = np.diff(t_s)
-    regular = steps[steps < 1.5 * float(np.median(steps))]
-    step = float(np.mean(regular)) if regular.size else float(np.median(steps))
-    spread = float(np.std(regular)) if regular.size > 1 else 0.0
-    return Estimate(1.0 / step, spread / step ** 2 / math.sqrt(max(regular.size, 1)))
+    """1 / the record's sample interval by ingest's own rule (:func:`isokinetic.measurement.sampling.
+    sample_interval_s`: the median over long spans of their mean step, so that dropped samples and rounded time
+    stamps leave it unchanged), with its standard error [Hz]."""
+    step, se = sample_interval_s(t_s), sample_interval_error_s(t_s)
+    return Estimate(1.0 / step, se / step ** 2)
 
 
 def choose_units(files: list[FileSurvey]) -> dict[tuple[str, str], ch.UnitChoice]:
@@ -523,8 +573,8 @@ def measure_file(f: FileSurvey, units: dict[tuple[str, str], ch.UnitChoice]) -> 
     for name in f.roles.values():
         text = f.units_row.get(name, "")
         if text and ch.unit_from_units_row(text) is None and f.data[name].stamps_s is None:
-            f.problem = (f"column {name!r}: the units row says {text!r}, a unit the format does not know (ingest "
-                         "would set the case aside)")
+            f.problem = (f"column {name!r}: the units row says {text!r}: {ch.unit_error(text)} (ingest would set "
+                         "the case aside)")
             return
         values = f.data[name].numbers
         if values is not None and not np.isfinite(values).all():
@@ -539,6 +589,11 @@ def measure_file(f: FileSurvey, units: dict[tuple[str, str], ch.UnitChoice]) -> 
     found = st.find_steps(f.time_s, motion_m)
     if st.is_stepped(found, f.time_s):
         f.steps = step_cases(f, found, motion_m)
+    elif f.waveform.kind == "free" and (steady := st.steady_part(found, f.time_s)) is not None:
+        cut = step_cases(f, [steady], motion_m)
+        if cut and cut[0].waveform.kind in ("sine", "triangle"):     # ramps around steady cycles: the steady part
+            f.steps = [replace(cut[0], case_id=f.case_id, how=cut[0].how.replace("a step:", "the steady part:")
+                               .replace("settling or transition", "ramp, settling or transition"))]
 
 
 def si_values(f: FileSurvey, channel: str, units: dict[tuple[str, str], ch.UnitChoice]) -> np.ndarray:
@@ -547,7 +602,7 @@ def si_values(f: FileSurvey, channel: str, units: dict[tuple[str, str], ch.UnitC
     values = _values(f, channel)
     if channel == "temperature":
         return ch.temperature_C(values, unit)
-    return values * ch.FACTORS[ch.DIMENSION[channel]][unit]
+    return ch.to_si(values, unit)
 
 
 def _doubt(f: FileSurvey, channel: str, why: str) -> None:
@@ -563,7 +618,11 @@ def physics_checks(f: FileSurvey, units: dict[tuple[str, str], ch.UnitChoice]) -
     A force opposing the velocity in every cycle sets ``invert``; other doubts make the role a guess."""
     t, disp, force = f.time_s, si_values(f, "displacement", units), si_values(f, "force", units)
     verdict = ch.force_follows_velocity(t, disp, force)
-    if verdict.opposed_everywhere:
+    derivative = ch.derivative_fit(t, _values(f, "displacement"), _values(f, "force"))
+    if derivative.is_velocity:
+        _doubt(f, "force", f"it {ch.velocity_note(derivative, 'the displacement')}, not a force (a damper's force "
+                           "is no function of the velocity alone): name the force column")
+    elif verdict.opposed_everywhere:
         f.invert = (f"the force opposes the displacement's velocity in all {verdict.cycles} cycles (correlation "
                     f"{verdict.correlation:.2f}): the rig's sign is the opposite of the spec's (force positive "
                     "resisting positive velocity), so the force is inverted")
@@ -645,6 +704,6 @@ def survey_folder(folder: str | Path) -> Survey:
     if rates:
         rate, n = rates.most_common(1)[0]
         usable = sum(rates.values())
-        rate_how = (f"mean time step {1.0 / rate:.6g} s in {n} of {usable} files" +
+        rate_how = (f"time step {1.0 / rate:.6g} s (median over spans of {SPAN_STEPS} steps) in {n} of {usable} files" +
                     (" (the others get their own)" if n < usable else ""))
     return Survey(folder, campaign, note, files, dialect, dialect_how, columns, units, rate, rate_how, skipped)

@@ -1,9 +1,14 @@
 """Sampling of a record: its sample interval and its gaps (dropped samples) on the real time axis.
 
 A busy logger drops samples, one at a time or in bursts; the time stamps of the samples it keeps
-stay on its regular grid. The record's sample interval is therefore the *median* interval (a few
-percent of dropouts leave it unchanged), and an interval above ``GAP_FACTOR`` times it is a gap of
-round(interval / dt) - 1 missing samples, at the grid times t_before + k·dt, k = 1 .. missing.
+stay on its regular grid. Some loggers also round their time stamps (to 5 significant digits, say:
+12.345 s, so that at 900 Hz one step in nine is 2 ms and the others 1 ms, and the median step is 10 %
+short). The record's sample interval is therefore the *median over long spans* of their mean step
+(:func:`span_intervals_s`: spans of :data:`SPAN_STEPS` steps average the rounding out; a span holding a
+dropped sample is left out, and the median leaves the rest of the dropouts out), and an interval above
+``GAP_FACTOR`` times it is a gap of round(interval / dt) - 1 missing samples, at the grid times
+t_before + k·dt, k = 1 .. missing. Ingest's rate check and ``init-campaign`` (its draft and ``--check``)
+use this one estimator and :data:`SAMPLE_RATE_TOLERANCE`.
 """
 
 from __future__ import annotations
@@ -15,12 +20,50 @@ import numpy as np
 
 #: An interval above GAP_FACTOR sample intervals is a gap (timing jitter stays well below).
 GAP_FACTOR = 1.5
+#: Steps per span of the interval estimator: a span's mean step averages rounded time stamps out (to 1 % of a
+#: step when they are rounded to a whole interval).
+SPAN_STEPS = 100
+#: A record is cut into at least this many spans (shorter spans for a short record, down to single steps).
+MIN_SPANS = 8
+#: The manifest's sample_rate_Hz may differ from the record's 1 / :func:`sample_interval_s` by this fraction:
+#: the default of ``validation.sample_rate_tolerance`` (ingest) and the tolerance of ``init-campaign --check``.
+SAMPLE_RATE_TOLERANCE = 0.05
+
+
+def span_intervals_s(t_s) -> np.ndarray:
+    """The mean step of each span of k consecutive steps (k = :data:`SPAN_STEPS`, fewer in a record of under
+    :data:`MIN_SPANS` spans), spans holding a dropped sample (longer than k + 1/2 steps of the median span's)
+    left out [s]; empty under 2 samples."""
+    t = np.asarray(t_s, dtype=float)
+    steps = t.size - 1
+    if steps < 1:
+        return np.empty(0)
+    k = max(1, min(SPAN_STEPS, steps // MIN_SPANS))
+    spans = np.diff(t[::k]) / k
+    for _ in range(2):                   # the second pass from the median of the spans without a dropout
+        kept = spans[spans * k < (k + 0.5) * float(np.median(spans))]
+        spans = kept if kept.size else spans
+    return spans
 
 
 def sample_interval_s(t_s) -> float:
-    """The record's sample interval: the median of its time-stamp intervals [s] (NaN under 2 samples)."""
-    t = np.asarray(t_s, dtype=float)
-    return float(np.median(np.diff(t))) if t.size > 1 else math.nan
+    """The record's sample interval: the median of :func:`span_intervals_s` [s] (NaN under 2 samples)."""
+    spans = span_intervals_s(t_s)
+    return float(np.median(spans)) if spans.size else math.nan
+
+
+def sample_interval_error_s(t_s) -> float:
+    """The standard error of :func:`sample_interval_s`: the spans' spread over the root of their number
+    (times 1.25, a median's) [s]; NaN under 2 samples."""
+    spans = span_intervals_s(t_s)
+    if spans.size < 2:
+        return 0.0 if spans.size else math.nan
+    return 1.25 * float(np.std(spans, ddof=1)) / math.sqrt(spans.size)
+
+
+def rate_offset(t_s, sample_rate_Hz: float) -> float:
+    """How far the record's sample interval lies off 1/sample_rate_Hz, as a fraction (positive: longer)."""
+    return sample_interval_s(t_s) * sample_rate_Hz - 1.0
 
 
 @dataclass(frozen=True)
