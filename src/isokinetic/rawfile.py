@@ -769,7 +769,7 @@ def sniff_format(path: str | Path, notes: list[str] | None = None) -> FileFormat
     if not content:
         return FileFormat(encoding=encoding)
     delimiter = ","
-    for lines_ in (content[:20], content[-10:]):        # the first lines, else (a preamble) the last lines read
+    for lines_ in (content[:20], content[-min(10, max(1, len(content) // 2)):]):    # else (a preamble) the last
         found = next((c for c in (",", ";", "\t", "|", "whitespace")
                       if len(counts := {len(_split(line, c)) for line in lines_}) == 1 and counts.pop() > 1), None)
         if found is not None:
