@@ -211,7 +211,7 @@ def test_characteristic_draws_sine_points_one_per_case_and_direction(camp):
     xs = sorted(float(x) for ln in lines for x in ln.get_xdata())
     assert xs == pytest.approx([-4.0, -2.0, 2.0, 4.0])            # mm/s, the periods' mean
     assert _n_points(_lines(ax, "period1")) == (char["period"] == 1).sum()
-    assert "triangle tests; sine tests, force at peak velocity" in fig.get_suptitle()
+    assert "triangle tests; periodic records, force at peak velocity" in fig.get_suptitle()
 
 
 def test_characteristic_of_a_sine_only_table_is_drawn_not_missing(camp):
@@ -219,7 +219,27 @@ def test_characteristic_of_a_sine_only_table_is_drawn_not_missing(camp):
     fig = figures.characteristic(_sine_rows(char))
     ax = fig.axes[0]
     assert not ax.texts and _lines(ax, "sine_peak") and not _lines(ax, "period1")
-    assert "(sine tests, force at peak velocity)" in fig.get_suptitle()
+    assert "(periodic records, force at peak velocity)" in fig.get_suptitle()
+
+
+def test_characteristic_marks_each_method_apart_and_rings_points_on_one_or_two_cycles(camp):
+    # issue 33: triangle windows, peak points and quasi-static bins in their own markers; a peak point resting
+    # on one or two cycles ringed, one resting on more not
+    _, _, _, char = camp
+    sine = _sine_rows(char)
+    sine.loc[sine["case"] == sine["case"].iloc[0], "n_samples"] = 1     # the first case's four rows: 1 cycle each
+    sine = sine[~((sine["case"] == sine["case"].iloc[0]) & (sine["period"] == 2))]   # one period: 1 cycle a point
+    bins = char.iloc[:3].assign(case="F01", method="free_bin", segment=[1, 2, 3], direction="+", period=1,
+                                velocity_m_s=[0.001, 0.002, 0.003], force_N=[10.0, 20.0, 30.0])
+    both = pd.concat([char.assign(method="triangle_window"), sine, bins], ignore_index=True)
+    ax = figures.characteristic(both).axes[0]
+    markers = {gid: {ln.get_marker() for ln in _lines(ax, gid)} for gid in ("period1", "sine_peak", "free_bin")}
+    assert all(len(m) == 1 for m in markers.values()) and len(set.union(*markers.values())) == 3
+    ringed = _lines(ax, "few-cycles")
+    assert len(ringed) == 1
+    first = sine[sine["case"] == sine["case"].iloc[0]]
+    assert sorted(float(x) for x in ringed[0].get_xdata()) == pytest.approx(sorted(first["velocity_m_s"] * 1e3))
+    assert "2 cycles or fewer" in ringed[0].get_label()
 
 
 def test_applies_names_why_a_triangle_figure_does_not_apply():

@@ -191,8 +191,9 @@ def test_triangle_campaign_table_is_the_windows_with_their_flag_and_method(trian
     keys = ["campaign", "case", "direction"]
     by_hand = windows.merge(rep[keys + ["flagged"]].rename(columns={"flagged": "repeatability_flagged"}), on=keys)
     by_hand = by_hand.sort_values(["velocity_m_s", "case", "segment"], ignore_index=True)
-    assert list(char.columns) == [*windows.columns, "repeatability_flagged", "method"]
-    pd.testing.assert_frame_equal(char.drop(columns="method"), by_hand)
+    assert list(char.columns) == [*windows.columns, "repeatability_flagged", "method", "force_se_N"]
+    pd.testing.assert_frame_equal(char.drop(columns=["method", "force_se_N"]), by_hand)
+    np.testing.assert_allclose(char["force_se_N"], char["force_std_N"] / np.sqrt(char["n_samples"]))
     assert set(char["method"]) == {"triangle_window"}
     assert pd.read_parquet(root / "energy.parquet").empty
 
@@ -215,7 +216,8 @@ def test_free_record_gives_velocity_bins_with_their_standard_error():
     assert len(char) == len(points) and not char["repeatability_flagged"].any()
 
 
-def test_a_sine_case_too_short_for_two_cycles_is_named_and_skipped():
+def test_a_two_cycle_sine_step_gives_a_point_per_direction():
+    # issue 33: a 0.2 Hz or 1 Hz step of a sweep holds 2 cycles; settling is measured, not a fixed skip
     spec = copy.deepcopy(SINE)
     spec["plan"]["sine"].update(periods=2, amplitudes_mm=[0.3])
     vc = VirtualCampaign.from_config("short", spec)
@@ -224,8 +226,15 @@ def test_a_sine_case_too_short_for_two_cycles_is_named_and_skipped():
     cases = pd.DataFrame([{"campaign": "short", "case": vc.cases[0].case, "waveform": "sine", "status": "ok",
                            "raw_file": "x", "raw_sha256": "0" * 64, "frequency_Hz": 1.75, "amplitude_m": 3e-4}])
     points, _energy, notes = record_points(cases, lambda _case: series)
-    assert points.empty
-    assert len(notes) == 1 and notes[0].startswith("campaign short, case H01:")
+    assert sorted(points["direction"]) == ["+", "-"] and set(points["period"]) == {1}
+    truth = truth_at_peak_velocity(vc, vc.cases[0].case, points["window_start_s"].min())
+    for row in points.itertuples():
+        assert row.force_N == pytest.approx(truth[row.direction], rel=0.02), row.direction
+    char = assemble(tables.empty(tables.WINDOWS), tables.empty(tables.REPEATABILITY), points)
+    one = char["n_samples"] == 1
+    assert char.loc[one, "force_se_N"].isna().all() and char.loc[~one, "force_se_N"].notna().all()
+    assert points.loc[points["n_samples"] == 1, "quality"].str.contains("one steady cycle").all()
+    assert bool(one.any()) == ("H01" in notes)
 
 
 def test_csv_export_carries_the_sine_points_and_their_method(sine_campaign):
@@ -264,7 +273,8 @@ def test_a_short_steady_step_keeps_its_first_period():
                            "raw_sha256": "0" * 64, "frequency_Hz": 1.0, "amplitude_m": 0.01}])
     points, energy, notes = record_points(cases, lambda _case: series)
     assert not notes
-    assert list(points["n_samples"]) == [2, 2] and set(points["period"]) == {1}
+    # + peaks at 0.75 and 1.75 s, - peaks at 0.25, 1.25 and 2.25 s: every one counts, no fixed skip
+    assert list(points.sort_values("direction")["n_samples"]) == [2, 3] and set(points["period"]) == {1}
     np.testing.assert_allclose(points["force_N"].abs(), 3000.0 * 0.02 * math.pi, rtol=0.01)
     assert energy["n_cycles"].tolist() == [1]
     assert energy["energy_J"].iloc[0] == pytest.approx(math.pi * 3000.0 * 2 * math.pi * 0.01 ** 2, rel=0.01)
@@ -316,3 +326,67 @@ def test_models_of_a_campaign_with_triangle_cases_fit_its_windows_only(sine_camp
     models_tri, residuals_tri = fit_models(tri)
     pd.testing.assert_frame_equal(models_mixed, models_tri)
     pd.testing.assert_frame_equal(residuals_mixed, residuals_tri)
+
+
+# --------------------------------------------------------------------------------------------
+# issue 33: the method follows the record's physics, not its manifest label
+# --------------------------------------------------------------------------------------------
+
+def free_case(case: str = "F01") -> pd.DataFrame:
+    return pd.DataFrame([{"campaign": "c", "case": case, "waveform": "free", "status": "ok", "raw_file": "F.csv",
+                          "raw_sha256": "0" * 64, "frequency_Hz": math.nan, "amplitude_m": math.nan}])
+
+
+def test_a_distorted_sine_drafted_free_gives_the_force_at_its_velocity_extremum():
+    # the servo's 3 % third harmonic: x = X sin(wt) + 0.03 X sin(3wt + phi), F = c1 v + c2 v|v| (noise free);
+    # reference: the analytic velocity's extremum on a fine grid and the force there
+    c1, c2, amp, w, phi = 200.0, 3000.0, 0.0127, 2 * math.pi * 5.0, 1.1
+    def motion(tt):
+        return (amp * (np.sin(w * tt) + 0.03 * np.sin(3 * w * tt + phi)),
+                amp * w * (np.cos(w * tt) + 0.09 * np.cos(3 * w * tt + phi)))
+    t = np.arange(0.0, 0.6, 1.0 / 1024.0)                     # three cycles
+    x, v = motion(t)
+    series = pd.DataFrame({"row": np.arange(t.size, dtype=np.int64), "time_s": t, "displacement_m": x,
+                           "force_N": c1 * v + c2 * v * np.abs(v)})
+    points, energy, notes = record_points(free_case(), lambda _case: series)
+    grid = motion(np.linspace(0.0, 0.2, 1_000_001))[1]
+    assert not notes and set(points["method"]) == {"sine_peak"} and len(energy) == 1
+    for d, vref in (("+", grid.max()), ("-", grid.min())):
+        row = points[points["direction"] == d].iloc[0]
+        assert row["velocity_m_s"] == pytest.approx(vref, rel=1e-3)
+        assert row["force_N"] == pytest.approx(c1 * vref + c2 * vref * abs(vref), rel=2e-3)
+    # energy: the loop area, F v integrated over the whole cycles analytically sampled
+    tt = np.linspace(0.0, 0.2, 200_001)
+    vv = motion(tt)[1]
+    assert energy["energy_J"].iloc[0] == pytest.approx(np.trapezoid((c1 * vv + c2 * vv * np.abs(vv)) * vv, tt),
+                                                       rel=2e-3)
+
+
+def lagged_two_tone(tau_s: float) -> pd.DataFrame:
+    """A random-like two-tone record (not periodic) on F = c v behind a first-order lag (exact discrete filter)."""
+    t = np.arange(0.0, 8.0, 1e-3)
+    x = 0.01 * np.sin(2 * math.pi * 1.3 * t) + 0.004 * np.sin(2 * math.pi * 3.1 * t + 0.4)
+    v = 0.01 * 2 * math.pi * 1.3 * np.cos(2 * math.pi * 1.3 * t) \
+        + 0.004 * 2 * math.pi * 3.1 * np.cos(2 * math.pi * 3.1 * t + 0.4)
+    target = 3000.0 * v
+    f = np.empty_like(target)
+    f[0], a = target[0], math.exp(-1e-3 / tau_s)
+    for i in range(1, t.size):
+        f[i] = a * f[i - 1] + (1 - a) * target[i]
+    f += np.random.default_rng(4).normal(0.0, 1.0, t.size)
+    return pd.DataFrame({"row": np.arange(t.size, dtype=np.int64), "time_s": t, "displacement_m": x, "force_N": f})
+
+
+def test_a_dynamic_free_record_gives_no_bin_and_says_why(tmp_path):
+    points, energy, notes = record_points(free_case(), lambda _case: lagged_two_tone(0.01))
+    assert points.empty and energy.empty
+    assert notes["F01"].startswith("not quasi-static") and "harmonic/" in notes["F01"]
+    # the page's cases table reads the reason from cases.parquet's quality
+    from isokinetic.stages.characteristic import note_cases
+    cases = free_case().assign(sample_rate_Hz=1000.0, amplitude_m=math.nan, period_s=math.nan, phase_rad=math.nan,
+                               duration_s=8.0, timeseries_file="ingest/timeseries/F01.parquet", n_samples=8000,
+                               quality="ok")
+    write_parquet(tables.validate_table(cases, tables.CASES), tmp_path / "cases.parquet")
+    note_cases(tmp_path, notes)
+    quality = pd.read_parquet(tmp_path / "cases.parquet")["quality"].iloc[0]
+    assert quality == f"characteristic: {notes['F01']}"

@@ -237,17 +237,23 @@ REPEATABILITY = Schema(
     name="repeatability",
 )
 
-#: How a characteristic point was measured: a triangle case's constant-velocity window, a sine case's
-#: force at peak velocity (cycles averaged, half the steady cycles a period), a free record's velocity bin.
+#: How a characteristic point was measured (stages.characteristic, docs/method.md): a triangle case's
+#: constant-velocity window; the force at the peaks of the measured velocity of any periodic record (sine,
+#: distorted sine, crank; cycles averaged, half the steady cycles a period); a quasi-static free record's
+#: velocity bin.
 CHARACTERISTIC_METHODS = ("triangle_window", "sine_peak", "free_bin")
 
 #: The steady characteristic (item 9): the windows with their repeatability flag, and (issue 19) the
-#: sine cases' peak-velocity points and the free records' bins (``method``; stages.characteristic).
-#: ``segment`` of a sine point: 1 (+) and 2 (-) of period 1, 3 and 4 of period 2; of a free bin: its
-#: 1-based number in the case. ``n_samples`` of a sine point counts cycles (force_std_N is their scatter).
+#: periodic records' peak-velocity points and the quasi-static free records' bins (``method``;
+#: stages.characteristic). ``segment`` of a peak point: 1 (+) and 2 (-) of period 1, 3 and 4 of period 2; of a
+#: free bin: its 1-based number in the case. ``n_samples`` of a peak point counts cycles (force_std_N is their
+#: scatter; for one cycle, the force noise of its fit). ``force_se_N`` (issue 33): the standard error of the
+#: point's force, force_std_N / sqrt(n_samples), NaN for a peak point resting on one cycle.
 CHARACTERISTIC = Schema(
-    {**_WINDOW_COLUMNS, "segment": Column("int64", Check.ge(1)), "repeatability_flagged": Column("bool"),
-     "method": Column("str", Check.isin(CHARACTERISTIC_METHODS), required=False)},
+    {**_WINDOW_COLUMNS, "segment": Column("int64", Check.ge(1)), "n_samples": Column("int64", Check.ge(1)),
+     "repeatability_flagged": Column("bool"),
+     "method": Column("str", Check.isin(CHARACTERISTIC_METHODS), required=False),
+     "force_se_N": Column("float64", Check.ge(0), nullable=True, required=False)},
     strict=False,
     name="characteristic",
 )
@@ -356,6 +362,9 @@ HARMONIC = Schema(
         "direction": Column("str", Check.isin(DIRECTIONS)),
         "velocity_m_s": Column("float64"),
         "force_N": Column("float64"),
+        # (issue 33) the case's record passes the quasi-static test (measurement.quasi_static): only then are a
+        # free record's bins characteristic points (in characteristic.parquet); else they are its loop's view
+        "quasi_static": Column("bool", required=False),
     },
     strict=False,
     name="harmonic",

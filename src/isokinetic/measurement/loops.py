@@ -157,7 +157,7 @@ def dominant_period_s(time_s, displacement_m) -> float:
     return float(span / k)
 
 
-def _noise_sigma(x: np.ndarray) -> float:
+def noise_sigma(x: np.ndarray) -> float:
     """1-sigma of white noise on x from its third differences (variance 20 sigma^2 for white noise;
     the signal's share is ~ (omega dt)^3 of its amplitude). RMS of the differences without their
     largest 1 % (kinks, spikes), so that coarse quantisation (mostly zero differences) still counts."""
@@ -187,7 +187,7 @@ def default_window_s(time_s, displacement_m, polyorder: int = 3, period_s: float
         else dominant_period_s(grid, x)
     n_cap = _odd_window(int(MAX_PERIOD_FRACTION * period / dt), polyorder, x.size)
     n_min = _odd_window(0, polyorder, x.size)
-    sigma = _noise_sigma(x)
+    sigma = noise_sigma(x)
     if sigma == 0.0:
         return n_min * dt
     v = savgol_derivative(x, n_cap, polyorder, dt)

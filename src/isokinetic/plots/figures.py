@@ -263,13 +263,16 @@ def window_selection(case_row, series: pd.DataFrame | None, windows_of_case: pd.
 
 #: Markers of the characteristic's non-triangle points: method -> (label, plot style).
 _METHOD_STYLE = {
-    "sine_peak": ("sine tests: force at peak velocity", {"color": "tab:green", "marker": "D", "ms": 5, "lw": 1.0,
-                                                         "mfc": "white", "mew": 1.1}),
-    "free_bin": ("free records: velocity bins", {"color": "tab:purple", "marker": ".", "ms": 5, "lw": 0.8}),
+    "sine_peak": ("periodic records: force at peak velocity", {"color": "tab:green", "marker": "D", "ms": 5,
+                                                                "lw": 1.0, "mfc": "white", "mew": 1.1}),
+    "free_bin": ("quasi-static free records: velocity bins", {"color": "tab:purple", "marker": ".", "ms": 5,
+                                                              "lw": 0.8}),
 }
 #: What each method's points are called in a title.
-_METHOD_WORDS = {"triangle_window": "triangle tests", "sine_peak": "sine tests, force at peak velocity",
-                 "free_bin": "free records, velocity bins"}
+_METHOD_WORDS = {"triangle_window": "triangle tests", "sine_peak": "periodic records, force at peak velocity",
+                 "free_bin": "quasi-static free records, velocity bins"}
+#: A peak point resting on this many cycles or fewer is marked (it has little or no standard error).
+FEW_CYCLES = 2
 
 
 def methods_of(char: pd.DataFrame | None) -> list[str]:
@@ -284,7 +287,10 @@ def methods_of(char: pd.DataFrame | None) -> list[str]:
 
 
 def _draw_other_methods(ax, char: pd.DataFrame, fs: float) -> None:
-    """Sine peak-velocity points and free-record bins, one line per case and direction (gid = the method)."""
+    """Peak-velocity points of periodic records and quasi-static free records' bins, one line per case and
+    direction (gid = the method); peak points resting on ``FEW_CYCLES`` cycles or fewer ringed (gid
+    'few-cycles')."""
+    few = []
     for method, (label, style) in _METHOD_STYLE.items():
         rows = char[char["method"] == method]
         labelled = False
@@ -292,6 +298,8 @@ def _draw_other_methods(ax, char: pd.DataFrame, fs: float) -> None:
             b = _branch(g, d)
             if method == "sine_peak":                 # one point a direction: the periods' mean
                 b = pd.DataFrame({"velocity_m_s": [b["velocity_m_s"].mean()], "force_N": [b["force_N"].mean()]})
+                if int(g["n_samples"].sum()) <= FEW_CYCLES:
+                    few.append((float(b["velocity_m_s"].iloc[0]), float(b["force_N"].iloc[0])))
             ax.plot(b["velocity_m_s"] * MM, b["force_N"] / fs, zorder=3, gid=method,
                     label=None if labelled else label, **style)
             labelled = True
@@ -301,6 +309,10 @@ def _draw_other_methods(ax, char: pd.DataFrame, fs: float) -> None:
                 if len(m) > 1:
                     ax.plot(m["velocity_m_s"] * MM, m["force_N"] / fs, color=style["color"], lw=0.8, zorder=2,
                             gid="sine_peak-curve")
+    if few:
+        v, f = np.array(few).T
+        ax.plot(v * MM, f / fs, ls="none", marker="o", ms=11, mfc="none", mec="tab:orange", mew=1.3, zorder=4,
+                gid="few-cycles", label=f"resting on {FEW_CYCLES} cycles or fewer ({len(few)} point(s))")
 
 
 def _draw_characteristic(ax, char: pd.DataFrame, fs: float) -> None:

@@ -5,21 +5,30 @@ one process (:func:`write_characteristic`): validate (:mod:`isokinetic.stages.va
 windows (:mod:`isokinetic.measurement.windows`) -> repeatability
 (:mod:`isokinetic.measurement.repeatability`) -> :func:`assemble`. The blind suite runs the same function.
 
-Every point carries its ``method`` (tables.CHARACTERISTIC_METHODS):
+Every point carries its ``method`` (tables.CHARACTERISTIC_METHODS), chosen by what the record is, not by its
+manifest label (docs/method.md, "How each point is obtained"):
 
 - ``triangle_window``: a triangle case's constant-velocity window (four a case), as before;
-- ``sine_peak``: a status-ok sine case's force at peak velocity (:mod:`isokinetic.measurement.peak_velocity`)
-  over its steady cycles, per direction, the cycles averaged. So that repeatability applies as to a
-  triangle case, period 1 averages the first half of the steady cycles and period 2 the second half
-  (segments 1 '+', 2 '-' of period 1, 3 '+', 4 '-' of period 2; with 2-3 cycles a direction, period 1
-  only; a step too short for two cycles a direction after the first period, e.g. a slice of a sweep,
-  keeps its first period unless its force still drifts). ``n_samples`` counts the cycles and
-  ``force_std_N`` is their scatter, so force_std_N / sqrt(n_samples) is the point's standard error, as
-  for a window. ``planned_velocity_m_s`` is 2 pi f Y; the row range spans the samples of the fits;
-- ``free_bin``: a status-ok free case's velocity bin (:func:`isokinetic.measurement.loops.binned_characteristic`),
-  segment = the bin's number, period 1, ``planned_velocity_m_s`` the bin's centre, ``n_samples`` its samples.
+- ``sine_peak``: any periodic record, a ``sine`` case or a ``free`` case whose peaks repeat
+  (:func:`isokinetic.measurement.peak_velocity.periodicity`: a distorted sine, a crank): the force at each
+  extremum of the measured velocity (:mod:`isokinetic.measurement.peak_velocity`), per direction, over the
+  cycles that have settled (measured on the record: peak speed and force repeat), the cycles averaged. One
+  steady cycle is enough: the point then has no standard error (``force_se_N`` NaN; ``force_std_N`` is its
+  fit's force noise) and its ``quality`` and the case's say so. So that repeatability applies as to a
+  triangle case, with four cycles or more a direction period 1 averages the first half of the cycles and
+  period 2 the second half (segments 1 '+', 2 '-' of period 1, 3 '+', 4 '-' of period 2); with one to three,
+  period 1 only. ``n_samples`` counts the cycles and ``force_std_N`` is their scatter, so force_std_N /
+  sqrt(n_samples) is the point's standard error, as for a window. ``planned_velocity_m_s`` is 2 pi f Y (the
+  measured mean peak speed when the case has no amplitude); the row range spans the samples of the fits;
+- ``free_bin``: a free record that is not periodic, only when it is quasi-static
+  (:func:`isokinetic.measurement.quasi_static.quasi_static`: at every velocity bin the accelerating and the
+  decelerating branch agree within their noise): its velocity bins
+  (:func:`isokinetic.measurement.loops.binned_characteristic`), segment = the bin's number, period 1,
+  ``planned_velocity_m_s`` the bin's centre, ``n_samples`` its samples. A free record that fails the test gives
+  no point: its binned loops stay in harmonic/ (:mod:`isokinetic.stages.harmonic`), and the reason goes to the
+  case's ``quality`` in cases.parquet (:func:`note_cases`), which the campaign page shows.
 
-The sine cases' energy per cycle goes to ``energy.parquet`` (tables.ENERGY).
+The periodic records' energy per cycle goes to ``energy.parquet`` (tables.ENERGY).
 """
 
 from __future__ import annotations
@@ -28,7 +37,6 @@ import logging
 import math
 import os
 from collections.abc import Callable
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -43,10 +51,11 @@ from isokinetic.measurement.peak_velocity import (
     PeakSpec,
     cycle_energies,
     peak_points,
+    periodicity,
     settled,
-    steady_range,
     summarise,
 )
+from isokinetic.measurement.quasi_static import quasi_static
 from isokinetic.measurement.repeatability import repeatability
 from isokinetic.measurement.windows import WindowSpec, extract_windows
 from isokinetic.stages.validate import GapTolerance, write_validated
@@ -60,8 +69,12 @@ ENERGY_FILE = STAGE_OUTPUTS["characteristic"]["energy"]
 
 #: The peak-velocity method's default settings.
 PEAK_SPEC = PeakSpec()
-#: Fewest cycles a direction a sine point averages (a scatter needs two); four give two periods.
-MIN_CYCLES = 2
+#: Fewest steady cycles a direction a peak point rests on: one (flagged, no standard error) ...
+MIN_CYCLES = 1
+#: ... and from how many the cycles are split into two periods (two cycles each), for repeatability.
+SPLIT_CYCLES = 4
+#: The flag of a point resting on one cycle (its ``quality``, and the case's note).
+ONE_CYCLE_NOTE = "one steady cycle a direction: no standard error"
 ENERGY_COLUMNS = list(tables.ENERGY.columns) + ["window_start_s", "window_end_s", "raw_file", "raw_sha256"]
 
 
@@ -73,7 +86,8 @@ def windows_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFram
 
 def assemble(windows: pd.DataFrame, repeatability: pd.DataFrame, records: pd.DataFrame | None = None) -> pd.DataFrame:
     """Windows (and the sine/free ``records`` points of :func:`record_points`) joined with their case/direction
-    repeatability flag, ordered by velocity; ``method`` 'triangle_window' for the windows."""
+    repeatability flag, ordered by velocity; ``method`` 'triangle_window' for the windows; ``force_se_N`` the
+    standard error of each point's force (NaN for a peak point resting on one cycle)."""
     keys = ["campaign", "case", "direction"]
     parts = [windows.assign(method="triangle_window")]
     if records is not None and len(records):
@@ -84,6 +98,10 @@ def assemble(windows: pd.DataFrame, repeatability: pd.DataFrame, records: pd.Dat
     char = char.merge(flags, on=keys, how="left", validate="many_to_one")
     char["repeatability_flagged"] = char["repeatability_flagged"].eq(True).astype(bool)   # no flag: False
     char = char[[c for c in char.columns if c != "method"] + ["method"]]
+    # the standard error of each point's force: its scatter over root n (windows: samples; sine peaks: cycles,
+    # none for one cycle; bins: samples)
+    one_cycle = char["method"].eq("sine_peak") & char["n_samples"].eq(1)
+    char["force_se_N"] = (char["force_std_N"] / np.sqrt(char["n_samples"].astype(float))).where(~one_cycle)
     char = char.sort_values(["velocity_m_s", "case", "segment"], ignore_index=True)
     return tables.validate_table(char, tables.CHARACTERISTIC)
 
@@ -115,28 +133,37 @@ def _span(t: np.ndarray, rows: np.ndarray, i0: int, i1: int) -> dict:
             "row_stop": int(rows[i1 - 1]) + 1, "missing_samples": max(0, grid - (i1 - i0))}
 
 
-def sine_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple[list[dict], dict | None]:
-    """(characteristic rows, energy row or None) of one sine case (module doc). Raises ValueError when the
-    record holds no whole period."""
+def _record(series: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(time, displacement, force, raw rows) of a case's series in time order."""
     s = series.sort_values("time_s", kind="stable")
     t, x, f = (s[c].to_numpy(dtype=float) for c in ("time_s", "displacement_m", "force_N"))
     rows = s["row"].to_numpy(dtype=np.int64) if "row" in s else np.arange(len(s), dtype=np.int64)
-    freq = _number(case.get("frequency_Hz"))
-    if not freq > 0:
-        freq = 1.0 / dominant_period_s(t, x)
-    period = 1.0 / freq
-    a, b = steady_range(t, f, period, spec)
-    pts = settled(peak_points(t, x, f, period, t_start=a, t_stop=b, spec=spec))
-    if spec.skip_periods and pts["direction"].value_counts().reindex(["+", "-"], fill_value=0).min() < MIN_CYCLES:
-        # a short step (a slice of a sweep, not started from rest): no start-up period skipped by rule,
-        # the drift check and the settling of the cycles' forces only
-        short = replace(spec, skip_periods=0)
-        a, b = steady_range(t, f, period, short)
-        pts = settled(peak_points(t, x, f, period, t_start=a, t_stop=b, spec=short))
-    steady = (t >= a) & (t < b)
+    return t, x, f, rows
+
+
+def _peak_row(base: dict, part: pd.DataFrame, direction: str, period_no: int, planned: float, span: dict) -> dict:
+    """One sine_peak row: the cycles of ``part`` averaged (module doc); one cycle: its fit noise as
+    force_std_N, flagged in ``quality``."""
+    r = summarise(part).iloc[0]
+    n = int(r["n_cycles"])
+    quality = base["quality"]
+    if n == 1:
+        flag = ONE_CYCLE_NOTE
+        quality = flag if quality == "ok" else f"{quality}; {flag}"
+    std = float(r["force_std_N"]) if n > 1 else float(r["force_noise_N"])
+    return {**base, "quality": quality, "segment": (1 if direction == "+" else 2) + 2 * (period_no - 1),
+            "direction": direction, "period": period_no, "planned_velocity_m_s": planned,
+            "velocity_m_s": float(r["velocity_m_s"]), "force_N": float(r["force_N"]), "force_std_N": std,
+            "n_samples": n, **span, "method": "sine_peak"}
+
+
+def periodic_points(case, series: pd.DataFrame, period_s: float, spec: PeakSpec = PEAK_SPEC
+                    ) -> tuple[list[dict], dict | None]:
+    """(characteristic rows, energy row or None) of one periodic record, sine or not (module doc)."""
+    t, x, f, rows = _record(series)
+    pts = settled(peak_points(t, x, f, period_s, spec=spec), spec)
+    freq = 1.0 / period_s
     amp = _number(case.get("amplitude_m"))
-    if not amp > 0:
-        amp = 0.5 * float(x[steady].max() - x[steady].min())
     base = _base(case)
     out = []
     for d, sign in (("+", 1.0), ("-", -1.0)):
@@ -144,77 +171,108 @@ def sine_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple
         n = len(p)
         if n < MIN_CYCLES:
             continue
-        halves = [(1, p.iloc[:n // 2]), (2, p.iloc[n // 2:])] if n >= 2 * MIN_CYCLES else [(1, p)]
+        planned = sign * 2.0 * math.pi * freq * amp if amp > 0 else float(p["velocity_m_s"].mean())
+        halves = [(1, p.iloc[:n // 2]), (2, p.iloc[n // 2:])] if n >= SPLIT_CYCLES else [(1, p)]
         for period_no, part in halves:
-            r = summarise(part).iloc[0]
-            out.append({**base, "segment": (1 if sign > 0 else 2) + 2 * (period_no - 1), "direction": d,
-                        "period": period_no, "planned_velocity_m_s": sign * 2.0 * math.pi * freq * amp,
-                        "velocity_m_s": float(r["velocity_m_s"]), "force_N": float(r["force_N"]),
-                        "force_std_N": float(r["force_std_N"]), "n_samples": int(r["n_cycles"]),
-                        **_span(t, rows, int(part["i_start"].min()), int(part["i_stop"].max())),
-                        "method": "sine_peak"})
-    energy = cycle_energies(t, x, f, period, points=pts, spec=spec)
+            span = _span(t, rows, int(part["i_start"].min()), int(part["i_stop"].max()))
+            out.append(_peak_row(base, part, d, period_no, planned, span))
+    return out, _energy_row(base, t, x, f, rows, period_s, pts, spec)
+
+
+def _energy_row(base: dict, t, x, f, rows, period_s: float, pts: pd.DataFrame, spec: PeakSpec) -> dict | None:
+    """The energy table's row of a periodic record: its settled cycles' energies averaged, None without one."""
+    energy = cycle_energies(t, x, f, period_s, points=pts, spec=spec)
     if energy.empty:
-        return out, None
+        return None
     e = energy["energy_J"].to_numpy(float)
     n = e.size
     x_amp = float(energy["amplitude_m"].mean())
-    w = 2.0 * math.pi * freq
+    w = 2.0 * math.pi / period_s
     std = float(e.std(ddof=1)) if n > 1 else math.nan
     i0, i1 = int(energy["i_start"].min()), int(energy["i_stop"].max())
-    return out, {"campaign": base["campaign"], "case": base["case"], "frequency_Hz": freq,
-                 "displacement_amplitude_m": x_amp,
-                 "velocity_amplitude_m_s": float(pts["velocity_m_s"].abs().mean()) if len(pts) else math.nan,
-                 "energy_J": float(e.mean()), "energy_std_J": std, "energy_se_J": std / math.sqrt(n),
-                 "n_cycles": n, "equivalent_damping_N_s_m": float(e.mean()) / (math.pi * w * x_amp ** 2)
-                 if x_amp > 0 else math.nan,
-                 **_span(t, rows, i0, min(i1, t.size)), "raw_file": base["raw_file"], "raw_sha256": base["raw_sha256"]}
+    return {"campaign": base["campaign"], "case": base["case"], "frequency_Hz": 1.0 / period_s,
+            "displacement_amplitude_m": x_amp,
+            "velocity_amplitude_m_s": float(pts["velocity_m_s"].abs().mean()) if len(pts) else math.nan,
+            "energy_J": float(e.mean()), "energy_std_J": std, "energy_se_J": std / math.sqrt(n),
+            "n_cycles": n, "equivalent_damping_N_s_m": float(e.mean()) / (math.pi * w * x_amp ** 2)
+            if x_amp > 0 else math.nan,
+            **_span(t, rows, i0, min(i1, t.size)), "raw_file": base["raw_file"], "raw_sha256": base["raw_sha256"]}
 
 
-def free_points(case, series: pd.DataFrame) -> list[dict]:
-    """Characteristic rows of one free case: its velocity bins (module doc)."""
+def sine_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple[list[dict], dict | None]:
+    """(characteristic rows, energy row or None) of one sine case: :func:`periodic_points` with the manifest's
+    period, else the displacement's dominant one."""
+    freq = _number(case.get("frequency_Hz"))
+    if not freq > 0:
+        s = series.sort_values("time_s", kind="stable")
+        freq = 1.0 / dominant_period_s(s["time_s"].to_numpy(float), s["displacement_m"].to_numpy(float))
+    return periodic_points(case, series, 1.0 / freq, spec)
+
+
+def free_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple[list[dict], dict | None, str]:
+    """(characteristic rows, energy row or None, note) of one free case (module doc): a periodic record's peak
+    points; else, only when the record is quasi-static (:func:`isokinetic.measurement.quasi_static.quasi_static`),
+    its velocity bins; else no point, and the note says why."""
     lp = free_loop(series)
+    t, x, f, _rows = _record(series)
+    period = periodicity(peak_points(t, x, f, 1.0 / float(lp.attrs["frequency_Hz"]), spec=spec))
+    if period is not None:
+        rows, energy = periodic_points(case, series, period, spec)
+        return rows, energy, ""
+    verdict = quasi_static(lp)
+    if not verdict.passed:
+        return [], None, (f"{verdict.reason}: not periodic, and its velocity bins average the two branches of a "
+                          f"loop, so they are shown in harmonic/ and are no characteristic point")
     bins = binned_characteristic(lp)
     base = _base(case)
-    t = lp["time_s"].to_numpy(dtype=float)
-    span = {**_span(t, np.zeros(t.size, dtype=np.int64), 0, t.size),
+    tl = lp["time_s"].to_numpy(dtype=float)
+    span = {**_span(tl, np.zeros(tl.size, dtype=np.int64), 0, tl.size),
             "row_start": int(lp.attrs["row_start"]), "row_stop": int(lp.attrs["row_stop"])}
     return [{**base, "segment": k, "direction": r["direction"], "period": 1,
              "planned_velocity_m_s": 0.5 * (r["bin_low_m_s"] + r["bin_high_m_s"]),
              "velocity_m_s": float(r["velocity_m_s"]), "force_N": float(r["force_N"]),
              "force_std_N": float(r["force_std_N"]), "n_samples": int(r["n_points"]), **span, "method": "free_bin"}
-            for k, r in enumerate(bins.to_dict("records"), start=1)]
+            for k, r in enumerate(bins.to_dict("records"), start=1)], None, ""
+
+
+def _case_points(case, series: pd.DataFrame, spec: PeakSpec) -> tuple[list[dict], dict | None, str]:
+    """(rows, energy row or None, note) of one sine or free case; the note says why a case gives no point or
+    rests on one cycle ('' when there is nothing to say)."""
+    if case["waveform"] == "sine":
+        pts, e = sine_points(case, series, spec)
+        note = ""
+    else:
+        pts, e, note = free_points(case, series, spec)
+    if not pts and not note:
+        note = "no steady cycle with a peak of each velocity sign and no velocity bin: no characteristic point"
+    elif any(r["n_samples"] == 1 and r["method"] == "sine_peak" for r in pts):
+        note = ONE_CYCLE_NOTE
+    return pts, e, note
 
 
 def record_points(cases: pd.DataFrame, load_series: Callable, spec: PeakSpec = PEAK_SPEC
-                  ) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
-    """(characteristic rows of the status-ok sine and free cases, their energy table, notes). A case that
-    cannot be reduced (shorter than a period, too few cycles) is named in the notes and logged."""
+                  ) -> tuple[pd.DataFrame, pd.DataFrame, dict[str, str]]:
+    """(characteristic rows of the status-ok sine and free cases, their energy table, {case: note}). A case
+    that cannot be reduced, or whose bins are no characteristic, or whose point rests on one cycle, has a
+    note; the notes are logged."""
     rows: list[dict] = []
     energy: list[dict] = []
-    notes: list[str] = []
+    notes: dict[str, str] = {}
     ok = cases[(cases["status"] == "ok") & cases["waveform"].isin(["sine", "free"])] if len(cases) else cases
     for _, case in ok.iterrows():
         name = f"campaign {case['campaign']}, case {case['case']}"
         try:
-            series = load_series(case)
-            if case["waveform"] == "sine":
-                pts, e = sine_points(case, series, spec)
-                if e is not None:
-                    energy.append(e)
-            else:
-                pts = free_points(case, series)
+            pts, e, note = _case_points(case, load_series(case), spec)
         except (ValueError, KeyError, OSError) as exc:
-            notes.append(f"{name}: {exc}")
-            log.warning("%s: no characteristic point: %s", name, exc)
-            continue
-        if not pts:
-            notes.append(f"{name}: fewer than {MIN_CYCLES} steady cycles or no velocity bin: no point")
-            log.warning("%s: fewer than %d steady cycles a direction or no velocity bin: no characteristic point",
-                        name, MIN_CYCLES)
+            pts, e, note = [], None, f"no characteristic point: {exc}"
+        if e is not None:
+            energy.append(e)
+        if note:
+            notes[str(case["case"])] = note
+            log.warning("%s: %s", name, note)
         rows += pts
-    columns = [c for c in tables.CHARACTERISTIC.columns if c != "repeatability_flagged"] + ["missing_samples"]
-    points = pd.DataFrame(rows, columns=columns).astype(
+    columns = [c for c in tables.CHARACTERISTIC.columns if c not in ("repeatability_flagged", "force_se_N")]
+    points = pd.DataFrame(rows, columns=columns + ["missing_samples"]).astype(
         {"segment": "int64", "period": "int64", "n_samples": "int64", "row_start": "int64", "row_stop": "int64",
          "missing_samples": "Int64"})
     en = pd.DataFrame(energy, columns=ENERGY_COLUMNS).astype(
@@ -228,6 +286,22 @@ def records_stage(campaign_root, spec: PeakSpec = PEAK_SPEC) -> tuple[pd.DataFra
     folder = CampaignFolder.at(campaign_root)
     records, energy, _notes = record_points(folder.validated_cases(), folder.timeseries, spec)
     return records, energy
+
+
+def note_cases(campaign_root, notes: dict[str, str]) -> None:
+    """Add each case's characteristic note to its ``quality`` in ``cases.parquet`` (the page's cases table
+    shows it): 'characteristic: <note>', after the case's own warnings."""
+    if not notes:
+        return
+    path = Path(campaign_root) / "cases.parquet"
+    cases = pd.read_parquet(path)
+    if "quality" not in cases:
+        cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
+    for case, note in notes.items():
+        at = cases["case"].astype(str) == case
+        old = cases.loc[at, "quality"].fillna("ok").astype(str)
+        cases.loc[at, "quality"] = np.where(old == "ok", f"characteristic: {note}", old + f"; characteristic: {note}")
+    write_parquet(tables.validate_table(cases, tables.CASES), path)
 
 
 def paired_repeatability(windows: pd.DataFrame, records: pd.DataFrame | None, tolerance: float) -> pd.DataFrame:
@@ -253,7 +327,9 @@ def write_characteristic(campaign_root: str | os.PathLike, spec: WindowSpec = Wi
     write_validated(root, sample_rate_tolerance=sample_rate_tolerance, window_spec=spec, gap_tolerance=gap_tolerance)
     windows = windows_stage(root, spec)
     write_parquet(windows, root / WINDOWS_FILE)
-    records, energy = records_stage(root)
+    records, energy, notes = record_points(CampaignFolder.at(root).validated_cases(),
+                                           CampaignFolder.at(root).timeseries)
+    note_cases(root, notes)
     rep = paired_repeatability(windows, records, repeatability_tolerance)
     write_parquet(rep, root / REPEATABILITY_FILE)
     for row in rep[rep["flagged"]].itertuples():

@@ -28,6 +28,7 @@ from isokinetic.measurement.loops import (
     peak_to_peak,
     peak_velocity_characteristic,
 )
+from isokinetic.measurement.quasi_static import quasi_static
 
 log = logging.getLogger("isokinetic")
 
@@ -39,7 +40,7 @@ FIGURE_FILE = Path(figures_of("harmonic")[0].path).name
 COLUMNS = ["campaign", "case", "waveform", "kind", "direction", "velocity_m_s", "force_N",
            "velocity_std_m_s", "force_std_N", "n_points", "time_s", "lag_s", "phase_lag_rad",
            "amplitude_m", "displacement_amplitude_m", "frequency_Hz", "window_s",
-           "row_start", "row_stop", "loop_start_s", "loop_end_s", "raw_file", "raw_sha256"]
+           "row_start", "row_stop", "loop_start_s", "loop_end_s", "raw_file", "raw_sha256", "quasi_static"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -58,8 +59,8 @@ def _empty_table() -> pd.DataFrame:
     df = tables.empty(tables.HARMONIC)
     for c in COLUMNS:
         if c not in df:
-            df[c] = pd.Series(dtype="int64" if c in ("n_points", "row_start", "row_stop") else
-                              object if c in ("raw_file", "raw_sha256") else "float64")
+            df[c] = pd.Series(dtype="int64" if c in ("n_points", "row_start", "row_stop") else bool
+                              if c == "quasi_static" else object if c in ("raw_file", "raw_sha256") else "float64")
     return df[COLUMNS]
 
 
@@ -102,12 +103,16 @@ def _harmonic(campaign_root) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], lis
             log.warning("campaign %s, case %s: %s", name, case, exc)
             continue
         loops[case] = lp
+        verdict = quasi_static(lp)
+        if waveform == "free" and not verdict.passed:
+            notes.append(f"{case}: {verdict.reason}; its bins are loops, not characteristic points")
         amp = 0.5 * float(lp["displacement_m"].max() - lp["displacement_m"].min()) if len(lp) else math.nan
         extra = {"displacement_amplitude_m": amp, "frequency_Hz": float(lp.attrs["frequency_Hz"]),
                  "window_s": float(lp.attrs["window_s"]), "row_start": int(lp.attrs.get("row_start", -1)),
                  "row_stop": int(lp.attrs.get("row_stop", -1)),
                  "loop_start_s": float(lp["time_s"].iloc[0]) if len(lp) else math.nan,
-                 "loop_end_s": float(lp["time_s"].iloc[-1]) if len(lp) else math.nan}
+                 "loop_end_s": float(lp["time_s"].iloc[-1]) if len(lp) else math.nan,
+                 "quasi_static": verdict.passed}
         for kind, pts in parts:
             if pts.empty:
                 notes.append(f"{case}: no {kind.replace('_', '-')} point")
@@ -124,7 +129,7 @@ def _harmonic(campaign_root) -> tuple[pd.DataFrame, dict[str, pd.DataFrame], lis
         table = _empty_table()
     else:
         table = pd.DataFrame(rows, columns=COLUMNS).astype({"n_points": "int64", "row_start": "int64",
-                                                            "row_stop": "int64"})
+                                                            "row_stop": "int64", "quasi_static": bool})
         order = {c: i for i, c in enumerate(ok["case"].astype(str))}
         kind_order = {"peak_to_peak": 0, "binned": 1, "peak_velocity": 2}
         table = table.assign(_c=table["case"].map(order), _k=table["kind"].map(kind_order),
@@ -141,8 +146,10 @@ def harmonic_stage(campaign_root) -> tuple[pd.DataFrame, dict[str, pd.DataFrame]
 
     Sine cases: :func:`loop` + :func:`peak_to_peak` (kind 'peak_to_peak'); free cases:
     :func:`free_loop` + :func:`binned_characteristic` ('binned') and
-    :func:`peak_velocity_characteristic` ('peak_velocity'). A case that cannot be analysed (time
-    series missing, shorter than a period) is skipped with a logged warning.
+    :func:`peak_velocity_characteristic` ('peak_velocity'). Every row carries its case's ``quasi_static``
+    verdict (:func:`isokinetic.measurement.quasi_static.quasi_static`): a free record that fails it gives
+    no characteristic point, and its binned loop here is the view of it (the figure's note says so). A case
+    that cannot be analysed (time series missing, shorter than a period) is skipped with a logged warning.
     """
     table, loops, _, _, _ = _harmonic(campaign_root)
     return table, loops
