@@ -85,17 +85,30 @@ def test_a_gap_of_1e308_seconds_counts_without_overflow():
     assert gaps.before.tolist() == [9] and gaps.missing[0] == 2 ** 62 - 1 and gaps.total_missing > 0
 
 
-def test_rounded_time_stamps_give_the_interval_from_long_spans_not_one_step():
-    """Time stamps rounded to 5 significant digits (12.345 s): at 900 Hz most steps are 1 ms, one in nine 2 ms."""
-    t = np.array([float(f"{x:.5g}") for x in 10.0 + np.arange(20000) / 900.0])
-    assert np.median(np.diff(t)) == pytest.approx(1e-3)                  # one step: 10 % short
-    assert sample_interval_s(t) == pytest.approx(1.0 / 900.0, rel=2e-3)
-    assert abs(rate_offset(t, 900.0)) < 2e-3 and abs(rate_offset(t, 1000.0)) > SAMPLE_RATE_TOLERANCE
+def rounded(rate_Hz: float, n: int = 20000, start_s: float = 10.0) -> np.ndarray:
+    """A logger's time stamps rounded to 5 significant digits (12.345 s: 1 ms resolution from 10 s on)."""
+    return np.array([float(f"{x:.5g}") for x in start_s + np.arange(n) / rate_Hz])
 
 
-def test_rounded_time_stamps_with_dropouts_keep_their_interval():
-    """A burst and scattered single dropouts (in fewer than half of the spans: the median leaves them out)."""
-    t = np.array([float(f"{x:.5g}") for x in 10.0 + np.arange(20000) / 900.0])
-    t = drop(t, [*range(3000, 3030), *range(5000, 15000, 997)])
-    assert sample_interval_s(t) == pytest.approx(1.0 / 900.0, rel=2e-3)
-    assert sample_interval_error_s(t) < 1e-3 / 900.0
+def test_rounded_time_stamps_give_the_interval_as_the_mean_step_not_the_median():
+    """At 300 Hz stamped to the millisecond the steps are 3 and 4 ms: the median step is 10 % short."""
+    t = rounded(300.0)
+    assert np.median(np.diff(t)) == pytest.approx(3e-3)
+    assert sample_interval_s(t) == pytest.approx(1.0 / 300.0, rel=1e-3)
+    assert abs(rate_offset(t, 300.0)) < 1e-3 and abs(rate_offset(t, 330.0)) > SAMPLE_RATE_TOLERANCE
+    assert find_gaps(t, sample_interval_s(t)).total_missing == 0
+
+
+def test_rounded_time_stamps_with_dropouts_keep_their_interval_and_count_the_gaps():
+    t = drop(rounded(300.0), [*range(3000, 3030), *range(5000, 15000, 997)])
+    assert sample_interval_s(t) == pytest.approx(1.0 / 300.0, rel=2e-3)
+    assert find_gaps(t, sample_interval_s(t)).total_missing == 30 + len(range(5000, 15000, 997))
+    assert sample_interval_error_s(t) < 1e-3 / 300.0
+
+
+def test_stamps_as_coarse_as_the_interval_read_as_dropouts():
+    """900 Hz stamped to the millisecond (steps of 1 and 2 ms) cannot be told from 1 kHz losing one sample in
+    nine: the stamps are read as the latter, and the missing fraction (10 %) says so."""
+    t = rounded(900.0)
+    assert sample_interval_s(t) == pytest.approx(1e-3)
+    assert find_gaps(t, sample_interval_s(t)).total_missing == pytest.approx(len(t) / 9, rel=0.02)

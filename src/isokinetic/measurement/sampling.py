@@ -2,13 +2,16 @@
 
 A busy logger drops samples, one at a time or in bursts; the time stamps of the samples it keeps
 stay on its regular grid. Some loggers also round their time stamps (to 5 significant digits, say:
-12.345 s, so that at 900 Hz one step in nine is 2 ms and the others 1 ms, and the median step is 10 %
-short). The record's sample interval is therefore the *median over long spans* of their mean step
-(:func:`span_intervals_s`: spans of :data:`SPAN_STEPS` steps average the rounding out; a span holding a
-dropped sample is left out, and the median leaves the rest of the dropouts out), and an interval above
-``GAP_FACTOR`` times it is a gap of round(interval / dt) - 1 missing samples, at the grid times
-t_before + k·dt, k = 1 .. missing. Ingest's rate check and ``init-campaign`` (its draft and ``--check``)
-use this one estimator and :data:`SAMPLE_RATE_TOLERANCE`.
+12.345 s, so that at 300 Hz the steps are 3 ms and 4 ms and the median step is 10 % short). The record's
+sample interval (:func:`sample_interval_s`) is therefore the *mean of its steps below* ``GAP_FACTOR`` times
+the median step: a dropout leaves a step of two or more intervals, above that bound, and is left out; rounded
+stamps leave steps of two adjacent multiples of their resolution, k and k + 1, both below the bound when
+k >= 2, and their mean is the interval. Where the stamps' resolution is as coarse as the interval itself
+(k = 1: 900 Hz stamped to the millisecond, steps of 1 and 2 ms) the stamps cannot tell rounding from one
+dropped sample in nine; the steps of 2 ms are then read as gaps, and the record's missing fraction says so.
+An interval above ``GAP_FACTOR`` times the sample interval is a gap of round(interval / dt) - 1 missing
+samples, at the grid times t_before + k·dt, k = 1 .. missing. Ingest's rate check and ``init-campaign``
+(its draft and ``--check``) use this one estimator and :data:`SAMPLE_RATE_TOLERANCE`.
 """
 
 from __future__ import annotations
@@ -47,9 +50,13 @@ def span_intervals_s(t_s) -> np.ndarray:
 
 
 def sample_interval_s(t_s) -> float:
-    """The record's sample interval: the median of :func:`span_intervals_s` [s] (NaN under 2 samples)."""
-    spans = span_intervals_s(t_s)
-    return float(np.median(spans)) if spans.size else math.nan
+    """The record's sample interval: the mean of its steps below ``GAP_FACTOR`` times the median step (module
+    doc: dropouts left out, rounded time stamps averaged) [s]; NaN under 2 samples."""
+    steps = np.diff(np.asarray(t_s, dtype=float))
+    if steps.size < 1:
+        return math.nan
+    kept = steps[steps < GAP_FACTOR * float(np.median(steps))]
+    return float(kept.mean()) if kept.size else float(np.median(steps))
 
 
 def sample_interval_error_s(t_s) -> float:

@@ -6,7 +6,7 @@ column and row, e.g. ``campaign demo, case T03, column 'force_kN', row 17: non-n
 
 :func:`validate_campaign` checks every case an ingest left ``ok`` (raw or simulated alike):
 the canonical time-series schema (NaN/inf, time not strictly increasing), too few samples,
-a record shorter than the plan needs, a median sample interval far from the manifest's; then
+a record shorter than the plan needs, a sample interval far from the manifest's; then
 dropped samples, saturated (flat-topped) force or displacement, and implausible magnitudes (a unit
 mix-up, checked against the plan and the nominal damper model). Saturation inside the analysed data
 (the windows of a triangle case; the whole record of a sine or free case) quarantines; a flat top
@@ -182,8 +182,8 @@ def timeseries_problems(df: pd.DataFrame) -> list[Problem]:
 
 def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                     min_samples: int = MIN_SAMPLES) -> list[Problem]:
-    """Too few samples, shorter than the plan needs (one sample interval of slack), or a median
-    sample interval off 1/sample_rate_Hz by more than the tolerance. Time must be valid already."""
+    """Too few samples, shorter than the plan needs (one sample interval of slack), or a sample interval
+    (:func:`isokinetic.measurement.sampling.sample_interval_s`) off 1/sample_rate_Hz by more than the tolerance. Time must be valid already."""
     n = len(time_s)
     if n < min_samples:
         return [Problem("time_s", f"only {n} samples, at least {min_samples} needed")]
@@ -194,10 +194,10 @@ def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: f
     if duration_s < (need_s - dt_s) * (1.0 - 1e-9):
         problems.append(Problem("time_s", f"record lasts {duration_s:.6g} s, the {plan.waveform} plan needs "
                                           f"{need_s:.6g} s (less one sample interval, {dt_s:.6g} s)"))
-    median_dt_s = float(np.median(np.diff(time_s)))
-    off = median_dt_s / dt_s - 1.0
+    interval_s = sample_interval_s(time_s)       # the one rule init-campaign's draft and --check use too
+    off = interval_s / dt_s - 1.0
     if abs(off) > sample_rate_tolerance:
-        problems.append(Problem("time_s", f"median sample interval {median_dt_s:.6g} s is {off:+.1%} off "
+        problems.append(Problem("time_s", f"sample interval {interval_s:.6g} s is {off:+.1%} off "
                                           f"1/sample_rate_Hz = {dt_s:.6g} s (tolerance {sample_rate_tolerance:.1%})"))
     return problems
 
