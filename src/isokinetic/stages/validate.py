@@ -183,7 +183,8 @@ def timeseries_problems(df: pd.DataFrame) -> list[Problem]:
 def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                     min_samples: int = MIN_SAMPLES) -> list[Problem]:
     """Too few samples, shorter than the plan needs (one sample interval of slack), or a sample interval
-    (:func:`isokinetic.measurement.sampling.sample_interval_s`) off 1/sample_rate_Hz by more than the tolerance. Time must be valid already."""
+    (:func:`isokinetic.measurement.sampling.sample_interval_s`) off 1/sample_rate_Hz by more than the tolerance.
+    Time must be valid already."""
     n = len(time_s)
     if n < min_samples:
         return [Problem("time_s", f"only {n} samples, at least {min_samples} needed")]
