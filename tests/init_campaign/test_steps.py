@@ -105,3 +105,38 @@ def test_a_slow_ramp_is_not_a_standstill():
     t = np.arange(0.0, 400.0, 0.1)
     y = 1e-4 * np.abs(((t / 200.0) % 2.0) - 1.0)                  # a triangle at 1 µm/s: flat in any 1 s window
     assert [s.kind for s in find_steps(t, y)] == []
+
+
+def mts_style_sweep(plan, amplitude_m: float = 0.0127, rest_s: float = 1.0, rate_Hz: float = 1024.0):
+    """An MTS-style stepped sweep: at rest at +Y, each step of ``plan`` (frequency, cycles) a sine from that
+    reversal (phase π/2) for its cycles back to it, ``rest_s`` at rest after each; 2 µm seeded noise. Returns
+    (t, y, [(start_s, end_s, frequency_Hz)])."""
+    total = rest_s + sum(k / f + rest_s for f, k in plan)
+    t = np.arange(int(total * rate_Hz)) / rate_Hz
+    y, spans, start = np.full(t.size, amplitude_m), [], rest_s
+    for f, k in plan:
+        inside = (t >= start) & (t <= start + k / f)
+        y[inside] = amplitude_m * np.sin(2.0 * math.pi * f * (t[inside] - start) + 0.5 * math.pi)
+        spans.append((start, start + k / f, f))
+        start += k / f + rest_s
+    return t, y + 2e-6 * np.random.default_rng(3).standard_normal(t.size), spans
+
+
+def test_a_sweep_of_two_or_three_cycles_a_step_gets_one_step_each_with_both_velocity_peaks_inside():
+    """Each step, 2 or 3 cycles from a reversal between rests, is found with one settling cycle at most left out
+    and at least one whole cycle kept; its slice (on to the rest) holds a peak of each velocity sign with the
+    fit span of the peak method (T/20) either side."""
+    plan = [(0.2, 2), (0.5, 3), (1.0, 2), (2.0, 3), (5.0, 3), (10.0, 2)]
+    t, y, spans = mts_style_sweep(plan)
+    found = [s for s in find_steps(t, y) if s.kind == "cycles"]
+    assert len(found) == len(plan)
+    for step, (start, end, f) in zip(found, spans):
+        period = 1.0 / f
+        assert step.period_s == pytest.approx(period, rel=0.01)
+        stop = step.tail_s if math.isfinite(step.tail_s) else step.end_s
+        assert start + 0.5 * period <= step.start_s and stop <= end + 0.01 * period
+        assert step.cycles >= 1 and step.end_s - step.start_s >= step.cycles * period * 0.99
+        # this sine's velocity peaks: + at phase 0 (t = start + (j + 3/4) T), - at phase π (start + (j + 1/4) T)
+        for quarter in (0.25, 0.75):
+            peaks = start + (np.arange(-1, 4) + quarter) * period
+            assert any(step.start_s + 0.05 * period <= p <= stop - 0.05 * period for p in peaks), (f, quarter)

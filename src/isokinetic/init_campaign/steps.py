@@ -1,16 +1,23 @@
 """The steps of a stepped record: where one record holds several tests (a sine sweep in steps of frequency or
 amplitude, a series of triangle ramps at different speeds) and standstill stretches between them.
 
-Standstill: the displacement stays within :data:`FLAT_FRACTION` of the record's range (or a few noise levels)
-over a sliding :data:`FLAT_WINDOW_S` window, for at least :data:`MIN_STANDSTILL_S`. Motion: the cycles
-between successive upward crossings of the mid-stroke (with a hysteresis of a few noise levels), each with
-its period and amplitude; consecutive cycles whose period and amplitude stay within :data:`STEP_TOLERANCE`
-of their group's median are one step. A group of fewer than :data:`MIN_GROUP_CYCLES` cycles is a
-transition and is left out, and so are a step's first :func:`settling_cycles` (less the cycles of motion
-since the last standstill, dwell or step: those settled it). A step's slice runs over
-whole kept cycles, from an upward mid-stroke crossing (a sine's phase 0) to the crossing that ends its last
-cycle; a triangle's slice is moved back a quarter period to start at the reversal (the spec's phase -π/2).
-The bounds are rounded inwards to :func:`resolution` (at most 1 % of the period).
+Standstill: the displacement stays within :data:`FLAT_FRACTION` of the record's range (or a few noise levels) over
+a sliding :data:`FLAT_WINDOW_S` window, for at least :data:`MIN_STANDSTILL_S`. Motion: the cycles between
+successive upward crossings of the mid-stroke (with a hysteresis of a few noise levels), each with its period and
+amplitude; consecutive cycles whose period and amplitude stay within :data:`STEP_TOLERANCE` of their group's
+median are one step. A step is a run of cycles of one frequency and amplitude between rests or frequency changes:
+a group inside continuous motion needs :data:`MIN_GROUP_CYCLES` cycles (a lone cycle there is a transition between
+two steps and is left out), a group that is all the motion between two rests (:func:`between_rests`: a short step
+of an MTS-style sweep, whose 2 cycles from a reversal hold only one whole cycle between mid-stroke crossings) is a
+step whatever its count. A step's first :func:`settling_cycles` are left out (less the cycles of motion since the
+last standstill, dwell or step, to the nearest whole one: those settled it), but never so many that fewer than
+:data:`MIN_KEPT_CYCLES` remain: the characteristic stage measures settling on the record itself and gives a point
+from one cycle. A step's slice runs over whole kept cycles, from an upward mid-stroke crossing (a sine's phase 0)
+to the crossing that ends its last cycle; when the step then runs into a rest through less than a cycle (a sweep's
+step ending at a reversal), that tail is the step's too (``tail_s``): a sine's slice runs on to the rest, so that
+the velocity peak at the last crossing lies inside it. A triangle's slice is moved back a quarter period to start
+at the reversal (the spec's phase -π/2). The bounds are rounded inwards to :func:`resolution` (at most 1 % of the
+period).
 """
 
 from __future__ import annotations
@@ -41,16 +48,17 @@ CROSSING_SIGMAS, CROSSING_FRACTION = 5.0, 0.01
 STEP_TOLERANCE = 0.05
 #: Fewest similar cycles of a step; fewer are a transition.
 MIN_GROUP_CYCLES = 2
-#: Fewest steady cycles a drafted step keeps.
-MIN_KEPT_CYCLES = 2
+#: Fewest steady cycles a drafted step keeps (the characteristic stage gives a point from one, flagged).
+MIN_KEPT_CYCLES = 1
 
 
 @dataclass(frozen=True)
 class Step:
     """One stretch of a record: ``standstill`` or ``cycles`` (a steady step of a sine or triangle), its slice
     [start_s, end_s) on the file's own time axis, and for cycles the median period and amplitude of the kept
-    cycles, how many were kept, how many settling or transition cycles were left out before them, and the start
-    of the first of those (``onset_s``)."""
+    cycles, how many were kept, how many settling or transition cycles were left out before them, the start
+    of the first of those (``onset_s``), and the end of the motion after the last kept cycle when the step runs
+    into a rest through less than a cycle (``tail_s``, NaN otherwise)."""
 
     kind: str
     start_s: float
@@ -60,6 +68,7 @@ class Step:
     cycles: int = 0
     settling: int = 0
     onset_s: float = math.nan
+    tail_s: float = math.nan
 
 
 def resolution(period_s: float) -> float:
@@ -174,32 +183,59 @@ def find_steps(t_s: np.ndarray, y_m: np.ndarray) -> list[Step]:
                        max(FLAT_SIGMAS * sigma, DWELL_FRACTION * (hi - lo)))
     stops = np.array([t[a] - 0.5 * DWELL_WINDOW_S for a, _ in runs(dwell)])
     crossings = np.unique(np.concatenate([upward_crossings(t, y, mid, hysteresis), stops]))
+    still = flat | dwell
+    if crossings.size and still[np.searchsorted(t, crossings[-1]):].any():
+        crossings = np.append(crossings, t[-1])           # a record that ends at rest: the rest closes its last cycle
     if crossings.size < MIN_GROUP_CYCLES + 1:
         return sorted(steps, key=lambda s: s.start_s)
     bounds = np.searchsorted(t, crossings)
     periods = np.diff(crossings)
     amplitudes = np.array([0.5 * np.ptp(y[a:b]) if b > a else 0.0 for a, b in zip(bounds[:-1], bounds[1:])])
-    still = flat | dwell
-    valid = np.array([b > a + 4 and not still[a:b].any() for a, b in zip(bounds[:-1], bounds[1:])]) & (amplitudes > 0)
-    idx = np.arange(t.size)
-    last_still = np.maximum.accumulate(np.where(still, idx, -1))
+    rested = np.array([still[a:b].any() for a, b in zip(bounds[:-1], bounds[1:])], dtype=bool)
+    valid = np.array([b > a + 4 for a, b in zip(bounds[:-1], bounds[1:])]) & ~rested & (amplitudes > 0)
+    rest_end = rest_ends(t, still, dwell)
     previous_end = -math.inf
     for first, stop in group_cycles(periods, amplitudes, valid):
-        if stop - first < MIN_GROUP_CYCLES:
-            continue
         period = float(np.median(periods[first:stop]))
-        k = last_still[min(bounds[first], t.size - 1)]
-        since = max(previous_end, t[k] if k >= 0 else t[0])      # the motion before the step: it settled it
-        before = max(0, int((crossings[first] - since) / period + 0.25))
-        skip = max(0, settling_cycles(stop - first) - before)
-        previous_end = float(crossings[stop])
-        if stop - first - skip < MIN_KEPT_CYCLES:
+        short = periods < (1.0 - STEP_TOLERANCE) * period
+        if stop - first < MIN_GROUP_CYCLES and not between_rests(first, stop, rested, short):
             continue
+        since = max(previous_end, rest_end[min(bounds[first], t.size - 1)])   # the motion since: it settled the step
+        before = max(0, int(math.floor((crossings[first] - since) / period + 0.5)))   # to the nearest whole cycle
+        skip = min(max(0, settling_cycles(stop - first) - before), stop - first - MIN_KEPT_CYCLES)
+        previous_end = float(crossings[stop])
         kept = slice(first + skip, stop)
+        tail = float(crossings[stop + 1]) if runs_into_rest(stop, rested, short) else math.nan
         steps.append(Step("cycles", float(crossings[first + skip]), float(crossings[stop]),
                           float(np.median(periods[kept])), float(np.median(amplitudes[kept])), stop - first - skip,
-                          skip + before, float(crossings[first]) - before * period))
+                          skip + before, float(crossings[first]) - before * period, tail))
     return sorted(steps, key=lambda s: s.start_s)
+
+
+def rest_ends(t: np.ndarray, still: np.ndarray, dwell: np.ndarray) -> np.ndarray:
+    """At each sample, when the last rest before it ended: half a :data:`DWELL_WINDOW_S` after the last dwell
+    sample (the centred window's edge reaches the motion there), or the last still sample if later; the record's
+    start before any rest."""
+    idx = np.arange(t.size)
+    last_dwell = np.maximum.accumulate(np.where(dwell, idx, -1))
+    last_still = np.maximum.accumulate(np.where(still, idx, -1))
+    by_dwell = np.where(last_dwell >= 0, t[np.maximum(last_dwell, 0)] + 0.5 * DWELL_WINDOW_S, t[0])
+    return np.maximum(by_dwell, np.where(last_still >= 0, t[np.maximum(last_still, 0)], t[0]))
+
+
+def runs_into_rest(stop: int, rested: np.ndarray, short: np.ndarray) -> bool:
+    """Whether the motion after cycles [.., stop) is a rest, or less than a cycle (``short``) ending in one."""
+    n = rested.size
+    return stop < n - 1 and bool(short[stop]) and bool(rested[stop + 1])
+
+
+def between_rests(first: int, stop: int, rested: np.ndarray, short: np.ndarray) -> bool:
+    """Whether cycles [first, stop) are all the motion between two rests (``rested``: the cycle holds a rest;
+    ``short``: a partial cycle, shorter than the step's period): a rest before them, or a partial cycle from one,
+    and a rest after them, or a partial cycle into one."""
+    before = first >= 1 and (rested[first - 1] or (first >= 2 and short[first - 1] and rested[first - 2]))
+    after = stop < rested.size and (rested[stop] or runs_into_rest(stop, rested, short))
+    return bool(before and after)
 
 
 def is_stepped(steps: list[Step], t_s: np.ndarray) -> bool:

@@ -666,12 +666,15 @@ def step_cases(f: FileSurvey, found: list[st.Step], motion_m: np.ndarray) -> lis
             if detect_waveform(t[sel], motion_m[sel]).kind == "triangle":
                 a, b = a - step.period_s / 4.0, b - step.period_s / 4.0     # from reversal to reversal
                 rounding = st.resolution(step.period_s / 10.0)                # the reversal within 0.1 % of T
+            elif math.isfinite(step.tail_s):
+                b = step.tail_s                 # on to the rest: the velocity peak at the last crossing inside
             a, b = st.rounded_inwards(a, b, rounding)
             sel = (t >= a) & (t < b)
             w = detect_waveform(t[sel], motion_m[sel]) if sel.sum() >= MIN_SAMPLES else None
-            how = (f"a step: {step.cycles} steady cycles of {1.0 / step.period_s:.4g} Hz kept, the "
-                   f"{step.settling} settling or transition cycle{'s' if step.settling != 1 else ''} before "
-                   "them left out")
+            how = (f"a step: {step.cycles} steady cycle{'s' if step.cycles != 1 else ''} of "
+                   f"{1.0 / step.period_s:.4g} Hz kept, the {step.settling} settling or transition "
+                   f"cycle{'s' if step.settling != 1 else ''} before them left out" +
+                   (", the run into the rest after them kept" if b > step.end_s else ""))
         if int(((t >= a) & (t < b)).sum()) < MIN_SAMPLES or w is None:
             f.warnings.append(f"a stretch [{a:g}, {b:g}) s has fewer than {MIN_SAMPLES} samples: not drafted")
             continue
