@@ -734,12 +734,34 @@ def _numeric(cell: str) -> bool:
     return True
 
 
-def sniff_format(path: str | Path, notes: list[str] | None = None) -> FileFormat:
+def row_layout(rows: list[list[str]]) -> tuple[int, bool, bool]:
+    """(index of the header, or of the first data row when headerless; headerless; a units row under the header)
+    of a table's rows (split, blank and comment rows left out): :func:`sniff_format`'s layout rules."""
+    first = find_start(rows, False, False)          # the first data row: a header of its width just above it?
+    headed = any(len(rows[i]) == len(rows[first]) and not data_like(rows[i]) for i in range(max(0, first - 2), first))
+    headerless = not headed and all_numbers(rows[first])
+    plain, with_units = find_start(rows, True, False), find_start(rows, True, True)
+    k = first if headerless else min(plain, with_units)
+    after = rows[k + 1:]
+    units_row = not headerless and (with_units < plain or (bool(after) and any(c.strip() for c in after[0])
+                                                           and not any(_numeric(c) for c in after[0] if c.strip())))
+    return k, headerless, units_row
+
+
+def sniff_format(path: str | Path, notes: list[str] | None = None, sheet: str | None = None) -> FileFormat:
     """A guess at a file's :class:`FileFormat`: ``mts793`` from a first line ``MTS793|...``; encoding UTF-8
     (UTF-16/32 from a byte-order mark), else cp1252 (with a note appended to ``notes``); the delimiter that
     splits the header and the next lines into the same number (> 1) of fields (``whitespace`` last); a
     decimal comma when numbers hold ',' and no '.'; a units row when the row under the header is text; ``header:
-    none`` (1.4) when the first row (after any preamble) is numbers like the rest."""
+    none`` (1.4) when the first row (after any preamble) is numbers like the rest. An ``.xlsx`` file is ``xlsx``,
+    worksheet ``sheet`` (None: the first), its header and units row found by the same rules."""
+    if Path(path).suffix.lower() == ".xlsx":
+        try:
+            rows = [[_sheet_text(v) for v in row] for row in sheet_rows(path, sheet)]
+        except SheetError as exc:
+            raise _file_error(str(exc)) from None
+        _, headerless, units_row = row_layout(rows) if rows else (0, False, False)
+        return FileFormat(format="xlsx", units_row=units_row, header="none" if headerless else "row", sheet=sheet)
     data = Path(path).read_bytes()
     encoding = "utf-8"
     for bom, name in FOREIGN_BOMS.items():
@@ -776,15 +798,9 @@ def sniff_format(path: str | Path, notes: list[str] | None = None) -> FileFormat
             delimiter = found
             break
     rows = [_split(line, delimiter) for line in content]
-    first = find_start(rows, False, False)          # the first data row: a header of its width just above it?
-    headed = any(len(rows[i]) == len(rows[first]) and not data_like(rows[i]) for i in range(max(0, first - 2), first))
-    headerless = not headed and all_numbers(rows[first])
-    plain, with_units = find_start(rows, True, False), find_start(rows, True, True)
-    k = first if headerless else min(plain, with_units)
+    k, headerless, units_row = row_layout(rows)
     names_n = len(rows[k])
     rows = rows[k + (not headerless):]
-    units_row = not headerless and (with_units < plain or (bool(rows) and any(c.strip() for c in rows[0])
-                                                           and not any(_numeric(c) for c in rows[0] if c.strip())))
     cells = [c.strip() for r in rows[1 if units_row else 0:] for c in r if len(r) == names_n]
     decimal = "."
     if delimiter != "," and any(re.fullmatch(r"[+-]?\d+,\d+(?:[eE][+-]?\d+)?", c) for c in cells) \

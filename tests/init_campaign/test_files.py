@@ -34,7 +34,7 @@ def test_case_files_in_subfolders_are_found_and_every_other_file_is_listed(tmp_p
     files, skipped = walk_folder(folder)
     assert [p.relative_to(folder).as_posix() for p in files] == ["T1.dat", "run1/T2.csv", "run1/more/T3.txt"]
     assert dict(skipped) == {".cache": "hidden folder", "a/b/c/d": f"a folder more than {MAX_DEPTH} levels deep: "
-                             "not searched", "notes.pdf": "not a case file (.csv, .tsv, .txt, .dat)"}
+                             "not searched", "notes.pdf": "not a case file (.csv, .tsv, .txt, .dat, .xlsx)"}
     path, survey = write_draft(folder)
     text = path.read_text(encoding="utf-8")
     for name, why in skipped:

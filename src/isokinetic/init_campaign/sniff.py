@@ -1,5 +1,6 @@
 """A case file's columns read as numbers or time stamps (:func:`parse_column`, used by the survey and the
-check). The file's format is sniffed by :func:`isokinetic.rawfile.sniff_format` and the file read by
+check), and the worksheet of a spreadsheet export (:func:`xlsx_format`: the first, or the only one holding
+numeric data). The file's format is sniffed by :func:`isokinetic.rawfile.sniff_format` and the file read by
 :func:`isokinetic.rawfile.read_raw_table`, ingest's own reader with every hostile-input check, so a file the
 draft accepts is a file ingest reads.
 """
@@ -7,11 +8,14 @@ draft accepts is a file ingest reads.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
+from isokinetic.rawfile import FileFormat, RawFileError, SheetError, all_numbers, sheet_rows, sniff_format
 from isokinetic.stages.ingest import decimal_point
+from isokinetic.stages.validate import MIN_SAMPLES
 
 
 @dataclass(frozen=True)
@@ -39,3 +43,40 @@ def parse_column(name: str, raw: pd.Series, decimal: str) -> ColumnData:
         seconds = (stamps - stamps.iloc[0]).dt.total_seconds().to_numpy(float)
         return ColumnData(name, None, seconds, fraction, len(raw))
     return ColumnData(name, None, None, fraction, len(raw))
+
+
+def numeric_rows(rows: list[list]) -> int:
+    """How many rows of a worksheet hold two or more cells and only numbers (samples, not a summary's text)."""
+    return sum(len(r) >= 2 and all_numbers(["" if v is None else str(v) for v in r]) for r in rows)
+
+
+def sheet_names(path: Path) -> list[str]:
+    """The worksheets of an ``.xlsx`` workbook, in order (openpyxl, imported here: a heavy import). Call it after
+    :func:`isokinetic.rawfile.sheet_rows` has read the workbook once (its size and unpacking bounds checked)."""
+    import openpyxl
+
+    book = openpyxl.load_workbook(path, read_only=True)
+    try:
+        return list(book.sheetnames)
+    finally:
+        book.close()
+
+
+def xlsx_format(path: Path, notes: list[str]) -> FileFormat:
+    """The format of an ``.xlsx`` export: its first worksheet when that holds at least MIN_SAMPLES rows of numbers
+    (``sheet`` left out: the first, whatever each file names it), else the only worksheet that does (named);
+    raises :class:`RawFileError` when none or several do (then a person names the sheet)."""
+    try:
+        if numeric_rows(sheet_rows(path)) >= MIN_SAMPLES:
+            return sniff_format(path, notes)
+        names = sheet_names(path)
+        numeric = [name for name in names[1:] if numeric_rows(sheet_rows(path, name)) >= MIN_SAMPLES]
+    except SheetError as exc:
+        raise RawFileError("file", str(exc), kind="key") from None
+    if len(numeric) != 1:
+        said = "none does" if not numeric else f"{', '.join(map(repr, numeric))} do"
+        raise RawFileError("file", f"the first worksheet {names[0]!r} holds no rows of numbers and {said} of the "
+                           f"others ({', '.join(map(repr, names))}): name the sheet in the csv block (`sheet:`)",
+                           kind="key")
+    notes.append(f"{path.name}: worksheet {numeric[0]!r}, the only one holding rows of numbers")
+    return sniff_format(path, notes, sheet=numeric[0])

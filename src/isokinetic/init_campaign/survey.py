@@ -37,14 +37,14 @@ from isokinetic.contracts.manifest import (
 )
 from isokinetic.init_campaign import channels as ch
 from isokinetic.init_campaign import steps as st
-from isokinetic.init_campaign.sniff import ColumnData, parse_column
+from isokinetic.init_campaign.sniff import ColumnData, parse_column, xlsx_format
 from isokinetic.init_campaign.waveform import Estimate, Waveform, detect_waveform, round_to_uncertainty
 from isokinetic.measurement.sampling import SPAN_STEPS, sample_interval_error_s, sample_interval_s
 from isokinetic.rawfile import DELIMITERS, FileFormat, RawFileError, read_raw_table, sniff_format
 from isokinetic.stages.validate import MIN_SAMPLES
 
 #: File name endings taken as case files (any case).
-CASE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
+CASE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".xlsx")
 #: Subfolders searched below the campaign folder (its own files are depth 0).
 MAX_DEPTH = 3
 #: Files that are never case files and are passed over without a word.
@@ -247,9 +247,9 @@ def read_file(survey: FileSurvey, path: Path, folder: Path) -> None:
         return
     notes: list[str] = []
     try:
-        fmt = sniff_format(path, notes)
+        fmt = xlsx_format(path, notes) if path.suffix.lower() == ".xlsx" else sniff_format(path, notes)
         table = read_raw_table(path, fmt)
-        survey.ascii = path.read_bytes().isascii()
+        survey.ascii = fmt.format == "xlsx" or path.read_bytes().isascii()       # a workbook has no encoding
     except RawFileError as exc:
         where = [f"column {exc.column!r}" if exc.kind != "key" else "", f"row {exc.row}" if exc.row is not None else ""]
         survey.problem = f"cannot read: {exc.reason}" + (f" ({', '.join(w for w in where if w)})" if any(where) else "")
@@ -437,6 +437,10 @@ def format_words(fmt: FileFormat) -> str:
     """A file format in words: ``tabs between fields, '.' as the decimal mark, a units row, cp1252``."""
     if fmt.format == "mts793":
         words = f"an MTS 793 export ({DELIMITERS.get(fmt.delimiter, fmt.delimiter)}, '{fmt.decimal}')"
+    elif fmt.format == "xlsx":
+        return (f"an .xlsx workbook, worksheet {repr(fmt.sheet) if fmt.sheet else '(the first)'}" +
+                (", a units row under the header" if fmt.units_row else "") +
+                (", no header" if fmt.header == "none" else ""))
     else:
         words = (f"{DELIMITERS.get(fmt.delimiter, fmt.delimiter)} between fields, '{fmt.decimal}' as the "
                  "decimal mark" + (", a units row under the header" if fmt.units_row else ""))
