@@ -26,6 +26,11 @@ def triangle(case, y_m, period_s, rate_Hz=100.0, periods=2.0):
                     phase_rad=-math.pi / 2, duration_s=periods * period_s)
 
 
+def sine(case, y_m, frequency_Hz, rate_Hz=1000.0, periods=4.0):
+    return CasePlan(case=case, waveform="sine", sample_rate_Hz=rate_Hz, amplitude_m=y_m, frequency_Hz=frequency_Hz,
+                    phase_rad=0.0, duration_s=periods / frequency_Hz)
+
+
 def check(cases, damper=TABLE_1, **kw):
     kw = {"phi": PHI, "max_amplitude_m": MAX_AMP, "min_amplitude_m": MIN_AMP, "start_fraction": START, **kw}
     return ds.plan_check("design-test", cases, damper, **kw).set_index("case")
@@ -87,11 +92,24 @@ def test_sine_case_has_g_numbers_at_peak_velocity_and_only_travel_checks():
 
 
 def test_without_damper_data_physics_is_nan_not_flagged_and_the_reason_says_so():
-    df = check([triangle("T23", 7.5e-3, 20.0), triangle("big", 12e-3, 20.0)], damper=None)
+    df = check([triangle("T23", 7.5e-3, 20.0)], damper=None)
     row = df.loc["T23"]
     assert all(math.isnan(row[c]) for c in ("G1", "G2", "G3", "stroke_to_converge_m", "time_to_converge_s"))
     assert not row["flagged"] and "damper block missing" in row["reasons"]
-    assert df.loc["big", "flagged"] and df.loc["big", "travel_exceeded"]   # travel still checked
+
+
+def test_travel_beyond_the_limit_is_flagged_only_with_a_damper_and_the_reason_names_the_config_key():
+    """The limit is the project's rig and damper's: a campaign without a damper block (another rig's record, such
+    as a ±12.7 mm MTS sweep) is told its amplitude is beyond it, unflagged; with the damper block it is flagged."""
+    cases = [triangle("big", 12.7e-3, 240.0), sine("Hbig", 12.7e-3, 1.0)]
+    bare, planned = check(cases, damper=None), check(cases)
+    for case in ("big", "Hbig"):
+        assert not bare.loc[case, "travel_exceeded"] and not bare.loc[case, "flagged"]
+        assert "not flagged: the campaign has no damper block" in bare.loc[case, "reasons"]
+        assert "design.max_amplitude_mm" in bare.loc[case, "reasons"] and "12.7 mm" in bare.loc[case, "reasons"]
+        assert planned.loc[case, "travel_exceeded"] and planned.loc[case, "flagged"]
+        assert "design.max_amplitude_mm" in planned.loc[case, "reasons"]
+    assert not ds.plan_warnings(bare.reset_index())
 
 
 def test_default_plan_flags_only_the_fast_20_s_cases(default_plan):

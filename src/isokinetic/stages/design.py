@@ -62,7 +62,7 @@ def plan_check(campaign: str, cases, damper, *, phi: float, max_amplitude_m: flo
 
     ``cases``: a cases table (tables.CASES columns; ``status`` kept if present) or CasePlans;
     ``damper``: Damper, its SI mapping, or None (no damper data: physics columns NaN, only the
-    travel and noise-floor checks, and a reason saying the damper block is missing).
+    noise-floor check, the travel said but not flagged, and a reason saying the damper block is missing).
 
     Triangle cases, at W = 4Y/T (Eq. 26) and the first half-period's start (-Y for phase -π/2):
     G1, G2, G3 (Eq. 19-22); strokes to reach ϕ of Δp∞ for laminar, turbulent (Eq. 29) and mixed
@@ -71,7 +71,7 @@ def plan_check(campaign: str, cases, damper, *, phi: float, max_amplitude_m: flo
     ``window_start_stroke_m`` = start_fraction (T/2) W. Sine cases: G-numbers at the peak velocity
     2πfY, only travel and noise-floor checks. Free cases: nothing planned to check.
 
-    Constraint columns (True = broken): ``travel_exceeded`` (Y > max_amplitude_m),
+    Constraint columns (True = broken): ``travel_exceeded`` (Y > max_amplitude_m, with a damper),
     ``below_noise_floor`` (Y < min_amplitude_m), ``no_convergence`` (G3 <= 1), ``window_too_early``
     (window start stroke < stroke to converge from rest, Eq. 28), ``window_too_early_after_reversal``
     (the same from the opposite steady pressure, as windows 2-4 start). ``flagged`` = any;
@@ -105,13 +105,26 @@ def _empty_row(campaign: str, rec: Mapping, phi: float, max_amp: float, min_amp:
             "window_too_early": False, "window_too_early_after_reversal": False}
 
 
-def _check_travel(row: dict, max_amp: float, min_amp: float, reasons: list[str]) -> None:
-    """Amplitude against the allowed piston travel and the LVDT noise floor."""
+#: Where the travel limit comes from, for messages.
+TRAVEL_SOURCE = "design.max_amplitude_mm in the config"
+
+
+def _check_travel(row: dict, max_amp: float, min_amp: float, reasons: list[str], has_damper: bool) -> None:
+    """Amplitude against the allowed piston travel and the LVDT noise floor. The travel limit
+    (:data:`TRAVEL_SOURCE`) is the project's: the rig and damper it plans for. A campaign without a damper block
+    is a record of a damper the project knows nothing of (often another rig's file): its amplitude is compared,
+    said, but not flagged."""
     amp = row["amplitude_m"]
     if math.isfinite(amp):
-        if amp > max_amp:
+        if amp > max_amp and has_damper:
             row["travel_exceeded"] = True
-            reasons.append(f"amplitude {mm_label(amp)} exceeds the allowed piston travel {mm_label(max_amp)}")
+            reasons.append(f"amplitude {mm_label(amp)} exceeds the allowed piston travel {mm_label(max_amp)} "
+                           f"({TRAVEL_SOURCE}): plan a smaller amplitude, or raise the limit if the rig and damper "
+                           "allow more")
+        elif amp > max_amp:
+            reasons.append(f"amplitude {mm_label(amp)} is beyond the {mm_label(max_amp)} travel of the project's rig "
+                           f"and damper ({TRAVEL_SOURCE}); not flagged: the campaign has no damper block, so nothing "
+                           "ties it to that rig (with a damper block it is flagged)")
         if amp < min_amp:
             row["below_noise_floor"] = True
             reasons.append(f"amplitude {mm_label(amp)} is below the LVDT noise floor {mm_label(min_amp)}")
@@ -174,7 +187,7 @@ def _check_case(campaign: str, rec: Mapping, dmp: Damper | None, phi: float, max
     row = _empty_row(campaign, rec, phi, max_amp, min_amp, start_fraction)
     waveform, amp, period, freq = row["waveform"], row["amplitude_m"], row["period_s"], row["frequency_Hz"]
     reasons: list[str] = []
-    _check_travel(row, max_amp, min_amp, reasons)
+    _check_travel(row, max_amp, min_amp, reasons, dmp is not None)
     if waveform == "triangle" and math.isfinite(amp) and math.isfinite(period) and period > 0 and amp > 0:
         _check_triangle(row, rec, dmp, phi, start_fraction, effects, reasons)
     elif waveform == "triangle" and math.isfinite(amp):
