@@ -256,7 +256,7 @@ def test_crank_dyno_draft_takes_the_scaled_columns(crank):
     columns = yaml.safe_load((folder / "campaign.yaml").read_text(encoding="utf-8"))["columns"]
     assert {role: columns.get(role, {}).get("name") for role in CRANK_SCALED} == CRANK_SCALED
     assert columns["displacement"]["unit"] == "mm" and columns["force"]["unit"] == "N"
-    assert columns["temperature"]["unit"] == "C" and not columns["force"].get("invert", False)
+    assert columns["temperature"]["unit"] == "degC" and not columns["force"].get("invert", False)
 
 
 def test_crank_dyno_check_agrees_with_its_own_draft(crank, tmp_path):
