@@ -70,6 +70,10 @@ STEADY_TOLERANCE = 0.01
 HYSTERESIS = 0.05
 #: Velocity bins per direction of :func:`binned_characteristic`.
 N_BINS = 20
+#: :func:`binned_characteristic` bins only speeds above this many standard deviations of the velocity estimate's
+#: noise: below it a sample's velocity sign is uncertain (one in 740 samples at 3 sigma), and a force that reverses
+#: with the velocity (friction) would be averaged with its reversal.
+RESOLVE_SIGMA = 3.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -201,6 +205,18 @@ def default_window_s(time_s, displacement_m, polyorder: int = 3, period_s: float
     return n_cap * dt
 
 
+def velocity_noise_m_s(time_s, displacement_m, window_s: float, polyorder: int = 3) -> float:
+    """1-sigma of the noise of :func:`smooth_velocity` with this window, measured on the record: the displacement's
+    white noise (:func:`noise_sigma`, on the even grid the derivative uses, so rounded time stamps count) times the
+    Savitzky-Golay derivative's noise gain sqrt(sum c_i^2)."""
+    t = np.asarray(time_s, dtype=float)
+    x = np.asarray(displacement_m, dtype=float)
+    grid, dt, same = _uniform(t)
+    xg = x if same else np.interp(grid, t, x)
+    n = _odd_window(int(round(window_s / dt)), polyorder, xg.size)
+    return noise_sigma(xg) * float(np.sqrt(np.sum(savgol_derivative_coeffs(n, polyorder, dt) ** 2)))
+
+
 def smooth_velocity(time_s, displacement_m, window_s: float | None = None, polyorder: int = 3,
                     period_s: float | None = None) -> np.ndarray:
     """Velocity [m/s] as the Savitzky-Golay derivative of the displacement.
@@ -320,7 +336,8 @@ def loop(series: pd.DataFrame, frequency_Hz: float | None = None, skip_periods: 
 def free_loop(series: pd.DataFrame, window_s: float | None = None, polyorder: int = 3) -> pd.DataFrame:
     """A free record as a loop: the whole record less half a smoothing window at each end.
 
-    Columns as :func:`loop` (``period`` = 0); ``attrs``: frequency_Hz (dominant), window_s.
+    Columns as :func:`loop` (``period`` = 0); ``attrs``: frequency_Hz (dominant), window_s, velocity_noise_m_s
+    (:func:`velocity_noise_m_s`).
     """
     t, x, f = _channels(series)
     period = dominant_period_s(t, x)
@@ -333,7 +350,8 @@ def free_loop(series: pd.DataFrame, window_s: float | None = None, polyorder: in
     keep[half:t.size - half] = True
     out = pd.DataFrame({"time_s": t[keep], "displacement_m": x[keep], "velocity_m_s": v[keep],
                         "force_N": f[keep], "period": np.zeros(int(keep.sum()), dtype=np.int64)})
-    out.attrs.update(frequency_Hz=1.0 / period, window_s=float(window_s), skip_periods=0, **_row_range(series, keep))
+    out.attrs.update(frequency_Hz=1.0 / period, window_s=float(window_s), skip_periods=0, **_row_range(series, keep),
+                     velocity_noise_m_s=velocity_noise_m_s(t, x, window_s, polyorder))
     return out.reset_index(drop=True)
 
 
@@ -486,16 +504,19 @@ def peak_velocity_characteristic(lp: pd.DataFrame) -> pd.DataFrame:
     return out.astype({"half_cycle": "int64"}) if len(out) else out
 
 
-def binned_characteristic(lp: pd.DataFrame, n_bins: int = N_BINS, min_samples: int | None = None) -> pd.DataFrame:
+def binned_characteristic(lp: pd.DataFrame, n_bins: int = N_BINS, min_samples: int | None = None,
+                          min_speed_m_s: float | None = None) -> pd.DataFrame:
     """Mean force in velocity bins, per direction (free records).
 
-    Per direction s, the samples with s v > 0 up to the 99.5th percentile of s v (a few outliers,
-    e.g. backlash spikes, do not stretch the bins) go into ``n_bins`` equal bins of |v|. A point is
-    the mean velocity and mean force of its bin (the mean velocity, not the bin centre, so the
-    binning adds no bias where F(v) is curved); bins with fewer than ``min_samples`` samples
-    (default: a quarter of an even share, at least 5) are dropped. Averaging many samples per bin
-    makes the curve robust to the noise of the derivative; loading and unloading branches of a
-    hysteretic loop are averaged together.
+    Per direction s, the samples with s v at least ``min_speed_m_s`` (default ``RESOLVE_SIGMA`` times the
+    velocity estimate's noise, ``lp.attrs['velocity_noise_m_s']``, 0 when absent: below it the sign of v is not
+    resolved, and a bin there averages a friction force with its reversal) and up to the 99.5th percentile of
+    s v (a few outliers, e.g. backlash spikes, do not stretch the bins) go into ``n_bins`` equal bins of |v|
+    from that lowest speed. A point is the mean velocity and mean force of its bin (the mean velocity, not the
+    bin centre, so the binning adds no bias where F(v) is curved); bins with fewer than ``min_samples`` samples
+    (default: a quarter of an even share, at least 5) are dropped. Averaging many samples per bin makes the
+    curve robust to the noise of the derivative; loading and unloading branches of a hysteretic loop are
+    averaged together.
     Columns: direction, velocity_m_s, force_N, velocity_std_m_s, force_std_N, n_points,
     bin_low_m_s, bin_high_m_s (signed bin edges, |low| < |high|).
     """
@@ -503,11 +524,13 @@ def binned_characteristic(lp: pd.DataFrame, n_bins: int = N_BINS, min_samples: i
             "bin_low_m_s", "bin_high_m_s"]
     if n_bins < 1:
         raise ValueError(f"n_bins must be >= 1, got {n_bins}")
+    if min_speed_m_s is None:
+        min_speed_m_s = RESOLVE_SIGMA * float(lp.attrs.get("velocity_noise_m_s", 0.0))
     v = lp["velocity_m_s"].to_numpy(dtype=float)
     f = lp["force_N"].to_numpy(dtype=float)
     rows = []
     for s, label in ((1.0, "+"), (-1.0, "-")):
-        sel = s * v > 0
+        sel = s * v > max(0.0, min_speed_m_s)
         if not sel.any():
             continue
         av, fv = s * v[sel], f[sel]
@@ -515,7 +538,7 @@ def binned_characteristic(lp: pd.DataFrame, n_bins: int = N_BINS, min_samples: i
         inside = av <= top
         av, fv = av[inside], fv[inside]
         need = max(5, int(math.ceil(0.25 * av.size / n_bins))) if min_samples is None else int(min_samples)
-        edges = np.linspace(0.0, top, n_bins + 1)
+        edges = np.linspace(max(0.0, min_speed_m_s), top, n_bins + 1)
         k = np.clip(np.searchsorted(edges, av, side="right") - 1, 0, n_bins - 1)
         for j in range(n_bins):
             m = k == j

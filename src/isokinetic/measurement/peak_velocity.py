@@ -8,13 +8,20 @@ sign (:func:`peak_points`):
 1. the half-cycles are the runs of one sign of a coarse velocity (:func:`isokinetic.measurement.loops.smooth_velocity`
    with its window at most T/20, :func:`isokinetic.measurement.loops.half_cycles`), and the largest |v| of
    the run is a first guess of the peak;
-2. the peak is refined on the record's own time stamps: a least-squares quintic x(t) through the samples
-   within ``fit_fraction`` x T of the guess (at least ``min_side`` samples each side); the root of x'' = 0
-   inside the span where x' is largest (for its sign) is the instant t_v of peak velocity and x'(t_v) the
-   peak velocity. The fit is recentred on t_v until it moves less than a tenth of the span (3 rounds at most);
-   a peak that is not inside its span (the record cut mid-stroke, a burst of missing samples) is left out;
-3. the force at t_v is a least-squares quartic F(t) through the samples within the same span of t_v; the
-   residual scatter of that fit is the point's ``force_noise_N``.
+2. the peak is refined on the record's own time stamps: a least-squares model of the displacement over one
+   period around the guess (a line, the fundamental and each harmonic up to ``MAX_HARMONIC`` whose amplitude
+   exceeds ``HARMONIC_SIGMA`` standard errors); its velocity's extremum (the acceleration's root) is the instant
+   t_v and the peak velocity; a peak not inside its half-cycle, or whose period leaves the record, is left out;
+3. the force while the speed is at its peak (:func:`window_force`): the samples of the speed window, the run
+   around t_v where the model's |v| >= ``peak_fraction`` (0.99) of its peak (+-arccos(0.99)/w, 2.25 % of the
+   period, on a sine; at least ``min_side`` samples a side). A quadratic F(t) through them; when its residual
+   spread is what the force's noise gives (third differences over +-T/8 around t_v, chi-square at ``alpha``)
+   or within ``steady_fraction`` (1 %) of the force, the force is steady and the point is the quadratic at t_v
+   (the window mean corrected for a smooth force's curvature). Otherwise (a backlash, a stick-slip: the force
+   swings far beyond its noise while the speed is at its peak) the point is the window's mean force, not
+   steady, with its spread (the window's standard deviation): the force at peak velocity is then known no
+   better than that spread, and the stage flags the point and widens its standard error by it. A narrow local
+   fit at one instant would follow the swing instead and be silently wrong.
 
 Why the velocity's extremum: there dv/dt = 0, so the force of a memoryless damper is F(v) at the highest
 speed of the half-cycle, and a damper whose force lags (a Maxwell element: the oil's compressibility in
@@ -23,23 +30,22 @@ at peak velocity still lies below the steady characteristic by the second-order 
 lag (:mod:`isokinetic.measurement.loops`). For a pure sine t_v is the crossing of the displacement's centre; for
 a distorted one it is not, and the speed there is not the peak speed.
 
-Nothing assumes even sampling: a missing sample or a burst only thins a fit. Bias on the noise-free
-F = c1 v + c2 v|v| driven by a sine with 3 % third and 4 % fourth harmonics, span T/20 either side: below
-2e-4 of the force and 2e-5 of the velocity (tests/measurement/test_peak_velocity.py).
+Nothing assumes even sampling: a missing sample only thins a window, a burst over a peak leaves that cycle out.
 
 Settling (:func:`settled`) is measured on the record, not by a fixed skip: per direction, the reference is
 the median of the later half of the cycles (the last cycle when there are two); leading and trailing cycles
-(start-up, ramp-in, ramp-out) are dropped while their peak speed or their force differs from the reference
-by more than the tolerances (speed 1 %, force 0.5 % or four times the noise, whichever is larger). One cycle
-left is kept: it is a point, flagged by its count. :func:`summarise` averages the cycles of a step: mean
-velocity and force, their cycle-to-cycle standard deviation (ddof 1), the cycles n and the standard error
-std / sqrt(n) (none for one cycle).
+(start-up, ramp-in, ramp-out) are dropped while their peak speed differs from the reference by more than
+max(2 %, 4 x the later cycles' scatter) (real rigs' steady cycles scatter by 0.2-1 % in peak speed; a ramp's
+by tens of %) or their force by more than max(0.5 %, four noise standard errors). One cycle left is kept: it
+is a point, flagged by its count. :func:`summarise` averages the cycles of a step: mean velocity and force,
+their cycle-to-cycle standard deviation (ddof 1), the cycles n, the standard error std / sqrt(n) (none for one
+cycle), and the cycles whose force is not steady with their rms spread.
 
 :func:`periodicity` says whether a record is periodic: its cycles (consecutive peaks of one sign) last the
 same within 10 %.
 
 Energy per cycle (:func:`cycle_energies`): the closed integral of F dx over each whole cycle between
-consecutive peaks of positive velocity (trapezoids on the real time stamps, the ends interpolated), positive
+consecutive velocity peaks of one sign (trapezoids on the real time stamps, the ends interpolated), positive
 for a dissipating damper. For F = c v on x = X sin(wt): E = pi c w X^2; for F = c2 v|v|: E = (8/3) c2 w^2 X^3.
 """
 
@@ -52,13 +58,15 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.measurement.crossings import hysteresis_crossings
-from isokinetic.measurement.loops import half_cycles, smooth_velocity
+from isokinetic.measurement.loops import half_cycles, noise_sigma, smooth_velocity
+from isokinetic.stats import ALPHA, chi2_isf
 
 #: Columns of :func:`peak_points`.
-POINT_COLUMNS = ["direction", "time_s", "velocity_m_s", "force_N", "force_noise_N", "i_start", "i_stop"]
+POINT_COLUMNS = ["direction", "time_s", "velocity_m_s", "force_N", "force_noise_N", "force_spread_N", "steady",
+                 "window_s", "i_start", "i_stop"]
 #: Columns of :func:`summarise`.
 SUMMARY_COLUMNS = ["direction", "velocity_m_s", "force_N", "velocity_std_m_s", "force_std_N", "n_cycles",
-                   "force_se_N", "force_noise_N"]
+                   "force_se_N", "force_noise_N", "force_spread_N", "n_unsteady"]
 #: Columns of :func:`cycle_energies`.
 ENERGY_COLUMNS = ["t_start_s", "t_end_s", "energy_J", "amplitude_m", "i_start", "i_stop"]
 #: The coarse velocity's smoothing window is at most this fraction of the period (the harmonics survive it).
@@ -67,29 +75,37 @@ COARSE_PERIOD_FRACTION = 0.25
 MAX_HARMONIC = 6
 #: ... those above the fundamental kept only when their amplitude exceeds this many standard errors.
 HARMONIC_SIGMA = 4.0
-#: Polynomial degree of the force fit at the peak.
-FORCE_DEGREE = 4
+#: Polynomial degree of the force fit over the speed window (a smooth force's curvature).
+FORCE_DEGREE = 2
+#: The force's local noise is measured over this fraction of the period either side of the peak.
+NOISE_PERIOD_FRACTION = 0.125
 
 
 @dataclass(frozen=True)
 class PeakSpec:
-    """Settings of the peak-velocity method: fit span (fraction of the period either side of the peak,
-    widened to ``min_side`` + 1/2 sample intervals on coarse records), fewest samples each side, and the
-    settling tolerances (:func:`settled`): peak speed and force, relative, and the force in noise units."""
+    """Settings of the peak-velocity method (module doc): the speed window (the part of a half-cycle whose speed
+    is at least ``peak_fraction`` of its peak), the fewest samples each side of the peak (coarse records widen
+    the window to them), the force steadiness test (a spread beyond the noise at ``alpha`` and beyond
+    ``steady_fraction`` of the force), and the settling tolerances (:func:`settled`): peak speed (relative,
+    or ``n_sigma`` times the measured cycle-to-cycle scatter when larger) and force (relative, or ``n_sigma``
+    times the noise)."""
 
-    fit_fraction: float = 0.05
+    peak_fraction: float = 0.99
     min_side: int = 3
-    speed_tolerance: float = 0.01
+    steady_fraction: float = 0.01
+    alpha: float = ALPHA
+    speed_tolerance: float = 0.02
     force_tolerance: float = 0.005
     n_sigma: float = 4.0
 
     def __post_init__(self):
-        if not 0.0 < self.fit_fraction <= 0.125:
-            raise ValueError(f"fit_fraction must lie in (0, 1/8], got {self.fit_fraction}")
-        if self.min_side < 3:
-            raise ValueError(f"min_side must be >= 3 (a quintic through the peak), got {self.min_side}")
-        if not (self.speed_tolerance > 0 and self.force_tolerance > 0 and self.n_sigma > 0):
-            raise ValueError("settling tolerances must be positive")
+        if not 0.9 <= self.peak_fraction < 1.0:
+            raise ValueError(f"peak_fraction must lie in [0.9, 1), got {self.peak_fraction}")
+        if self.min_side < 2:
+            raise ValueError(f"min_side must be >= 2 (a quadratic through the peak), got {self.min_side}")
+        if not (self.speed_tolerance > 0 and self.force_tolerance > 0 and self.n_sigma > 0
+                and self.steady_fraction > 0 and 0 < self.alpha < 1):
+            raise ValueError("settling and steadiness tolerances must be positive")
 
 
 def _arrays(time_s, displacement_m, force_N) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -103,24 +119,6 @@ def _arrays(time_s, displacement_m, force_N) -> tuple[np.ndarray, np.ndarray, np
     if not (np.all(np.isfinite(t)) and np.all(np.isfinite(x)) and np.all(np.isfinite(f))):
         raise ValueError("time, displacement and force must be finite")
     return t, x, f
-
-
-def _fit_span(t: np.ndarray, t0: float, half_s: float, min_side: int) -> tuple[int, int] | None:
-    """Samples [lo, hi) within t0 -/+ half_s; None when the span leaves the record or either side holds fewer
-    than ``min_side`` samples (a burst of missing ones)."""
-    if t0 - half_s < t[0] or t0 + half_s > t[-1]:
-        return None
-    lo = int(np.searchsorted(t, t0 - half_s, side="left"))
-    mid = int(np.searchsorted(t, t0, side="left"))
-    hi = int(np.searchsorted(t, t0 + half_s, side="right"))
-    if mid - lo < min_side or hi - mid < min_side:
-        return None
-    return lo, hi
-
-
-def _poly(t: np.ndarray, y: np.ndarray, lo: int, hi: int, t0: float, half_s: float, degree: int):
-    """The least-squares polynomial of ``degree`` through samples [lo, hi) in u = (t - t0) / half_s."""
-    return np.polynomial.Polynomial.fit((t[lo:hi] - t0) / half_s, y[lo:hi], degree, domain=[-1, 1], window=[-1, 1])
 
 
 def _harmonic_basis(tau: np.ndarray, omega: float, harmonics) -> np.ndarray:
@@ -160,11 +158,12 @@ def _model_velocity(coef: np.ndarray, kept: list[int], omega: float, tau, order:
     return out
 
 
-def _velocity_peak(t: np.ndarray, x: np.ndarray, i: int, period_s: float, sign: float
-                   ) -> tuple[float, float, int, int] | None:
-    """(t_v, v(t_v), lo, hi) of the velocity's extremum of sign ``sign`` near sample i (module doc, step 2): the
+def _velocity_peak(t: np.ndarray, x: np.ndarray, i: int, period_s: float, sign: float, fraction: float
+                   ) -> tuple[float, float, float, float] | None:
+    """(t_v, v(t_v), t_a, t_b) of the velocity's extremum of sign ``sign`` near sample i (module doc, step 2): the
     cycle model of the period around it (shifted to lie inside the record), its s v maximised within a quarter
-    period of t[i]; None when the record is shorter than a period or the maximum lies on that range's edge."""
+    period of t[i]; [t_a, t_b] the run around t_v where s v >= ``fraction`` s v(t_v) (the speed window). None when
+    the record is shorter than a period or the maximum, or the window, reaches that range's edge."""
     if t[-1] - t[0] < period_s:
         return None
     start = min(max(t[i] - 0.5 * period_s, t[0]), t[-1] - period_s)
@@ -175,12 +174,24 @@ def _velocity_peak(t: np.ndarray, x: np.ndarray, i: int, period_s: float, sign: 
     omega = 2.0 * math.pi / period_s
     tau0 = float(t[i])
     coef, kept = _cycle_model(t[lo:hi] - tau0, x[lo:hi], omega)
-    grid = np.linspace(-0.25 * period_s, 0.25 * period_s, 401)
-    j = int(np.argmax(sign * _model_velocity(coef, kept, omega, grid)))
-    if j in (0, grid.size - 1):
+    grid = np.linspace(-0.25 * period_s, 0.25 * period_s, 2001)
+    speed = sign * _model_velocity(coef, kept, omega, grid)
+    j = int(np.argmax(speed))
+    if j in (0, grid.size - 1) or speed[j] <= 0.0:
         return None
-    tau = float(grid[j])
-    for _ in range(8):                                   # Newton on the acceleration's root
+    tau = _refine(coef, kept, omega, float(grid[j]), float(grid[1] - grid[0]), period_s)
+    v = float(_model_velocity(coef, kept, omega, tau))
+    below = np.flatnonzero(speed < fraction * sign * v)
+    before, after = below[below < j], below[below > j]
+    if before.size == 0 or after.size == 0:
+        return None
+    return tau0 + tau, v, tau0 + float(grid[before[-1] + 1]), tau0 + float(grid[after[0] - 1])
+
+
+def _refine(coef: np.ndarray, kept: list[int], omega: float, tau: float, step_max: float, period_s: float) -> float:
+    """Newton on the cycle model's acceleration from ``tau``; ``tau`` itself when Newton leaves its grid cell."""
+    start = tau
+    for _ in range(8):
         acc = float(_model_velocity(coef, kept, omega, tau, 2))
         jerk = float(_model_velocity(coef, kept, omega, tau, 3))
         if jerk == 0.0:
@@ -189,10 +200,7 @@ def _velocity_peak(t: np.ndarray, x: np.ndarray, i: int, period_s: float, sign: 
         tau -= step
         if abs(step) < 1e-9 * period_s:
             break
-    if abs(tau - grid[j]) > grid[1] - grid[0]:
-        tau = float(grid[j])
-    v = float(_model_velocity(coef, kept, omega, tau))
-    return (tau0 + tau, v, lo, hi) if sign * v > 0.0 else None
+    return tau if abs(tau - start) <= step_max else start
 
 
 def measured_period(t: np.ndarray, x: np.ndarray, period_s: float) -> float:
@@ -214,42 +222,79 @@ def measured_period(t: np.ndarray, x: np.ndarray, period_s: float) -> float:
     return found if abs(found - period_s) <= 0.2 * period_s else period_s
 
 
+def _window(t: np.ndarray, t_a: float, t_b: float, tv: float, min_side: int) -> tuple[int, int] | None:
+    """Samples [lo, hi) of the speed window [t_a, t_b], each side widened to (``min_side`` + 1/2) median sample
+    intervals on a coarse record; None when it leaves the record or either side holds fewer than ``min_side``
+    samples (a burst of missing ones)."""
+    dt = float(np.median(np.diff(t)))
+    a, b = min(t_a, tv - (min_side + 0.5) * dt), max(t_b, tv + (min_side + 0.5) * dt)
+    if a < t[0] or b > t[-1]:
+        return None
+    lo = int(np.searchsorted(t, a, side="left"))
+    mid = int(np.searchsorted(t, tv, side="left"))
+    hi = int(np.searchsorted(t, b, side="right"))
+    return (lo, hi) if mid - lo >= min_side and hi - mid >= min_side else None
+
+
+def window_force(t: np.ndarray, f: np.ndarray, lo: int, hi: int, tv: float, noise_N: float,
+                 spec: PeakSpec = PeakSpec()) -> dict:
+    """The force over the speed window [lo, hi) around t_v (module doc, step 3): a least-squares quadratic F(t)
+    through the window; when its residual spread is what the noise gives (chi-square at ``spec.alpha``) or within
+    ``spec.steady_fraction`` of the force, the force is steady and the point is the quadratic at t_v (the window
+    mean corrected for a smooth force's curvature); otherwise it is the window's mean force, not steady, and
+    force_spread_N is the window's standard deviation. force_noise_N: the quadratic's residual spread."""
+    u = t[lo:hi] - tv
+    y = f[lo:hi]
+    half = max(float(np.max(np.abs(u))), 1e-300)
+    q = np.polynomial.Polynomial.fit(u / half, y, FORCE_DEGREE, domain=[-1, 1], window=[-1, 1])
+    dof = max(1, y.size - FORCE_DEGREE - 1)
+    resid = y - q(u / half)
+    spread = math.sqrt(float(resid @ resid) / dof)
+    bound = noise_N * math.sqrt(chi2_isf(spec.alpha, dof) / dof)
+    at_peak = float(q(0.0))
+    steady = spread <= max(bound, spec.steady_fraction * abs(at_peak))
+    if steady:
+        return {"force_N": at_peak, "force_noise_N": spread, "force_spread_N": 0.0, "steady": True}
+    return {"force_N": float(np.mean(y)), "force_noise_N": spread, "force_spread_N": float(np.std(y, ddof=1)),
+            "steady": False}
+
+
 def peak_points(time_s, displacement_m, force_N, period_s: float, *, t_start: float | None = None,
                 t_stop: float | None = None, spec: PeakSpec = PeakSpec()) -> pd.DataFrame:
     """The force at each extremum of the measured velocity (module doc): one row per half-cycle whose peak
     instant lies in [t_start, t_stop) (default: the whole record).
 
-    ``period_s`` sets the fit span and the coarse velocity's smoothing (the manifest's period, or the record's
-    dominant one). Columns :data:`POINT_COLUMNS`: direction '+'/'-', time_s (t_v), velocity_m_s (signed),
-    force_N, force_noise_N (residual scatter of the force fit) and the samples [i_start, i_stop) the fits used.
+    ``period_s`` sets the coarse velocity's smoothing (the manifest's period, or the record's dominant one).
+    Columns :data:`POINT_COLUMNS`: direction '+'/'-', time_s (t_v), velocity_m_s (signed), force_N, force_noise_N
+    and force_spread_N (:func:`window_force`), steady, window_s (the speed window's duration) and the samples
+    [i_start, i_stop) of the speed window.
     """
     t, x, f = _arrays(time_s, displacement_m, force_N)
     if not (period_s > 0 and math.isfinite(period_s)):
         raise ValueError(f"period must be positive and finite, got {period_s}")
     a = -math.inf if t_start is None else float(t_start)
     b = math.inf if t_stop is None else float(t_stop)
-    dt = float(np.median(np.diff(t)))
-    half_s = max(spec.fit_fraction * period_s, (spec.min_side + 0.5) * dt)
     v = smooth_velocity(t, x, period_s=COARSE_PERIOD_FRACTION * period_s)
     own = measured_period(t, x, period_s)
+    record_noise = noise_sigma(f)
     rows = []
     for lo_run, hi_run, s in half_cycles(v):
         i = lo_run + int(np.argmax(s * v[lo_run:hi_run]))
-        found = _velocity_peak(t, x, i, own, s)
+        found = _velocity_peak(t, x, i, own, s, spec.peak_fraction)
         if found is None:
             continue
-        tv, vv, lo_x, hi_x = found
-        span = _fit_span(t, tv, half_s, spec.min_side)
-        if span is None or not (a <= tv < b) or not (t[lo_run] - half_s <= tv <= t[hi_run - 1] + half_s):
+        tv, vv, t_a, t_b = found
+        span = _window(t, t_a, t_b, tv, spec.min_side)
+        if span is None or not (a <= tv < b) or not (t[lo_run] <= tv <= t[hi_run - 1]):
             continue
         lo, hi = span
-        q = _poly(t, f, lo, hi, tv, half_s, FORCE_DEGREE)
-        resid = f[lo:hi] - q((t[lo:hi] - tv) / half_s)
-        noise = float(np.sqrt(np.sum(resid * resid) / max(1, hi - lo - FORCE_DEGREE - 1)))
-        rows.append({"direction": "+" if s > 0 else "-", "time_s": tv, "velocity_m_s": vv, "force_N": float(q(0.0)),
-                     "force_noise_N": noise, "i_start": min(lo, lo_x), "i_stop": max(hi, hi_x)})
+        near = (t >= tv - NOISE_PERIOD_FRACTION * own) & (t <= tv + NOISE_PERIOD_FRACTION * own)
+        noise = noise_sigma(f[near]) if near.sum() >= 16 else record_noise
+        rows.append({"direction": "+" if s > 0 else "-", "time_s": tv, "velocity_m_s": vv,
+                     **window_force(t, f, lo, hi, tv, noise, spec), "window_s": float(t_b - t_a),
+                     "i_start": lo, "i_stop": hi})
     out = pd.DataFrame(rows, columns=POINT_COLUMNS)
-    return out.astype({"i_start": "int64", "i_stop": "int64"})
+    return out.astype({"i_start": "int64", "i_stop": "int64", "steady": bool})
 
 
 def periodicity(points: pd.DataFrame, tolerance: float = 0.1) -> float | None:
@@ -265,33 +310,40 @@ def periodicity(points: pd.DataFrame, tolerance: float = 0.1) -> float | None:
     return period if regular.sum() >= 2 and regular.mean() >= 0.9 else None
 
 
-def _agrees(p: pd.DataFrame, v_ref: float, f_ref: float, f_limit: float, spec: PeakSpec) -> np.ndarray:
+def _agrees(p: pd.DataFrame, v_ref: float, v_limit: float, f_ref: float, f_limit: float) -> np.ndarray:
     """Which cycles' peak speed and force agree with the reference (:func:`settled`)."""
     dv = np.abs(p["velocity_m_s"].abs().to_numpy(float) - v_ref)
     df = np.abs(p["force_N"].to_numpy(float) - f_ref)
-    return (dv <= spec.speed_tolerance * v_ref) & (df <= f_limit)
+    return (dv <= v_limit) & (df <= f_limit)
+
+
+def _robust_scatter(y: np.ndarray, centre: float) -> float:
+    """1.4826 x the median absolute deviation from ``centre`` (a normal scatter's sigma)."""
+    return 1.4826 * float(np.median(np.abs(y - centre))) if y.size else 0.0
 
 
 def settled(points: pd.DataFrame, spec: PeakSpec = PeakSpec()) -> pd.DataFrame:
     """:func:`peak_points` without the cycles of each direction that have not settled (module doc).
 
     Per direction, in time order: reference speed and force = the medians of the later half of the cycles (the
-    last cycle when there are two); force limit = max(``force_tolerance`` x |reference|, ``n_sigma`` x the larger
-    of the later cycles' scatter (1.4826 x median absolute deviation) and a point's fit error, noise x
-    sqrt(5 / samples)). Leading cycles, then trailing ones, are dropped while they disagree."""
+    last cycle when there are two); speed limit = max(``speed_tolerance`` x reference, ``n_sigma`` x the later
+    cycles' speed scatter); force limit = max(``force_tolerance`` x |reference|, ``n_sigma`` x the larger of the
+    later cycles' scatter and a point's fit error, noise x sqrt(3 / samples)). Scatters: 1.4826 x median absolute
+    deviation. Leading cycles, then trailing ones, are dropped while they disagree."""
     keep = []
     for d in ("+", "-"):
         p = points[points["direction"] == d].sort_values("time_s", kind="stable")
         n = len(p)
         if n >= 2:
             later = p.iloc[n // 2:] if n >= 3 else p.iloc[-1:]
-            lf = later["force_N"].to_numpy(float)
-            f_ref = float(np.median(lf))
-            v_ref = float(np.median(later["velocity_m_s"].abs().to_numpy(float)))
+            lf, lv = later["force_N"].to_numpy(float), later["velocity_m_s"].abs().to_numpy(float)
+            f_ref, v_ref = float(np.median(lf)), float(np.median(lv))
             fit_se = later["force_noise_N"].to_numpy(float) * np.sqrt(
                 (FORCE_DEGREE + 1) / np.maximum(1, (later["i_stop"] - later["i_start"]).to_numpy(float)))
-            scatter = max(1.4826 * float(np.median(np.abs(lf - f_ref))), float(np.median(fit_se)))
-            ok = _agrees(p, v_ref, f_ref, max(spec.force_tolerance * abs(f_ref), spec.n_sigma * scatter), spec)
+            f_scatter = max(_robust_scatter(lf, f_ref), float(np.median(fit_se)))
+            v_limit = max(spec.speed_tolerance * v_ref, spec.n_sigma * _robust_scatter(lv, v_ref))
+            f_limit = max(spec.force_tolerance * abs(f_ref), spec.n_sigma * f_scatter)
+            ok = _agrees(p, v_ref, v_limit, f_ref, f_limit)
             first, last = 0, n
             while first < n - 1 and not ok[first]:
                 first += 1
@@ -306,7 +358,9 @@ def settled(points: pd.DataFrame, spec: PeakSpec = PeakSpec()) -> pd.DataFrame:
 def summarise(points: pd.DataFrame) -> pd.DataFrame:
     """Per direction ('+' then '-'): the mean of the cycles' peak velocity and force, their cycle-to-cycle
     standard deviations (ddof 1; NaN for one cycle), n_cycles, force_se_N = force_std_N / sqrt(n) (NaN for one
-    cycle: nothing says how the cycle repeats) and the mean force noise of the fits."""
+    cycle: nothing says how the cycle repeats), the mean force noise of the fits, force_spread_N the root mean
+    square of the cycles' in-window spread (0 when every cycle's force is steady) and n_unsteady the cycles
+    whose force is not steady across the speed window (:func:`window_force`)."""
     rows = []
     for d in ("+", "-"):
         p = points[points["direction"] == d] if len(points) else points
@@ -315,12 +369,15 @@ def summarise(points: pd.DataFrame) -> pd.DataFrame:
             continue
         v, f = p["velocity_m_s"].to_numpy(float), p["force_N"].to_numpy(float)
         sf = float(f.std(ddof=1)) if n > 1 else math.nan
+        spread = p["force_spread_N"].to_numpy(float) if "force_spread_N" in p else np.zeros(n)
         rows.append({"direction": d, "velocity_m_s": float(v.mean()), "force_N": float(f.mean()),
                      "velocity_std_m_s": float(v.std(ddof=1)) if n > 1 else math.nan, "force_std_N": sf,
                      "n_cycles": n, "force_se_N": sf / math.sqrt(n),
-                     "force_noise_N": float(p["force_noise_N"].mean()) if "force_noise_N" in p else math.nan})
+                     "force_noise_N": float(p["force_noise_N"].mean()) if "force_noise_N" in p else math.nan,
+                     "force_spread_N": float(np.sqrt(np.mean(spread * spread))),
+                     "n_unsteady": int((~p["steady"].astype(bool)).sum()) if "steady" in p else 0})
     out = pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
-    return out.astype({"n_cycles": "int64"})
+    return out.astype({"n_cycles": "int64", "n_unsteady": "int64"})
 
 
 def loop_energy(t: np.ndarray, x: np.ndarray, f: np.ndarray, t_a: float, t_b: float) -> float:
@@ -333,22 +390,33 @@ def loop_energy(t: np.ndarray, x: np.ndarray, f: np.ndarray, t_a: float, t_b: fl
     return float(np.sum(0.5 * (ff[1:] + ff[:-1]) * np.diff(xx)))
 
 
+def _whole_cycles(points: pd.DataFrame, period_s: float) -> list[tuple[float, float]]:
+    """(start, end) of the whole cycles between consecutive peaks of one sign, 0.5 to 1.5 periods apart: those
+    of the positive peaks, or of the negative ones when they give more (a record cut so that one positive peak
+    is left still has a cycle between its negative ones)."""
+    best: list[tuple[float, float]] = []
+    for d in ("+", "-"):
+        at = np.sort(points.loc[points["direction"] == d, "time_s"].to_numpy(float)) if len(points) else np.array([])
+        cycles = [(float(a), float(b)) for a, b in zip(at[:-1], at[1:], strict=True)
+                  if 0.5 * period_s <= b - a <= 1.5 * period_s]
+        if len(cycles) > len(best):
+            best = cycles
+    return best
+
+
 def cycle_energies(time_s, displacement_m, force_N, period_s: float, *, t_start: float | None = None,
                    t_stop: float | None = None, points: pd.DataFrame | None = None,
                    spec: PeakSpec = PeakSpec()) -> pd.DataFrame:
-    """The energy dissipated in each whole cycle, closed integral of F dx between consecutive peaks of positive
-    velocity (module doc), for cycles within [t_start, t_stop). ``points``: :func:`peak_points` of the same
-    record (computed when None). Two peaks more than 1.5 or less than 0.5 periods apart (a peak left out) make
-    no cycle. Columns :data:`ENERGY_COLUMNS` (amplitude_m: half the peak-to-peak displacement of the cycle;
-    [i_start, i_stop) its samples)."""
+    """The energy dissipated in each whole cycle, closed integral of F dx between consecutive peaks of one velocity
+    sign (module doc, :func:`_whole_cycles`), for cycles within [t_start, t_stop). ``points``:
+    :func:`peak_points` of the same record (computed when None). Two peaks more than 1.5 or less than 0.5
+    periods apart (a peak left out) make no cycle. Columns :data:`ENERGY_COLUMNS` (amplitude_m: half the
+    peak-to-peak displacement of the cycle; [i_start, i_stop) its samples)."""
     t, x, f = _arrays(time_s, displacement_m, force_N)
     if points is None:
         points = peak_points(t, x, f, period_s, t_start=t_start, t_stop=t_stop, spec=spec)
-    up = np.sort(points.loc[points["direction"] == "+", "time_s"].to_numpy(float)) if len(points) else np.array([])
     rows = []
-    for t_a, t_b in zip(up[:-1], up[1:], strict=True):
-        if t_b - t_a > 1.5 * period_s or t_b - t_a < 0.5 * period_s:
-            continue
+    for t_a, t_b in _whole_cycles(points, period_s):
         i0 = int(np.searchsorted(t, t_a, side="left"))
         i1 = int(np.searchsorted(t, t_b, side="right"))
         seg = x[i0:i1]

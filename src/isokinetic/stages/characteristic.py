@@ -18,7 +18,10 @@ manifest label (docs/method.md, "How each point is obtained"):
   triangle case, with four cycles or more a direction period 1 averages the first half of the cycles and
   period 2 the second half (segments 1 '+', 2 '-' of period 1, 3 '+', 4 '-' of period 2); with one to three,
   period 1 only. ``n_samples`` counts the cycles and ``force_std_N`` is their scatter, so force_std_N /
-  sqrt(n_samples) is the point's standard error, as for a window. ``planned_velocity_m_s`` is 2 pi f Y (the
+  sqrt(n_samples) is the point's standard error, as for a window. A point whose force is not steady while the
+  speed is at its peak (:func:`isokinetic.measurement.peak_velocity.window_force`: a backlash, a stick-slip) is
+  the window's mean force, flagged in its ``quality`` and the case's, with ``force_se_N`` widened by the spread.
+  ``planned_velocity_m_s`` is 2 pi f Y (the
   measured mean peak speed when the case has no amplitude); the row range spans the samples of the fits;
 - ``free_bin``: a free record that is not periodic, only when it is quasi-static
   (:func:`isokinetic.measurement.quasi_static.quasi_static`: at every velocity bin the accelerating and the
@@ -75,6 +78,10 @@ MIN_CYCLES = 1
 SPLIT_CYCLES = 4
 #: The flag of a point resting on one cycle (its ``quality``, and the case's note).
 ONE_CYCLE_NOTE = "one steady cycle a direction: no standard error"
+#: The flag of a point whose force is not steady while the speed is at its peak (its ``quality``, the case's note).
+UNSTEADY_NOTE = ("force not steady while the speed is at its peak (spread beyond the noise in the window where "
+                 "|v| >= {fraction:g} % of the peak, {n} of {cycles} cycles, rms spread {spread:.4g} N): "
+                 "the point is the window's mean force and its standard error includes that spread")
 ENERGY_COLUMNS = list(tables.ENERGY.columns) + ["window_start_s", "window_end_s", "raw_file", "raw_sha256"]
 
 
@@ -92,7 +99,9 @@ def assemble(windows: pd.DataFrame, repeatability: pd.DataFrame, records: pd.Dat
     parts = [windows.assign(method="triangle_window")]
     if records is not None and len(records):
         absent = [c for c in parts[0].columns if c not in records.columns]   # e.g. the windows' missing_samples
-        parts.append(records.reindex(columns=parts[0].columns).astype({c: parts[0][c].dtype for c in absent}))
+        own_se = ["force_se_N"] if "force_se_N" in records.columns and "force_se_N" not in parts[0].columns else []
+        parts.append(records.reindex(columns=list(parts[0].columns) + own_se).astype(
+            {c: parts[0][c].dtype for c in absent}))
     char = pd.concat(parts, ignore_index=True) if len(parts) > 1 else parts[0]
     flags = repeatability[keys + ["flagged"]].rename(columns={"flagged": "repeatability_flagged"})
     char = char.merge(flags, on=keys, how="left", validate="many_to_one")
@@ -101,7 +110,10 @@ def assemble(windows: pd.DataFrame, repeatability: pd.DataFrame, records: pd.Dat
     # the standard error of each point's force: its scatter over root n (windows: samples; sine peaks: cycles,
     # none for one cycle; bins: samples)
     one_cycle = char["method"].eq("sine_peak") & char["n_samples"].eq(1)
-    char["force_se_N"] = (char["force_std_N"] / np.sqrt(char["n_samples"].astype(float))).where(~one_cycle)
+    scatter_se = (char["force_std_N"] / np.sqrt(char["n_samples"].astype(float))).where(~one_cycle)
+    own = char["force_se_N"].astype(float) if "force_se_N" in char else pd.Series(np.nan, index=char.index)
+    # a sine peak's own standard error (its spread in the speed window included) where it has one
+    char["force_se_N"] = own.where(char["method"].eq("sine_peak") & own.notna(), scatter_se)
     char = char.sort_values(["velocity_m_s", "case", "segment"], ignore_index=True)
     return tables.validate_table(char, tables.CHARACTERISTIC)
 
@@ -141,20 +153,36 @@ def _record(series: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray, n
     return t, x, f, rows
 
 
-def _peak_row(base: dict, part: pd.DataFrame, direction: str, period_no: int, planned: float, span: dict) -> dict:
+def _flag(quality: str, flag: str) -> str:
+    return flag if quality == "ok" else f"{quality}; {flag}"
+
+
+def unsteady_note(summary, spec: PeakSpec = PEAK_SPEC) -> str:
+    """The flag of a direction's point (a :func:`summarise` row) whose force is not steady in its speed window."""
+    return UNSTEADY_NOTE.format(fraction=100 * spec.peak_fraction, n=int(summary["n_unsteady"]),
+                                cycles=int(summary["n_cycles"]), spread=float(summary["force_spread_N"]))
+
+
+def _peak_row(base: dict, part: pd.DataFrame, direction: str, period_no: int, planned: float, span: dict,
+              spec: PeakSpec = PEAK_SPEC) -> dict:
     """One sine_peak row: the cycles of ``part`` averaged (module doc); one cycle: its fit noise as
-    force_std_N, flagged in ``quality``."""
+    force_std_N, flagged in ``quality``. A force not steady in the speed window is flagged too, and its
+    standard error is sqrt(SE_cycles^2 + spread^2) (the force at peak velocity is known no better than the
+    force's spread while the speed is at its peak)."""
     r = summarise(part).iloc[0]
     n = int(r["n_cycles"])
     quality = base["quality"]
     if n == 1:
-        flag = ONE_CYCLE_NOTE
-        quality = flag if quality == "ok" else f"{quality}; {flag}"
+        quality = _flag(quality, ONE_CYCLE_NOTE)
     std = float(r["force_std_N"]) if n > 1 else float(r["force_noise_N"])
+    se = float(r["force_se_N"])
+    if int(r["n_unsteady"]):
+        quality = _flag(quality, unsteady_note(r, spec))
+        se = math.hypot(0.0 if math.isnan(se) else se, float(r["force_spread_N"]))
     return {**base, "quality": quality, "segment": (1 if direction == "+" else 2) + 2 * (period_no - 1),
             "direction": direction, "period": period_no, "planned_velocity_m_s": planned,
             "velocity_m_s": float(r["velocity_m_s"]), "force_N": float(r["force_N"]), "force_std_N": std,
-            "n_samples": n, **span, "method": "sine_peak"}
+            "n_samples": n, **span, "method": "sine_peak", "force_se_N": se}
 
 
 def periodic_points(case, series: pd.DataFrame, period_s: float, spec: PeakSpec = PEAK_SPEC
@@ -175,7 +203,7 @@ def periodic_points(case, series: pd.DataFrame, period_s: float, spec: PeakSpec 
         halves = [(1, p.iloc[:n // 2]), (2, p.iloc[n // 2:])] if n >= SPLIT_CYCLES else [(1, p)]
         for period_no, part in halves:
             span = _span(t, rows, int(part["i_start"].min()), int(part["i_stop"].max()))
-            out.append(_peak_row(base, part, d, period_no, planned, span))
+            out.append(_peak_row(base, part, d, period_no, planned, span, spec))
     return out, _energy_row(base, t, x, f, rows, period_s, pts, spec)
 
 
@@ -245,9 +273,10 @@ def _case_points(case, series: pd.DataFrame, spec: PeakSpec) -> tuple[list[dict]
         pts, e, note = free_points(case, series, spec)
     if not pts and not note:
         note = "no steady cycle with a peak of each velocity sign and no velocity bin: no characteristic point"
-    elif any(r["n_samples"] == 1 and r["method"] == "sine_peak" for r in pts):
-        note = ONE_CYCLE_NOTE
-    return pts, e, note
+    flags = [ONE_CYCLE_NOTE] if any(r["n_samples"] == 1 and r["method"] == "sine_peak" for r in pts) else []
+    flags += [f"{r['direction']}: {r['quality'].split('; ')[-1]}" for r in pts
+              if r["method"] == "sine_peak" and "not steady" in r["quality"]]
+    return pts, e, "; ".join(([note] if note else []) + flags)
 
 
 def record_points(cases: pd.DataFrame, load_series: Callable, spec: PeakSpec = PEAK_SPEC
@@ -271,7 +300,7 @@ def record_points(cases: pd.DataFrame, load_series: Callable, spec: PeakSpec = P
             notes[str(case["case"])] = note
             log.warning("%s: %s", name, note)
         rows += pts
-    columns = [c for c in tables.CHARACTERISTIC.columns if c not in ("repeatability_flagged", "force_se_N")]
+    columns = [c for c in tables.CHARACTERISTIC.columns if c != "repeatability_flagged"]
     points = pd.DataFrame(rows, columns=columns + ["missing_samples"]).astype(
         {"segment": "int64", "period": "int64", "n_samples": "int64", "row_start": "int64", "row_stop": "int64",
          "missing_samples": "Int64"})
