@@ -61,6 +61,7 @@ from isokinetic.rawlayout import (  # noqa: F401  (RawFileError, ENCODING_HINT, 
     is_number,
     marker_rows,
     ragged_marker,
+    row_layout,
     sheet_rows,
 )
 
@@ -724,28 +725,6 @@ def read_raw_table(path: str | Path, fmt: FileFormat | None = None, numeric: boo
         return read_delimited(path, fmt, numeric)
     except csv.Error as exc:
         raise _file_error(f"unreadable table: {str(exc)[:150]}") from None
-
-
-def _numeric(cell: str) -> bool:
-    try:
-        float(cell.strip().replace(",", "."))
-    except ValueError:
-        return False
-    return True
-
-
-def row_layout(rows: list[list[str]]) -> tuple[int, bool, bool]:
-    """(index of the header, or of the first data row when headerless; headerless; a units row under the header)
-    of a table's rows (split, blank and comment rows left out): :func:`sniff_format`'s layout rules."""
-    first = find_start(rows, False, False)          # the first data row: a header of its width just above it?
-    headed = any(len(rows[i]) == len(rows[first]) and not data_like(rows[i]) for i in range(max(0, first - 2), first))
-    headerless = not headed and all_numbers(rows[first])
-    plain, with_units = find_start(rows, True, False), find_start(rows, True, True)
-    k = first if headerless else min(plain, with_units)
-    after = rows[k + 1:]
-    units_row = not headerless and (with_units < plain or (bool(after) and any(c.strip() for c in after[0])
-                                                           and not any(_numeric(c) for c in after[0] if c.strip())))
-    return k, headerless, units_row
 
 
 def sniff_format(path: str | Path, notes: list[str] | None = None, sheet: str | None = None) -> FileFormat:

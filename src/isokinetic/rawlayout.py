@@ -232,6 +232,29 @@ def find_start(rows: list[list[str]], header: bool, units_row: bool, decimal: st
     return 0
 
 
+def _numeric(cell: str) -> bool:
+    try:
+        float(cell.strip().replace(",", "."))
+    except ValueError:
+        return False
+    return True
+
+
+def row_layout(rows: list[list[str]]) -> tuple[int, bool, bool]:
+    """(index of the header, or of the first data row when headerless; headerless; a units row under the header)
+    of a table's rows (split, blank and comment rows left out): the layout rules of
+    :func:`isokinetic.rawfile.sniff_format`."""
+    first = find_start(rows, False, False)          # the first data row: a header of its width just above it?
+    headed = any(len(rows[i]) == len(rows[first]) and not data_like(rows[i]) for i in range(max(0, first - 2), first))
+    headerless = not headed and all_numbers(rows[first])
+    plain, with_units = find_start(rows, True, False), find_start(rows, True, True)
+    k = first if headerless else min(plain, with_units)
+    after = rows[k + 1:]
+    units_row = not headerless and (with_units < plain or (bool(after) and any(c.strip() for c in after[0])
+                                                           and not any(_numeric(c) for c in after[0] if c.strip())))
+    return k, headerless, units_row
+
+
 def marker_rows(frame, names: list[str], decimal: str = ".") -> np.ndarray:
     """Positions of the frame's rows that hold no sample: text (not a number) in a column of numbers (most of its
     filled cells) with an empty cell in the row (``6724,Switched from 1 to 2,,,``), or every cell equal to its
