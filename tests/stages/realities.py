@@ -44,8 +44,9 @@ CRANK_AMPLITUDE_MM = 25.0
 #: One 10 kN spike sample (issue 34).
 SPIKE_N = 1.0e4
 
-#: Manifest keys a damage needs that format 1.4 does not have. Each maps to the key the readers' work documents in
-#: docs/raw-campaign-format.md (format 1.5); None while no key exists, and the case then fails naming the capability.
+#: Manifest keys a damage needs that format 1.4 does not have: the names format 1.5 gives them (csv.thousands in
+#: contracts/manifest_csv.py, the time units of isokinetic/timestamps.py). None for a key that does not exist: the
+#: damage then declares the nearest 1.4 spelling and its failure names the missing capability.
 THOUSANDS_KEY = "thousands"          # csv.thousands: the thousands separator (issue 34, part 4)
 CLOCK_TIME_UNIT = "hms"              # time unit of HH:MM:SS.fff stamps
 EXCEL_TIME_UNIT = "excel_serial"     # time unit of Excel serial dates (days since 1899-12-30)
