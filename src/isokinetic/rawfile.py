@@ -43,7 +43,11 @@ from isokinetic.rawlayout import (  # noqa: F401  (RawFileError, ENCODING_HINT, 
     MAX_QUOTED,
     RawFileError,
     SheetError,
+    _binary_problem,
+    _check_names,
     _csv_problem,
+    _cut_last,
+    _cut_note,
     _data_lines,
     _decode_problem,
     _field_count_problem,
@@ -55,13 +59,17 @@ from isokinetic.rawlayout import (  # noqa: F401  (RawFileError, ENCODING_HINT, 
     _quoted,
     _split,
     _texts,
+    _units,
     all_numbers,
+    cut_off_last,
     data_like,
+    excel_sep,
     find_start,
     is_number,
     marker_rows,
     ragged_marker,
     row_layout,
+    sep_problem,
     sheet_rows,
 )
 
@@ -74,6 +82,8 @@ FORMATS = ("delimited", "mts793", "xlsx")
 #: spaces and tabs).
 DELIMITERS = {",": "','", ";": "';'", "\t": "tabs", "|": "'|'", "whitespace": "whitespace"}
 DECIMALS = (".", ",")
+#: Thousands separators a file may group its numbers with (1.5: ``1.234,5``, ``1,234.5``, ``1 234,5``, ``1'234.5``).
+THOUSANDS = (".", ",", " ", "'")
 #: Whether a file has a header row (``row``, after any preamble) or none (columns ``col1``, ``col2``, ...).
 HEADER_KINDS = ("row", "none")
 #: Byte-order marks of encodings other than UTF-8, refused under a UTF-8 (default) encoding.
@@ -81,10 +91,6 @@ FOREIGN_BOMS = {codecs.BOM_UTF32_LE: "UTF-32", codecs.BOM_UTF32_BE: "UTF-32",
                 codecs.BOM_UTF16_LE: "UTF-16", codecs.BOM_UTF16_BE: "UTF-16"}
 MTS_MAGIC = "MTS793"
 MTS_BLOCK = "Data Acquisition"
-#: Leading bytes of binary formats a case file is sometimes mistaken for, with their names.
-BINARY_MAGIC = {b"\x1f\x8b": "gzip", b"PK\x03\x04": "zip (an .xlsx workbook?)", b"BZh": "bzip2",
-                b"\xfd7zXZ\x00": "xz", b"7z\xbc\xaf": "7-Zip", b"PAR1": "Parquet", b"\x89HDF": "HDF5",
-                b"\x89PNG": "PNG", b"%PDF": "PDF", b"\xd0\xcf\x11\xe0": "OLE (an .xls workbook?)"}
 #: Bytes decoded at a time when an encoding is checked without decoding the whole file at once.
 DECODE_CHUNK = 1 << 22
 
@@ -102,6 +108,8 @@ class FileFormat:
     format: str = "delimited"
     header: str = "row"
     sheet: str | None = None
+    thousands: str | None = None
+    timezone: str | None = None
 
     def __post_init__(self):
         """Refuse a format that no reader reads (a positional slip such as ``FileFormat("mts793")`` included)."""
@@ -118,12 +126,19 @@ class FileFormat:
         if self.header not in HEADER_KINDS or (self.header == "none" and self.units_row):
             raise ValueError(f"FileFormat.header must be one of {HEADER_KINDS} (none without a units row), "
                              f"got {self.header!r}")
+        if self.thousands is not None and (self.thousands not in THOUSANDS
+                                           or self.thousands in (self.decimal, self.delimiter)):
+            raise ValueError(f"FileFormat.thousands must be one of {THOUSANDS} and differ from the decimal mark "
+                             f"and the delimiter, got {self.thousands!r}")
 
     def to_dict(self) -> dict:
-        """The manifest's csv block (1.4 keys ``header`` and ``sheet`` only when not their defaults)."""
+        """The manifest's csv block (1.4 keys ``header`` and ``sheet``, 1.5 ``thousands`` and ``timezone`` only when
+        not their defaults)."""
         out = {"format": self.format, "delimiter": self.delimiter, "decimal": self.decimal,
                "encoding": self.encoding, "units_row": self.units_row}
-        return out | {k: v for k, v in (("header", self.header), ("sheet", self.sheet)) if v not in ("row", None)}
+        optional = (("header", self.header), ("sheet", self.sheet), ("thousands", self.thousands),
+                    ("timezone", self.timezone))
+        return out | {k: v for k, v in optional if v not in ("row", None)}
 
 
 @dataclass(frozen=True)
@@ -153,21 +168,6 @@ def _delimiter_problem(header: str, fmt: FileFormat | None) -> RawFileError | No
         if sep not in (fmt.delimiter, "whitespace") and sep in header:
             return _file_error(f"fields are separated by {label}, not {DELIMITERS[fmt.delimiter]} as the "
                                f"manifest's csv block declares (header {header[:80]!r})")
-    return None
-
-
-def _binary_problem(data: bytes, fmt: FileFormat) -> RawFileError | None:
-    """Binary data where text is expected: a known binary format by its leading bytes, or NUL bytes (under an
-    encoding other than UTF-16/32). The reason names the format, never the bytes."""
-    for magic, name in BINARY_MAGIC.items():
-        if data.startswith(magic):
-            return _file_error(f"binary data ({name}?), not a text table: unpack or export it as text first")
-    if not codecs.lookup(fmt.encoding).name.startswith(("utf-16", "utf-32")):
-        nul = data.find(b"\0", 0, 1 << 20)
-        if nul >= 0:
-            line_no = data.count(b"\n", 0, nul) + 1
-            return _file_error(f"binary data (a NUL byte in line {line_no}), not a text table (or UTF-16 without "
-                               "a byte-order mark: set `encoding: utf-16` in the manifest's csv block)")
     return None
 
 
@@ -209,8 +209,8 @@ def _text(path: Path, fmt: FileFormat) -> tuple[str, list[str]]:
     text = _decoded(_read_bytes(path, fmt), fmt)
     if text.startswith("\ufeff"):
         text = text[1:]
-    if "\n" not in text and "\r" in text:       # old Mac line ends
-        text = text.replace("\r", "\n")
+    if "\r" in text:           # CRLF, old Mac lone CRs, or a mix of line ends: each ends a line
+        text = text.replace("\r\n", "\n").replace("\r", "\n")
     lines = text.split("\n")
     return text, lines
 
@@ -242,25 +242,6 @@ def _frame(data_lines: list[str], names: list[str], delimiter: str, numeric: boo
     except pd.errors.ParserError as exc:
         raise _file_error(f"unreadable table: {str(exc)[:150]}") from None
     return df
-
-
-def _units(names: list[str], line: str, delimiter: str) -> dict[str, str]:
-    """Column -> unit text of a units row (missing trailing cells are empty)."""
-    cells = [c.strip() for c in _split(line, delimiter)] if line.strip() else []
-    cells += [""] * (len(names) - len(cells))
-    if len(cells) > len(names):
-        raise _file_error(f"units row has {len(cells)} fields, the header {len(names)}")
-    return dict(zip(names, cells))
-
-
-def _check_names(names: list[str]) -> list[str]:
-    names = [name.strip() for name in names]
-    seen = set()
-    for name in names:
-        if name in seen:
-            raise RawFileError(name, "column name appears twice in the header")
-        seen.add(name)
-    return names
 
 
 #: Text that is the same in ASCII and in an encoding the fast path reads byte by byte.
@@ -356,11 +337,14 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
     if b'"' in data or data.count(b"\r") != data.count(b"\r\n"):
         return None
     _check_encoding(data, fmt)
-    content, ends, pos = [], [], 0          # the first lines that may hold a preamble, the header and data
+    content, ends, pos, sep_checked = [], [], 0, False      # the first lines: a preamble, the header and data
     while pos < len(data) and len(content) < MAX_PREAMBLE_ROWS + 4:
         at = pos
         line, pos = _next_line(data, pos, fmt.encoding)
-        if line.strip() and not line.startswith("#"):
+        if line.strip() and not sep_checked:
+            _check_sep(line, fmt)
+            sep_checked = True
+        if _content_line(line):
             content.append((data.count(b"\n", 0, at), line))
             ends.append((at, pos))
     if not content:
@@ -379,12 +363,15 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
         units = _units(names, line, fmt.delimiter)
     ends_in_newline = data.endswith(b"\n") or pos >= len(data)
     n_rows, bad = _line_checks(data, pos, fmt.delimiter, len(names))
-    if bad is not None:
+    cut = None if ends_in_newline else _cut_last(data, fmt, len(names), n_rows, bad)
+    if bad is not None and cut is None:
         line, after = _next_line(data, bad[0], fmt.encoding)
         if ragged_marker(_split(line, fmt.delimiter), _reference_at(data, pos, fmt, len(names)), fmt.decimal):
             return None         # marker rows of another width: the careful reader leaves them out
         last = after >= len(data) or not data[after:].strip()
         raise _field_count_problem(names, bad[1], _split(line, fmt.delimiter), last, ends_in_newline, fmt.delimiter)
+    if cut is not None:
+        n_rows, notes, ends_in_newline = n_rows - 1, notes + [_cut_note(n_rows - 1, cut, len(names))], True
     del data
     if n_rows == 0:
         return RawTable(frame=_frame([], names, fmt.delimiter), units=units, rows=np.arange(0, dtype="int64"),
@@ -396,7 +383,7 @@ def _read_fast(path: Path, fmt: FileFormat, declared: FileFormat | None, numeric
             with open(path, "rb") as handle:
                 handle.seek(skip + pos)
                 frame = pd.read_csv(handle, sep=fmt.delimiter, header=None, names=names, skipinitialspace=True,
-                                    engine="c", encoding=fmt.encoding, **options)
+                                    engine="c", encoding=fmt.encoding, nrows=n_rows, **options)
     except (pd.errors.ParserError, ValueError, OSError):
         return None
     table = _whole_table(frame, n_rows, ends_in_newline, units, fmt.decimal)
@@ -481,7 +468,8 @@ def read_delimited(path: Path, fmt: FileFormat | None = None, numeric: bool = Fa
     fmt = fmt or FileFormat()
     _, lines = _text(path, fmt)
     lines, ends_in_newline = _lines(lines)
-    content = [(i, line) for i, line in enumerate(lines) if line.strip() and not line.startswith("#")]
+    _check_sep(next((line for line in lines if line.strip()), ""), fmt)
+    content = [(i, line) for i, line in enumerate(lines) if _content_line(line)]
     if not content:
         raise _file_error("no header row" if fmt.header == "row" else "no data rows")
     k = _start(content, fmt)
@@ -499,24 +487,42 @@ def read_delimited(path: Path, fmt: FileFormat | None = None, numeric: bool = Fa
         split_rows = (_split(line, "whitespace") for _, line in rows)
     else:
         split_rows = csv.reader([line for _, line in rows], delimiter=fmt.delimiter)
-    ragged, kept, reference = [], [], None
+    ragged, kept, reference, tail, cut = [], [], None, (None, None), None
     try:
         for (row, line), fields in zip(rows, split_rows):
             if len(fields) == len(names):
                 kept.append((row, line))
-                reference = reference or fields
+                reference, tail = reference or fields, (tail[1], fields)
             elif ragged_marker(fields, reference or _reference(rows, names, fmt.delimiter), fmt.decimal):
                 ragged.append((row, fields))
+            elif len(fields) < len(names) and row == len(rows) - 1 and not ends_in_newline:
+                cut = (row, fields)             # a rig that stopped while writing: the row is left out
             else:
                 raise _field_count_problem(names, row, fields, row == len(rows) - 1, ends_in_newline, fmt.delimiter)
     except csv.Error as exc:
         at = min(max(getattr(split_rows, "line_num", 1) - 1, 0), len(rows) - 1)
         raise _csv_problem(exc, names, at, rows[at][1], fmt.delimiter) from None
-    if rows and not ends_in_newline:
-        notes.append(f"no line end after the last row ({rows[-1][0]}): it may be cut off in its last value")
+    if rows and not ends_in_newline and cut is None:
+        last = kept and kept[-1][0] == rows[-1][0] and cut_off_last(tail[1], tail[0], fmt.decimal)
+        cut = (kept.pop()[0], tail[1]) if last else None
+        notes += [] if last else [f"no line end after the last row ({rows[-1][0]}): it may be cut off in its last "
+                                  "value"]
+    notes += [] if cut is None else [_cut_note(cut[0], cut[1], len(names))]
     frame = _frame([line for _, line in kept], names, fmt.delimiter, numeric, fmt.decimal)
     return _finish(frame, np.array([r for r, _ in kept], dtype="int64"), names, fmt.decimal, numeric, notes, ragged,
                    units)
+
+
+def _content_line(line: str) -> bool:
+    """A line that may be the header or a data row: not blank, no ``#`` comment, no Excel ``sep=`` line."""
+    return bool(line.strip()) and not line.startswith("#") and excel_sep(line) is None
+
+
+def _check_sep(first: str, fmt: FileFormat) -> None:
+    """Refuse a file whose Excel ``sep=X`` first line names another delimiter than ``fmt``'s."""
+    problem = sep_problem(first, fmt.delimiter)
+    if problem is not None:
+        raise problem
 
 
 def mts_decimal(first_line: str) -> str:
@@ -756,7 +762,7 @@ def sniff_format(path: str | Path, notes: list[str] | None = None, sheet: str | 
             notes.append(f"{Path(path).name}: not UTF-8; read as cp1252 (set `encoding:` in the csv block if "
                          "it is another)")
     text = text.lstrip("\ufeff")
-    lines = [line.rstrip("\r") for line in text.replace("\r\n", "\n").split("\n")]
+    lines = text.replace("\r\n", "\n").replace("\r", "\n").split("\n")        # lone CRs end lines too
     if lines and lines[0].startswith(MTS_MAGIC):
         try:
             decimal = mts_decimal(lines[0])
@@ -766,11 +772,12 @@ def sniff_format(path: str | Path, notes: list[str] | None = None, sheet: str | 
         header = next((line for line in lines[block + 1:] if line.strip()), "") if block is not None else ""
         return FileFormat(format="mts793", delimiter="\t" if "\t" in header or not header else "whitespace",
                           decimal=decimal, encoding=encoding, units_row=True)
-    content = [line for line in lines if line.strip() and not line.startswith("#")][:MAX_PREAMBLE_ROWS + 20]
+    content = [line for line in lines if _content_line(line)][:MAX_PREAMBLE_ROWS + 20]
     if not content:
         return FileFormat(encoding=encoding)
-    delimiter = ","
-    for lines_ in (content[:20], content[-min(10, max(1, len(content) // 2)):]):    # else (a preamble) the last
+    named = excel_sep(next((line for line in lines if line.strip()), ""))       # Excel's sep=; first line
+    delimiter = named or ","
+    for lines_ in () if named else (content[:20], content[-min(10, max(1, len(content) // 2)):]):  # or the last
         found = next((c for c in (",", ";", "\t", "|", "whitespace")
                       if len(counts := {len(_split(line, c)) for line in lines_}) == 1 and counts.pop() > 1), None)
         if found is not None:

@@ -45,6 +45,11 @@ MAX_UNPACKED_BYTES = 2_000_000_000
 MAX_UNPACK_RATIO = 200.0
 
 
+#: Leading bytes of binary formats a case file is sometimes mistaken for, with their names.
+BINARY_MAGIC = {b"\x1f\x8b": "gzip", b"PK\x03\x04": "zip (an .xlsx workbook?)", b"BZh": "bzip2",
+                b"\xfd7zXZ\x00": "xz", b"7z\xbc\xaf": "7-Zip", b"PAR1": "Parquet", b"\x89HDF": "HDF5",
+                b"\x89PNG": "PNG", b"%PDF": "PDF", b"\xd0\xcf\x11\xe0": "OLE (an .xls workbook?)"}
+
 class RawFileError(Exception):
     """A case file that cannot be read as a table. ``column``: the file's column name, or ``file`` (then
     ``kind`` is ``key``: the manifest's ``file`` key); ``row``: 0-based data row, None when no row is at fault."""
@@ -149,6 +154,40 @@ def _csv_problem(exc: csv.Error, names: list[str], row: int, line: str, delimite
             if "field limit" in str(exc) else f"unreadable row: {str(exc)[:120]}")
     column = names[longest] if longest < len(names) else "file"
     return RawFileError(column, what, row=row, kind="column" if column != "file" else "key")
+
+
+def _binary_problem(data: bytes, fmt) -> RawFileError | None:
+    """Binary data where text is expected: a known binary format by its leading bytes, or NUL bytes (under an
+    encoding other than UTF-16/32). The reason names the format, never the bytes."""
+    for magic, name in BINARY_MAGIC.items():
+        if data.startswith(magic):
+            return _file_error(f"binary data ({name}?), not a text table: unpack or export it as text first")
+    if not codecs.lookup(fmt.encoding).name.startswith(("utf-16", "utf-32")):
+        nul = data.find(b"\0", 0, 1 << 20)
+        if nul >= 0:
+            line_no = data.count(b"\n", 0, nul) + 1
+            return _file_error(f"binary data (a NUL byte in line {line_no}), not a text table (or UTF-16 without "
+                               "a byte-order mark: set `encoding: utf-16` in the manifest's csv block)")
+    return None
+
+
+def _units(names: list[str], line: str, delimiter: str) -> dict[str, str]:
+    """Column -> unit text of a units row (missing trailing cells are empty)."""
+    cells = [c.strip() for c in _split(line, delimiter)] if line.strip() else []
+    cells += [""] * (len(names) - len(cells))
+    if len(cells) > len(names):
+        raise _file_error(f"units row has {len(cells)} fields, the header {len(names)}")
+    return dict(zip(names, cells))
+
+
+def _check_names(names: list[str]) -> list[str]:
+    names = [name.strip() for name in names]
+    seen = set()
+    for name in names:
+        if name in seen:
+            raise RawFileError(name, "column name appears twice in the header")
+        seen.add(name)
+    return names
 
 
 def _positional(n: int) -> list[str]:
@@ -282,6 +321,69 @@ def marker_rows(frame, names: list[str], decimal: str = ".") -> np.ndarray:
         repeat &= (cells.astype(str).str.strip() == name).to_numpy(bool)
     empty = frame.isna().any(axis=1).to_numpy(bool)
     return np.flatnonzero((text & empty) | repeat)
+
+
+#: An Excel ``sep=;`` first line (Excel writes it, and reads it, to name the delimiter): the delimiter it names.
+_EXCEL_SEP = re.compile(r"\s*\"?sep=(.)\"?\s*")
+
+
+def excel_sep(line: str) -> str | None:
+    """The delimiter an Excel ``sep=X`` line names (``sep=;`` -> ``;``), None for any other line."""
+    match = _EXCEL_SEP.fullmatch(line.rstrip("\r\n"))
+    return match.group(1) if match and match.group(1) in ",;\t|" else None
+
+
+def sep_problem(line: str, delimiter: str) -> RawFileError | None:
+    """An Excel ``sep=X`` line naming another delimiter than the declared one (None when it agrees)."""
+    named = excel_sep(line)
+    if named is None or named == delimiter or (delimiter == "whitespace" and named == "\t"):
+        return None
+    said = "tabs" if named == "\t" else repr(named)
+    return _file_error(f"the file's first line {line.strip()!r} (Excel's) says fields are separated by {said}, the "
+                       f"manifest's csv block declares {delimiter!r}: set `delimiter: {named!r}` in the csv block")
+
+
+def cut_off_last(last: list[str], previous: list[str] | None, decimal: str = ".") -> bool:
+    """True when the last field of a file's last row, written without a line end, is visibly cut short: empty, ending
+    in the decimal mark, an exponent or a sign (``-1.``), or with fewer decimals than the row before's (``-1.2``
+    under ``-1.22``). A cut that leaves as many decimals is not seen."""
+    if not last:
+        return False
+    cell = str(last[-1]).strip()
+    before = str(previous[-1]).strip() if previous else ""
+    if not cell:
+        return bool(before)
+    if cell[-1] in (decimal, "e", "E", "+", "-") or not is_number(cell, decimal):
+        return True
+    return decimal in before and is_number(before, decimal) and _decimals(cell, decimal) < _decimals(before, decimal)
+
+
+def _cut_note(row: int, fields: list[str], want: int) -> str:
+    """The note for a last row cut off (no line end) and left out: short of fields, or in its last value."""
+    if len(fields) < want:
+        return (f"the last row ({row}) ends after {len(fields)} of {want} fields without a line end: the file is cut "
+                "off mid-row, the row left out")
+    return (f"the last row ({row}) ends in {str(fields[-1]).strip()[:MAX_QUOTED]!r} without a line end: cut off in "
+            "its last value, the row left out")
+
+
+def _cut_last(data: bytes, fmt, width: int, n_rows: int, bad: tuple[int, int] | None
+              ) -> list[str] | None:
+    """The fields of a file's last row when it is cut off (no line end after it; short of fields, the only such
+    row, or visibly cut in its last value: :func:`isokinetic.rawlayout.cut_off_last`), else None."""
+    body = data.rstrip(b"\r\n")
+    start = body.rfind(b"\n") + 1
+    fields = _split(body[start:].decode(fmt.encoding).rstrip("\r"), fmt.delimiter)
+    if bad is not None:
+        return fields if bad[1] == n_rows - 1 and len(fields) < width else None
+    previous = body[:max(start - 1, 0)].rstrip(b"\r\n")
+    before = _split(previous[previous.rfind(b"\n") + 1:].decode(fmt.encoding).rstrip("\r"), fmt.delimiter)
+    return fields if n_rows and cut_off_last(fields, before if n_rows > 1 else None, fmt.decimal) else None
+
+
+def _decimals(cell: str, decimal: str) -> int:
+    mantissa = re.split(r"[eE]", cell)[0]
+    return len(mantissa.split(decimal, 1)[1]) if decimal in mantissa else 0
 
 
 def ragged_marker(fields: list[str], reference: list[str] | None, decimal: str = ".") -> bool:

@@ -202,6 +202,10 @@ def test_csv_block_is_optional_and_reaches_every_case(raw_campaign):
     ({"delimiter": "|", "decimal": ","}, CsvDialect(delimiter="|", decimal=",")),
     ({"delimiter": ";"}, CsvDialect(delimiter=";", decimal=".")),
     ({}, CsvDialect(delimiter=",", decimal=".")),
+    ({"delimiter": ";", "decimal": ",", "thousands": "."},                                  # 1.5
+     CsvDialect(delimiter=";", decimal=",", thousands=".")),
+    ({"thousands": "space"}, CsvDialect(thousands=" ")),
+    ({"timezone": "Europe/Berlin"}, CsvDialect(timezone="Europe/Berlin")),
 ])
 def test_csv_block_keys_default_to_the_format(raw_campaign, block, dialect):
     raw_campaign.edit_manifest(_set(block, "csv"))
@@ -210,9 +214,13 @@ def test_csv_block_keys_default_to_the_format(raw_campaign, block, dialect):
 
 @pytest.mark.parametrize("block, key, words", [
     (";", "csv", "expected a mapping with keys format, delimiter, decimal, encoding, units_row, header, sheet, "
-                 "got ';'"),
-    ({"delimiter": ";", "thousands": "."}, "csv.thousands",
+                 "thousands, timezone, got ';'"),
+    ({"delimiter": ";", "thousand": "."}, "csv.thousand",
      "unknown key: the csv block declares only format, delimiter"),
+    ({"delimiter": ";", "decimal": ",", "thousands": ","}, "csv.thousands", "',' is the decimal mark"),
+    ({"thousands": ","}, "csv.thousands", "',' is the delimiter"),
+    ({"thousands": "_"}, "csv.thousands", "must be one of '.', ',', space or \"'\", got '_'"),
+    ({"timezone": "Europe/Atlantis"}, "csv.timezone", "unknown time zone 'Europe/Atlantis'"),
     ({"delimiter": ":"}, "csv.delimiter", "must be one of ',', ';', \"\\t\" (tab), '|' or whitespace, got ':'"),
     ({"delimiter": [";"]}, "csv.delimiter", "got [';']"),
     ({"delimiter": None}, "csv.delimiter", "got None"),

@@ -37,6 +37,15 @@ def test_the_units_of_format_1_3_are_still_accepted(raw_campaign):
             assert not _problems(), (channel, unit)
 
 
+@pytest.mark.parametrize("unit", ["hms", "excel_serial"])
+def test_clock_times_and_excel_serial_dates_are_time_units_of_1_5(raw_campaign, unit):
+    raw_campaign.edit_manifest(lambda m: m["columns"]["time"].update(unit=unit))
+    assert not _problems() and load_manifest(MANIFEST_FILE).cases[0].columns["time"].unit == unit
+    raw_campaign.edit_manifest(lambda m: m["columns"]["time"].update(scale=2.0))
+    with pytest.raises(ManifestError, match=f"key 'columns.time.scale': {unit} time is not scaled"):
+        load_manifest(MANIFEST_FILE)
+
+
 def test_a_voltage_declared_for_a_force_is_the_case_problem_naming_the_column(raw_campaign):
     raw_campaign.edit_manifest(lambda m: m["columns"]["force"].update(unit="V"))
     assert _problems() == [("column", "force_kN", "unit 'V' is a voltage unit (V), not a force unit; no known "

@@ -7,6 +7,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
+import pytest
 import yaml
 
 from isokinetic.__main__ import main
@@ -92,3 +95,87 @@ def test_check_reports_columns_other_than_the_role_choice_takes(campaign_copy):
     edit_manifest(campaign_copy, swap)
     for keys in findings(campaign_copy).values():
         assert {"columns.displacement", "columns.command"} <= set(keys)
+
+
+# --- issue 34: what spreadsheets and loggers write -----------------------------------------------------------
+
+def _rewritten(exported: Path, out: Path, layout, edit=None) -> Path:
+    """The exported campaign's files in ``layout``, each file's bytes then passed through ``edit``."""
+    from .layouts import rewrite_campaign
+
+    folder = rewrite_campaign(exported, out, layout)
+    for path in folder.glob("*.csv"):
+        path.write_bytes(edit(path.read_bytes()) if edit is not None else path.read_bytes())
+    return folder
+
+
+def _draft_then_check(folder: Path, capsys) -> str:
+    from isokinetic.init_campaign.draft import write_draft
+
+    write_draft(folder)
+    assert main(["init-campaign", "--check", str(folder)]) == 0, capsys.readouterr().out
+    return capsys.readouterr().out
+
+
+def test_check_of_its_own_decimal_comma_draft_agrees(exported, tmp_path, capsys):
+    """Before: AttributeError "Can only use .str accessor with string values!" on every decimal-comma campaign."""
+    from .layouts import LAYOUTS
+
+    layout = next(x for x in LAYOUTS if x.decimal == ",")
+    out = _draft_then_check(_rewritten(exported, tmp_path / "raw" / "lag", layout), capsys)
+    assert "3 of 3 cases agree" in out
+
+
+@pytest.mark.parametrize("edit", [lambda b: b.replace(b"\n", b"\r"),
+                                  lambda b: b"sep=;\r\n" + b.replace(b"\n", b"\r\n")], ids=["lone-cr", "excel-sep"])
+def test_draft_and_check_read_lone_cr_files_and_an_excel_sep_line(exported, tmp_path, capsys, edit):
+    """Before: a _csv.Error traceback (lone CRs); a refusal citing a manifest that did not exist yet (sep=;)."""
+    from .layouts import LAYOUTS
+
+    layout = next(x for x in LAYOUTS if x.delimiter == ";")
+    out = _draft_then_check(_rewritten(exported, tmp_path / "raw" / "lag", layout, edit), capsys)
+    assert "3 of 3 cases agree" in out
+
+
+def _with_time(folder: Path, cells) -> None:
+    """Every case file's time column (the first) rewritten by ``cells(seconds) -> list of text``."""
+    for path in folder.glob("*.csv"):
+        lines = path.read_text(encoding="utf-8").split("\n")
+        seconds = np.array([float(line.split(",")[0]) for line in lines[1:] if line])
+        new = cells(seconds)
+        path.write_text("\n".join([lines[0]] + [",".join([c] + line.split(",")[1:])
+                                                for c, line in zip(new, lines[1:])]) + "\n", encoding="utf-8")
+
+
+@pytest.mark.parametrize("cells, unit", [
+    (lambda s: [(pd.Timestamp("2024-05-01T10:00:00") + pd.Timedelta(seconds=x)).strftime("%H:%M:%S.%f")
+                for x in s], "hms"),
+    (lambda s: [f"{45413.5 + x / 86400.0:.12f}" for x in s], "excel_serial"),
+], ids=["hms", "excel-serial"])
+def test_clock_times_and_excel_serial_dates_are_drafted_as_time(exported, tmp_path, capsys, cells, unit):
+    """Before: "does not increase from row to row" (HH:MM:SS.fff) and "no plausible unit" (Excel serial dates)."""
+    from isokinetic.contracts.manifest import load_manifest
+
+    from .layouts import LAYOUTS
+
+    folder = _rewritten(exported, tmp_path / "raw" / "lag", LAYOUTS[0])
+    _with_time(folder, cells)
+    out = _draft_then_check(folder, capsys)
+    assert load_manifest(folder / "campaign.yaml").columns["time"].unit == unit
+    assert "3 of 3 cases agree" in out
+
+
+def test_local_stamps_across_a_fall_back_are_not_drafted_as_sure(exported, tmp_path):
+    """Before: sample_rate_Hz: -1.1, "sure", every case free. Now the file is not a case, its reason names the
+    jump and the key to set."""
+    from isokinetic.init_campaign.draft import write_draft
+
+    from .layouts import LAYOUTS
+
+    folder = _rewritten(exported, tmp_path / "raw" / "lag", LAYOUTS[0])
+    utc = pd.Timestamp("2024-10-27T00:59:58Z")        # every record crosses 03:00 CEST -> 02:00 CET
+    _with_time(folder, lambda s: [(utc + pd.Timedelta(seconds=x)).tz_convert("Europe/Berlin").tz_localize(None)
+                                  .isoformat(timespec="microseconds") for x in s])
+    with pytest.raises(ValueError) as info:
+        write_draft(folder)
+    assert "a daylight-saving fall-back" in str(info.value) and "timezone: Europe/Berlin" in str(info.value)

@@ -143,7 +143,6 @@ def test_unusable_files_are_listed_commented_out_with_their_reason(exported, tmp
     (folder / "T16.csv").write_bytes((exported / "T16.csv").read_bytes())
     (folder / "empty.csv").write_bytes(b"")
     (folder / "utf16.csv").write_bytes("time_s,disp_mm\n0,1\n".encode("utf-16"))
-    (folder / "cut.csv").write_bytes((exported / "T22.csv").read_bytes()[:3001])
     (folder / "dup.csv").write_text("time_s,time_s,force_kN\n0,0,1\n", encoding="utf-8")
     (folder / "nodisp.csv").write_text("time_s,force_kN\n" + "".join(f"{i / 100},1\n" for i in range(50)),
                                        encoding="utf-8")
@@ -155,10 +154,9 @@ def test_unusable_files_are_listed_commented_out_with_their_reason(exported, tmp
     assert set(after) - set(before) == {f"{CAMPAIGN}/campaign.yaml"}
     assert all(after[k] == v for k, v in before.items())
     reasons = {f.file: f.problem for f in survey.files if not f.ok}
-    assert set(reasons) == {"empty.csv", "utf16.csv", "cut.csv", "dup.csv", "nodisp.csv", "outside.csv"}
+    assert set(reasons) == {"empty.csv", "utf16.csv", "dup.csv", "nodisp.csv", "outside.csv"}
     assert "empty file" in reasons["empty.csv"]
     assert "only 1 samples" in reasons["utf16.csv"]          # read (its byte-order mark says UTF-16), too short
-    assert "cut off mid-row" in reasons["cut.csv"]
     assert "column name appears twice" in reasons["dup.csv"]
     assert "no displacement column" in reasons["nodisp.csv"]
     assert "outside the campaign folder" in reasons["outside.csv"]

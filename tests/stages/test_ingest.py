@@ -40,6 +40,14 @@ def test_good_campaign(raw_campaign):
     assert t02["time_s"].iloc[-1] == pytest.approx(3.99)
 
 
+def set_cells(rows, column: str, value: str):
+    """A table edit: ``column`` of every row in ``rows`` replaced (more than a partial record's damage)."""
+    def edit(table: pd.DataFrame) -> pd.DataFrame:
+        table.loc[list(rows), column] = value
+        return table
+    return edit
+
+
 def _drop_column(name):
     return lambda t: t.drop(columns=name)
 
@@ -53,8 +61,8 @@ def _rename_column(old, new):
      "column not in the file (header: time_s, disp_mm, cmd_mm, temp_C)"),
     ("T02", _rename_column("disp_mm", "disp_MM"), "disp_mm", None,   # T02's columns are in reverse order
      "column not in the file (header: temp_C, cmd_mm, force_kN, disp_MM, time_s)"),
-    ("T02", set_cell(17, "force_kN", "abc"), "force_kN", 17, "non-numeric value 'abc'"),
-    ("H01", set_cell(0, "time_s", "0,0"), "time_s", 0, "non-numeric value '0,0'"),
+    ("T02", set_cells(range(17, 30), "force_kN", "abc"), "force_kN", 17, "non-numeric value 'abc'"),
+    ("H01", set_cells(range(10), "time_s", "0,0"), "time_s", 0, "non-numeric value '0,0'"),
 ], ids=["missing-column", "misnamed-column", "non-numeric", "decimal-comma"])
 def test_bad_column_quarantines_only_its_case(raw_campaign, case, edit, column, row, message):
     raw_campaign.edit_table(case, edit)
@@ -113,7 +121,7 @@ def test_broken_manifest_fails_the_campaign(raw_campaign):
 
 
 def test_quarantine_is_logged(raw_campaign, caplog):
-    raw_campaign.edit_table("T01", set_cell(3, "disp_mm", "n/a?"))
+    raw_campaign.edit_table("T01", set_cells(range(3, 13), "disp_mm", "n/a?"))
     with caplog.at_level(logging.WARNING, logger="isokinetic"):
         raw_campaign.run()
     assert "campaign demo, case T01, column 'disp_mm', row 3: non-numeric value 'n/a?'" in caplog.text

@@ -144,28 +144,28 @@ def _set_field(index: int, value: bytes):
     return edit
 
 
-def _cut_last_row(data: bytes) -> bytes:
-    """The file cut off in the third field of its last row (no line end)."""
-    body, last = data.rstrip(b"\n").rsplit(b"\n", 1)
-    fields = last.split(b";")
-    return body + b"\n" + b";".join(fields[:2]) + b";" + fields[2][:3]
+def _edit_rows(case: str, rows, edit):
+    """:func:`_edit_row` on every row of ``rows`` (more than a partial record's damage: refused, naming the first)."""
+    def apply(data: bytes) -> bytes:
+        for row in rows:
+            data = _edit_row(case, row, edit)[1](data)
+        return data
+    return case, apply
 
 
 DOT_NOTE = (": the manifest's csv block declares ',' as the decimal mark, and a '.' is not read (a thousands "
-            "separator? a file written with '.' decimals?)")
+            "separator? declare `thousands: '.'` in the csv block; a file written with '.' decimals?)")
 
 
 @pytest.mark.parametrize("edit, case, column, row, message", [
     (_edit_row("T01", 7, lambda f: f[:-1]), "T01", "temp_C", 7, "row ends after 4 of 5 fields: a ragged row"),
     (_edit_row("T01", 7, lambda f: f + [b"1"]), "T01", "file", 7, "row has 6 fields, the header 5"),
-    (("T02", _cut_last_row), "T02", "disp_mm", 399,            # T02: temp_C;cmd_mm;force_kN;disp_mm;time_s
-     "row ends after 3 of 5 fields: the file is cut off mid-row"),
-    (_edit_row("T01", 12, _set_field(2, b"1.234,5")), "T01", "force_kN", 12, "non-numeric value '1.234,5'" + DOT_NOTE),
-    (_edit_row("H01", 3, _set_field(1, b"0.25")), "H01", "disp_mm", 3, "non-numeric value '0.25'" + DOT_NOTE),
-    (_edit_row("H01", 3, _set_field(1, b"0,2,5")), "H01", "disp_mm", 3, "non-numeric value '0,2,5'"),
+    (_edit_rows("H01", range(3, 13), _set_field(1, b"0.25")), "H01", "disp_mm", 3,
+     "non-numeric value '0.25'" + DOT_NOTE),
+    (_edit_rows("H01", range(3, 13), _set_field(1, b"0,2,5")), "H01", "disp_mm", 3, "non-numeric value '0,2,5'"),
     (_edit_row("T02", 30, _set_field(2, b"0,5\xb5")), "T02", "force_kN", 30,
      "not UTF-8: byte 0xb5 in b'0,5\\xb5'" + HINT),
-], ids=["ragged", "extra-field", "cut-off", "thousands-separator", "dot-decimal", "two-commas", "not-utf8"])
+], ids=["ragged", "extra-field", "dot-decimal", "two-commas", "not-utf8"])
 def test_damage_in_a_semicolon_file_names_row_and_column(raw_campaign, baseline, edit, case, column, row, message):
     respell_campaign(raw_campaign.raw_dir, ";", ",")
     name, apply = edit
@@ -213,3 +213,62 @@ def test_time_stamps_with_decimal_comma_seconds(tmp_path, monkeypatch):
     assert dots.quarantine.empty and commas.quarantine.empty
     pd.testing.assert_frame_equal(commas.timeseries("C1"), dots.timeseries("C1"), check_exact=True)
     assert commas.timeseries("C1")["time_s"].iloc[-1] == pytest.approx(0.11)
+
+
+def _grouped(value: float, decimals: int) -> str:
+    """``value`` written as a German spreadsheet does: '.' between thousands, ',' as the decimal mark."""
+    return f"{value:,.{decimals}f}".replace(",", "_").replace(".", ",").replace("_", ".")
+
+
+def _force_in_mN(raw_campaign, decimals: int, csv_block: dict) -> None:
+    """Every case's force column rewritten in mN with thousands separators (``273.239,531``), ';' and ','."""
+    respell_campaign(raw_campaign.raw_dir, ";", ",")
+    for path in sorted(raw_campaign.raw_dir.glob("*.csv")):
+        lines = path.read_text(encoding="utf-8").split("\n")
+        k = next(i for i, line in enumerate(lines) if line and not line.startswith("#"))
+        names = lines[k].split(";")
+        force = next(i for i, n in enumerate(names) if n.startswith("force"))
+        names[force] = names[force].replace("_kN", "_mN")
+        lines[k] = ";".join(names)
+        for i in range(k + 1, len(lines)):
+            if lines[i]:
+                fields = lines[i].split(";")
+                fields[force] = _grouped(float(fields[force].replace(",", ".")) * 1e6, decimals)
+                lines[i] = ";".join(fields)
+        path.write_text("\n".join(lines), encoding="utf-8")
+
+    def edit(m):
+        m["csv"] = csv_block
+        m["columns"]["force"] = {"name": "force_mN", "unit": "mN"}
+        raw_campaign.case_entry(m, "T03")["columns"]["force"]["name"] = "force_inv_mN"
+    raw_campaign.edit_manifest(edit)
+
+
+def _same_forces(raw_campaign, baseline) -> None:
+    cases, quarantine = raw_campaign.run()
+    assert quarantine.empty, quarantine["reason"].tolist()
+    for row in cases.itertuples():
+        series = pd.read_parquet(raw_campaign.root / row.timeseries_file)
+        pd.testing.assert_frame_equal(series, baseline[row.case], check_exact=False, rtol=1e-9)
+
+
+def test_thousands_separators_are_read_where_unambiguous(raw_campaign, baseline):
+    """``273.239,5310000`` under a decimal comma: a '.' before three digits and a decimal part can only group thousands
+    (before: "non-numeric value", the case set aside)."""
+    _force_in_mN(raw_campaign, 7, {"delimiter": ";", "decimal": ","})
+    assert "." in (raw_campaign.raw_dir / "T01.csv").read_text(encoding="utf-8").split("\n")[4].split(";")[2]
+    _same_forces(raw_campaign, baseline)
+
+
+def test_declared_thousands_separator_reads_whole_numbers(raw_campaign, baseline):
+    """``273.240`` (whole mN) under a decimal comma is ambiguous: read as 273240 only with `thousands: '.'`."""
+    _force_in_mN(raw_campaign, 0, {"delimiter": ";", "decimal": ","})
+    cases, quarantine = raw_campaign.run()
+    assert set(quarantine["case"]) == {"T01", "T02", "T03", "H01", "F01"}
+    assert "declare `thousands: '.'` in the csv block" in quarantine["reason"].iloc[0]
+    raw_campaign.edit_manifest(lambda m: m["csv"].update(thousands="."))
+    cases, quarantine = raw_campaign.run()
+    assert quarantine.empty, quarantine["reason"].tolist()
+    for row in cases.itertuples():           # whole mN: within half a mN of the baseline's force
+        series = pd.read_parquet(raw_campaign.root / row.timeseries_file)
+        assert (series["force_N"] - baseline[row.case]["force_N"]).abs().max() <= 5.0001e-4

@@ -83,6 +83,7 @@ from isokinetic.contracts.problem import Problem
 from isokinetic.physics.damper import Damper
 from isokinetic.physics.plan import WAVEFORMS, CasePlan
 from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
+from isokinetic.timestamps import TIME_STAMPS, TIME_TEXT_UNITS  # noqa: F401  (TIME_STAMPS: re-exported)
 from isokinetic.units import Unit, UnitError, parse_unit
 
 FORMAT_VERSION = 1
@@ -99,8 +100,8 @@ MAX_CASE_ID_LENGTH = 64
 #: ``cm``, ``daN``, ``Sec``, ``degC``, ...). The temperature channel is kept in degrees Celsius.
 CHANNEL_DIMENSIONS = {"time": "time", "displacement": "length", "force": "force", "command": "length",
                       "temperature": "temperature"}
-#: The time unit of ISO 8601 stamps (seconds from the first sample), the one unit that is no pint unit.
-TIME_STAMPS = "datetime"
+#: The time units that are no pint unit (seconds from the first sample, :mod:`isokinetic.timestamps`): ISO 8601
+#: stamps (``datetime``, TIME_STAMPS), clock times (``hms``) and Excel serial dates (``excel_serial``), format 1.5.
 #: Plausible temperatures of a damper under test [C] (cold tests to beyond any oil's flash point); a value
 #: outside is a unit error: any temperature above -73 C written in K and declared as C lies above it.
 TEMPERATURE_RANGE_C = (-60.0, 200.0)
@@ -251,8 +252,8 @@ def channel_unit(channel: str, unit: str) -> Unit:
 
 def si_conversion(channel: str, column: Column) -> tuple[float, float] | None:
     """(factor, offset) taking a column's raw numbers to the channel's internal unit (SI; temperatures in C):
-    the column's ``scale``/``offset`` (1.4) then its unit's; None for ISO 8601 stamps."""
-    if column.unit == TIME_STAMPS:
+    the column's ``scale``/``offset`` (1.4) then its unit's; None for time stamps, clock times, serial dates."""
+    if column.unit in TIME_TEXT_UNITS:
         return None
     unit = channel_unit(channel, column.unit)
     return column.scale * unit.scale, column.offset * unit.scale + unit.offset
@@ -300,8 +301,8 @@ def _scale_problems(key: str, spec: Mapping) -> list[Problem]:
         if spec.get(field_name) is None:
             continue
         value = number(spec[field_name])
-        if spec.get("unit") == TIME_STAMPS:
-            problems.append(Problem(f"{key}.{field_name}", "ISO 8601 stamps are not scaled", kind="key"))
+        if spec.get("unit") in TIME_TEXT_UNITS:
+            problems.append(Problem(f"{key}.{field_name}", f"{spec['unit']} time is not scaled", kind="key"))
         elif value is None or (value == 0 and not zero_ok):
             what = "a finite, non-zero number" if not zero_ok else "a finite number"
             problems.append(Problem(f"{key}.{field_name}", f"must be {what} (value = raw x scale + offset, in the "
@@ -325,7 +326,7 @@ def column_problems(channel: str, spec, headerless: bool = False) -> list[Proble
     problems = []
     if "unit" not in spec:
         problems.append(Problem(f"{key}.unit", "missing", kind="key"))
-    elif not (channel == "time" and unit == TIME_STAMPS):
+    elif not (channel == "time" and unit in TIME_TEXT_UNITS):
         try:
             channel_unit(channel, unit)
         except UnitError as exc:
@@ -347,7 +348,7 @@ def _column_of(channel: str, spec: Mapping, headerless: bool = False) -> Column:
     """A channel's Column (its problems checked already), its unit spelled by its canonical symbol (``Sec`` ->
     ``s``, ``lbs`` -> ``lbf``, ``°C`` -> ``degC``)."""
     unit = spec.get("unit")
-    if unit != TIME_STAMPS:
+    if unit not in TIME_TEXT_UNITS:
         try:
             unit = channel_unit(channel, unit).symbol
         except UnitError:       # the manifest's columns as written: each case using it reports the unit

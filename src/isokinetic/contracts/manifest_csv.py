@@ -3,8 +3,9 @@ written, parsed to a :class:`isokinetic.rawfile.FileFormat`, and the near-miss c
 
 Format 1.1: ``delimiter`` and ``decimal``; 1.2: ``format`` (``mts793``), ``encoding``, ``units_row``; 1.4:
 ``header`` (``none``: a headerless file, columns named by position), ``format: xlsx`` and ``sheet`` (a
-spreadsheet export). A malformed block refuses the campaign (:class:`ManifestError`), naming the key. Split from
-:mod:`isokinetic.contracts.manifest`, which re-exports these names.
+spreadsheet export); 1.5: ``thousands`` (a thousands separator: ``.`` ``,`` a space or ``'``) and ``timezone`` (the
+zone of local ISO 8601 stamps, an IANA name). A malformed block refuses the campaign (:class:`ManifestError`),
+naming the key. Split from :mod:`isokinetic.contracts.manifest`, which re-exports these names.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from collections.abc import Mapping
 
 from isokinetic.contracts.manifest_yaml import ManifestError
 from isokinetic.rawfile import FORMATS as FILE_FORMATS
-from isokinetic.rawfile import FileFormat
+from isokinetic.rawfile import THOUSANDS, FileFormat
 
 #: How alike (difflib ratio, lower case) an unknown key must be to a known one to be warned about as a slip.
 NEAR_MISS_RATIO = 0.8
@@ -28,7 +29,8 @@ CSV_TAB_SPELLINGS = ("\\t", "tab")
 CSV_DECIMALS = (".", ",")
 #: A csv block's ``header`` (1.4): a header row (after any preamble), or none (columns named by position).
 HEADER_KINDS = ("row", "none")
-CSV_KEYS = ("format", "delimiter", "decimal", "encoding", "units_row", "header", "sheet")     # header, sheet: 1.4
+CSV_KEYS = ("format", "delimiter", "decimal", "encoding", "units_row", "header", "sheet",     # header, sheet: 1.4
+            "thousands", "timezone")                                                        # 1.5
 #: The case files' format declared by a manifest's ``csv`` block: :class:`isokinetic.rawfile.FileFormat`
 #: (format 1.1: delimiter and decimal mark; 1.2: format, encoding, units row).
 CsvDialect = FileFormat
@@ -126,7 +128,38 @@ def csv_dialect(block, where: str) -> CsvDialect | None:
         raise ManifestError(where, "csv.units_row", "an mts793 export always has a units row")
     header, sheet = _csv_layout(block, fmt, units_row, where)
     return FileFormat(format=fmt, delimiter=delimiter, decimal=decimal, encoding=encoding, units_row=units_row,
-                      header=header, sheet=sheet)
+                      header=header, sheet=sheet, thousands=_csv_thousands(block, delimiter, decimal, where),
+                      timezone=_csv_timezone(block.get("timezone"), where))
+
+
+def _csv_thousands(block: Mapping, delimiter: str, decimal: str, where: str) -> str | None:
+    """The csv block's ``thousands`` (1.5): a separator of :data:`isokinetic.rawfile.THOUSANDS` (``space`` spells a
+    space), neither the decimal mark nor the delimiter; None when absent."""
+    value = block.get("thousands")
+    if value is None:
+        return None
+    value = " " if value == "space" else value
+    if value not in THOUSANDS:
+        raise ManifestError(where, "csv.thousands", f"must be one of '.', ',', space or \"'\", got {value!r}")
+    if value in (decimal, delimiter):
+        what = "decimal mark" if value == decimal else "delimiter"
+        raise ManifestError(where, "csv.thousands", f"{value!r} is the {what}: a thousands separator must be another "
+                                                    "character")
+    return value
+
+
+def _csv_timezone(value, where: str) -> str | None:
+    """The csv block's ``timezone`` (1.5): the IANA zone local ISO 8601 stamps were written in; None when absent."""
+    if value is None:
+        return None
+    import zoneinfo
+
+    try:
+        zoneinfo.ZoneInfo(str(value).strip())
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise ManifestError(where, "csv.timezone", f"unknown time zone {value!r}: give an IANA name (Europe/Berlin, "
+                                                   "America/Chicago, UTC)") from None
+    return str(value).strip()
 
 
 def _csv_layout(block: Mapping, fmt: str, units_row: bool, where: str) -> tuple[str, str | None]:
@@ -146,7 +179,7 @@ def _csv_layout(block: Mapping, fmt: str, units_row: bool, where: str) -> tuple[
     if sheet is not None and (not isinstance(sheet, str) or not sheet.strip()):
         raise ManifestError(where, "csv.sheet", f"must be a worksheet's name, got {sheet!r}")
     if fmt == "xlsx":
-        extra = [k for k in ("delimiter", "decimal", "encoding") if k in block]
+        extra = [k for k in ("delimiter", "decimal", "encoding", "thousands") if k in block]
         if extra:
             raise ManifestError(where, f"csv.{extra[0]}", "an xlsx workbook has no delimiter, decimal mark or "
                                                           "encoding: leave the key out")

@@ -34,7 +34,8 @@ from isokinetic.init_campaign.survey import case_files, relative_name, sample_ra
 from isokinetic.init_campaign.waveform import SNAP_FRACTION, Waveform, detect_waveform
 from isokinetic.measurement.motion import noise_level
 from isokinetic.measurement.sampling import SAMPLE_RATE_TOLERANCE, rate_offset
-from isokinetic.stages.ingest import CaseFileError, FileCache, canonical_timeseries, slice_rows
+from isokinetic.stages.ingest import CaseFileError, FileCache, case_series, slice_rows
+from isokinetic.timestamps import TIME_TEXT_UNITS
 
 #: A detected period or frequency further than this fraction (and four standard errors) from the plan disagrees:
 #: windows are cut from the planned period, and 1e-4 of it is under a sample interval at the end of a record.
@@ -95,7 +96,7 @@ def unit_choices(records: list[Record]) -> dict[tuple[str, str, str], ch.UnitCho
     scores: dict[tuple[str, str, str], list[dict[str, float]]] = {}
     for r in records:
         for channel, column in r.spec.columns.items():
-            if channel not in ch.DIMENSION or column.unit == "datetime":
+            if channel not in ch.DIMENSION or column.unit in TIME_TEXT_UNITS:
                 continue
             data = parse_column(column.name, r.raw[column.name], r.decimal)
             if data.numbers is None:
@@ -172,14 +173,13 @@ def read_record(folder: Path, spec: CaseSpec, cache: FileCache | None = None) ->
     span, _, problem = slice_rows(spec, table, cache, path)
     if problem is not None:
         return None, [Finding(problem.column, "", f"ingest: {problem.message}")]
-    first, stop = span if span is not None else (0, len(table.frame))
-    raw = table.frame.iloc[first:stop].reset_index(drop=True)
-    df, problems = canonical_timeseries(raw, spec.columns, table.decimal)
+    df, problems, _, _ = case_series(table, span, spec)      # a partial record's damaged rows left out, as ingest
     if problems:
         return None, [Finding(f"column {p.column!r}", "", f"ingest: {p.message}") for p in problems]
     t = df["time_s"].to_numpy()
     if t.size < 2 or not np.all(np.diff(t) > 0):
         return None, [Finding("columns.time", spec.columns["time"].name, "time does not increase")]
+    raw = table.frame.iloc[np.searchsorted(table.rows, df["row"].to_numpy())].reset_index(drop=True)
     return Record(spec, raw, t, dict(table.units), table.decimal, df), []
 
 

@@ -16,32 +16,42 @@ import pandas as pd
 from isokinetic.rawfile import FileFormat, RawFileError, SheetError, all_numbers, sheet_rows, sniff_format
 from isokinetic.stages.ingest import decimal_point
 from isokinetic.stages.validate import MIN_SAMPLES
+from isokinetic.timestamps import TIME_STAMPS, hms_seconds, iso_seconds, looks_hms
 
 
 @dataclass(frozen=True)
 class ColumnData:
-    """One column of a case file: numbers (NaN where a cell is not one), or seconds from ISO 8601 stamps."""
+    """One column of a case file: numbers (NaN where a cell is not one), or seconds from ISO 8601 stamps or clock
+    times (``time_unit``: ``datetime`` or ``hms``); ``problem``: why a column of stamps gives no time axis (a
+    daylight-saving step back of local stamps), "" when none."""
 
     name: str
     numbers: np.ndarray | None      # None when most cells are not numbers
-    stamps_s: np.ndarray | None     # seconds from the first stamp when the cells are ISO 8601 stamps
+    stamps_s: np.ndarray | None     # seconds from the first stamp when the cells are ISO 8601 stamps or clock times
     numeric_fraction: float
     rows: int = 0
+    time_unit: str | None = None
+    problem: str = ""
 
 
 def parse_column(name: str, raw: pd.Series, decimal: str) -> ColumnData:
-    """A column of text cells as numbers (decimal mark ``decimal``) or as ISO 8601 time stamps."""
-    text = raw if decimal == "." else decimal_point(raw)
+    """A column of text cells as numbers (decimal mark ``decimal``; thousands separators where unambiguous,
+    :func:`isokinetic.stages.ingest.decimal_point`), as clock times ``HH:MM:SS.fff`` or as ISO 8601 time stamps
+    (:mod:`isokinetic.timestamps`: local stamps stepping back an hour are no time axis, ``problem`` says why)."""
+    text = decimal_point(raw, decimal)
     numbers = pd.to_numeric(text, errors="coerce").to_numpy(float)
     filled = max(int(raw.notna().sum()), 1)
     fraction = float(np.isfinite(numbers).sum()) / filled
     if fraction >= 0.99:
         return ColumnData(name, numbers, None, fraction, len(raw))
+    if len(raw) and raw.notna().all() and looks_hms(raw):
+        return ColumnData(name, None, hms_seconds(raw), fraction, len(raw), "hms")
     stamps_text = raw if decimal == "." else raw.astype(object).str.replace(",", ".", regex=False)
-    stamps = pd.to_datetime(stamps_text, format="ISO8601", utc=True, errors="coerce")
-    if len(raw) and stamps.notna().all():
-        seconds = (stamps - stamps.iloc[0]).dt.total_seconds().to_numpy(float)
-        return ColumnData(name, None, seconds, fraction, len(raw))
+    seconds, problem = iso_seconds(stamps_text) if len(raw) and raw.notna().all() else (np.empty(0), None)
+    if len(raw) and seconds.size and np.isfinite(seconds).all():
+        if problem is not None:
+            return ColumnData(name, None, None, fraction, len(raw), TIME_STAMPS, f"row {problem[0]}: {problem[1]}")
+        return ColumnData(name, None, seconds, fraction, len(raw), TIME_STAMPS)
     return ColumnData(name, None, None, fraction, len(raw))
 
 

@@ -42,6 +42,7 @@ from isokinetic.init_campaign.waveform import Estimate, Waveform, detect_wavefor
 from isokinetic.measurement.sampling import SPAN_STEPS, sample_interval_error_s, sample_interval_s
 from isokinetic.rawfile import DELIMITERS, FileFormat, RawFileError, read_raw_table, sniff_format
 from isokinetic.stages.validate import MIN_SAMPLES
+from isokinetic.timestamps import excel_seconds, looks_excel_serial
 
 #: File name endings taken as case files (any case).
 CASE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".xlsx")
@@ -262,6 +263,10 @@ def read_file(survey: FileSurvey, path: Path, folder: Path) -> None:
     survey.units_row = {name: unit for name, unit in table.units.items() if unit}
     survey.warnings += table.warnings
     survey.data = {str(name): parse_column(str(name), table.frame[name], table.decimal) for name in table.frame.columns}
+    broken = next(((name, d.problem) for name, d in survey.data.items() if d.problem), None)
+    if broken is not None:
+        survey.problem = f"cannot use column {broken[0]!r} as time: {broken[1]}"
+        return
     rows = len(table.frame)
     if rows < MIN_SAMPLES:
         survey.problem = f"only {rows} samples, at least {MIN_SAMPLES} needed"
@@ -478,7 +483,12 @@ def unit_for(channel: str, name: str, files: list[FileSurvey]) -> ch.UnitChoice:
     clearly disagree are noted), else the most plausible from the magnitudes of every file that has it."""
     with_it = [f for f in files if f.ok and f.roles.get(channel) == name]
     if channel == "time" and all(f.data[name].stamps_s is not None for f in with_it):
-        return ch.UnitChoice("datetime", "sure", "ISO 8601 time stamps")
+        units = {f.data[name].time_unit for f in with_it}
+        unit = units.pop() if len(units) == 1 else "datetime"
+        return ch.UnitChoice(unit, "sure", "clock times HH:MM:SS.fff" if unit == "hms" else "ISO 8601 time stamps")
+    if channel == "time" and with_it and all(looks_excel_serial(f.data[name].numbers) for f in with_it):
+        return ch.UnitChoice("excel_serial", "sure", "Excel serial dates (days since 1899-12-30, steps under "
+                                                     "a second)")
     magnitudes = ch.choose_unit([ch.unit_scores(channel, f.data[name].numbers, f.time_s) for f in with_it
                                  if f.data[name].numbers is not None])
     sample = with_it[0] if with_it else None
@@ -503,6 +513,8 @@ def time_in_seconds(survey: FileSurvey, unit: str | None) -> np.ndarray | None:
     data = survey.data[survey.roles["time"]]
     if data.stamps_s is not None:
         return data.stamps_s
+    if unit == "excel_serial":
+        return excel_seconds(data.numbers)
     return None if unit is None else ch.to_si(data.numbers, unit)
 
 

@@ -44,6 +44,7 @@ import dataclasses
 import datetime as dt
 import logging
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -68,6 +69,7 @@ from isokinetic.io import sha256_file
 from isokinetic.rawfile import FOREIGN_BOMS as FOREIGN_BOMS  # re-exported for init_campaign
 from isokinetic.rawfile import FileFormat, RawFileError, RawTable, read_raw_table
 from isokinetic.stages.validate import quarantine_frame, quarantine_rows, timeseries_problems
+from isokinetic.timestamps import TIME_TEXT_UNITS, time_seconds
 from isokinetic.units import UnitError, parse_unit, unit_in_name
 
 log = logging.getLogger("isokinetic")
@@ -86,6 +88,16 @@ MAX_SPEED_M_S = 100.0
 #: the plan's required record, or of its samples at the planned rate) is trimmed there, with a note: a broken last
 #: time stamp (1e308 s, a year typo in an ISO stamp) must not make later stages work over centuries of record.
 MAX_RECORD_SPAN_FACTOR = 10.0
+#: A partial record (issue 34): rows with a blank or unreadable cell, or repeating the time stamp before, are left
+#: out when they are at most this fraction of the record (a crash, a glitch); more is a column or a file read
+#: wrongly, refused naming the first.
+MAX_DAMAGED_FRACTION = 0.01
+#: Longest unreadable cell taken for a glitch (a units row, ``n/a``, ``-1.2.3``); a longer one is refused, named.
+MAX_DAMAGED_CELL_CHARS = 40
+#: A displacement column is a velocity when the command's derivative leaves at most VELOCITY_RESIDUAL (rms, relative)
+#: of it and the command itself more than COMMAND_RESIDUAL (a displacement follows its command to a few %).
+#: (A displacement lagging a sine command by more than 72 degrees would look like one too: no working rig's does.)
+VELOCITY_RESIDUAL, COMMAND_RESIDUAL = 0.3, 0.9
 #: Longest reason text kept from a reader's refusal (characters): short, never a byte dump.
 MAX_REASON_CHARS = 200
 #: Texts that mean a non-finite value on purpose (reported as such, not as an overflow).
@@ -132,46 +144,76 @@ def read_case_table(path: str | Path, fmt: FileFormat | None = None, numeric: bo
                                     kind="key")) from None
 
 
-def decimal_point(raw: pd.Series) -> pd.Series:
-    """Text numbers written with a decimal comma, rewritten with '.' for parsing: ``-0,25`` -> ``-0.25``,
-    ``1,5E-3`` -> ``1.5E-3``. A value holding a '.' becomes NaN (refused by :func:`to_si`): ``1.234,5``
-    has a thousands separator, ``1.5`` was written with '.' decimals; neither is guessed. Cells the reader
-    already parsed as numbers (a column numeric in one chunk of a large file, text in another) stay as they are."""
+def _grouping(decimal: str, thousands: str | None) -> re.Pattern:
+    """A number grouped by thousands separators: the declared ``thousands`` (an optional decimal part), or, none
+    declared, the other of '.' and ',' followed by a decimal part (``1.234,5``, ``1,234.5``: unambiguous)."""
+    sep = re.escape(thousands if thousands is not None else "," if decimal == "." else ".")
+    fraction = rf"(?:{re.escape(decimal)}\d*)" + ("?" if thousands is not None else "")
+    return re.compile(rf"[+-]?\d{{1,3}}(?:{sep}\d{{3}})+{fraction}(?:[eE][+-]?\d+)?")
+
+
+def decimal_point(raw: pd.Series, decimal: str = ",", thousands: str | None = None) -> pd.Series:
+    """Text numbers rewritten for parsing with '.' decimals and no thousands separators: ``-0,25`` -> ``-0.25``,
+    ``1,5E-3`` -> ``1.5E-3``, ``1.234,5`` -> ``1234.5`` (grouped by :func:`_grouping`: the declared separator, or
+    the other mark before a decimal part). Under a decimal comma any other value holding a '.' becomes NaN
+    (refused by :func:`to_si`): ``1.5`` may be a '.' file declared ',', ``1.234`` a thousand; neither is guessed.
+    Cells the reader already parsed as numbers (a number column, or a column numeric in one chunk of a large file,
+    text in another) stay as they are."""
+    if pd.api.types.is_numeric_dtype(raw):
+        return raw
     text = raw.astype(object)
-    dotted = text.str.contains(".", regex=False, na=False).astype(bool)
-    out = text.str.replace(",", ".", regex=False).mask(dotted)
-    strings = text.map(lambda v: isinstance(v, str)).astype(bool)
-    return out if strings.all() else out.where(strings | text.isna(), text)
+    strings = text.map(lambda v: isinstance(v, str)).to_numpy(bool)
+    if not strings.any():
+        return text
+    cells = pd.Series(np.where(strings, text, ""), index=text.index, dtype=object).str.strip()
+    grouped = cells.str.fullmatch(_grouping(decimal, thousands)).fillna(False).astype(bool)
+    if grouped.any():
+        mark = thousands if thousands is not None else "," if decimal == "." else "."
+        cells = cells.where(~grouped, cells.str.replace(mark, "", regex=False))
+    if decimal == ",":
+        dotted = cells.str.contains(".", regex=False).astype(bool)
+        cells = cells.str.replace(",", ".", regex=False).mask(dotted)
+    return cells.where(strings, text)
 
 
-def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".") -> tuple[np.ndarray | None, Problem | None]:
-    """One CSV column in SI (float64; a temperature in C), or the first value that does not parse: the column's
-    ``scale``/``offset`` (1.4) and its unit's factor applied (:func:`isokinetic.contracts.manifest.si_conversion`,
-    through :mod:`isokinetic.units`). ``decimal`` is the files' decimal mark (the manifest's ``csv`` block): with
-    ',' numbers go through :func:`decimal_point`, and ISO 8601 stamps may carry a decimal comma in their seconds
-    (``10:59:59,95``)."""
-    note = ""
+def _time_values(raw: pd.Series, column: Column, decimal: str, timezone: str | None
+                 ) -> tuple[np.ndarray, pd.Series, Problem | None]:
+    """(seconds, cells that are no time, a problem the time alone shows) of a time column in a text unit."""
     if column.unit == TIME_STAMPS and pd.api.types.is_numeric_dtype(raw):     # plain numbers are no ISO stamps
         first = int(np.argmax(raw.notna().to_numpy())) if len(raw) else 0
-        return None, Problem(column.name, f"invalid ISO 8601 timestamp {excerpt(raw.iloc[first])} (a number: "
-                                          "declare the unit s or ms?)", row=first)
-    if column.unit == TIME_STAMPS:
-        text = raw if decimal == "." else raw.astype(object).str.replace(",", ".", regex=False)
-        stamps = pd.to_datetime(text, format="ISO8601", utc=True, errors="coerce")
-        bad = stamps.isna() & raw.notna()
-        values = (stamps - stamps.iloc[0]).dt.total_seconds().to_numpy(float) if len(raw) else np.empty(0)
-        what = "invalid ISO 8601 timestamp"
+        return np.empty(0), raw.isna(), Problem(column.name, f"invalid ISO 8601 timestamp {excerpt(raw.iloc[first])} "
+                                                             "(a number: declare the unit s or ms?)", row=first)
+    text = raw
+    if column.unit == "excel_serial":
+        text = decimal_point(raw, decimal) if decimal != "." else raw
+    elif decimal != "." and not pd.api.types.is_numeric_dtype(raw):
+        text = raw.astype(object).str.replace(",", ".", regex=False)
+    values, problem = time_seconds(text, column.unit, timezone)
+    bad = pd.Series(np.isnan(values), index=raw.index) & raw.notna()
+    return values, bad, None if problem is None else Problem(column.name, problem[1], row=problem[0])
+
+
+def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".", thousands: str | None = None,
+          timezone: str | None = None) -> tuple[np.ndarray | None, Problem | None]:
+    """One CSV column in SI (float64; a temperature in C), or the first value that does not parse: the column's
+    ``scale``/``offset`` (1.4) and its unit's factor applied (:func:`isokinetic.contracts.manifest.si_conversion`,
+    through :mod:`isokinetic.units`). ``decimal`` and ``thousands`` are the files' (the manifest's ``csv`` block):
+    text numbers go through :func:`decimal_point`; a time in ``datetime``, ``hms`` or ``excel_serial`` (1.5) is read
+    by :func:`isokinetic.timestamps.time_seconds` (local stamps in ``timezone``), and ISO 8601 stamps may carry a
+    decimal comma in their seconds (``10:59:59,95``)."""
+    note = ""
+    if column.unit in TIME_TEXT_UNITS:
+        values, bad, problem = _time_values(raw, column, decimal, timezone)
+        if problem is not None:
+            return None, problem
+        what = {"hms": "invalid clock time", "excel_serial": "invalid Excel serial date"}.get(
+            column.unit, "invalid ISO 8601 timestamp")
     else:
-        text = raw if decimal == "." or pd.api.types.is_numeric_dtype(raw) else decimal_point(raw)
-        numbers = pd.to_numeric(text, errors="coerce")
-        bad = numbers.isna() & raw.notna()
-        factor, offset = si_conversion(channel, column)
-        with np.errstate(over="ignore", invalid="ignore"):
-            values = numbers.to_numpy(float) * factor + offset
+        values, bad = si_values(raw, channel, column, decimal, thousands)
         what = "non-numeric value"
         if decimal != ".":
             note = (": the manifest's csv block declares ',' as the decimal mark, and a '.' is not read (a thousands "
-                    "separator? a file written with '.' decimals?)")
+                    "separator? declare `thousands: '.'` in the csv block; a file written with '.' decimals?)")
         if not bad.any():
             overflow = overflow_row(raw, values)
             if overflow is not None:
@@ -187,6 +229,21 @@ def to_si(raw: pd.Series, channel: str, column: Column, decimal: str = ".") -> t
     if channel == "temperature":
         return temperature_values(values, column)
     return (-values if column.invert else values), None
+
+
+def si_values(raw: pd.Series, channel: str, column: Column, decimal: str = ".", thousands: str | None = None
+              ) -> tuple[np.ndarray, pd.Series]:
+    """(the column's numbers in SI, before ``invert``; the cells that are no number) of a number column."""
+    plain = pd.api.types.is_numeric_dtype(raw) or (decimal == "." and thousands is None and not _has_comma(raw))
+    numbers = pd.to_numeric(raw if plain else decimal_point(raw, decimal, thousands), errors="coerce")
+    factor, offset = si_conversion(channel, column)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return numbers.to_numpy(float) * factor + offset, numbers.isna() & raw.notna()
+
+
+def _has_comma(raw: pd.Series) -> bool:
+    """True when a text column under '.' decimals may hold ``1,234.5`` (a ',' in a cell)."""
+    return raw.dtype == object and bool(raw.astype(str).str.contains(",", regex=False).any())
 
 
 def beyond_float(value) -> bool:
@@ -238,24 +295,88 @@ def case_temperature(series: pd.DataFrame | None, case_C: float | None,
     return math.nan, math.nan, ""
 
 
-def canonical_timeseries(raw: pd.DataFrame, columns: dict[str, Column],
-                         decimal: str = ".") -> tuple[pd.DataFrame | None, list[Problem]]:
+def canonical_timeseries(raw: pd.DataFrame, columns: dict[str, Column], decimal: str = ".",
+                         fmt: FileFormat | None = None) -> tuple[pd.DataFrame | None, list[Problem]]:
     """The canonical SI time series of a case, or the problems of its columns (one per column);
-    ``decimal``: the files' decimal mark (:func:`to_si`)."""
+    ``decimal``: the files' decimal mark, ``fmt``: their format (its ``thousands`` and ``timezone``, 1.5:
+    :func:`to_si`)."""
     present = ", ".join(map(str, raw.columns))
     problems = [Problem(col.name, f"column not in the file (header: {present})")
                 for col in columns.values() if col.name not in raw.columns]
     if problems:
         return None, problems
+    thousands, timezone = (None, None) if fmt is None else (fmt.thousands, fmt.timezone)
     out = {"row": np.arange(len(raw), dtype="int64")}
     for channel, col in columns.items():
-        values, problem = to_si(raw[col.name], channel, col, decimal)
+        values, problem = to_si(raw[col.name], channel, col, decimal, thousands, timezone)
         if problem is not None:
             problems.append(problem)
         out[CANONICAL[channel]] = values
     if problems:
         return None, problems
     return pd.DataFrame(out, columns=["row"] + [CANONICAL[ch] for ch in CANONICAL if ch in columns]), []
+
+
+def damaged_rows(raw: pd.DataFrame, columns: dict[str, Column], decimal: str = ".",
+                 fmt: FileFormat | None = None) -> np.ndarray:
+    """Rows with a blank cell (or NaN) or a short cell that is no number (no time) in a channel's column: what a
+    rig's glitch, a repeated units row or a half-written line leaves. A number beyond a float's range, ``inf`` or
+    a cell longer than :data:`MAX_DAMAGED_CELL_CHARS` is no glitch (it is refused, named). Columns missing from
+    the file are left to :func:`canonical_timeseries`."""
+    damaged = np.zeros(len(raw), dtype=bool)
+    thousands, timezone = (None, None) if fmt is None else (fmt.thousands, fmt.timezone)
+    for channel, col in columns.items():
+        if col.name not in raw.columns:
+            continue
+        cells = raw[col.name]
+        if col.unit in TIME_TEXT_UNITS:
+            bad = _time_values(cells, col, decimal, timezone)[1]
+        elif pd.api.types.is_numeric_dtype(cells):
+            bad = pd.Series(False, index=cells.index)
+        else:
+            bad = si_values(cells, channel, col, decimal, thousands)[1]
+        bad = bad.to_numpy(bool)
+        for i in np.flatnonzero(bad)[:int(MAX_DAMAGED_FRACTION * len(raw)) + 1]:   # more: no partial record
+            text = str(cells.iloc[i]).strip()
+            bad[i] = len(text) <= MAX_DAMAGED_CELL_CHARS and not beyond_float(text)
+        damaged |= bad | cells.isna().to_numpy(bool)
+    return damaged
+
+
+def partial_record(raw: pd.DataFrame, file_rows: np.ndarray, drop: np.ndarray, what: str
+                   ) -> tuple[pd.DataFrame, np.ndarray, list[str]]:
+    """The record without the rows ``drop`` marks, when they are at most :data:`MAX_DAMAGED_FRACTION` of it (a
+    partial record keeps what is good: the dropped rows are a gap in time, checked at validate as dropped samples
+    are), with the note naming them; unchanged (nothing dropped) when there are none or more."""
+    n = int(drop.sum())
+    if n == 0 or n > MAX_DAMAGED_FRACTION * len(raw):
+        return raw, file_rows, []
+    note = (f"{n} row(s) {what} left out (data rows {', '.join(map(str, file_rows[drop][:8].tolist()))}"
+            f"{' and more' if n > 8 else ''}): a gap in the record")
+    return raw[~drop].reset_index(drop=True), file_rows[~drop], [note]
+
+
+def case_series(table: RawTable, span: tuple[int, int] | None, spec: CaseSpec
+                ) -> tuple[pd.DataFrame | None, list[Problem], int, list[str]]:
+    """(canonical SI series or None, problems, samples, notes) of a case's table (``span``: its slice): rows with
+    damaged cells and rows repeating the time stamp before dropped (:func:`partial_record`), ``row`` the file's
+    data-row numbers, a slice's time re-zeroed at its first sample."""
+    first, stop = span if span is not None else (0, len(table.frame))
+    raw = table.frame if span is None else table.frame.iloc[first:stop].reset_index(drop=True)
+    file_rows = np.asarray(table.rows[first:stop], dtype="int64")
+    raw, file_rows, notes = partial_record(raw, file_rows, damaged_rows(raw, spec.columns, table.decimal, spec.csv),
+                                           "with a blank or unreadable cell")
+    df, problems = canonical_timeseries(raw, spec.columns, table.decimal, spec.csv)
+    problems = [dataclasses.replace(p, row=None if p.row is None else int(file_rows[p.row])) for p in problems]
+    if df is None:
+        return None, problems, len(raw), notes
+    t = df["time_s"].to_numpy(float)
+    repeated = np.concatenate([[False], np.diff(t) == 0.0]) if len(t) else np.zeros(0, dtype=bool)
+    kept, file_rows, more = partial_record(df, file_rows, repeated, "repeating the time stamp of the row before")
+    df = kept.assign(row=file_rows)
+    if span is not None and len(df):
+        df["time_s"] = df["time_s"] - df["time_s"].iloc[0]
+    return df, problems, len(df), notes + more
 
 
 def subtract_gas_force(series: pd.DataFrame, gas_force_N: float | None) -> pd.DataFrame:
@@ -275,7 +396,7 @@ def units_problems(units: dict[str, str], columns: dict[str, Column]) -> list[Pr
     logger's unit, volts) are not checked; a units-row text that is no unit of the channel (``V``) is refused."""
     problems = []
     for channel, col in columns.items():
-        if col.unit == TIME_STAMPS or (col.scale, col.offset) != (1.0, 0.0):
+        if col.unit in TIME_TEXT_UNITS or (col.scale, col.offset) != (1.0, 0.0):
             continue
         text, said = str(units.get(col.name) or "").strip(), "units row"
         if not text:
@@ -434,6 +555,34 @@ def range_problems(df: pd.DataFrame, columns: dict[str, Column]) -> list[Problem
     return problems
 
 
+def velocity_problem(df: pd.DataFrame, columns: dict[str, Column]) -> Problem | None:
+    """A displacement column that is a velocity: the command's derivative times a constant (least squares, at most
+    :data:`VELOCITY_RESIDUAL` rms left) while the command itself explains little of it (more than
+    :data:`COMMAND_RESIDUAL` left). ``invert`` would not fix it, so it is refused before the sign check asks for
+    one; None without a command column or when the displacement follows the command."""
+    if "command_m" not in df or len(df) < 16:
+        return None
+    t, y, c = (df[k].to_numpy(float) for k in ("time_s", "displacement_m", "command_m"))
+    dcdt = np.gradient(c, t)
+    y0 = y - y.mean()
+    fits = [_residual(y0, dcdt - dcdt.mean()), _residual(y0, c - c.mean())]
+    if not (fits[0] < VELOCITY_RESIDUAL < COMMAND_RESIDUAL < fits[1]):
+        return None
+    name = columns["displacement"].name
+    return Problem(name, f"looks like a velocity, not a displacement: it equals the command's derivative times a "
+                         f"constant to {fits[0]:.1%} rms, while the command itself leaves {fits[1]:.0%} of it "
+                         "unexplained; declare the displacement column (`invert` would not fix this)")
+
+
+def _residual(y: np.ndarray, x: np.ndarray) -> float:
+    """The rms of y - k x (k by least squares) relative to y's (inf when either is zero)."""
+    xx, yy = float(x @ x), float(y @ y)
+    if not (xx > 0 and yy > 0 and math.isfinite(xx) and math.isfinite(yy)):
+        return math.inf
+    r = y - (float(x @ y) / xx) * x
+    return math.sqrt(float(r @ r) / yy)
+
+
 def planned_span_s(plan, n_samples: int) -> float:
     """The time span a record needs [s]: the longest of the plan's ``duration_s``, its required record
     (two periods of a triangle, one of a sine) and its samples at the planned rate."""
@@ -496,21 +645,15 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec, campaign_temp
                 span, slice_start_s, problem = slice_rows(spec, table, cache, path)
                 problems = [] if problem is None else [problem]
             if not problems:
-                first, stop = span if span is not None else (0, len(table.frame))
-                raw = table.frame if span is None else table.frame.iloc[first:stop].reset_index(drop=True)
-                n_samples = len(raw)
-                df, problems = canonical_timeseries(raw, spec.columns, table.decimal)
-                problems = [dataclasses.replace(p, row=None if p.row is None else int(table.rows[first + p.row]))
-                            for p in problems]
-                if df is not None:
-                    df["row"] = table.rows[first:stop].astype("int64")
-                    if span is not None:
-                        df["time_s"] = df["time_s"] - df["time_s"].iloc[0] if len(df) else df["time_s"]
+                df, problems, n_samples, notes = case_series(table, span, spec)
+                warnings += notes
     if df is not None:
         measured = df
         df = subtract_gas_force(df, spec.gas_force_N)
         names = {CANONICAL[ch]: col.name for ch, col in spec.columns.items()}
         problems = timeseries_problems(df) or range_problems(measured, spec.columns)
+        velocity = None if problems else velocity_problem(measured, spec.columns)
+        problems += [] if velocity is None else [velocity]
         problems = [dataclasses.replace(p, column=names.get(p.column, p.column)) for p in problems]
         if not problems:
             df, note = trimmed_record(df, spec.plan)
