@@ -76,3 +76,35 @@ def test_a_failed_campaign_is_listed_with_its_reason_and_without_stale_numbers(b
     for row in rows.values():
         assert "failed" in row and "report.html" not in row and "title=" not in row  # no number cells
     assert "2 of 2 campaign(s) failed in the last run" in plain(page)
+
+
+def test_unbuilt_raw_folders_are_listed_with_why_and_the_fix(built):
+    from isokinetic.report.report_index import render_index
+
+    unusable = [{"folder": "data/raw/Bench 3", "reason": "folder name 'Bench 3' is not a campaign id",
+                 "fix": "rename it to bench-3"},
+                {"folder": "data/raw/notes", "reason": "no campaign.yaml",
+                 "fix": "draft one with `python -m isokinetic init-campaign data/raw/notes`"}]
+    page = render_index(built, [CAMPAIGN], blind_dir=built / "blind", unusable=unusable)
+    table = page[page.index('id="unusable-table"'):].split("</table>")[0]
+    rows = table.split("<tr")[2:]
+    assert len(rows) == 2
+    assert "data/raw/Bench 3/" in plain(rows[0]) and "rename it to bench-3" in plain(rows[0])
+    assert "no campaign.yaml" in plain(rows[1]) and "init-campaign data/raw/notes" in plain(rows[1])
+    assert "2 folder(s) under the raw data folder not built" in plain(page)
+    assert 'href="demo/report.html"' in page  # the campaigns are listed as before
+
+
+def test_orphaned_results_are_shown_apart_without_their_numbers_or_checks_pass(built):
+    import shutil
+
+    from isokinetic.report.report_index import render_index
+
+    shutil.copytree(built / CAMPAIGN, built / "gone")      # a campaign whose raw folder was deleted since
+    (built / "gone" / "report.html").write_text("Provenance checks pass", encoding="utf-8")
+    reason = "orphaned: raw folder missing: data/raw/gone/ is gone (deleted or renamed)"
+    page = render_index(built, [CAMPAIGN], blind_dir=built / "blind", orphaned={"gone": reason})
+    row = page[page.index('id="orphaned-gone"'):].split("</tr>")[0]
+    assert reason in plain(row) and "results/gone/" in plain(row)
+    assert "gone/report.html" not in page and 'id="campaign-gone"' not in page
+    assert "checks pass" not in plain(page) and "title=" not in row

@@ -142,3 +142,58 @@ def test_a_refused_campaign_job_is_named_by_its_log(tmp_path):
                                        "    log: logs/_refused/broken.log (check log file(s) for error details)\n")
     jobs = run_status.failed_jobs([log], workdir=tmp_path)
     assert [(j.rule, j.campaign, j.reason) for j in jobs] == [("refused", "broken", "campaign broken refused: because")]
+
+
+def _mark_incomplete(incomplete_dir: Path, output: str, max_len: int = 255) -> Path:
+    """Mark ``output`` incomplete as Snakemake does (its own record path: the output's path in URL-safe base64,
+    split into '@' folders when longer than a file name may be), with its record's content."""
+    from types import SimpleNamespace
+
+    from snakemake.persistence.file import FilePersistence
+
+    record = Path(FilePersistence._record_path(SimpleNamespace(_fetch_max_len=lambda _: max_len),
+                                               str(incomplete_dir), output))
+    return _write(record, '{"external_jobid": null}')
+
+
+def test_an_output_marked_incomplete_shows_its_campaign_interrupted(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # Snakemake records outputs relative to the project, as the workflow names them
+    results, logs, incomplete = Path("results"), Path("logs"), Path(".snakemake/incomplete")
+    for c in ("cut", "long-cut", "good"):
+        _write(results / c / "report.html", "old page")     # the old page is there: the campaign looks built
+    _mark_incomplete(incomplete, "results/cut/characteristic.parquet")
+    _mark_incomplete(incomplete, "results/long-cut/models/models.parquet", max_len=12)
+    _mark_incomplete(incomplete, "results/index.html")     # the index's own: no campaign's
+    _write(incomplete / "migration_underway", "")          # Snakemake's own file there
+    assert run_status.incomplete_outputs(incomplete) == ["results/cut/characteristic.parquet", "results/index.html",
+                                                         "results/long-cut/models/models.parquet"]
+    out = run_status.campaign_failures(results, logs, ["cut", "long-cut", "good"], incomplete_dir=incomplete)
+    assert sorted(out) == ["cut", "long-cut"]
+    assert out["cut"].startswith("interrupted: ") and "results/cut/characteristic.parquet" in out["cut"]
+    assert "--rerun-incomplete" in out["long-cut"]
+    # without the marks (the jobs rerun and finished), nothing is interrupted
+    assert run_status.campaign_failures(results, logs, ["cut", "long-cut", "good"],
+                                        incomplete_dir="none") == {}
+
+
+def test_rebuilt_index_and_summary_name_interrupted_unbuilt_and_orphaned_folders(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    build_campaign(Path("results", CAMPAIGN))
+    Path("results", CAMPAIGN, "report.html").write_text("page", encoding="utf-8")
+    _mark_incomplete(Path(".snakemake/incomplete"), f"results/{CAMPAIGN}/cases.parquet")
+    log = _write(Path("run.log"), "Exiting because a job execution failed.\n")
+    unusable = [{"folder": "data/raw/Bench 3", "reason": "folder name 'Bench 3' is not a campaign id",
+                 "fix": "rename it to bench-3"}]
+    lines = run_status.rebuild_after_failure(log, campaigns=[CAMPAIGN], raw_dirs={}, unusable=unusable,
+                                             orphaned={"gone": "orphaned: raw folder missing: data/raw/gone/"})
+    assert lines[0] == "1 failure(s) in this run:" and lines[1].startswith(f"  campaign {CAMPAIGN}: interrupted: ")
+    assert lines[2:] == ["2 folder(s) not built (listed apart on results/index.html):",
+                         "  data/raw/Bench 3/: not built: folder name 'Bench 3' is not a campaign id; "
+                         "rename it to bench-3",
+                         "  results/gone/: orphaned: raw folder missing: data/raw/gone/"]
+    page = Path("results/index.html").read_text(encoding="utf-8")
+    row = page[page.index(f'id="campaign-{CAMPAIGN}"'):].split("</tr>")[0]
+    assert "interrupted" in row and "report.html" not in row and "title=" not in row   # no old numbers
+    text = plain(page)
+    assert "data/raw/Bench 3/" in text and "rename it to bench-3" in text
+    assert "orphaned: raw folder missing: data/raw/gone/" in text

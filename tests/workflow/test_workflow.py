@@ -280,3 +280,70 @@ def plain_text(page):
 
     body = re.sub(r"<(style|script)\b.*?</\1>", "", page, flags=re.S)
     return re.sub(r"<[^>]+>", " ", body)
+
+
+def test_unbuilt_raw_folders_and_orphaned_results_are_listed_on_the_index_and_in_the_summary(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    raw = work / "data/raw"
+    shutil.copytree(raw / "tiny-export", raw / "Bench 3")            # a name the workflow rejects
+    (raw / "bench4").mkdir()                                          # data, no manifest yet
+    (raw / "bench4" / "T01.csv").write_text("t,x,F\n0,0,0\n", encoding="utf-8")
+    shutil.move(raw / "tiny-export", tmp_path / "away")               # a campaign folder deleted or renamed
+    assert set(planned_rules(work)) == {"report_index", "all"}       # only the index learns of them
+    proc = snakemake(work)
+    out = "\n".join(x.strip() for x in (proc.stdout + proc.stderr).splitlines())
+    assert "3 folder(s) not built (listed apart on results/index.html):" in out
+    assert "data/raw/Bench 3/: not built: folder name 'Bench 3' is not a campaign id; rename it to bench-3" in out
+    assert "data/raw/bench4/: not built: no campaign.yaml; draft one with " in out
+    assert "results/tiny-export/: orphaned: raw folder missing: data/raw/tiny-export/ is gone" in out
+    page = (work / "results/index.html").read_text(encoding="utf-8")
+    text = plain_text(page)
+    assert "data/raw/Bench 3/" in text and "rename it to bench-3" in text
+    assert "data/raw/bench4/" in text and "init-campaign data/raw/bench4" in text
+    orphan = plain_text(page[page.index('id="orphaned-tiny-export"'):].split("</tr>")[0])
+    assert "orphaned: raw folder missing" in orphan
+    assert 'id="campaign-tiny-export"' not in page and "tiny-export/report.html" not in page
+    assert "checks pass" not in text and 'href="tiny/report.html"' in page
+    assert planned_rules(work) == []                                  # a no-op rerun stays one
+    # the folder back: its results are current again, nothing of it reruns, the index lists it as before
+    shutil.move(tmp_path / "away", raw / "tiny-export")
+    assert set(planned_rules(work)) == {"report_index", "all"}
+    snakemake(work)
+    page = (work / "results/index.html").read_text(encoding="utf-8")
+    assert 'href="tiny-export/report.html"' in page and "orphaned" not in plain_text(page)
+
+
+def test_an_interrupted_campaign_is_shown_interrupted_until_it_is_rebuilt(project, tmp_path):
+    """One Ctrl-C (SIGINT to the whole foreground group) while a campaign is rebuilt."""
+    import signal
+    import time
+
+    work = copy_project(project, tmp_path)
+    with (work / "data/raw/tiny-export/campaign.yaml").open("a", encoding="utf-8") as fh:
+        fh.write("# edited\n")                                         # its jobs rerun
+    log = tmp_path / "interrupted.log"
+    with open(log, "w") as out:
+        proc = subprocess.Popen([SNAKEMAKE, "--cores", "2"], cwd=work, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True)
+    try:
+        deadline = time.monotonic() + 90
+        while "rule analysis:" not in log.read_text(encoding="utf-8", errors="replace"):
+            assert proc.poll() is None and time.monotonic() < deadline, log.read_text()[-3000:]
+            time.sleep(0.05)
+        time.sleep(0.3)
+        os.killpg(proc.pid, signal.SIGINT)
+        assert proc.wait(timeout=60) != 0
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    out = log.read_text(encoding="utf-8")
+    line = next(x.strip() for x in out.splitlines() if x.strip().startswith("campaign tiny-export: interrupted: "))
+    assert "--rerun-incomplete" in line, line
+    page = (work / "results/index.html").read_text(encoding="utf-8")
+    row = page[page.index('id="campaign-tiny-export"'):].split("</tr>")[0]
+    assert "interrupted" in row and "report.html" not in row and "title=" not in row, row  # no old numbers
+    assert "failed" not in index_row(work, "tiny")
+    snakemake(work, "--rerun-incomplete")
+    assert "interrupted" not in plain_text((work / "results/index.html").read_text(encoding="utf-8"))
+    assert 'href="tiny-export/report.html"' in (work / "results/index.html").read_text(encoding="utf-8")
+    assert planned_rules(work) == []

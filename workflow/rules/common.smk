@@ -12,6 +12,7 @@ from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
 from isokinetic.audit.raw_folder import SnakemakeInputs, snakemake_inputs
+from isokinetic.audit.raw_inventory import UnusableFolder, orphaned_results, unusable_folders
 from isokinetic.audit.refused import refusal
 from isokinetic.contracts.outputs import (
     BLIND_DIR,
@@ -134,6 +135,30 @@ def refusals(raw_campaigns, campaigns):
 REFUSED = refusals(RAW_CAMPAIGNS, CAMPAIGNS)
 #: The campaigns the workflow processes (every campaign but the refused ones).
 ACTIVE = [c for c in CAMPAIGNS if c not in REFUSED]
+#: No invisible state (isokinetic.audit.raw_inventory): each folder under the raw data folder the workflow does
+#: not build (no manifest, a name that is no campaign id), with why and the fix (folder, reason, fix), and each
+#: results/<name>/ of a campaign this build does not have (name -> why). The index lists both apart (as its
+#: params: a change rebuilds it) and the run's closing summary names them (onsuccess, onerror).
+UNUSABLE = [{"folder": u.folder, "reason": u.reason, "fix": u.fix} for u in unusable_folders(RAW_DIR)]
+ORPHANED = orphaned_results(RESULTS_DIR, CAMPAIGNS, RAW_DIR)
+
+
+def unbuilt_lines():
+    """The closing summary's lines naming each folder the run did not build (UNUSABLE, ORPHANED); none without."""
+    if not UNUSABLE and not ORPHANED:
+        return []
+    # imported here, and only when there is something to say, so that building the DAG does not pay for it
+    from isokinetic.report.run_status import state_lines
+
+    return state_lines([UnusableFolder(**u).line() for u in UNUSABLE], ORPHANED, RESULTS_DIR)
+
+
+def report_unbuilt():
+    """After a successful run (onsuccess): each folder it did not build named in its closing summary."""
+    from snakemake.logging import logger
+
+    for line in unbuilt_lines():
+        logger.warning(line)
 
 
 #: Every figure is also written in this vector format beside its PNG (config figures.vector_format).
@@ -357,10 +382,12 @@ def report_failed_run(snakemake_log):
             index=f"{RESULTS_DIR}/index.html",
             design_summary=DESIGN_SUMMARY,
             older_than=[f.caption for f in rule_figures("blind_score")],
+            unusable=UNUSABLE,
+            orphaned=ORPHANED,
         )
         lines.append(f"{RESULTS_DIR}/index.html rebuilt: it lists every campaign, the failed ones with their reason")
     except Exception as e:
-        lines = summary_lines(failed_jobs(snakemake_log))
+        lines = summary_lines(failed_jobs(snakemake_log)) + unbuilt_lines()
         lines.append(f"{RESULTS_DIR}/index.html could not be rebuilt after the failed run: {type(e).__name__}: {e}")
     for line in lines:
         logger.error(line)

@@ -37,9 +37,10 @@ rule campaign_report:
 
 
 rule report_index:
-    """results/index.html: every campaign's verdict and key numbers, linked to its page; the blind
-    suite; each comparison, linked to its page; and results/design/plan_check.parquet, every
-    campaign's plan check in one table."""
+    """results/index.html: every campaign's verdict and key numbers, linked to its page (an interrupted
+    one shown interrupted); apart, the folders under the raw data folder it does not build and the orphaned
+    results; the blind suite; each comparison, linked to its page; and results/design/plan_check.parquet,
+    every campaign's plan check in one table."""
     input:
         reports=expand(output_path("campaign_report", "page"), campaign=ACTIVE),
         diagnoses=expand(output_path("diagnosis", "json"), campaign=ACTIVE),
@@ -62,5 +63,7 @@ rule report_index:
         blind_dir=lambda wildcards, input: str(Path(input.blind[0]).parent) if input.blind else None,
         comparisons=list(COMPARISONS),
         refused=REFUSED,
+        unusable=UNUSABLE,
+        orphaned=ORPHANED,
     script:
         "../scripts/report_index.py"

@@ -2,7 +2,10 @@
 
 One row per campaign (cases, quarantined cases, characteristic points, flagged plan cases and
 repeatability pairs, the Wallaschek fit's residual scale, the diagnosis verdict and gap), linked
-to its page (:mod:`isokinetic.report.campaign_report`); then the comparisons of campaigns
+to its page (:mod:`isokinetic.report.campaign_report`), or, for a campaign that failed or was interrupted
+(a reason starting with "interrupted", :func:`isokinetic.report.run_status.interrupted_campaigns`), that
+reason alone; apart, the folders under the raw data folder that are not built and the orphaned results
+(:mod:`isokinetic.audit.raw_inventory`), with why and the fix; then the comparisons of campaigns
 (``results/compare/<name>/``, config ``comparisons``), each linked to its page
 (:mod:`isokinetic.report.compare_report`); then the blind test of the diagnosis (``results/blind/``):
 its targets, detection by magnitude bin, Fig. 17 and every scenario. Every number's title names its
@@ -94,13 +97,27 @@ def _campaign_row(results_root: Path, campaign: str, failure: str | None = None)
     srcs = Sources(root, read_json(root / "provenance.json"))
     meta = read_json(root / "ingest" / "campaign.json") or {}
     if failure is not None:
-        cells = [Cell(f"{badge('failed', 'bad')} {esc(failure)}", cls="reason", colspan=N_CAMPAIGN_CELLS)]
+        state = "interrupted" if failure.startswith("interrupted") else "failed"
+        cells = [Cell(f"{badge(state, 'bad')} {esc(failure)}", cls="reason", colspan=N_CAMPAIGN_CELLS)]
         return {"name": campaign, "source": meta.get("source") or "-", "cells": cells, "report": False,
                 "failed": True}, []
     cells = _counts(root, srcs) + [_residual_scale(root, srcs)] + _verdict(root, srcs)
     row = {"name": campaign, "source": meta.get("source") or "-", "cells": cells,
            "report": (root / "report.html").is_file(), "failed": False}
     return row, srcs.all()
+
+
+def _unusable_rows(unusable: Sequence[Mapping[str, str]]) -> list[dict]:
+    """A row per folder under the raw data folder that is not built: the folder, why, and the fix
+    (:class:`isokinetic.audit.raw_inventory.UnusableFolder` as a mapping)."""
+    return [{"folder": u["folder"], "reason": u["reason"], "fix": u["fix"]} for u in unusable]
+
+
+def _orphan_rows(results_root: Path, orphaned: Mapping[str, str]) -> list[dict]:
+    """A row per orphaned ``results/<name>/`` (:func:`isokinetic.audit.raw_inventory.orphaned_results`): its
+    folder and why; none of its numbers, and no link to its old page."""
+    return [{"name": name, "folder": f"{results_root.as_posix()}/{name}/", "reason": reason}
+            for name, reason in orphaned.items()]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -230,10 +247,13 @@ def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[dict, 
 def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
                  blind_dir: str | os.PathLike | None = None, captions_dir: str | os.PathLike | None = None,
                  lineage_record: Mapping | None = None, comparisons: Sequence[str] = (),
-                 failures: Mapping[str, str] | None = None) -> str:
+                 failures: Mapping[str, str] | None = None, unusable: Sequence[Mapping[str, str]] = (),
+                 orphaned: Mapping[str, str] | None = None) -> str:
     """``results/index.html``: every campaign with its verdict and key numbers, or, for a campaign in
     ``failures`` (campaign -> reason, :func:`isokinetic.report.run_status.campaign_failures`), why it has
-    none; each comparison (linked to its page), and the blind-suite scores."""
+    none; apart, each folder under the raw data folder that is not built (``unusable``: folder, reason, fix)
+    and each orphaned campaign result (``orphaned``: name -> reason); each comparison (linked to its page),
+    and the blind-suite scores."""
     results_root = Path(results_root)
     captions = read_captions(captions_dir)
     failures = dict(failures or {})
@@ -243,6 +263,8 @@ def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
         rows.append(row)
         sources += srcs
     nav = [("campaigns", "Campaigns")]
+    nav += [("not-built", "Not built")] if unusable else []
+    nav += [("orphaned", "Orphaned")] if orphaned else []
     compared = []
     for name in comparisons:
         row, srcs = _comparison_row(results_root, name)
@@ -257,7 +279,8 @@ def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
         nav.append(("blind", "Blind test"))
     nav.append(("lineage", "Lineage"))
     return render("report_index.html.j2", title="isokinetic - results", nav=nav, lineage_record=lineage_record,
-                  campaigns=rows, n_failed=sum(r["failed"] for r in rows),
+                  campaigns=rows, n_failed=sum(r["failed"] for r in rows), unusable=_unusable_rows(unusable),
+                  orphaned=_orphan_rows(results_root, dict(orphaned or {})),
                   snakemake_report=(results_root / "report.html").is_file(), comparisons=compared, blind=blind,
                   lineage_files=lineage_rows(sources),
                   footer=footer(lineage_record, sources))

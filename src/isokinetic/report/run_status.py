@@ -6,10 +6,17 @@ and the workflow's ``onerror`` handler calls :func:`rebuild_after_failure` inste
 from Snakemake's log (:func:`failed_jobs`), writes the index and the design summary from whatever outputs
 exist, listing every campaign whose outputs are missing, stale or whose job failed with the first error line
 of its job log (:func:`campaign_failures`), and returns the run's closing summary (:func:`summary_lines`).
+
+A campaign whose jobs were cut off (one Ctrl-C, a kill) is *interrupted* until it is rebuilt: Snakemake marks
+each output of a running job incomplete (``.snakemake/incomplete/``, :func:`incomplete_outputs`) and removes
+the mark only when the job finished, so a campaign with a marked output is shown interrupted, never with
+its old numbers (issue 34, part 5).
 """
 
 from __future__ import annotations
 
+import base64
+import binascii
 import os
 import re
 from collections.abc import Iterable, Mapping, Sequence
@@ -17,6 +24,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
+
+from isokinetic.audit.raw_inventory import UnusableFolder
 
 #: Snakemake's block for a failed job: ``Error in rule <name>:`` then indented ``key: value`` lines.
 _ERROR_BLOCK = re.compile(r"^Error in rule (?P<rule>[\w.-]+):\s*$")
@@ -29,6 +38,10 @@ _REFUSED_LOG = re.compile(r"^logs/_refused/(?P<campaign>[^/\s]+)\.(?:log|txt)$")
 _LOG_RECORD = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d+ (?P<level>[A-Z]+) (?P<message>.*)$")
 #: Longest reason shown on the index and in the summary (a reason is a line, never a dump).
 MAX_REASON = 240
+#: Where Snakemake marks the outputs of jobs that started and have not finished (its persistence folder).
+INCOMPLETE_DIR = ".snakemake/incomplete"
+#: What to run after an interrupted build (README, "Running").
+RERUN_INCOMPLETE = "snakemake --cores 2 --rerun-incomplete"
 
 
 @dataclass(frozen=True)
@@ -147,18 +160,54 @@ def raw_inputs(raw_dir: Path, campaign_root: Path) -> list[Path]:
     return files + [Path(str(f)) for f in named.dropna().unique() if not str(f).startswith("virtual_rig:")]
 
 
+def incomplete_outputs(incomplete_dir: str | os.PathLike = INCOMPLETE_DIR) -> list[str]:
+    """The outputs Snakemake marks incomplete: one file per output under ``incomplete_dir``, named by the
+    output's path in URL-safe base64 (a long name split into folders whose names start with ``@``)."""
+    root = Path(incomplete_dir)
+    if not root.is_dir():
+        return []
+    out = []
+    for top, _dirs, files in os.walk(root):
+        parts = [p.removeprefix("@") for p in Path(top).relative_to(root).parts]
+        for name in files:
+            try:
+                out.append(base64.urlsafe_b64decode("".join(parts) + name).decode("utf-8"))
+            except (binascii.Error, ValueError):  # Snakemake's own files there (migration_underway)
+                continue
+    return sorted(out)
+
+
+def interrupted_campaigns(campaigns: Sequence[str], incomplete_dir: str | os.PathLike = INCOMPLETE_DIR,
+                          results_root: str | os.PathLike = "results") -> dict[str, str]:
+    """Campaign -> why it is shown interrupted, for each campaign with an output marked incomplete
+    (:func:`incomplete_outputs`): a job of it was cut off and has not been rerun since."""
+    prefix = Path(results_root).as_posix().rstrip("/") + "/"
+    marked: dict[str, list[str]] = {}
+    for path in incomplete_outputs(incomplete_dir):
+        campaign = path.removeprefix(prefix).split("/", 1)[0] if path.startswith(prefix) else None
+        if campaign in campaigns:
+            marked.setdefault(campaign, []).append(path)
+    return {c: (f"interrupted: a run was cut off while it rebuilt this campaign ({len(paths)} output(s) left "
+                f"incomplete, e.g. {paths[0]}); its old results are not current; rebuild it with "
+                f"`{RERUN_INCOMPLETE}`") for c, paths in marked.items()}
+
+
 def campaign_failures(results_root: str | os.PathLike, logs_root: str | os.PathLike, campaigns: Sequence[str],
                       raw_dirs: Mapping[str, str | os.PathLike] | None = None,
-                      failed: Sequence[FailedJob] = ()) -> dict[str, str]:
+                      failed: Sequence[FailedJob] = (),
+                      incomplete_dir: str | os.PathLike | None = None) -> dict[str, str]:
     """Campaign -> why it has no current result, for each campaign that has none.
 
-    A campaign failed when a job of it failed in the run (``failed``), or when its page
-    ``results/<c>/report.html`` is missing, or older than its manifest or a raw file its cases table names
-    (:func:`raw_inputs`; ``raw_dirs``: campaign -> folder, raw campaigns only). The reason is the failed
-    job's, else the first error line of the newest log in ``logs/<c>/``.
+    A campaign is interrupted when an output of it is marked incomplete (:func:`interrupted_campaigns`; not
+    looked at when ``incomplete_dir`` is None); it failed when a job of it failed in the run (``failed``),
+    or when its page ``results/<c>/report.html`` is missing, or older than its manifest or a raw file its
+    cases table names (:func:`raw_inputs`; ``raw_dirs``: campaign -> folder, raw campaigns only). The reason
+    is the failed job's, else the first error line of the newest log in ``logs/<c>/``.
     """
     results_root, logs_root = Path(results_root), Path(logs_root)
     out: dict[str, str] = {}
+    if incomplete_dir is not None:
+        out.update(interrupted_campaigns(campaigns, incomplete_dir, results_root))
     for job in failed:
         if job.campaign in campaigns and job.campaign not in out:
             out[job.campaign] = job.line().removeprefix(f"campaign {job.campaign}: ")
@@ -179,13 +228,29 @@ def campaign_failures(results_root: str | os.PathLike, logs_root: str | os.PathL
 
 
 def summary_lines(failed: Sequence[FailedJob], failures: Mapping[str, str] | None = None) -> list[str]:
-    """The run's closing summary: one line per failed job, then each failed campaign with no failed job."""
-    lines = [job.line() for job in failed]
-    named = {job.campaign for job in failed}
-    lines += [f"campaign {c}: {reason}" for c, reason in (failures or {}).items() if c not in named]
+    """The run's closing summary: each interrupted campaign, one line per failed job (of a campaign not
+    interrupted), then each failed campaign with no failed job."""
+    failures = dict(failures or {})
+    interrupted = {c for c, reason in failures.items() if reason.startswith("interrupted")}
+    lines = [f"campaign {c}: {reason}" for c, reason in failures.items() if c in interrupted]
+    lines += [job.line() for job in failed if job.campaign not in interrupted]
+    named = {job.campaign for job in failed} | interrupted
+    lines += [f"campaign {c}: {reason}" for c, reason in failures.items() if c not in named]
     if not lines:
         return []
     return [f"{len(lines)} failure(s) in this run:"] + [f"  {line}" for line in lines]
+
+
+def state_lines(unusable: Sequence[str] = (), orphaned: Mapping[str, str] | None = None,
+                results_root: str | os.PathLike = "results") -> list[str]:
+    """The closing summary's lines on what the run did not build (issue 34, part 5): each folder under the raw
+    data folder it cannot build (``unusable``: one line each, :class:`isokinetic.audit.raw_inventory
+    .UnusableFolder`), and each orphaned ``results/<name>/`` (``orphaned``: name -> reason)."""
+    lines = [f"  {line}" for line in unusable]
+    lines += [f"  {Path(results_root).as_posix()}/{name}/: {reason}" for name, reason in (orphaned or {}).items()]
+    if not lines:
+        return []
+    return [f"{len(lines)} folder(s) not built (listed apart on results/index.html):"] + lines
 
 
 def rebuild_after_failure(snakemake_log: str | os.PathLike | Sequence[str | os.PathLike] | None, *,
@@ -195,14 +260,18 @@ def rebuild_after_failure(snakemake_log: str | os.PathLike | Sequence[str | os.P
                           results_root: str | os.PathLike = "results", logs_root: str | os.PathLike = "logs",
                           index: str | os.PathLike = "results/index.html",
                           design_summary: str | os.PathLike = "results/design/plan_check.parquet",
-                          older_than: Sequence[str | os.PathLike] = ()) -> list[str]:
+                          older_than: Sequence[str | os.PathLike] = (),
+                          unusable: Sequence[Mapping[str, str]] = (),
+                          orphaned: Mapping[str, str] | None = None,
+                          incomplete_dir: str | os.PathLike | None = INCOMPLETE_DIR) -> list[str]:
     """After a failed run (Snakemake's ``onerror``): the index and the design summary rebuilt from the outputs
     that exist, every failed campaign listed with its reason; returns the run's closing summary lines.
 
     The two files are stand-ins for the rule ``report_index``'s outputs: they are dated just before the
     oldest of ``older_than`` (files that are always inputs of that rule; the epoch without them), so the
     next run that can build the rule's outputs does, even when nothing else changed (a broken campaign
-    removed, say)."""
+    removed, say). ``unusable`` (raw folders the workflow does not build: folder, reason, fix) and
+    ``orphaned`` (results/<name>/ -> reason) are listed apart on the index and named in the summary."""
     # imported here: the workflow calls this only after a failed run
     from isokinetic.audit.lineage import stage_lineage
     from isokinetic.io import lineage_context
@@ -210,7 +279,7 @@ def rebuild_after_failure(snakemake_log: str | os.PathLike | Sequence[str | os.P
     from isokinetic.stages.design_summary import write_design_summary
 
     failed = failed_jobs(snakemake_log)
-    failures = campaign_failures(results_root, logs_root, campaigns, raw_dirs, failed)
+    failures = campaign_failures(results_root, logs_root, campaigns, raw_dirs, failed, incomplete_dir)
     results_root = Path(results_root)
     plan_checks = [results_root / c / "design" / "plan_check.parquet" for c in campaigns if c not in failures]
     plan_checks = [p for p in plan_checks if p.is_file()]
@@ -220,9 +289,11 @@ def rebuild_after_failure(snakemake_log: str | os.PathLike | Sequence[str | os.P
     with lineage_context(record):
         write_design_summary(plan_checks, design_summary)
         write_index(results_root, index, list(campaigns), blind_dir=blind, captions_dir=captions_dir,
-                    lineage_record=record, comparisons=list(comparisons), failures=failures)
+                    lineage_record=record, comparisons=list(comparisons), failures=failures,
+                    unusable=unusable, orphaned=orphaned)
     mark_stand_in([index, design_summary], older_than)
-    return summary_lines(failed, failures)
+    lines = [UnusableFolder(**u).line() for u in unusable]
+    return summary_lines(failed, failures) + state_lines(lines, orphaned, results_root)
 
 
 def mark_stand_in(paths: Sequence[str | os.PathLike], older_than: Sequence[str | os.PathLike]) -> None:
