@@ -29,6 +29,13 @@ the plan's t = 0 (``motion_start_s``, ``delay_s``, ``velocity_ratio``, ``motion_
 no longer fit the record at the measured start, or a force against the measured velocity in all
 four windows (a forgotten ``invert: true``) quarantine; a time axis offset from the motion start
 or one half-period off its planned speed is flagged.
+
+Physics any damper obeys, with or without a damper block (:func:`physics_problems`, method in
+:mod:`isokinetic.measurement.plausibility`, rules and limits in docs/real-world-input.md): a force too small
+for any damper or for its declared ``full_scale`` (kN declared as N), force over velocity outside any damper's
+damping, a record that gives energy back over its cycles (``invert``, or played backwards), a force that leads
+its motion at every reversal (time reversed or channels shifted), a temperature that follows the command or
+the displacement.
 """
 
 from __future__ import annotations
@@ -46,6 +53,7 @@ from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan, read_ingested
 from isokinetic.contracts.problem import Problem
 from isokinetic.io import write_parquet
+from isokinetic.measurement import plausibility as pl
 from isokinetic.measurement.motion import Motion, estimate_motion, line_spans_s
 from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
 from isokinetic.measurement.windows import WindowSpec, case_windows, windowed_half_periods
@@ -85,6 +93,9 @@ TIME_OFFSET_NOTE_S = 0.1
 FORCE_SIGN_SIGMAS = 3.0
 #: The hint a record with the opposite sign convention gets.
 INVERT_HINT = "the rig's sign convention looks opposite: add `invert: true`"
+#: The hint a record whose force leads its motion gets (:mod:`isokinetic.measurement.plausibility`).
+REVERSED_HINT = ("time reversed (rows in reverse order, the time column left ascending) or channels shifted: "
+                 "export the record in time order")
 #: cases.parquet columns of the measured motion (NaN unless a triangle case reached the motion check).
 MOTION_COLUMNS = ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m")
 #: cases.parquet columns of the dropped samples (NA unless the case reached the gap check).
@@ -447,6 +458,67 @@ def window_problems(df: pd.DataFrame, plan: CasePlan, motion: Motion, spec: Wind
     return []
 
 
+def temperature_problems(df: pd.DataFrame) -> list[Problem]:
+    """A temperature channel that follows the command or the displacement (|correlation| >=
+    pl.FOLLOW_CORRELATION) is that channel, not an oil temperature (a short header drafted as a temperature)."""
+    if "temperature_C" not in df:
+        return []
+    temperature = df["temperature_C"].to_numpy()
+    for column in ("command_m", "displacement_m"):
+        r = pl.follows(temperature, df[column].to_numpy()) if column in df else 0.0
+        if r >= pl.FOLLOW_CORRELATION:
+            return [Problem("temperature_C", f"the temperature follows the {column.split('_')[0]} (|correlation| "
+                                             f"{r:.3f}, at least {pl.FOLLOW_CORRELATION:g}): an oil temperature "
+                                             f"drifts, it does not repeat the motion; is the column the "
+                                             f"{column.split('_')[0]}?")]
+    return []
+
+
+def energy_problems(df: pd.DataFrame, dt_s: float) -> list[Problem]:
+    """Dissipation and causality (:mod:`isokinetic.measurement.plausibility`): a record whose cycles give
+    energy back has the opposite sign convention (INVERT_HINT), or runs backwards when its negated force leads
+    the motion (REVERSED_HINT); a record whose force leads the motion at every reversal (the lead beyond
+    pl.lead_bound_s and three standard errors) is time reversed or shifted (REVERSED_HINT)."""
+    t, x, f = (df[c].to_numpy() for c in ("time_s", "displacement_m", "force_N"))
+    net, absolute = pl.cycle_energies(t, x, f)
+    back = pl.gives_energy_back(net, absolute)
+    lead = pl.causality(t, x, -f if back else f, dt_s)
+    gave = (f"over its {net.size} complete cycle(s) the record gives back {-net.sum():.4g} J, "
+            f"{-net.sum() / absolute.sum():.0%} of the work |F v| dt; a damper absorbs energy") if back else ""
+    if lead.leads_everywhere:
+        said = f"{gave}, and with the force negated {lead.said()}" if back else lead.said()
+        return [Problem("force_N", f"{said}: {REVERSED_HINT}")]
+    if back:
+        return [Problem("force_N", f"{gave}: {INVERT_HINT} to the manifest's `force` column (or the record runs "
+                                   "backwards in time: then the force leads its motion, not measured here)")]
+    return []
+
+
+def magnitude_problems(df: pd.DataFrame, full_scale_N: float | None) -> list[Problem]:
+    """Force magnitudes without design data (pl.force_magnitude_problem: against a declared full scale, or a
+    damper's forces), and force over velocity against any damper's damping (pl.DAMPING_RANGE_N_S_M)."""
+    f = df["force_N"].to_numpy()
+    said = pl.force_magnitude_problem(f, full_scale_N)
+    if said:
+        return [Problem("force_N", said)]
+    damping = pl.implied_damping_N_s_m(df["time_s"].to_numpy(), df["displacement_m"].to_numpy(), f)
+    if not pl.plausible_damping(damping):
+        low, high = pl.DAMPING_RANGE_N_S_M
+        return [Problem("force_N", f"force over velocity {damping:.3g} N s/m lies outside a damper's {low:g} to "
+                                   f"{high:g} N s/m: a unit mix-up in the force or the displacement?")]
+    return []
+
+
+def physics_problems(df: pd.DataFrame, plan: CasePlan, full_scale_N: float | None = None) -> list[Problem]:
+    """The checks that need no damper block: a temperature that follows the motion, and for a moving case
+    (triangle, sine, free) the force's magnitude and damping, dissipation and causality."""
+    problems = temperature_problems(df)
+    if plan.waveform == "standstill":
+        return problems
+    return problems + magnitude_problems(df, full_scale_N) + energy_problems(df, sample_interval_s(
+        df["time_s"].to_numpy()))
+
+
 @dataclass(frozen=True)
 class CaseCheck:
     """What the checks of one case found: problems, flagged-but-usable warnings, the measured motion
@@ -461,13 +533,15 @@ class CaseCheck:
 
 def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
-               window_spec: WindowSpec = WindowSpec(), gap_tolerance: GapTolerance = GapTolerance()) -> CaseCheck:
+               window_spec: WindowSpec = WindowSpec(), gap_tolerance: GapTolerance = GapTolerance(),
+               full_scale_N: float | None = None) -> CaseCheck:
     """All checks of one canonical time series.
 
     The schema first, then the record (length, sample rate); then the measured motion of a triangle
     case, whose start places the windows; then gaps, saturation, plausibility, the motion against
-    the plan and the windows (fit, force sign); each step only once the previous ones hold (at most
-    one problem per column, the first found).
+    the plan and the windows (fit, force sign), the physics any damper obeys (:func:`physics_problems`; a
+    time-reversed record's reason before the windows' sign hint); each step only once the previous ones hold
+    (at most one problem per column, the first found).
     """
     problems = timeseries_problems(df) or record_problems(df["time_s"].to_numpy(), plan, sample_rate_tolerance,
                                                           min_samples)
@@ -491,7 +565,11 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
         # with the displacement inverted, the force is checked against a velocity of the wrong sign
         inverted = any(INVERT_HINT in p.message for p in later)
         later += [p for p in windows if not (inverted and p.column == "force_N")]
-    for problem in gaps + flat + plausibility_problems(df, plan, damper) + later:
+    physics = physics_problems(df, plan, full_scale_N)
+    if any(INVERT_HINT in p.message and p.column == "displacement_m" for p in later):
+        physics = [p for p in physics if p.column != "force_N"]    # judged against a velocity of the wrong sign
+    reversed_first = [p for p in physics if REVERSED_HINT in p.message]
+    for problem in gaps + flat + plausibility_problems(df, plan, damper) + reversed_first + later + physics:
         found.setdefault(problem.column, problem)
     return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings, motion, sampling)
 
@@ -523,6 +601,28 @@ def motion_columns(motion: Motion | None, plan: CasePlan) -> dict[str, float]:
             "velocity_ratio": motion.velocity_ratio, "motion_rms_m": motion.rms_m}
 
 
+def force_full_scales_N(meta: dict) -> dict[str, float]:
+    """case -> the force channel's declared ``full_scale`` in N, from the campaign's manifest (campaign.json
+    ``manifest_file``); empty for a simulated campaign or a manifest that no longer reads."""
+    path = meta.get("manifest_file")
+    if not path or not Path(path).is_file():
+        return {}
+    from isokinetic.contracts.manifest import ManifestError, channel_unit, load_manifest  # pint: lazy
+    try:
+        manifest = load_manifest(path)
+    except (ManifestError, OSError, ValueError):
+        return {}
+    out = {}
+    for spec in manifest.cases:
+        column = spec.columns.get("force")
+        if column is not None and column.full_scale is not None:
+            try:
+                out[spec.plan.case] = abs(column.full_scale * column.scale * channel_unit("force", column.unit).scale)
+            except ValueError:
+                continue
+    return out
+
+
 def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
                       min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
                       gap_tolerance: GapTolerance = GapTolerance()) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -547,10 +647,12 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
     for column in SAMPLING_COLUMNS[1:]:
         cases[column] = math.nan
     rows = []
+    full_scales = force_full_scales_N(ingested.meta)
     for i, row in cases[cases["status"] == "ok"].iterrows():
         df = pd.read_parquet(ingested.root / row["timeseries_file"])
         plan = case_plan(row)
-        found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, gap_tolerance)
+        found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, gap_tolerance,
+                           full_scales.get(plan.case))
         problems, warnings = found.problems, found.warnings
         for column, value in motion_columns(found.motion, plan).items():
             cases.loc[i, column] = value

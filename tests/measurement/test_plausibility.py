@@ -1,0 +1,106 @@
+"""Physics any damper's record obeys: causality, dissipation, magnitudes, a temperature that follows the motion."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from isokinetic.init_campaign import channels
+from isokinetic.measurement import plausibility as pl
+from isokinetic.physics.plan import triangle_displacement
+
+RATE_HZ, PERIOD_S, AMPLITUDE_M = 500.0, 2.0, 1e-3
+
+
+def _first_order(t, x, tau_s):
+    """x through a first-order lag (exact for a piecewise-constant input between samples)."""
+    if tau_s == 0:
+        return x.copy()
+    a = math.exp(-(t[1] - t[0]) / tau_s)
+    y = np.empty_like(x)
+    y[0] = x[0]
+    for i in range(1, x.size):
+        y[i] = a * y[i - 1] + (1 - a) * x[i]
+    return y
+
+
+def _record(tau_s=0.02, delay_s=0.0, noise_N=5.0, seed=1):
+    """A triangle with a friction + viscous force through a first-order lag tau_s; the displacement measured
+    delay_s late."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(2.5 * PERIOD_S * RATE_HZ)) / RATE_HZ
+    x = triangle_displacement(t, AMPLITUDE_M, PERIOD_S)
+    v = np.gradient(x, t)
+    force = _first_order(t, np.sign(v) * (100.0 + 2e5 * np.abs(v)), tau_s) + rng.normal(0, noise_N, t.size)
+    measured_x = triangle_displacement(t - delay_s, AMPLITUDE_M, PERIOD_S) + rng.normal(0, 1e-7, t.size)
+    return t, measured_x, force
+
+
+def test_a_first_order_lag_is_measured_as_its_median_delay():
+    t, x, f = _record(tau_s=0.02)
+    lags, errors = pl.force_lags(t, x, f)
+    assert lags.size >= 4
+    # a velocity step through a first-order lag crosses its middle at tau ln 2
+    assert np.allclose(lags, 0.02 * math.log(2), atol=3 * errors.max() + 1.0 / RATE_HZ)
+
+
+def test_a_reversed_record_leads_by_the_lag_whatever_the_load_cells_sign():
+    t, x, f = _record(tau_s=0.02)
+    lead = pl.causality(t, x[::-1], -f[::-1], 1.0 / RATE_HZ)
+    assert lead.leads_everywhere
+    assert np.allclose(-lead.lags_s, 0.02 * math.log(2), atol=3 * lead.errors_s.max() + 1.0 / RATE_HZ)
+    assert not pl.causality(t, x, f, 1.0 / RATE_HZ).leads_everywhere
+
+
+@pytest.mark.parametrize("tau_s, delay_s", [(0.0, 0.0), (0.0, 0.004), (0.05, 0.0), (0.0, 2.0 / RATE_HZ)],
+                         ids=["no-lag", "lvdt-delay-4ms", "force-low-pass", "two-samples-skew"])
+def test_no_lead_is_seen_within_what_real_rigs_make(tau_s, delay_s):
+    t, x, f = _record(tau_s=tau_s, delay_s=delay_s)
+    assert not pl.causality(t, x, f, 1.0 / RATE_HZ).leads_everywhere
+
+
+def test_a_damper_absorbs_energy_and_an_inverted_or_reversed_record_gives_it_back():
+    t, x, f = _record(tau_s=0.0)     # a lag takes about 2 tau / (T/2) of the work: none here
+    net, absolute = pl.cycle_energies(t, x, f)
+    # independent: the friction + viscous force's work over a cycle, 4 A (100 N + 2e5 N s/m x 4A/T)
+    assert net.sum() / net.size == pytest.approx(4 * AMPLITUDE_M * (100.0 + 2e5 * 4 * AMPLITUDE_M / PERIOD_S),
+                                                 rel=0.03)
+    assert not pl.gives_energy_back(net, absolute)
+    assert pl.gives_energy_back(*pl.cycle_energies(t, x, -f))
+    assert pl.gives_energy_back(*pl.cycle_energies(t, x[::-1], f[::-1]))
+    assert pl.gives_energy_back(*pl.cycle_energies(t, x + 0.3, f + 500.0)) is False     # offsets cancel
+
+
+def test_force_magnitude_rule_is_init_campaigns_sure_rule():
+    assert (channels.TYPICAL["force_N"], channels.SURE_MARGIN) == (pl.TYPICAL_FORCE_N, pl.SURE_MARGIN)
+    assert pl.DAMPING_RANGE_N_S_M == channels.DAMPING_RANGE_N_S_M
+    # at the bound, the N reading and the kN reading differ by the sure margin in init-campaign's scores
+    p = pl.MIN_PEAK_FORCE_N
+    scores = channels.force_scores(np.array([p, -p]))
+    assert scores["N"] - scores["kN"] == pytest.approx(pl.SURE_MARGIN)
+
+
+@pytest.mark.parametrize("peak_N, full_scale_N, flagged", [
+    (0.27, None, True), (1.6, None, True), (1.8, None, False), (270.0, None, False),
+    (0.27, 10.0, False), (0.27, 1e4, True), (1.2, 1e4, True), (270.0, 1e4, False)])
+def test_force_magnitude_against_full_scale_or_a_dampers_forces(peak_N, full_scale_N, flagged):
+    f = peak_N * np.sin(np.linspace(0, 20, 2000))
+    assert bool(pl.force_magnitude_problem(f, full_scale_N)) is flagged
+
+
+def test_implied_damping_is_force_over_velocity():
+    t = np.arange(2000) / RATE_HZ
+    x = 1e-3 * np.sin(2 * np.pi * 1.0 * t)
+    f = 3e4 * 2e-3 * np.pi * np.cos(2 * np.pi * t)
+    assert pl.implied_damping_N_s_m(t, x, f) == pytest.approx(3e4, rel=1e-3)
+    assert pl.plausible_damping(3e4) and not pl.plausible_damping(0.5) and not pl.plausible_damping(2e9)
+
+
+def test_a_channel_that_repeats_the_motion_follows_it_a_drifting_temperature_does_not():
+    t, x, _ = _record()
+    assert pl.follows(40.0 + 1e3 * x, x) > pl.FOLLOW_CORRELATION
+    drift = 40.0 + 2.0 * t / t[-1] + np.random.default_rng(2).normal(0, 0.05, t.size)
+    assert pl.follows(drift, x) < pl.FOLLOW_CORRELATION
+    assert pl.follows(np.full(t.size, 40.0), x) == 0.0
