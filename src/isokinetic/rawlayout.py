@@ -370,15 +370,18 @@ def _cut_note(row: int, fields: list[str], want: int) -> str:
 def _cut_last(data: bytes, fmt, width: int, n_rows: int, bad: tuple[int, int] | None
               ) -> list[str] | None:
     """The fields of a file's last row when it is cut off (no line end after it; short of fields, the only such
-    row, or visibly cut in its last value: :func:`isokinetic.rawlayout.cut_off_last`), else None."""
-    body = data.rstrip(b"\r\n")
-    start = body.rfind(b"\n") + 1
-    fields = _split(body[start:].decode(fmt.encoding).rstrip("\r"), fmt.delimiter)
+    row, or visibly cut in its last value: :func:`cut_off_last`), else None. Only the last two lines are copied."""
+    end = len(data)
+    start = data.rfind(b"\n", 0, end) + 1
+    fields = _split(data[start:end].decode(fmt.encoding).rstrip("\r"), fmt.delimiter)
     if bad is not None:
         return fields if bad[1] == n_rows - 1 and len(fields) < width else None
-    previous = body[:max(start - 1, 0)].rstrip(b"\r\n")
-    before = _split(previous[previous.rfind(b"\n") + 1:].decode(fmt.encoding).rstrip("\r"), fmt.delimiter)
-    return fields if n_rows and cut_off_last(fields, before if n_rows > 1 else None, fmt.decimal) else None
+    at = start - 1                      # the line end before the last row; blank lines above it skipped
+    while at > 0 and not data[data.rfind(b"\n", 0, at) + 1:at].strip():
+        at = data.rfind(b"\n", 0, at)
+    line = data[data.rfind(b"\n", 0, max(at, 0)) + 1:max(at, 0)].decode(fmt.encoding).rstrip("\r")
+    before = _split(line, fmt.delimiter) if n_rows > 1 else None
+    return fields if n_rows and cut_off_last(fields, before, fmt.decimal) else None
 
 
 def _decimals(cell: str, decimal: str) -> int:

@@ -17,9 +17,12 @@ Time units that are no pint unit (:data:`TIME_TEXT_UNITS`):
 from __future__ import annotations
 
 import re
+from typing import TYPE_CHECKING
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:       # pandas is imported where a column is read: the manifest's readers load no pandas (issue 23)
+    import pandas as pd
 
 TIME_STAMPS = "datetime"
 TIME_TEXT_UNITS = (TIME_STAMPS, "hms", "excel_serial")
@@ -39,6 +42,8 @@ _OFFSET = re.compile(r"(?:[zZ]|[+-]\d{2}:?\d{2})\s*$")
 def hms_seconds(cells: pd.Series) -> np.ndarray:
     """Clock times (``HH:MM:SS.fff``, ``MM:SS.fff``) as seconds from the first one (NaN where a cell is none);
     a step back of more than half a day starts the next day."""
+    import pandas as pd
+
     parts = cells.astype(object).where(cells.map(lambda v: isinstance(v, str)), "").astype(str).str.extract(_HMS)
     hours = pd.to_numeric(parts[0], errors="coerce").fillna(0.0).to_numpy(float)
     minutes = pd.to_numeric(parts[1], errors="coerce").to_numpy(float)
@@ -92,6 +97,8 @@ def iso_seconds(cells: pd.Series, timezone: str | None = None) -> tuple[np.ndarr
     """ISO 8601 stamps (a decimal comma in the seconds already '.') as seconds from the first (NaN where a cell is
     none), and the (row, reason) of a daylight-saving step back of local stamps when no ``timezone`` is declared
     (or of a fall-back the declared zone cannot place)."""
+    import pandas as pd
+
     text = cells.astype(object)
     first = next((str(v) for v in text if isinstance(v, str) and v.strip()), "")
     local = bool(first) and not _OFFSET.search(first)
@@ -136,6 +143,8 @@ def time_seconds(cells: pd.Series, unit: str, timezone: str | None = None
                  ) -> tuple[np.ndarray, tuple[int, str] | None]:
     """A time column in one of :data:`TIME_TEXT_UNITS` as seconds from its first sample (NaN where a cell is not
     one), with the (row, reason) of a problem the cells alone show (a daylight-saving jump)."""
+    import pandas as pd
+
     if unit == "hms":
         return hms_seconds(cells), None
     if unit == "excel_serial":

@@ -179,3 +179,32 @@ def test_local_stamps_across_a_fall_back_are_not_drafted_as_sure(exported, tmp_p
     with pytest.raises(ValueError) as info:
         write_draft(folder)
     assert "a daylight-saving fall-back" in str(info.value) and "timezone: Europe/Berlin" in str(info.value)
+
+
+def _force_in_grouped_N(data: bytes) -> bytes:
+    """A ';' and ',' file's force column (the third, in kN) rewritten in N with '.' between thousands."""
+    lines = data.decode("utf-8").split("\n")
+    k = next(i for i, line in enumerate(lines) if line.startswith("Zeit"))
+    lines[k] = lines[k].replace("Kraft [kN]", "Kraft [N]")
+    for i in range(k + 1, len(lines)):
+        if lines[i]:
+            fields = lines[i].split(";")
+            newton = float(fields[2].replace(",", ".")) * 1e3
+            fields[2] = f"{newton:,.6f}".replace(",", "_").replace(".", ",").replace("_", ".")
+            lines[i] = ";".join(fields)
+    return "\n".join(lines).encode("utf-8")
+
+
+def test_thousands_separators_are_drafted_and_checked(exported, tmp_path, capsys):
+    """``1.234,567890`` N: before, "no force column found" (the grouped cells were no numbers)."""
+    from isokinetic.contracts.manifest import load_manifest
+
+    from .layouts import LAYOUTS
+
+    layout = next(x for x in LAYOUTS if x.decimal == ",")
+    folder = _rewritten(exported, tmp_path / "raw" / "lag", layout, _force_in_grouped_N)
+    assert any("." in line.split(";")[2] for line in (folder / "T22.csv").read_text(encoding="utf-8").split("\n")[2:]
+               if line)
+    out = _draft_then_check(folder, capsys)
+    assert load_manifest(folder / "campaign.yaml").columns["force"].unit == "N"
+    assert "3 of 3 cases agree" in out
