@@ -348,3 +348,27 @@ def test_a_lagging_channels_model_means_leave_out_the_dropped_samples_at_their_p
         keep[obs.holes[obs.holes[:, 0] == i, 1] - obs.start[i]] = False
         expected = padded[obs.start[i]:obs.stop[i]][keep].mean()
         assert lagged[i] == pytest.approx(expected, rel=1e-9, abs=1e-9 * np.abs(force).max())
+
+
+def test_a_spike_in_a_window_is_left_out_of_its_mean_of_the_models_and_of_the_noise_model(mixed):
+    obs, damper, root = mixed
+    row, series = series_of(root, "T01")
+    tau = series["time_s"].to_numpy() - float(row["motion_start_s"])
+    half = CASES[0].period_s / 2
+    inside = np.flatnonzero((tau >= 1.45 * half) & (tau < 1.95 * half + 0.5 / 50.0))      # window 2
+    spike = int(inside[inside.size // 2])
+    spiked = series.copy()
+    spiked.loc[spike, "force_N"] += 10_000.0
+    campaign, _damper, cases, char, _scales = load_campaign(root)
+
+    def load(r):
+        return spiked if r["case"] == "T01" else pd.read_parquet(root / r["timeseries_file"])
+
+    dirty = build_observations(campaign, cases, char, load, WindowSpec())
+    i = int(np.flatnonzero((dirty.case == "T01") & dirty.is_window & (dirty.segment == 2))[0])
+    kept = np.setdiff1d(inside, [spike])
+    assert dirty.force_N[i] == pytest.approx(series["force_N"].to_numpy()[kept].mean(), rel=1e-12)
+    assert dirty.holes[dirty.holes[:, 0] == i].shape == (1, 2) and obs.holes[obs.holes[:, 0] == i].size == 0
+    np.testing.assert_allclose(Evaluator(dirty, damper).predict(NOMINAL), Evaluator(obs, damper).predict(NOMINAL),
+                               rtol=1e-4, atol=1e-3)
+    np.testing.assert_allclose(dirty.sigma_N, obs.sigma_N, rtol=0.05)

@@ -287,3 +287,30 @@ def test_settling_keeps_a_cycle_one_percent_slower_and_drops_a_ramp():
     kept = settled(p)
     assert kept["time_s"].min() > 1.4                            # the ramp's cycles are out
     assert ((kept["time_s"] > 2.5) & (kept["time_s"] < 3.0)).sum() >= 1     # the 1 % slower cycle is in
+
+
+def test_a_spike_at_a_peak_gives_the_clean_twins_force_within_its_standard_error_counted():
+    t, x, f = record(force_noise_N=5.0, seed=4)
+    clean = peak_points(t, x, f, 1.0 / FREQ)
+    at = int(np.argmin(np.abs(t - clean["time_s"].iloc[3])))      # the sample at one cycle's velocity peak
+    spiked = f.copy()
+    spiked[at] += 10_000.0
+    p = peak_points(t, x, spiked, 1.0 / FREQ)
+    assert p["spikes_excluded"].tolist() == [1 if k == 3 else 0 for k in range(len(p))]
+    assert not p["spike_set_aside"].any() and p["steady"].all()
+    same = [k for k in range(len(p)) if k != 3]
+    assert p.iloc[same]["force_N"].tolist() == clean.iloc[same]["force_N"].tolist()
+    n_window = int(clean["i_stop"].iloc[3] - clean["i_start"].iloc[3])
+    assert abs(p["force_N"].iloc[3] - clean["force_N"].iloc[3]) < 3.0 * 5.0 * math.sqrt(3.0 / n_window)
+    expected = [1, 0] if clean["direction"].iloc[3] == "+" else [0, 1]
+    assert summarise(p)["spikes_excluded"].tolist() == expected
+
+
+def test_a_cycle_with_too_many_spikes_in_its_speed_window_is_marked_set_aside():
+    t, x, f = record(force_noise_N=5.0, seed=6)
+    clean = peak_points(t, x, f, 1.0 / FREQ)
+    i0, i1 = int(clean["i_start"].iloc[2]), int(clean["i_stop"].iloc[2])
+    spiked = f.copy()
+    spiked[[i0 + 5, i0 + 15, i1 - 10]] -= 6000.0
+    p = peak_points(t, x, spiked, 1.0 / FREQ)
+    assert p["spike_set_aside"].tolist() == [k == 2 for k in range(len(p))]

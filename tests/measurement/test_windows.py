@@ -232,3 +232,54 @@ def test_motion_start_is_the_cases_column_and_zero_when_absent_or_not_a_number()
     assert motion_start({"motion_start_s": 0.25}) == 0.25
     for row in ({}, {"motion_start_s": None}, {"motion_start_s": math.nan}, pd.Series({"case": "T01"})):
         assert motion_start(row) == 0.0
+
+
+def noisy_series(sigma_N: float = 9.0, seed: int = 11) -> pd.DataFrame:
+    """make_series with white force noise (the issue's window: a 759 N level, 9 N of noise)."""
+    series = make_series()
+    series["force_N"] += 659.0 + np.random.default_rng(seed).normal(0.0, sigma_N, len(series))
+    return series
+
+
+def test_a_spike_in_a_window_gives_the_clean_twins_point_within_its_standard_error_counted():
+    clean = noisy_series()
+    spiked = clean.copy()
+    spiked.loc[70, "force_N"] += 10_000.0                      # one 10 kN sample in window 1 (rows 45..95)
+    before, after = case_windows(plan(), clean), case_windows(plan(), spiked)
+    naive = spiked["force_N"].iloc[45:96].mean()
+    se = before[0]["force_std_N"] / math.sqrt(before[0]["n_samples"])
+    assert abs(naive - before[0]["force_N"]) > 100 * se          # what the plain mean did: 196 N off
+    assert abs(after[0]["force_N"] - before[0]["force_N"]) < se
+    assert after[0]["force_std_N"] == pytest.approx(before[0]["force_std_N"], rel=0.1)
+    assert after[0]["spikes_excluded"] == 1 and after[0]["n_samples"] == 50 and not after[0]["set_aside"]
+    assert before[1:] == after[1:] and all(r["spikes_excluded"] == 0 for r in before)
+
+
+def test_a_window_without_a_spike_is_reduced_exactly_as_before():
+    series = noisy_series(seed=12)
+    for r in case_windows(plan(), series):
+        samples = series["force_N"].iloc[r["row_start"]:r["row_stop"]]
+        assert r["force_N"] == samples.mean() and r["force_std_N"] == samples.std(ddof=1)
+        assert r["n_samples"] == len(samples) and r["spikes_excluded"] == 0 and r["set_aside"] == ""
+
+
+def test_too_many_spikes_set_a_window_aside_with_its_reason():
+    series = noisy_series(seed=13)
+    series.loc[[150, 160, 170], "force_N"] -= 8000.0           # three spikes in window 2 (rows 145..195)
+    cases = pd.DataFrame([dict(campaign="c", case="T01", waveform="triangle", status="ok", sample_rate_Hz=10.0,
+                               amplitude_m=1e-3, period_s=20.0, frequency_Hz=math.nan, phase_rad=-math.pi / 2,
+                               duration_s=40.0, raw_file="f.csv", raw_sha256="ab", timeseries_file="x",
+                               n_samples=401)])
+    notes: dict[str, str] = {}
+    win = extract_windows(cases, lambda row: series, WindowSpec(), notes)
+    assert win["segment"].tolist() == [1, 3, 4]
+    assert "window 2 (-, period 1): 3 spike samples of 51" in notes["T01"] and "set aside" in notes["T01"]
+
+
+def test_a_force_step_or_transient_inside_a_window_is_not_clipped():
+    series = noisy_series(seed=14)
+    series.loc[60:, "force_N"] += 400.0                         # a step in window 1
+    series.loc[250:262, "force_N"] += 300.0 * np.exp(-np.arange(13) / 3.0)   # a relaxation in window 3
+    for r in case_windows(plan(), series):
+        assert r["spikes_excluded"] == 0
+        assert r["force_N"] == series["force_N"].iloc[r["row_start"]:r["row_stop"]].mean()

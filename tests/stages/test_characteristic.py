@@ -390,3 +390,67 @@ def test_a_dynamic_free_record_gives_no_bin_and_says_why(tmp_path):
     note_cases(tmp_path, notes)
     quality = pd.read_parquet(tmp_path / "cases.parquet")["quality"].iloc[0]
     assert quality == f"characteristic: {notes['F01']}"
+
+
+# --- spikes (issue 34): one electrical spike in a window, and too many ------------------------------------------
+
+def spiked_copy(root, tmp_path, spikes: dict[tuple[str, int], list[float]]):
+    """A copy of an ingested campaign with force spikes added, {(case, raw row): [offsets N]}, and its characteristic
+    written."""
+    work = tmp_path / "spiked"
+    shutil.copytree(root / "ingest", work / "ingest")
+    for case in {c for c, _row in spikes}:
+        path = work / timeseries_relpath(case)
+        series = pd.read_parquet(path)
+        for (c, row), offsets in spikes.items():
+            if c == case:
+                series.loc[series["row"] == row, "force_N"] += offsets[0]
+        write_parquet(series, path)
+    return work, write_characteristic(work)
+
+
+def test_a_spike_in_a_triangle_window_gives_the_clean_point_within_its_standard_error_counted_and_flagged(
+        triangle_campaign, tmp_path):
+    _vc, root = triangle_campaign
+    clean = pd.read_parquet(root / "characteristic.parquet").set_index(["case", "segment"])
+    w = clean.loc[("T02", 3)]
+    middle = (int(w["row_start"]) + int(w["row_stop"])) // 2
+    work, char = spiked_copy(root, tmp_path, {("T02", middle): [10_000.0]})
+    char = char.set_index(["case", "segment"])
+    assert abs(char.loc[("T02", 3), "force_N"] - w["force_N"]) < w["force_se_N"]
+    assert char.loc[("T02", 3), "force_std_N"] == pytest.approx(w["force_std_N"], rel=0.1)
+    assert char.loc[("T02", 3), "spikes_excluded"] == 1
+    others = char.drop(index=("T02", 3))
+    assert (others["spikes_excluded"] == 0).all()
+    pd.testing.assert_frame_equal(others[["force_N", "force_std_N", "n_samples"]],
+                                  clean.drop(index=("T02", 3))[["force_N", "force_std_N", "n_samples"]])
+    quality = pd.read_parquet(work / "cases.parquet").set_index("case")["quality"]
+    assert "1 spike sample excluded" in quality["T02"] and "spike" not in quality["T01"]
+
+
+def test_too_many_spikes_set_a_triangle_window_aside_and_the_case_says_why(triangle_campaign, tmp_path):
+    _vc, root = triangle_campaign
+    w = pd.read_parquet(root / "windows.parquet").set_index(["case", "segment"]).loc[("T03", 2)]
+    rows = range(int(w["row_start"]) + 10, int(w["row_stop"]) - 10, 20)          # 5 spikes in 101 samples
+    work, char = spiked_copy(root, tmp_path, {("T03", r): [-7000.0] for r in rows})
+    assert ("T03", 2) not in set(zip(char["case"], char["segment"], strict=True))
+    assert len(char) == len(pd.read_parquet(root / "characteristic.parquet")) - 1
+    quality = pd.read_parquet(work / "cases.parquet").set_index("case")["quality"]
+    assert f"window 2 (-, period 1): {len(rows)} spike samples of {int(w['n_samples'])}" in quality["T03"]
+    assert "set aside" in quality["T03"]
+
+
+def test_a_spike_at_a_sine_peak_gives_the_clean_point_within_its_standard_error_counted(sine_campaign, tmp_path):
+    _vc, root = sine_campaign
+    clean = pd.read_parquet(root / "characteristic.parquet").set_index(["case", "segment"])
+    series = pd.read_parquet(root / timeseries_relpath("H02"))
+    t, x, f = (series[c].to_numpy(float) for c in ("time_s", "displacement_m", "force_N"))
+    from isokinetic.measurement.peak_velocity import peak_points
+    peaks = peak_points(t, x, f, 1.0 / 1.75)
+    last = peaks[peaks["direction"] == "+"].iloc[-1]                 # a '+' peak of period 2 (segment 3)
+    at = int(series["row"].iloc[int(np.argmin(np.abs(t - last["time_s"])))])
+    work, char = spiked_copy(root, tmp_path, {("H02", at): [10_000.0]})
+    char = char.set_index(["case", "segment"])
+    p, c = char.loc[("H02", 3)], clean.loc[("H02", 3)]
+    assert p["spikes_excluded"] == 1 and abs(p["force_N"] - c["force_N"]) < c["force_se_N"]
+    assert "spike" in pd.read_parquet(work / "cases.parquet").set_index("case").loc["H02", "quality"]

@@ -128,11 +128,13 @@ def _window_steps(ctx: Context, src: RawSource, scratch: Path, row: pd.Series, s
 
 
 def _stats_step(ctx: Context, new: pd.Series) -> None:
+    spikes = int(new["spikes_excluded"]) if pd.notna(new.get("spikes_excluded")) else 0
+    missing = int(new["missing_samples"]) if pd.notna(new.get("missing_samples")) else 0
     ctx.report.step("Window statistics (windows.case_windows) on the re-derived samples",
                     (f"force_N     = least-squares line of force_N at the window's time centre, over the "
-                     f"{int(new['n_samples'])} samples ({int(new['missing_samples'])} dropped; "
-                     f"windows.window_mean_force) = {new['force_N']:.10g} N"
-                     if pd.notna(new.get("missing_samples")) and new.get("missing_samples") > 0 else
+                     f"{int(new['n_samples'])} samples ({missing} dropped, {spikes} left out as "
+                     f"spikes by measurement.spikes.spike_mask; windows.window_mean_force) = {new['force_N']:.10g} N"
+                     if spikes or missing else
                      f"force_N     = mean of force_N over the {int(new['n_samples'])} samples = "
                      f"{new['force_N']:.10g} N"),
                     f"force_std_N = standard deviation (ddof = 1) = {new['force_std_N']:.10g} N",

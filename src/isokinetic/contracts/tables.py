@@ -214,7 +214,10 @@ WINDOWS = Schema(
     {**_WINDOW_COLUMNS,
      # samples of the record's grid inside the window that the logger dropped (validate sets a case
      # aside beyond validation.max_missing_fraction); absent in windows written before it existed
-     "missing_samples": Column("Int64", Check.ge(0), nullable=True, required=False)},
+     "missing_samples": Column("Int64", Check.ge(0), nullable=True, required=False),
+     # (issue 34) force samples left out of the window's statistics as spikes (measurement.spikes); absent in
+     # windows written before it existed
+     "spikes_excluded": Column("Int64", Check.ge(0), nullable=True, required=False)},
     checks=(Check("row_range", fn=lambda df: df["row_stop"] > df["row_start"]),),
     strict=False,
     name="windows",
@@ -253,7 +256,10 @@ CHARACTERISTIC = Schema(
     {**_WINDOW_COLUMNS, "segment": Column("int64", Check.ge(1)), "n_samples": Column("int64", Check.ge(1)),
      "repeatability_flagged": Column("bool"),
      "method": Column("str", Check.isin(CHARACTERISTIC_METHODS), required=False),
-     "force_se_N": Column("float64", Check.ge(0), nullable=True, required=False)},
+     "force_se_N": Column("float64", Check.ge(0), nullable=True, required=False),
+     # (issue 34) force samples left out of the point as spikes (measurement.spikes): of its window, of its cycles'
+     # speed windows, of its bin; absent in tables written before it existed
+     "spikes_excluded": Column("Int64", Check.ge(0), nullable=True, required=False)},
     strict=False,
     name="characteristic",
 )

@@ -13,7 +13,10 @@ windows leave out). All times are *plan times*: record time minus the case's mea
 (``motion_start_s`` of cases.parquet), so windows and bins sit where the piston really moved,
 whatever the actuator delay or the time axis' origin. A sample the record lacks (a logger's dropped sample)
 is left out of the model's mean too (``Observations.holes``), so both are means over the same times: inside a
-reversal's transient one missing sample moves a bin's mean by a large share of the force's swing.
+reversal's transient one missing sample moves a bin's mean by a large share of the force's swing. A window's
+force spikes (:mod:`isokinetic.measurement.spikes`, the characteristic's rule on the same samples) are left out
+the same way, of the window's mean, of the model's, and of the samples the noise model sees; the transient
+bins are not searched for spikes (a reversal's force is no steady trend to tell a spike from).
 
 Noise. Each observation's standard error combines (a) the variance of a mean of n consecutive
 samples under the campaign's pooled force-noise model (:mod:`isokinetic.measurement.noise`: white
@@ -46,6 +49,7 @@ from isokinetic.diagnosis.sine_observations import (
 )
 from isokinetic.measurement.drive import measured_drive
 from isokinetic.measurement.noise import between_period_scatter, fit_noise_model
+from isokinetic.measurement.spikes import spike_mask
 from isokinetic.measurement.windows import WindowSpec, motion_start, windowed_half_periods
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import Drive, drive_times
@@ -170,6 +174,8 @@ class _Collector:
             row = len(cols["case"])
             self.holes += [(row, int(j0 + h)) for h in missing_samples(rec.tau_s[m0:m1], rec.model_times_s[j0:j1], fs)]
         fw = rec.force_N[m0:m1]
+        if kind == "window" and plan.waveform == "triangle":   # the characteristic's spikes, left out of both means
+            fw = self._without_spikes(rec, m0, m1, j0, j1, len(cols["case"]))
         fn = fw - self.force_offset_N
         cols["case"].append(plan.case)
         cols["case_index"].append(len(self.plans))
@@ -193,6 +199,20 @@ class _Collector:
                 self.window_samples.setdefault(fs, []).append(fn)
         cols["white_se2"].append(float(np.var(fw, ddof=1)) / fw.size)
         return int(j1)
+
+    def _without_spikes(self, rec: CaseRecord, m0: int, m1: int, j0: int, j1: int, row: int) -> np.ndarray:
+        """The force of the measured samples [m0, m1) less the spikes the characteristic leaves out of the window
+        (:func:`isokinetic.measurement.spikes.spike_mask`, the same samples), each spike's model sample made a hole
+        of observation ``row`` so that the model's mean leaves it out too."""
+        fw = rec.force_N[m0:m1]
+        spikes = spike_mask(rec.force_N, int(m0), int(m1))
+        if not spikes.any():
+            return fw
+        model = rec.model_times_s[j0:j1]
+        at = np.clip(np.searchsorted(model, rec.tau_s[m0:m1][spikes] - 0.5 / rec.plan.sample_rate_Hz), 0,
+                     model.size - 1)
+        self.holes += [(row, int(j0 + j)) for j in np.unique(at)]
+        return fw[~spikes]
 
     def add_case(self, rec: CaseRecord, spec: WindowSpec, n_bins: int, viscosity_scale: float = 1.0) -> None:
         """The window and ``n_bins`` transient bins of each half-period of one case (modelled with the

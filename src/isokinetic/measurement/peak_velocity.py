@@ -22,6 +22,10 @@ sign (:func:`peak_points`):
    steady, with its spread (the window's standard deviation): the force at peak velocity is then known no
    better than that spread, and the stage flags the point and widens its standard error by it. A narrow local
    fit at one instant would follow the swing instead and be silently wrong.
+   Spikes (:mod:`isokinetic.measurement.spikes`, the same rule as a triangle window's, on the force over +-T/8
+   around t_v less its least-squares quadratic) are left out of the fit, of the window's mean and spread and of
+   the noise the steadiness test uses, and counted (``spikes_excluded``); a cycle whose speed window holds more
+   than max(1, 1 %) spike samples is marked ``spike_set_aside`` and gives no point (the stage leaves it out).
 
 Why the velocity's extremum: there dv/dt = 0, so the force of a memoryless damper is F(v) at the highest
 speed of the half-cycle, and a damper whose force lags (a Maxwell element: the oil's compressibility in
@@ -59,14 +63,15 @@ import pandas as pd
 
 from isokinetic.measurement.crossings import hysteresis_crossings
 from isokinetic.measurement.loops import half_cycles, noise_sigma, smooth_velocity
+from isokinetic.measurement.spikes import spike_mask, too_many
 from isokinetic.stats import ALPHA, chi2_isf
 
 #: Columns of :func:`peak_points`.
 POINT_COLUMNS = ["direction", "time_s", "velocity_m_s", "force_N", "force_noise_N", "force_spread_N", "steady",
-                 "window_s", "i_start", "i_stop"]
+                 "window_s", "i_start", "i_stop", "spikes_excluded", "spike_set_aside"]
 #: Columns of :func:`summarise`.
 SUMMARY_COLUMNS = ["direction", "velocity_m_s", "force_N", "velocity_std_m_s", "force_std_N", "n_cycles",
-                   "force_se_N", "force_noise_N", "force_spread_N", "n_unsteady"]
+                   "force_se_N", "force_noise_N", "force_spread_N", "n_unsteady", "spikes_excluded"]
 #: Columns of :func:`cycle_energies`.
 ENERGY_COLUMNS = ["t_start_s", "t_end_s", "energy_J", "amplitude_m", "i_start", "i_stop"]
 #: The coarse velocity's smoothing window is at most this fraction of the period (the harmonics survive it).
@@ -237,14 +242,17 @@ def _window(t: np.ndarray, t_a: float, t_b: float, tv: float, min_side: int) -> 
 
 
 def window_force(t: np.ndarray, f: np.ndarray, lo: int, hi: int, tv: float, noise_N: float,
-                 spec: PeakSpec = PeakSpec()) -> dict:
+                 spec: PeakSpec = PeakSpec(), spikes: np.ndarray | None = None) -> dict:
     """The force over the speed window [lo, hi) around t_v (module doc, step 3): a least-squares quadratic F(t)
     through the window; when its residual spread is what the noise gives (chi-square at ``spec.alpha``) or within
     ``spec.steady_fraction`` of the force, the force is steady and the point is the quadratic at t_v (the window
     mean corrected for a smooth force's curvature); otherwise it is the window's mean force, not steady, and
-    force_spread_N is the window's standard deviation. force_noise_N: the quadratic's residual spread."""
+    force_spread_N is the window's standard deviation. force_noise_N: the quadratic's residual spread. ``spikes``
+    (a boolean of hi - lo, :func:`isokinetic.measurement.spikes.spike_mask`): samples left out of all of it."""
     u = t[lo:hi] - tv
     y = f[lo:hi]
+    if spikes is not None and spikes.any():
+        u, y = u[~spikes], y[~spikes]
     half = max(float(np.max(np.abs(u))), 1e-300)
     q = np.polynomial.Polynomial.fit(u / half, y, FORCE_DEGREE, domain=[-1, 1], window=[-1, 1])
     dof = max(1, y.size - FORCE_DEGREE - 1)
@@ -257,6 +265,16 @@ def window_force(t: np.ndarray, f: np.ndarray, lo: int, hi: int, tv: float, nois
         return {"force_N": at_peak, "force_noise_N": spread, "force_spread_N": 0.0, "steady": True}
     return {"force_N": float(np.mean(y)), "force_noise_N": spread, "force_spread_N": float(np.std(y, ddof=1)),
             "steady": False}
+
+
+def _near_spikes(f: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """Spikes of the record's force (a boolean of the record) within the stretch ``near`` (+-T/8 around a peak),
+    its least-squares quadratic taken off (:func:`isokinetic.measurement.spikes.spike_mask`)."""
+    out = np.zeros(f.size, dtype=bool)
+    at = np.flatnonzero(near)
+    if at.size:
+        out[at[0]:at[-1] + 1] = spike_mask(f, int(at[0]), int(at[-1]) + 1, detrend=True)
+    return out
 
 
 def peak_points(time_s, displacement_m, force_N, period_s: float, *, t_start: float | None = None,
@@ -289,12 +307,16 @@ def peak_points(time_s, displacement_m, force_N, period_s: float, *, t_start: fl
             continue
         lo, hi = span
         near = (t >= tv - NOISE_PERIOD_FRACTION * own) & (t <= tv + NOISE_PERIOD_FRACTION * own)
-        noise = noise_sigma(f[near]) if near.sum() >= 16 else record_noise
+        spikes = _near_spikes(f, near)
+        noise = noise_sigma(f[near & ~spikes]) if near.sum() >= 16 else record_noise
+        n_spikes = int(spikes[lo:hi].sum())
         rows.append({"direction": "+" if s > 0 else "-", "time_s": tv, "velocity_m_s": vv,
-                     **window_force(t, f, lo, hi, tv, noise, spec), "window_s": float(t_b - t_a),
-                     "i_start": lo, "i_stop": hi})
+                     **window_force(t, f, lo, hi, tv, noise, spec, spikes[lo:hi]), "window_s": float(t_b - t_a),
+                     "i_start": lo, "i_stop": hi, "spikes_excluded": n_spikes,
+                     "spike_set_aside": too_many(n_spikes, hi - lo)})
     out = pd.DataFrame(rows, columns=POINT_COLUMNS)
-    return out.astype({"i_start": "int64", "i_stop": "int64", "steady": bool})
+    return out.astype({"i_start": "int64", "i_stop": "int64", "steady": bool, "spikes_excluded": "int64",
+                       "spike_set_aside": bool})
 
 
 def periodicity(points: pd.DataFrame, tolerance: float = 0.1) -> float | None:
@@ -360,7 +382,8 @@ def summarise(points: pd.DataFrame) -> pd.DataFrame:
     standard deviations (ddof 1; NaN for one cycle), n_cycles, force_se_N = force_std_N / sqrt(n) (NaN for one
     cycle: nothing says how the cycle repeats), the mean force noise of the fits, force_spread_N the root mean
     square of the cycles' in-window spread (0 when every cycle's force is steady) and n_unsteady the cycles
-    whose force is not steady across the speed window (:func:`window_force`)."""
+    whose force is not steady across the speed window (:func:`window_force`), spikes_excluded their spike samples
+    left out."""
     rows = []
     for d in ("+", "-"):
         p = points[points["direction"] == d] if len(points) else points
@@ -375,9 +398,10 @@ def summarise(points: pd.DataFrame) -> pd.DataFrame:
                      "n_cycles": n, "force_se_N": sf / math.sqrt(n),
                      "force_noise_N": float(p["force_noise_N"].mean()) if "force_noise_N" in p else math.nan,
                      "force_spread_N": float(np.sqrt(np.mean(spread * spread))),
-                     "n_unsteady": int((~p["steady"].astype(bool)).sum()) if "steady" in p else 0})
+                     "n_unsteady": int((~p["steady"].astype(bool)).sum()) if "steady" in p else 0,
+                     "spikes_excluded": int(p["spikes_excluded"].sum()) if "spikes_excluded" in p else 0})
     out = pd.DataFrame(rows, columns=SUMMARY_COLUMNS)
-    return out.astype({"n_cycles": "int64", "n_unsteady": "int64"})
+    return out.astype({"n_cycles": "int64", "n_unsteady": "int64", "spikes_excluded": "int64"})
 
 
 def loop_energy(t: np.ndarray, x: np.ndarray, f: np.ndarray, t_a: float, t_b: float) -> float:

@@ -11,6 +11,12 @@ dropped samples (:mod:`isokinetic.measurement.sampling`) is reduced without bias
 the least-squares slope against the real times, and the mean force of a window that misses samples
 is the value of the least-squares line through its force at the window's time centre
 (:func:`window_mean_force`). Whether a window misses too much is the validate stage's decision.
+
+Spikes (:mod:`isokinetic.measurement.spikes`): the force samples of a window that are isolated spikes (a Hampel
+filter, a run of at most three samples beyond 6 robust sigmas of the running median) are left out of its mean, its
+spread and its sample count, as dropped samples are (the mean is then the line at the time centre), and counted
+(``spikes_excluded``); a window with more than max(1, 1 %) of its samples spikes is set aside
+(:func:`extract_windows`, its reason in ``notes``). A window without a spike is reduced exactly as before.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan
 from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
+from isokinetic.measurement.spikes import spike_mask, too_many, too_many_note
 from isokinetic.physics.plan import CasePlan, half_periods
 
 #: Minimum samples a window must hold for a mean, a standard deviation and a line fit.
@@ -131,7 +138,8 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
 
     Cut at ``motion_start_s`` + the plan's window times (:func:`window_ranges`); window_start_s and
     window_end_s are on the record's time axis, velocity_m_s is the measured slope in the window,
-    force_N its mean force on the real time axis (:func:`window_mean_force`), missing_samples the
+    force_N its mean force on the real time axis and force_std_N, n_samples its spread and samples, spikes left out
+    (:func:`window_statistics`; ``set_aside``: why the window has too many), missing_samples the
     samples of the record's grid in the window that are missing (:func:`sampling.span_sampling`).
     Raises ValueError as :func:`window_ranges` does.
     """
@@ -145,7 +153,6 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
     segments = windowed_half_periods(plan, float(t[-1]), spec, motion_start_s)
     out = []
     for k, sign, i0, i1 in window_ranges(plan, t, spec, motion_start_s):
-        tw, fw = t[i0:i1], f[i0:i1]
         a, b = segments[k - 1, 0] + spec.start_fraction * half, segments[k - 1, 0] + spec.end_fraction * half
         missing = span_sampling(t, a, b, dt_s, gaps).missing
         out.append({
@@ -154,17 +161,29 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
             "direction": "+" if sign > 0 else "-",
             "period": (k + 1) // 2,
             "planned_velocity_m_s": sign * plan.velocity_m_s,
-            "velocity_m_s": line_slope(tw, y[i0:i1]),
-            "force_N": window_mean_force(tw, fw, 0.5 * (a + b), complete=missing == 0),
-            "force_std_N": float(fw.std(ddof=1)),
-            "n_samples": i1 - i0,
-            "window_start_s": float(tw[0]),
-            "window_end_s": float(tw[-1]),
+            "velocity_m_s": line_slope(t[i0:i1], y[i0:i1]),
+            **window_statistics(t, f, i0, i1, 0.5 * (a + b), missing),
+            "window_start_s": float(t[i0]),
+            "window_end_s": float(t[i1 - 1]),
             "row_start": int(rows[i0]),
             "row_stop": int(rows[i1 - 1]) + 1,
             "missing_samples": missing,
         })
     return out
+
+
+def window_statistics(t, f, i0: int, i1: int, centre_s: float, missing: int = 0) -> dict:
+    """force_N, force_std_N, n_samples, spikes_excluded and set_aside ('' or the reason) of the window [i0, i1)
+    of a record's force ``f`` (module doc): its spikes (:func:`isokinetic.measurement.spikes.spike_mask`) left out,
+    the mean on the real time axis (:func:`window_mean_force`; complete when no sample is missing or excluded)."""
+    spikes = spike_mask(f, i0, i1)
+    n_spikes = int(spikes.sum())
+    tw, fw = t[i0:i1], f[i0:i1]
+    if n_spikes:
+        tw, fw = tw[~spikes], fw[~spikes]
+    return {"force_N": window_mean_force(tw, fw, centre_s, complete=missing == 0 and n_spikes == 0),
+            "force_std_N": float(fw.std(ddof=1)), "n_samples": int(fw.size), "spikes_excluded": n_spikes,
+            "set_aside": too_many_note(n_spikes, i1 - i0) if too_many(n_spikes, i1 - i0) else ""}
 
 
 def motion_start(case) -> float:
@@ -178,23 +197,41 @@ def motion_start(case) -> float:
     return value if math.isfinite(value) else 0.0
 
 
-def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec) -> pd.DataFrame:
+def extract_windows(cases: pd.DataFrame, load_series, spec: WindowSpec, notes: dict[str, str] | None = None
+                    ) -> pd.DataFrame:
     """Windows of every status-ok triangle case of a cases table (tables.WINDOWS), cut at each case's
     ``motion_start_s`` (0 when the table has no such column).
 
-    ``load_series(case_row)`` returns the case's canonical time series.
+    ``load_series(case_row)`` returns the case's canonical time series. A window with too many spikes is left
+    out; ``notes`` (when given) receives, per case, what its spikes did ({case: text}, only cases with a spike).
     """
     rows = []
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     for _, case in ok.iterrows():
-        for row in case_windows(case_plan(case), load_series(case), spec, motion_start(case)):
+        found = case_windows(case_plan(case), load_series(case), spec, motion_start(case))
+        if notes is not None and (said := spike_note(found)):
+            notes[str(case["case"])] = said
+        for row in found:
+            if row["set_aside"]:
+                continue
             row.update(campaign=case["campaign"], raw_file=case["raw_file"], raw_sha256=case["raw_sha256"],
                        quality=case.get("quality", "ok") if isinstance(case.get("quality"), str) else "ok")
             rows.append(row)
     columns = list(tables.WINDOWS.columns)
     df = pd.DataFrame(rows, columns=columns) if rows else tables.empty(tables.WINDOWS).reindex(columns=columns)
     df = df.astype({"segment": "int64", "period": "int64", "n_samples": "int64",
-                    "row_start": "int64", "row_stop": "int64", "missing_samples": "Int64"})
+                    "row_start": "int64", "row_stop": "int64", "missing_samples": "Int64", "spikes_excluded": "Int64"})
     return tables.validate_table(df[columns], tables.WINDOWS)
 
 
+def spike_note(rows: list[dict]) -> str:
+    """What the spikes of one case's windows (:func:`case_windows` rows) did, '' when it has none."""
+    said = [f"window {r['segment']} ({r['direction']}, period {r['period']}): {r['set_aside']}" for r in rows
+            if r["set_aside"]]
+    kept = [r for r in rows if r["spikes_excluded"] and not r["set_aside"]]
+    if kept:
+        n = sum(int(r["spikes_excluded"]) for r in kept)
+        where = ", ".join(f"{r['segment']}: {r['spikes_excluded']}" for r in kept)
+        said.append(f"{n} spike sample{'s' if n > 1 else ''} excluded from the window means (window: count {where}; "
+                    f"Hampel filter, docs/method.md)")
+    return "; ".join(said)

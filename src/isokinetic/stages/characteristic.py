@@ -39,7 +39,7 @@ from __future__ import annotations
 import logging
 import math
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +60,7 @@ from isokinetic.measurement.peak_velocity import (
 )
 from isokinetic.measurement.quasi_static import quasi_static
 from isokinetic.measurement.repeatability import repeatability
+from isokinetic.measurement.spikes import MAX_FRACTION, MIN_ALLOWED, spike_mask
 from isokinetic.measurement.windows import WindowSpec, extract_windows
 from isokinetic.stages.validate import GapTolerance, write_validated
 
@@ -85,10 +86,12 @@ UNSTEADY_NOTE = ("force not steady while the speed is at its peak (spread beyond
 ENERGY_COLUMNS = list(tables.ENERGY.columns) + ["window_start_s", "window_end_s", "raw_file", "raw_sha256"]
 
 
-def windows_stage(campaign_root, spec: WindowSpec = WindowSpec()) -> pd.DataFrame:
-    """Windows of a validated campaign folder ``results/<campaign>/`` (reads cases.parquet)."""
+def windows_stage(campaign_root, spec: WindowSpec = WindowSpec(), notes: dict[str, str] | None = None
+                  ) -> pd.DataFrame:
+    """Windows of a validated campaign folder ``results/<campaign>/`` (reads cases.parquet); ``notes`` receives
+    what spikes did to a case's windows (:func:`isokinetic.measurement.windows.extract_windows`)."""
     folder = CampaignFolder.at(campaign_root)
-    return extract_windows(folder.validated_cases(), folder.timeseries, spec)
+    return extract_windows(folder.validated_cases(), folder.timeseries, spec, notes)
 
 
 def assemble(windows: pd.DataFrame, repeatability: pd.DataFrame, records: pd.DataFrame | None = None) -> pd.DataFrame:
@@ -182,14 +185,17 @@ def _peak_row(base: dict, part: pd.DataFrame, direction: str, period_no: int, pl
     return {**base, "quality": quality, "segment": (1 if direction == "+" else 2) + 2 * (period_no - 1),
             "direction": direction, "period": period_no, "planned_velocity_m_s": planned,
             "velocity_m_s": float(r["velocity_m_s"]), "force_N": float(r["force_N"]), "force_std_N": std,
-            "n_samples": n, **span, "method": "sine_peak", "force_se_N": se}
+            "n_samples": n, **span, "method": "sine_peak", "force_se_N": se,
+            "spikes_excluded": int(r["spikes_excluded"])}
 
 
 def periodic_points(case, series: pd.DataFrame, period_s: float, spec: PeakSpec = PEAK_SPEC
-                    ) -> tuple[list[dict], dict | None]:
-    """(characteristic rows, energy row or None) of one periodic record, sine or not (module doc)."""
+                    ) -> tuple[list[dict], dict | None, str]:
+    """(characteristic rows, energy row or None, what spikes did: '' for none) of one periodic record, sine or not
+    (module doc); a cycle with too many spikes in its speed window gives no point."""
     t, x, f, rows = _record(series)
-    pts = settled(peak_points(t, x, f, period_s, spec=spec), spec)
+    found = peak_points(t, x, f, period_s, spec=spec)
+    pts = settled(found[~found["spike_set_aside"]], spec)
     freq = 1.0 / period_s
     amp = _number(case.get("amplitude_m"))
     base = _base(case)
@@ -204,7 +210,19 @@ def periodic_points(case, series: pd.DataFrame, period_s: float, spec: PeakSpec 
         for period_no, part in halves:
             span = _span(t, rows, int(part["i_start"].min()), int(part["i_stop"].max()))
             out.append(_peak_row(base, part, d, period_no, planned, span, spec))
-    return out, _energy_row(base, t, x, f, rows, period_s, pts, spec)
+    return out, _energy_row(base, t, x, f, rows, period_s, pts, spec), peak_spike_note(found)
+
+
+def peak_spike_note(points: pd.DataFrame) -> str:
+    """What spikes did to a periodic record's peak points (:func:`peak_points` rows), '' when it has none."""
+    aside = points["spike_set_aside"].to_numpy(bool)
+    n = int(points.loc[~aside, "spikes_excluded"].sum())
+    said = [f"{n} spike sample{'s' if n > 1 else ''} excluded from the speed windows (Hampel filter, "
+            f"docs/method.md)"] if n else []
+    if aside.any():
+        said.append(f"{int(aside.sum())} cycle(s) set aside: more than max({MIN_ALLOWED}, {100 * MAX_FRACTION:g} %) "
+                    f"of the speed window's samples are spikes")
+    return "; ".join(said)
 
 
 def _energy_row(base: dict, t, x, f, rows, period_s: float, pts: pd.DataFrame, spec: PeakSpec) -> dict | None:
@@ -227,9 +245,9 @@ def _energy_row(base: dict, t, x, f, rows, period_s: float, pts: pd.DataFrame, s
             **_span(t, rows, i0, min(i1, t.size)), "raw_file": base["raw_file"], "raw_sha256": base["raw_sha256"]}
 
 
-def sine_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple[list[dict], dict | None]:
-    """(characteristic rows, energy row or None) of one sine case: :func:`periodic_points` with the manifest's
-    period, else the displacement's dominant one."""
+def sine_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple[list[dict], dict | None, str]:
+    """(characteristic rows, energy row or None, spike note) of one sine case: :func:`periodic_points` with the
+    manifest's period, else the displacement's dominant one."""
     freq = _number(case.get("frequency_Hz"))
     if not freq > 0:
         s = series.sort_values("time_s", kind="stable")
@@ -237,20 +255,43 @@ def sine_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple
     return periodic_points(case, series, 1.0 / freq, spec)
 
 
-def free_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple[list[dict], dict | None, str]:
-    """(characteristic rows, energy row or None, note) of one free case (module doc): a periodic record's peak
-    points; else, only when the record is quasi-static (:func:`isokinetic.measurement.quasi_static.quasi_static`),
-    its velocity bins; else no point, and the note says why."""
+def _without_spikes(lp: pd.DataFrame) -> tuple[pd.DataFrame, np.ndarray]:
+    """(the loop without the force's spikes, the velocity of each spike sample) of a free record's loop
+    (:func:`isokinetic.measurement.spikes.spike_mask` over the whole loop); the loop itself when it has none."""
+    spikes = spike_mask(lp["force_N"].to_numpy(dtype=float), 0, len(lp), context=0)
+    if not spikes.any():
+        return lp, np.zeros(0)
+    kept = lp[~spikes].reset_index(drop=True)
+    kept.attrs.update(lp.attrs)
+    return kept, lp["velocity_m_s"].to_numpy(dtype=float)[spikes]
+
+
+def _bin_spikes(r: Mapping, spike_velocity: np.ndarray) -> int:
+    """The spike samples whose velocity lies in a velocity bin (a :func:`binned_characteristic` row)."""
+    low, high = sorted((abs(r["bin_low_m_s"]), abs(r["bin_high_m_s"])))
+    s = 1.0 if r["direction"] == "+" else -1.0
+    return int(np.count_nonzero((s * spike_velocity > low) & (s * spike_velocity <= high)))
+
+
+def free_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC
+                ) -> tuple[list[dict], dict | None, str, str]:
+    """(characteristic rows, energy row or None, note, spike note) of one free case (module doc): a periodic
+    record's peak points; else, only when the record is quasi-static
+    (:func:`isokinetic.measurement.quasi_static.quasi_static`, on the loop without its force spikes), its velocity
+    bins; else no point, and the note says why. The spike note says what spikes did ('' for none)."""
     lp = free_loop(series)
     t, x, f, _rows = _record(series)
     period = periodicity(peak_points(t, x, f, 1.0 / float(lp.attrs["frequency_Hz"]), spec=spec))
     if period is not None:
-        rows, energy = periodic_points(case, series, period, spec)
-        return rows, energy, ""
+        rows, energy, spikes = periodic_points(case, series, period, spec)
+        return rows, energy, "", spikes
+    lp, spike_v = _without_spikes(lp)
+    spikes = (f"{spike_v.size} spike sample{'s' if spike_v.size > 1 else ''} excluded from the velocity bins "
+              f"(Hampel filter, docs/method.md)" if spike_v.size else "")
     verdict = quasi_static(lp)
     if not verdict.passed:
         return [], None, (f"{verdict.reason}: not periodic, and its velocity bins average the two branches of a "
-                          f"loop, so they are shown in harmonic/ and are no characteristic point")
+                          f"loop, so they are shown in harmonic/ and are no characteristic point"), spikes
     bins = binned_characteristic(lp)
     base = _base(case)
     tl = lp["time_s"].to_numpy(dtype=float)
@@ -259,24 +300,25 @@ def free_points(case, series: pd.DataFrame, spec: PeakSpec = PEAK_SPEC) -> tuple
     return [{**base, "segment": k, "direction": r["direction"], "period": 1,
              "planned_velocity_m_s": 0.5 * (r["bin_low_m_s"] + r["bin_high_m_s"]),
              "velocity_m_s": float(r["velocity_m_s"]), "force_N": float(r["force_N"]),
-             "force_std_N": float(r["force_std_N"]), "n_samples": int(r["n_points"]), **span, "method": "free_bin"}
-            for k, r in enumerate(bins.to_dict("records"), start=1)], None, ""
+             "force_std_N": float(r["force_std_N"]), "n_samples": int(r["n_points"]), **span, "method": "free_bin",
+             "spikes_excluded": _bin_spikes(r, spike_v)}
+            for k, r in enumerate(bins.to_dict("records"), start=1)], None, "", spikes
 
 
 def _case_points(case, series: pd.DataFrame, spec: PeakSpec) -> tuple[list[dict], dict | None, str]:
     """(rows, energy row or None, note) of one sine or free case; the note says why a case gives no point or
     rests on one cycle ('' when there is nothing to say)."""
     if case["waveform"] == "sine":
-        pts, e = sine_points(case, series, spec)
+        pts, e, spikes = sine_points(case, series, spec)
         note = ""
     else:
-        pts, e, note = free_points(case, series, spec)
+        pts, e, note, spikes = free_points(case, series, spec)
     if not pts and not note:
         note = "no steady cycle with a peak of each velocity sign and no velocity bin: no characteristic point"
     flags = [ONE_CYCLE_NOTE] if any(r["n_samples"] == 1 and r["method"] == "sine_peak" for r in pts) else []
     flags += [f"{r['direction']}: {r['quality'].split('; ')[-1]}" for r in pts
               if r["method"] == "sine_peak" and "not steady" in r["quality"]]
-    return pts, e, "; ".join(([note] if note else []) + flags)
+    return pts, e, "; ".join([n for n in (note, spikes) if n] + flags)
 
 
 def record_points(cases: pd.DataFrame, load_series: Callable, spec: PeakSpec = PEAK_SPEC
@@ -303,7 +345,7 @@ def record_points(cases: pd.DataFrame, load_series: Callable, spec: PeakSpec = P
     columns = [c for c in tables.CHARACTERISTIC.columns if c != "repeatability_flagged"]
     points = pd.DataFrame(rows, columns=columns + ["missing_samples"]).astype(
         {"segment": "int64", "period": "int64", "n_samples": "int64", "row_start": "int64", "row_stop": "int64",
-         "missing_samples": "Int64"})
+         "missing_samples": "Int64", "spikes_excluded": "Int64"})
     en = pd.DataFrame(energy, columns=ENERGY_COLUMNS).astype(
         {c: object if c in ("campaign", "case", "raw_file", "raw_sha256") else
          "int64" if c in ("n_cycles", "row_start", "row_stop") else "float64" for c in ENERGY_COLUMNS})
@@ -354,11 +396,14 @@ def write_characteristic(campaign_root: str | os.PathLike, spec: WindowSpec = Wi
     characteristic and energy tables there; returns the characteristic. Flagged repeatability is logged."""
     root = Path(campaign_root)
     write_validated(root, sample_rate_tolerance=sample_rate_tolerance, window_spec=spec, gap_tolerance=gap_tolerance)
-    windows = windows_stage(root, spec)
+    notes: dict[str, str] = {}
+    windows = windows_stage(root, spec, notes)
     write_parquet(windows, root / WINDOWS_FILE)
-    records, energy, notes = record_points(CampaignFolder.at(root).validated_cases(),
-                                           CampaignFolder.at(root).timeseries)
-    note_cases(root, notes)
+    for case, note in notes.items():
+        log.warning("campaign %s, case %s: %s", root.name, case, note)
+    records, energy, record_notes = record_points(CampaignFolder.at(root).validated_cases(),
+                                                  CampaignFolder.at(root).timeseries)
+    note_cases(root, {**notes, **record_notes})
     rep = paired_repeatability(windows, records, repeatability_tolerance)
     write_parquet(rep, root / REPEATABILITY_FILE)
     for row in rep[rep["flagged"]].itertuples():
