@@ -92,3 +92,17 @@ def test_the_blind_suite_comparisons_design_summary_and_other_folders_are_no_orp
     (results / "index.html").write_text("index", encoding="utf-8")
     assert orphaned_results(results, [], tmp_path / "data/raw") == {}
     assert orphaned_results(tmp_path / "missing", [], tmp_path / "data/raw") == {}
+
+
+def test_a_comparison_or_blind_suite_the_config_no_longer_asks_for_is_orphaned(tmp_path):
+    results = tmp_path / "results"
+    for name in ("kept", "dropped"):
+        (results / "compare" / name).mkdir(parents=True)
+        (results / "compare" / name / "compare.json").write_text("{}", encoding="utf-8")
+    (results / "blind").mkdir()
+    (results / "blind" / "summary.json").write_text("{}", encoding="utf-8")
+    out = orphaned_results(results, [], tmp_path / "data/raw", comparisons=["kept"], blind=False)
+    assert sorted(out) == ["blind", "compare/dropped"]
+    assert out["compare/dropped"].startswith("orphaned: comparison 'dropped' is not in the config (comparisons)")
+    assert out["blind"].startswith("orphaned: the blind suite is not in the config (blind)")
+    assert orphaned_results(results, [], tmp_path / "data/raw", comparisons=["kept", "dropped"], blind=True) == {}

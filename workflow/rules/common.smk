@@ -137,10 +137,10 @@ REFUSED = refusals(RAW_CAMPAIGNS, CAMPAIGNS)
 ACTIVE = [c for c in CAMPAIGNS if c not in REFUSED]
 #: No invisible state (isokinetic.audit.raw_inventory): each folder under the raw data folder the workflow does
 #: not build (no manifest, a name that is no campaign id), with why and the fix (folder, reason, fix), and each
-#: results/<name>/ of a campaign this build does not have (name -> why). The index lists both apart (as its
+#: results/<name>/ of a campaign, comparison or blind suite this build does not have (ORPHANED, set below once
+#: the comparisons and the blind block are read: folder -> why). The index lists both apart (as its
 #: params: a change rebuilds it) and the run's closing summary names them (onsuccess, onerror).
 UNUSABLE = [{"folder": u.folder, "reason": u.reason, "fix": u.fix} for u in unusable_folders(RAW_DIR)]
-ORPHANED = orphaned_results(RESULTS_DIR, CAMPAIGNS, RAW_DIR)
 
 
 def unbuilt_lines():
@@ -331,6 +331,7 @@ def comparison_outputs(name):
 
 #: The comparisons whose campaigns are all processed (a comparison naming a refused campaign is not built).
 ACTIVE_COMPARISONS = [name for name, spec in COMPARISONS.items() if not set(spec["campaigns"]) & set(REFUSED)]
+ORPHANED = orphaned_results(RESULTS_DIR, CAMPAIGNS, RAW_DIR, comparisons=list(COMPARISONS), blind=bool(BLIND))
 
 
 def comparison_pages():

@@ -10,7 +10,8 @@ campaign's results under ``results/`` matched to an input of this build.
   the index, never with their numbers or a link to their old page, and never deleted: whether they are
   orphans depends on the run's config (``--configfile``, ``raw_dir``) and on a disk being mounted, and a
   result whose input is gone cannot be made again. The blind suite, the comparisons and the design summary
-  (``results/blind``, ``results/compare``, ``results/design``) are no campaign's.
+  (``results/blind``, ``results/compare``, ``results/design``) are no campaign's; a comparison, or the blind
+  suite, that the config no longer asks for is orphaned the same way.
 """
 
 from __future__ import annotations
@@ -118,18 +119,35 @@ def orphan_reason(folder: Path, raw_dir: Path) -> str:
             f"{what}, or delete {folder.as_posix()}/ and logs/{name}/")
 
 
-def orphaned_results(results_root: str | os.PathLike, campaigns: Collection[str],
-                     raw_dir: str | os.PathLike) -> dict[str, str]:
-    """``results/<name>/`` -> why it is orphaned (:func:`orphan_reason`), for each folder of ``results_root``
-    holding a campaign's results whose name is no campaign of this build (``campaigns``: raw and virtual)."""
-    root = Path(results_root)
+def _folders(root: Path) -> list[Path]:
+    """The folders directly under ``root`` (hidden ones left out), by name; none when it cannot be listed."""
     try:
-        folders = sorted((p for p in root.iterdir() if p.is_dir()), key=lambda p: p.name)
+        return sorted((p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")), key=lambda p: p.name)
     except OSError:
-        return {}
-    return {p.name: orphan_reason(p, Path(raw_dir)) for p in folders
-            if p.name not in campaigns and p.name not in RESERVED_RESULTS and not p.name.startswith(".")
-            and is_campaign_results(p)}
+        return []
+
+
+def _not_in_config(folder: Path, what: str, key: str) -> str:
+    return (f"orphaned: {what} is not in the config ({key}); its old page shows results this build does not "
+            f"make; put it back into the config to rebuild it, or delete {folder.as_posix()}/")
+
+
+def orphaned_results(results_root: str | os.PathLike, campaigns: Collection[str], raw_dir: str | os.PathLike,
+                     comparisons: Collection[str] | None = None, blind: bool = True) -> dict[str, str]:
+    """Folder under ``results_root`` -> why it is orphaned: each folder holding a campaign's results whose name
+    is no campaign of this build (``campaigns``: raw and virtual; :func:`orphan_reason`); with
+    ``comparisons`` (the config's), each ``compare/<name>/`` holding a comparison that is none of them; and
+    ``blind/`` holding the blind suite's summary when the build has no blind suite (``blind`` False)."""
+    root = Path(results_root)
+    out = {p.name: orphan_reason(p, Path(raw_dir)) for p in _folders(root)
+           if p.name not in campaigns and p.name not in RESERVED_RESULTS and is_campaign_results(p)}
+    if comparisons is not None:
+        out.update({f"{COMPARE_DIR}/{p.name}": _not_in_config(p, f"comparison {p.name!r}", "comparisons")
+                    for p in _folders(root / COMPARE_DIR)
+                    if p.name not in comparisons and (p / "compare.json").is_file()})
+    if not blind and (root / BLIND_DIR / "summary.json").is_file():
+        out[BLIND_DIR] = _not_in_config(root / BLIND_DIR, "the blind suite", "blind")
+    return out
 
 
 __all__ = ["UnusableFolder", "suggested_id", "folder_issue", "unusable_folders", "is_campaign_results",
