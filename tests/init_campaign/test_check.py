@@ -208,3 +208,31 @@ def test_thousands_separators_are_drafted_and_checked(exported, tmp_path, capsys
     out = _draft_then_check(folder, capsys)
     assert load_manifest(folder / "campaign.yaml").columns["force"].unit == "N"
     assert "3 of 3 cases agree" in out
+
+
+def _damaged(data: bytes) -> bytes:
+    """A blank force cell (data row 499), a blank time cell (899), a row written twice (1199, 1200) and the last
+    value cut short (no line end)."""
+    lines = data.decode("utf-8").rstrip("\n").split("\n")
+    for line_no, field_no in ((500, 2), (900, 0)):
+        fields = lines[line_no].split(",")
+        fields[field_no] = ""
+        lines[line_no] = ",".join(fields)
+    lines.insert(1200, lines[1200])
+    text = "\n".join(lines)
+    return text[:text.rfind(",") + 2].encode("utf-8")
+
+
+def test_a_partial_record_is_drafted_and_checked_as_ingest_reads_it(exported, tmp_path, capsys):
+    """Before: "no time column found (column 'time_s' ... does not increase from row to row)", nothing drafted,
+    for files the build keeps."""
+    from isokinetic.init_campaign.draft import write_draft
+
+    from .layouts import LAYOUTS
+
+    folder = _rewritten(exported, tmp_path / "raw" / "lag", LAYOUTS[0], _damaged)
+    _, survey = write_draft(folder)
+    assert all(f.ok for f in survey.files)
+    assert all("3 row(s) with a missing or unreadable value or a repeated time stamp left out (data rows 499, 899, "
+               "1200), as ingest does" in f.warnings for f in survey.files)
+    assert main(["init-campaign", "--check", str(folder)]) == 0, capsys.readouterr().out

@@ -41,6 +41,7 @@ from isokinetic.init_campaign.sniff import ColumnData, parse_column, xlsx_format
 from isokinetic.init_campaign.waveform import Estimate, Waveform, detect_waveform, round_to_uncertainty
 from isokinetic.measurement.sampling import SPAN_STEPS, sample_interval_error_s, sample_interval_s
 from isokinetic.rawfile import DELIMITERS, FileFormat, RawFileError, read_raw_table, sniff_format
+from isokinetic.stages.ingest import MAX_DAMAGED_FRACTION
 from isokinetic.stages.validate import MIN_SAMPLES
 from isokinetic.timestamps import excel_seconds, looks_excel_serial
 
@@ -263,6 +264,11 @@ def read_file(survey: FileSurvey, path: Path, folder: Path) -> None:
     survey.units_row = {name: unit for name, unit in table.units.items() if unit}
     survey.warnings += table.warnings
     survey.data = {str(name): parse_column(str(name), table.frame[name], table.decimal) for name in table.frame.columns}
+    keep, note = partial_rows(survey.data)
+    if note:                            # a partial record: read without its damaged rows, as ingest reads it
+        frame = table.frame[keep].reset_index(drop=True)
+        survey.data = {str(name): parse_column(str(name), frame[name], table.decimal) for name in frame.columns}
+        survey.warnings.append(note)
     broken = next(((name, d.problem) for name, d in survey.data.items() if d.problem), None)
     if broken is not None:
         survey.problem = f"cannot use column {broken[0]!r} as time: {broken[1]}"
@@ -270,6 +276,30 @@ def read_file(survey: FileSurvey, path: Path, folder: Path) -> None:
     rows = len(table.frame)
     if rows < MIN_SAMPLES:
         survey.problem = f"only {rows} samples, at least {MIN_SAMPLES} needed"
+
+
+def partial_rows(data: dict[str, ColumnData]) -> tuple[np.ndarray, str]:
+    """(rows to keep, the note) of a partial record, as ingest leaves its damaged rows out
+    (:func:`isokinetic.stages.ingest.partial_record`): rows with a missing value in a column of numbers or stamps,
+    and rows repeating the value before in a time column that otherwise increases (a repeated stamp), when they are
+    at most MAX_DAMAGED_FRACTION of the rows; all rows and "" otherwise."""
+    columns = [d.numbers if d.numbers is not None else d.stamps_s for d in data.values()]
+    columns = [c for c in columns if c is not None]
+    n = len(columns[0]) if columns else 0
+    damaged = np.zeros(n, dtype=bool)
+    for values in columns:
+        damaged |= ~np.isfinite(values)
+    timelike = [d.stamps_s if d.stamps_s is not None else d.numbers for name, d in data.items()
+                if d.stamps_s is not None or (d.numbers is not None and ch.guess_from_name(name, None).role == "time")]
+    for values in timelike:
+        finite = np.flatnonzero(np.isfinite(values))
+        steps = np.diff(values[finite])
+        if steps.size and np.all(steps >= 0) and 0 < np.sum(steps == 0) <= MAX_DAMAGED_FRACTION * n:
+            damaged[finite[1:][steps == 0]] = True
+    if not damaged.any() or damaged.sum() > MAX_DAMAGED_FRACTION * n:
+        return np.ones(n, dtype=bool), ""
+    return ~damaged, (f"{int(damaged.sum())} row(s) with a missing or unreadable value or a repeated time stamp left "
+                      f"out (data rows {', '.join(map(str, np.flatnonzero(damaged)[:8].tolist()))}), as ingest does")
 
 
 def _usable(data: ColumnData, role: str) -> bool:
