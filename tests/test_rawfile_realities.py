@@ -80,3 +80,4 @@ def test_an_excel_sep_line_naming_another_delimiter_is_refused_with_the_fix(tmp_
             reader(path, FileFormat())
         assert info.value.reason == ("the file's first line 'sep=;' (Excel's) says fields are separated by ';', the "
                                      "manifest's csv block declares ',': set `delimiter: ';'` in the csv block")
+

@@ -44,6 +44,7 @@ from isokinetic.rawlayout import (  # noqa: F401  (RawFileError, ENCODING_HINT, 
     RawFileError,
     SheetError,
     _binary_problem,
+    _BufferReader,
     _check_names,
     _csv_problem,
     _cut_last,
@@ -535,22 +536,6 @@ def mts_decimal(first_line: str) -> str:
     return fields[5]
 
 
-class _BufferReader(io.RawIOBase):
-    """A read-only file over a bytearray, without the copy io.BytesIO makes of one."""
-
-    def __init__(self, buffer: bytearray):
-        self.view, self.at = memoryview(buffer), 0
-
-    def readable(self) -> bool:
-        return True
-
-    def readinto(self, out) -> int:
-        n = min(len(out), len(self.view) - self.at)
-        out[:n] = self.view[self.at:self.at + n]
-        self.at += n
-        return n
-
-
 def _read_mts793_fast(path: Path, fmt: FileFormat, numeric: bool) -> RawTable | None:
     """:func:`read_mts793` without a Python object per line (as :func:`_read_fast`): the blocks are found and checked
     on the bytes, their data rows joined and parsed by pandas' C parser. None when the file needs the line-by-line
@@ -657,6 +642,9 @@ def read_mts793(path: Path, fmt: FileFormat, numeric: bool = False) -> RawTable:
                     fields = _split(line, delimiter)
                 except csv.Error as exc:
                     raise _csv_problem(exc, names, len(data), line, delimiter) from None
+                if len(fields) < len(names) and i == n - 1 and not ends_in_newline:    # a rig stopped writing
+                    return _mts_table(data, names, units, delimiter, numeric, decimal,
+                                      [_cut_note(len(data), fields, len(names))])
                 if len(fields) != len(names):
                     raise _field_count_problem(names, len(data), fields, i == n - 1, ends_in_newline, delimiter)
                 data.append(line)
@@ -664,6 +652,12 @@ def read_mts793(path: Path, fmt: FileFormat, numeric: bool = False) -> RawTable:
     warnings = []
     if data and not ends_in_newline:
         warnings.append(f"no line end after the last row ({len(data) - 1}): it may be cut off in its last value")
+    return _mts_table(data, names, units, delimiter, numeric, decimal, warnings)
+
+
+def _mts_table(data: list[str], names: list[str], units: dict, delimiter: str, numeric: bool, decimal: str,
+               warnings: list[str]) -> RawTable:
+    """An MTS 793 export's joined data rows as its table."""
     frame = _frame(data, names, delimiter, numeric, decimal)
     return RawTable(frame=frame, units=units, rows=np.arange(len(frame), dtype="int64"), warnings=warnings,
                     decimal=decimal)

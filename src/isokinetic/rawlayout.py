@@ -18,6 +18,7 @@ from __future__ import annotations
 import codecs
 import csv
 import datetime as dt
+import io
 import re
 import zipfile
 from pathlib import Path
@@ -396,6 +397,22 @@ def ragged_marker(fields: list[str], reference: list[str] | None, decimal: str =
         return False
     return any(f.strip() and not is_number(f, decimal) and is_number(reference[i], decimal)
                for i, f in enumerate(fields))
+
+
+class _BufferReader(io.RawIOBase):
+    """A read-only file over a bytearray, without the copy io.BytesIO makes of one."""
+
+    def __init__(self, buffer: bytearray):
+        self.view, self.at = memoryview(buffer), 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, out) -> int:
+        n = min(len(out), len(self.view) - self.at)
+        out[:n] = self.view[self.at:self.at + n]
+        self.at += n
+        return n
 
 
 def _check_zip(path: Path) -> None:
