@@ -236,3 +236,16 @@ def test_a_partial_record_is_drafted_and_checked_as_ingest_reads_it(exported, tm
     assert all("3 row(s) with a missing or unreadable value or a repeated time stamp left out (data rows 499, 899, "
                "1200), as ingest does" in f.warnings for f in survey.files)
     assert main(["init-campaign", "--check", str(folder)]) == 0, capsys.readouterr().out
+
+
+def test_a_velocity_declared_as_the_displacement_is_named_a_velocity_not_an_invert(campaign_copy, capsys):
+    """Before: "a force opposing the velocity in all 9 cycles: `invert` is wrong" (the sine case)."""
+    for path in campaign_copy.glob("*.csv"):
+        table = pd.read_csv(path)
+        table["disp_mm"] = np.gradient(table["cmd_mm"].to_numpy(), table["time_s"].to_numpy())
+        table.to_csv(path, index=False)
+    assert main(["init-campaign", "--check", str(campaign_copy)]) == 1
+    out = capsys.readouterr().out
+    assert out.count("detected a column that equals the derivative of the command") == 3
+    assert out.count("a velocity, not a displacement (`invert` would not fix it)") == 3
+    assert "`invert` is wrong" not in out

@@ -212,18 +212,20 @@ def column_findings(record: Record) -> list[Finding]:
 
 def velocity_findings(record: Record) -> list[Finding]:
     """A declared force that is the displacement's derivative times a unit ratio (:func:`channels.derivative_fit`):
-    a velocity, never a force."""
+    a velocity, never a force; a declared displacement that is the command's: a velocity, never a displacement
+    (``invert`` would not fix it)."""
     columns = record.spec.columns
-    raw = [parse_column(c.name, record.raw[c.name], record.decimal).numbers
-           for c in (columns["displacement"], columns["force"])]
-    if any(r is None for r in raw):
-        return []
-    fit = ch.derivative_fit(record.t_s, *raw)
-    if not fit.is_velocity:
-        return []
-    return [Finding("columns.force", repr(columns["force"].name),
-                    f"a column that {ch.velocity_note(fit, 'the displacement')}, not a force (a damper's force is no "
-                    "function of the velocity alone)", "declared")]
+    pairs = [("displacement", "force", "a force (a damper's force is no function of the velocity alone)")]
+    pairs += [("command", "displacement", "a displacement (`invert` would not fix it)")] if "command" in columns else []
+    out = []
+    for of, channel, what in pairs:
+        raw = [parse_column(c.name, record.raw[c.name], record.decimal).numbers
+               for c in (columns[of], columns[channel])]
+        fit = ch.derivative_fit(record.t_s, *raw) if all(r is not None for r in raw) else None
+        if fit is not None and fit.is_velocity:
+            out.append(Finding(f"columns.{channel}", repr(columns[channel].name),
+                               f"a column that {ch.velocity_note(fit, f'the {of}')}, not {what}", "declared"))
+    return out
 
 
 def force_findings(record: Record, disp: np.ndarray) -> list[Finding]:
@@ -263,7 +265,7 @@ def physics_findings(record: Record, motion: str) -> list[Finding]:
     if plan.waveform not in ("triangle", "sine"):
         return out
     disp = df["displacement_m"].to_numpy()
-    if not any(f.key == "columns.force" for f in out):
+    if not any(f.key in ("columns.force", "columns.displacement") for f in out):     # a velocity: no sign to judge
         out += force_findings(record, disp)
     if motion == "command":
         amplitude = ch.robust_range(disp) / 2.0
