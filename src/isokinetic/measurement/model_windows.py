@@ -196,8 +196,9 @@ class ModelPlan:
             "quality": "ok",  # a noise-free model record has nothing to flag
         }, columns=list(tables.WINDOWS.columns))
         df = df.astype(dict.fromkeys(_INT_COLUMNS, "int64"))
-        if "missing_samples" in df:  # a model record drops no sample
-            df["missing_samples"] = pd.array(np.zeros(len(df), dtype=np.int64), dtype="Int64")
+        for column in ("missing_samples", "spikes_excluded"):  # a model record drops no sample and has no spike
+            if column in df:
+                df[column] = pd.array(np.zeros(len(df), dtype=np.int64), dtype="Int64")
         return tables.validate_table(df, tables.WINDOWS) if validate else df
 
 
