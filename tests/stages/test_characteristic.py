@@ -454,3 +454,21 @@ def test_a_spike_at_a_sine_peak_gives_the_clean_point_within_its_standard_error_
     p, c = char.loc[("H02", 3)], clean.loc[("H02", 3)]
     assert p["spikes_excluded"] == 1 and abs(p["force_N"] - c["force_N"]) < c["force_se_N"]
     assert "spike" in pd.read_parquet(work / "cases.parquet").set_index("case").loc["H02", "quality"]
+
+
+def test_spikes_in_a_free_record_leave_its_velocity_bins_within_their_standard_errors_counted():
+    t = np.arange(0.0, 8.0, 1e-3)
+    x = 0.01 * np.sin(2 * math.pi * 1.3 * t) + 0.004 * np.sin(2 * math.pi * 3.1 * t + 0.4)
+    v = np.gradient(x, t)
+    f = 2000.0 * v + 30000.0 * v * np.abs(v) + np.random.default_rng(3).normal(0.0, 2.0, t.size)
+    clean = pd.DataFrame({"row": np.arange(t.size, dtype=np.int64), "time_s": t, "displacement_m": x, "force_N": f})
+    spiked = clean.copy()
+    spiked.loc[[1500, 3200, 5100], "force_N"] += [10_000.0, -10_000.0, 10_000.0]
+    cases = pd.DataFrame([{"campaign": "c", "case": "F01", "waveform": "free", "status": "ok", "raw_file": "F01.csv",
+                           "raw_sha256": "0" * 64, "frequency_Hz": math.nan, "amplitude_m": math.nan}])
+    before, _e, notes_before = record_points(cases, lambda _case: clean)
+    after, _e, notes = record_points(cases, lambda _case: spiked)
+    assert not notes_before and "3 spike samples excluded from the velocity bins" in notes["F01"]
+    assert len(after) == len(before) and int(after["spikes_excluded"].sum()) == 3
+    se = before["force_std_N"] / np.sqrt(before["n_samples"])
+    assert (np.abs(after["force_N"] - before["force_N"]) < se).all()
