@@ -40,7 +40,7 @@ def _record(tau_s=0.02, delay_s=0.0, noise_N=5.0, seed=1):
 
 def test_a_first_order_lag_is_measured_as_its_median_delay():
     t, x, f = _record(tau_s=0.02)
-    lags, errors = pl.force_lags(t, x, f)
+    lags, errors, _ = pl.force_lags(t, x, f)
     assert lags.size >= 4
     # a velocity step through a first-order lag crosses its middle at tau ln 2
     assert np.allclose(lags, 0.02 * math.log(2), atol=3 * errors.max() + 1.0 / RATE_HZ)
@@ -52,6 +52,18 @@ def test_a_reversed_record_leads_by_the_lag_whatever_the_load_cells_sign():
     assert lead.leads_everywhere
     assert np.allclose(-lead.lags_s, 0.02 * math.log(2), atol=3 * lead.errors_s.max() + 1.0 / RATE_HZ)
     assert not pl.causality(t, x, f, 1.0 / RATE_HZ).leads_everywhere
+
+
+def test_a_stronger_rebound_moves_the_two_directions_apart_and_their_pair_cancels_it():
+    t = np.arange(int(6.0 * RATE_HZ)) / RATE_HZ
+    x = AMPLITUDE_M * np.sin(2 * np.pi * t)
+    v = np.gradient(x, t)
+    force = np.where(v > 0, 3e5, 1e5) * v                # no lag, twice as strong one way: 0.1 rad apart
+    lead = pl.causality(t, x, force, 1.0 / RATE_HZ)
+    lags = lead.lags_s[2:-2]
+    assert np.ptp(lags) > 0.01                           # the directions disagree by tens of ms...
+    assert np.allclose(lead.pair_lags_s[0], 0.0, atol=1.0 / RATE_HZ)     # ...their pairs do not
+    assert not lead.leads_everywhere and not pl.causality(t, x[::-1], -force[::-1], 1.0 / RATE_HZ).leads_everywhere
 
 
 @pytest.mark.parametrize("tau_s, delay_s", [(0.0, 0.0), (0.0, 0.004), (0.05, 0.0), (0.0, 2.0 / RATE_HZ)],
@@ -73,17 +85,28 @@ def test_a_damper_absorbs_energy_and_an_inverted_or_reversed_record_gives_it_bac
     assert pl.gives_energy_back(*pl.cycle_energies(t, x + 0.3, f + 500.0)) is False     # offsets cancel
 
 
-def test_force_magnitude_rule_is_init_campaigns_sure_rule():
-    assert (channels.TYPICAL["force_N"], channels.SURE_MARGIN) == (pl.TYPICAL_FORCE_N, pl.SURE_MARGIN)
+def test_force_magnitude_facts_are_init_campaigns():
+    assert (channels.TYPICAL["force_N"], channels.BOUNDS["force_N"], channels.SURE_MARGIN) == \
+        (pl.TYPICAL_FORCE_N, pl.FORCE_BOUNDS_N, pl.SURE_MARGIN)
     assert pl.DAMPING_RANGE_N_S_M == channels.DAMPING_RANGE_N_S_M
-    # at the bound, the N reading and the kN reading differ by the sure margin in init-campaign's scores
-    p = pl.MIN_PEAK_FORCE_N
-    scores = channels.force_scores(np.array([p, -p]))
-    assert scores["N"] - scores["kN"] == pytest.approx(pl.SURE_MARGIN)
+
+
+def test_kn_as_n_is_decided_as_init_campaign_decides_a_columns_unit():
+    # independent: init-campaign's own choice between N and kN over a campaign's files (channels.choose_unit)
+    rng = np.random.default_rng(5)
+    decided = []
+    for _ in range(400):
+        peaks = 10.0 ** rng.uniform(-1.0, 2.0, size=int(rng.integers(1, 6)))
+        choice = channels.choose_unit([channels.force_scores(np.array([p, -p])) for p in peaks])
+        expected = choice.unit == "kN" and choice.sure == "sure"
+        assert pl.kn_reading_sure(peaks) is expected, (peaks, choice)
+        decided.append(expected)
+    assert 0.1 < np.mean(decided) < 0.9          # both outcomes exercised
+    assert pl.kn_reading_sure([pl.MIN_PEAK_FORCE_N * 0.99]) and not pl.kn_reading_sure([pl.MIN_PEAK_FORCE_N * 1.01])
 
 
 @pytest.mark.parametrize("peak_N, full_scale_N, flagged", [
-    (0.27, None, True), (1.6, None, True), (1.8, None, False), (270.0, None, False),
+    (0.27, None, True), (1.6, None, True), (1.8, None, False), (270.0, None, False), (5000.0, None, False),
     (0.27, 10.0, False), (0.27, 1e4, True), (1.2, 1e4, True), (270.0, 1e4, False)])
 def test_force_magnitude_against_full_scale_or_a_dampers_forces(peak_N, full_scale_N, flagged):
     f = peak_N * np.sin(np.linspace(0, 20, 2000))

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from conftest import CASE_IDS, N_SAMPLES
+from conftest import CASE_IDS, N_SAMPLES, scale_column
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.validate import INVERT_HINT, REVERSED_HINT, write_validated
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
@@ -43,6 +43,17 @@ def test_force_in_kn_declared_as_n_without_a_damper_block_is_set_aside(raw_campa
     assert set(quarantine["case"]) == set(MOVING)
     assert (quarantine["column"] == "force_N").all() and (quarantine["stage"] == "validate").all()
     assert quarantine["reason"].str.contains("values in kN declared as N").all(), quarantine["reason"].tolist()
+
+
+def test_a_case_whose_forces_alone_would_pass_is_judged_with_the_cases_sharing_its_column(raw_campaign):
+    # H01 at twice its forces: 99th percentile 2.3 "N", which alone reads only 1.2 decades better as kN
+    raw_campaign.edit_table("H01", scale_column("force_kN", 2.0))
+    _force_in_n(raw_campaign)
+    cases, quarantine = raw_campaign.run()
+    assert set(quarantine["case"]) == set(MOVING)
+    reasons = quarantine.set_index("case")["reason"]
+    assert "|force| 2.3" in reasons["H01"] and "the 4 cases sharing its column" in reasons["H01"], reasons["H01"]
+    assert "the 4 cases" not in reasons["T03"]           # T03 has a column of its own
 
 
 def test_a_declared_full_scale_judges_the_force_instead(raw_campaign):

@@ -38,12 +38,13 @@ SIDE_FRACTION = 0.25
 LEAD_BOUND_SAMPLES, LEAD_BOUND_S = 2.0, 0.005
 #: A cycle gives energy back when its net work is below minus this fraction of its absolute work.
 ENERGY_FRACTION = 0.1
-#: Typical largest force of a damper test [N] and the margin (decades) init-campaign needs to call a unit sure
-#: (:data:`isokinetic.init_campaign.channels.TYPICAL` ``force_N`` and ``SURE_MARGIN``; a test keeps them equal).
-TYPICAL_FORCE_N, SURE_MARGIN = 300.0, 1.5
-#: Without a full scale: a 99th percentile |F| below this [N] is read as kN declared as N. Below it the same
-#: numbers read as kN lie SURE_MARGIN decades closer to TYPICAL_FORCE_N than read as N (log-distance
-#: log10(300/p) - |log10(1000 p/300)| >= 1.5 for p <= 300 x 10^-2.25 = 1.69 N): init-campaign's sure rule.
+#: Typical largest force of a damper test [N], the physical bounds of a force reading [N] and the margin
+#: (decades) init-campaign needs to call a unit sure (:data:`isokinetic.init_campaign.channels.TYPICAL`
+#: ``force_N``, ``BOUNDS`` ``force_N`` and ``SURE_MARGIN``; a test keeps them equal).
+TYPICAL_FORCE_N, FORCE_BOUNDS_N, SURE_MARGIN = 300.0, (0.5, 2e6), 1.5
+#: One case alone: a 99th percentile |F| below this [N] reads SURE_MARGIN decades better as kN than as N
+#: (log10(300/p) - |log10(1000 p/300)| >= 1.5 for p <= 300 x 10^-2.25 = 1.69 N). A campaign's cases together
+#: are judged by :func:`kn_reading_sure`, init-campaign's own rule.
 MIN_PEAK_FORCE_N = TYPICAL_FORCE_N * 10.0 ** (-(3.0 + SURE_MARGIN) / 2.0)
 #: With a declared full scale: a 99th percentile |value| below this fraction of it uses under 0.01 % of the
 #: sensor's range (6 counts of a 16-bit converter): a unit 1000x too large, not a test.
@@ -137,21 +138,23 @@ def velocity_reversals(t: np.ndarray, displacement_m: np.ndarray) -> Reversals:
     return Reversals(times, signs, errors * math.sqrt(2 * k), full, h)
 
 
-def force_lags(t: np.ndarray, displacement_m: np.ndarray, force_N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(lag [s], its standard error [s]) of the force behind the velocity at each reversal of the velocity: the
-    time the force crosses the middle between its two branches (:func:`branch_level`) in the same direction,
-    less the time the velocity crosses zero; a force crossing is paired only when nearer than half the
-    reversals' spacing (a quarter period of a sine: beyond it the force would not dissipate). Positive: the
-    force lags (a damper); negative: it leads."""
+def force_lags(t: np.ndarray, displacement_m: np.ndarray, force_N: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(lag [s], its standard error [s], the reversal's sign) of the force behind the velocity at each reversal
+    of the velocity: the time the force crosses the middle between its two branches (:func:`branch_level`) in
+    the same direction, less the time the velocity crosses zero; a force crossing is paired only when nearer
+    than half the reversals' spacing (a quarter period of a sine: beyond it the force would not dissipate).
+    Positive: the force lags (a damper); negative: it leads. A damper stronger one way crosses the middle at a
+    velocity off zero, later one way and earlier the other: :attr:`Causality.pair_lags_s` averages that out."""
     rev = velocity_reversals(t, displacement_m)
     v = rev.velocity_m_s
     ok = np.isfinite(v)
     mid, half_gap = branch_level(force_N[ok], v[ok], rev.hysteresis_m_s) if rev.times_s.size else (0.0, 0.0)
     if not half_gap > 0:
-        return np.array([]), np.array([])
+        return np.array([]), np.array([]), np.array([])
     tf, sf, ef = crossing_times(t, force_N - mid, SIDE_FRACTION * half_gap)
     spacing = float(np.median(np.diff(rev.times_s))) if rev.times_s.size > 1 else float(t[-1] - t[0])
-    lags, errors = [], []
+    lags, errors, signs = [], [], []
     for time, sign, error in zip(rev.times_s, rev.signs, rev.errors_s):
         same = np.flatnonzero(sf == sign)
         if same.size:
@@ -159,7 +162,8 @@ def force_lags(t: np.ndarray, displacement_m: np.ndarray, force_N: np.ndarray) -
             if abs(tf[j] - time) < 0.5 * spacing:
                 lags.append(tf[j] - time)
                 errors.append(math.hypot(ef[j], error))
-    return np.array(lags), np.array(errors)
+                signs.append(sign)
+    return np.array(lags), np.array(errors), np.array(signs)
 
 
 def lead_bound_s(sample_interval_s: float) -> float:
@@ -174,23 +178,35 @@ LEAD_SIGMAS = 3.0
 
 @dataclass(frozen=True)
 class Causality:
-    """The force's lag at each reversal [s], their standard errors [s] and the bound a lead must pass [s]."""
+    """The force's lag at each reversal [s], their standard errors [s], the reversals' signs and the bound a
+    lead must pass [s]."""
 
     lags_s: np.ndarray
     errors_s: np.ndarray
+    signs: np.ndarray
     bound_s: float
 
     @property
+    def pair_lags_s(self) -> tuple[np.ndarray, np.ndarray]:
+        """(mean lag, its standard error) of each two consecutive reversals of opposite directions: a damper's
+        asymmetry moves the two the opposite ways and cancels."""
+        pair = np.flatnonzero(self.signs[1:] != self.signs[:-1])
+        means = 0.5 * (self.lags_s[pair] + self.lags_s[pair + 1])
+        return means, 0.5 * np.hypot(self.errors_s[pair], self.errors_s[pair + 1])
+
+    @property
     def leads_everywhere(self) -> bool:
-        """At least two reversals, and at every one the force leads by more than the bound plus LEAD_SIGMAS
-        standard errors."""
-        return self.lags_s.size >= 2 and bool(np.all(self.lags_s < -(self.bound_s + LEAD_SIGMAS * self.errors_s)))
+        """At least one pair of reversals, and in every pair the force leads by more than the bound plus
+        LEAD_SIGMAS standard errors."""
+        means, errors = self.pair_lags_s
+        return means.size >= 1 and bool(np.all(means < -(self.bound_s + LEAD_SIGMAS * errors)))
 
     def said(self) -> str:
-        lead = -self.lags_s * 1e3
-        return (f"the force leads the motion at all {lead.size} reversals of the velocity, by {np.median(lead):.3g} "
-                f"ms (median; {lead.min():.3g} to {lead.max():.3g} ms), beyond the {self.bound_s * 1e3:.3g} ms a "
-                "rig's channel skew and displacement filter can make; a damper's force lags its motion")
+        lead = -self.pair_lags_s[0] * 1e3
+        return (f"the force leads the motion at all {self.lags_s.size} reversals of the velocity, by "
+                f"{np.median(lead):.3g} ms (median over {lead.size} up-and-down pair(s); {lead.min():.3g} to "
+                f"{lead.max():.3g} ms), beyond the {self.bound_s * 1e3:.3g} ms a rig's channel skew and "
+                "displacement filter can make; a damper's force lags its motion")
 
 
 def causality(t: np.ndarray, displacement_m: np.ndarray, force_N: np.ndarray, sample_interval_s: float) -> Causality:
@@ -224,21 +240,49 @@ def peak_magnitude(x: np.ndarray) -> float:
     return float(np.percentile(np.abs(x), 99.0))
 
 
-def force_magnitude_problem(force_N: np.ndarray, full_scale_N: float | None = None) -> str:
+def force_score(peak_N: float) -> float:
+    """init-campaign's score of a force reading: decades between its 99th percentile |F| and TYPICAL_FORCE_N,
+    infinite outside FORCE_BOUNDS_N (:func:`isokinetic.init_campaign.channels.force_scores`)."""
+    if not FORCE_BOUNDS_N[0] <= peak_N <= FORCE_BOUNDS_N[1]:
+        return math.inf
+    return abs(math.log10(peak_N / TYPICAL_FORCE_N))
+
+
+def kn_reading_sure(peaks_N) -> bool:
+    """Whether the forces of a campaign's cases sharing one column (their 99th percentile |F| as declared, in
+    N) are surely kN declared as N, by init-campaign's rule for a unit (:func:`channels.choose_unit`, scores
+    summed over the files): the kN reading plausible and the N reading implausible in some case, or better by
+    SURE_MARGIN decades per case on average, or by SURE_MARGIN in one case while no case prefers N."""
+    as_n = np.array([force_score(p) for p in peaks_N])
+    as_kn = np.array([force_score(1e3 * p) for p in peaks_N])
+    if as_n.size == 0 or not np.isfinite(as_kn.sum()) or as_kn.sum() >= as_n.sum():
+        return False
+    if not np.isfinite(as_n.sum()):
+        return True
+    margins = as_n - as_kn
+    return bool(margins.mean() >= SURE_MARGIN or (margins.max() >= SURE_MARGIN and margins.min() >= 0))
+
+
+def force_magnitude_problem(force_N: np.ndarray, full_scale_N: float | None = None, campaign_peaks_N=None) -> str:
     """'' when the force's size is plausible, else why not: its 99th percentile |F| below
-    MIN_FULL_SCALE_FRACTION of a declared full scale, or below MIN_PEAK_FORCE_N unless a declared full scale
-    vouches for such small forces (the peak at least VOUCH_FRACTION of it: a load cell chosen for them)."""
+    MIN_FULL_SCALE_FRACTION of a declared full scale; or, unless a declared full scale vouches for such small
+    forces (the peak at least VOUCH_FRACTION of it: a load cell chosen for them), the peaks of the cases that
+    share its column (``campaign_peaks_N``, this case's included; None: this case alone) surely kN declared
+    as N (:func:`kn_reading_sure`)."""
     peak = peak_magnitude(force_N)
     declared = full_scale_N is not None and full_scale_N > 0
     if declared and peak < MIN_FULL_SCALE_FRACTION * full_scale_N:
         return (f"99th percentile |force| {peak:.4g} N is {peak / full_scale_N:.2g} of the declared full scale "
                 f"{full_scale_N:.4g} N, under the {MIN_FULL_SCALE_FRACTION:g} no test uses: a unit mix-up "
                 "(e.g. values in kN declared as N)?")
-    if peak < MIN_PEAK_FORCE_N and not (declared and peak >= VOUCH_FRACTION * full_scale_N):
-        return (f"99th percentile |force| {peak:.4g} N is below the {MIN_PEAK_FORCE_N:.3g} N under which the same "
-                f"numbers read as kN ({peak * 1e3:.4g} N) fit a damper's forces {SURE_MARGIN:g} decades better: "
-                "values in kN declared as N? (forces truly this small: declare the load cell's full_scale)")
-    return ""
+    peaks = [peak] if campaign_peaks_N is None else list(campaign_peaks_N)
+    if (declared and peak >= VOUCH_FRACTION * full_scale_N) or not kn_reading_sure(peaks):
+        return ""
+    cases = f" (the {len(peaks)} cases sharing its column: {min(peaks):.4g} to {max(peaks):.4g} N)" \
+        if len(peaks) > 1 else ""
+    return (f"99th percentile |force| {peak:.4g} N{cases}: read as kN these forces fit a damper's (typically "
+            f"{TYPICAL_FORCE_N:g} N, {FORCE_BOUNDS_N[0]:g} N at least) surely better than as N, by init-campaign's "
+            "rule: values in kN declared as N? (forces truly this small: declare the load cell's full_scale)")
 
 
 def implied_damping_N_s_m(t: np.ndarray, displacement_m: np.ndarray, force_N: np.ndarray) -> float:

@@ -494,11 +494,12 @@ def energy_problems(df: pd.DataFrame, dt_s: float) -> list[Problem]:
     return []
 
 
-def magnitude_problems(df: pd.DataFrame, full_scale_N: float | None) -> list[Problem]:
+def magnitude_problems(df: pd.DataFrame, full_scale_N: float | None, campaign_peaks_N=None) -> list[Problem]:
     """Force magnitudes without design data (pl.force_magnitude_problem: against a declared full scale, or a
-    damper's forces), and force over velocity against any damper's damping (pl.DAMPING_RANGE_N_S_M)."""
+    damper's forces over the cases sharing the force column), and force over velocity against any damper's
+    damping (pl.DAMPING_RANGE_N_S_M)."""
     f = df["force_N"].to_numpy()
-    said = pl.force_magnitude_problem(f, full_scale_N)
+    said = pl.force_magnitude_problem(f, full_scale_N, campaign_peaks_N)
     if said:
         return [Problem("force_N", said)]
     damping = pl.implied_damping_N_s_m(df["time_s"].to_numpy(), df["displacement_m"].to_numpy(), f)
@@ -509,13 +510,15 @@ def magnitude_problems(df: pd.DataFrame, full_scale_N: float | None) -> list[Pro
     return []
 
 
-def physics_problems(df: pd.DataFrame, plan: CasePlan, full_scale_N: float | None = None) -> list[Problem]:
+def physics_problems(df: pd.DataFrame, plan: CasePlan, full_scale_N: float | None = None,
+                     campaign_peaks_N=None) -> list[Problem]:
     """The checks that need no damper block: a temperature that follows the motion, and for a moving case
-    (triangle, sine, free) the force's magnitude and damping, dissipation and causality."""
+    (triangle, sine, free) the force's magnitude (``campaign_peaks_N``: the 99th percentile |F| of the cases
+    sharing its force column, None: this case alone) and damping, dissipation and causality."""
     problems = temperature_problems(df)
     if plan.waveform == "standstill":
         return problems
-    return problems + magnitude_problems(df, full_scale_N) + energy_problems(df, sample_interval_s(
+    return problems + magnitude_problems(df, full_scale_N, campaign_peaks_N) + energy_problems(df, sample_interval_s(
         df["time_s"].to_numpy()))
 
 
@@ -534,7 +537,7 @@ class CaseCheck:
 def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
                window_spec: WindowSpec = WindowSpec(), gap_tolerance: GapTolerance = GapTolerance(),
-               full_scale_N: float | None = None) -> CaseCheck:
+               full_scale_N: float | None = None, campaign_peaks_N=None) -> CaseCheck:
     """All checks of one canonical time series.
 
     The schema first, then the record (length, sample rate); then the measured motion of a triangle
@@ -565,7 +568,7 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
         # with the displacement inverted, the force is checked against a velocity of the wrong sign
         inverted = any(INVERT_HINT in p.message for p in later)
         later += [p for p in windows if not (inverted and p.column == "force_N")]
-    physics = physics_problems(df, plan, full_scale_N)
+    physics = physics_problems(df, plan, full_scale_N, campaign_peaks_N)
     if any(INVERT_HINT in p.message and p.column == "displacement_m" for p in later):
         physics = [p for p in physics if p.column != "force_N"]    # judged against a velocity of the wrong sign
     reversed_first = [p for p in physics if REVERSED_HINT in p.message]
@@ -601,9 +604,10 @@ def motion_columns(motion: Motion | None, plan: CasePlan) -> dict[str, float]:
             "velocity_ratio": motion.velocity_ratio, "motion_rms_m": motion.rms_m}
 
 
-def force_full_scales_N(meta: dict) -> dict[str, float]:
-    """case -> the force channel's declared ``full_scale`` in N, from the campaign's manifest (campaign.json
-    ``manifest_file``); empty for a simulated campaign or a manifest that no longer reads."""
+def force_columns(meta: dict) -> dict[str, tuple[tuple[str, str, float], float | None]]:
+    """case -> ((name, unit, scale) of its force column, its declared ``full_scale`` in N or None), from the
+    campaign's manifest (campaign.json ``manifest_file``); empty for a simulated campaign or a manifest that no
+    longer reads (every case then shares one column, without a full scale)."""
     path = meta.get("manifest_file")
     if not path or not Path(path).is_file():
         return {}
@@ -615,12 +619,24 @@ def force_full_scales_N(meta: dict) -> dict[str, float]:
     out = {}
     for spec in manifest.cases:
         column = spec.columns.get("force")
-        if column is not None and column.full_scale is not None:
-            try:
-                out[spec.plan.case] = abs(column.full_scale * column.scale * channel_unit("force", column.unit).scale)
-            except ValueError:
-                continue
+        if column is None:
+            continue
+        try:
+            to_n = abs(column.scale * channel_unit("force", column.unit).scale)
+        except ValueError:
+            continue
+        full = None if column.full_scale is None else abs(column.full_scale) * to_n
+        out[spec.plan.case] = ((column.name, column.unit, column.scale), full)
     return out
+
+
+def peaks_by_column(ingested, moving: pd.DataFrame, columns: dict) -> dict[str, list[float]]:
+    """case -> the 99th percentile |F| of every moving case that shares its force column (pl.peak_magnitude)."""
+    peaks = {row["case"]: pl.peak_magnitude(pd.read_parquet(ingested.root / row["timeseries_file"],
+                                                            columns=["force_N"])["force_N"].to_numpy())
+             for _, row in moving.iterrows()}
+    key = {case: columns.get(case, (None, None))[0] for case in peaks}
+    return {case: [p for other, p in peaks.items() if key[other] == key[case]] for case in peaks}
 
 
 def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
@@ -647,12 +663,14 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
     for column in SAMPLING_COLUMNS[1:]:
         cases[column] = math.nan
     rows = []
-    full_scales = force_full_scales_N(ingested.meta)
-    for i, row in cases[cases["status"] == "ok"].iterrows():
+    columns = force_columns(ingested.meta)
+    ok = cases[cases["status"] == "ok"]
+    peaks = peaks_by_column(ingested, ok[ok["waveform"] != "standstill"], columns)
+    for i, row in ok.iterrows():
         df = pd.read_parquet(ingested.root / row["timeseries_file"])
         plan = case_plan(row)
         found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, gap_tolerance,
-                           full_scales.get(plan.case))
+                           columns.get(plan.case, (None, None))[1], peaks.get(plan.case))
         problems, warnings = found.problems, found.warnings
         for column, value in motion_columns(found.motion, plan).items():
             cases.loc[i, column] = value
