@@ -389,6 +389,26 @@ def test_windows_of_a_delayed_case_on_an_offset_time_axis_are_rederived(project,
     assert "motion_start_s" in result.text and "delay_s" in result.text
 
 
+def test_a_window_with_a_spike_left_out_is_rederived_to_a_match_that_says_so(project, tmp_path):
+    dst = copy_project(project, tmp_path / "p", "data/raw/mini-raw")
+    csv = dst / "data/raw/mini-raw/T03.csv"
+    table = pd.read_csv(csv, dtype=str)
+    window = pd.read_parquet(project / "results/mini-raw/windows.parquet").query("case == 'T03' and segment == 2")
+    at = (int(window["row_start"].iloc[0]) + int(window["row_stop"].iloc[0])) // 2
+    table.loc[at, "force_kN"] = f"{float(table.loc[at, 'force_kN']) + 10.0:.10g}"    # one 10 kN spike
+    csv.write_text(table.to_csv(index=False), encoding="utf-8")
+    with cwd(dst):
+        root = Path("results/mini-raw")
+        ingest_campaign(Path("data/raw/mini-raw"), root)
+        write_validated(root, sample_rate_tolerance=0.05)
+        write_parquet(windows_stage(root, SPEC_W), root / "windows.parquet")
+    row = pd.read_parquet(dst / "results/mini-raw/windows.parquet").query("case == 'T03' and segment == 2").iloc[0]
+    assert row["spikes_excluded"] == 1
+    result = run(dst / "results/mini-raw/windows.parquet", "case=T03,segment=2")
+    assert result.status == tr.MATCH, result.text
+    assert "1 left out as spikes by measurement.spikes.spike_mask" in result.text
+
+
 def test_every_table_kind_is_a_file_a_rule_writes():
     """Where each table lies comes from isokinetic.contracts.outputs, not from a map of trace's own."""
     for kind in tr.KINDS.values():
