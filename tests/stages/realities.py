@@ -181,6 +181,10 @@ class Damage:
     whole: set[str] = field(default_factory=set)
     missing: str | None = None
     temperature: bool = False     # the temperature channel is damaged: check cases.parquet's temperature_C
+    #: the damaged cases are a faithful record of the mirrored damper (played backwards, load cell upside down):
+    #: where the force has too little memory for any check to tell (docs/real-world-input.md, causality), their
+    #: points may be the mirrored twin's, each the negated point of the other direction
+    mirrored: bool = False
 
 
 @dataclass(frozen=True)
@@ -230,7 +234,10 @@ def kn_as_n(c: Campaign, w: Windows, rng) -> Damage:
 
 def reversed_upside_down(c: Campaign, w: Windows, rng) -> Damage:
     """One case played backwards (rows in reverse order, the time column left ascending), the load cell upside
-    down (force negated)."""
+    down (force negated). For a damper without memory this is, sample for sample, the record of the mirrored
+    damper F'(v) = -F(-v) (the time reversal negates the velocity, the load cell the force): no check of the file
+    can tell it from a real one, only the force's lag can (causality). The case is set aside, or its points are
+    the mirrored twin's."""
     case = c.cases()[int(rng.integers(len(c.cases())))]
     f = c.file(case)
     t, j = f.col(c.channels["time"]), f.col(c.channels["force"])
@@ -239,7 +246,7 @@ def reversed_upside_down(c: Campaign, w: Windows, rng) -> Damage:
     for r, stamp in zip(f.rows, times):
         r[t] = stamp
         r[j] = r[j][1:] if r[j].startswith("-") else "-" + r[j]
-    return Damage(whole={case})
+    return Damage(whole={case}, mirrored=True)
 
 
 def spike(c: Campaign, w: Windows, rng) -> Damage:

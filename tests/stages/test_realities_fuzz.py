@@ -9,7 +9,10 @@ own run, its clean twin:
 
 - no silently wrong point: every characteristic point is a point of the twin (same case and segment), its force
   within ``Z_SE`` of the twin's standard errors and its velocity within ``VELOCITY_TOLERANCE``, or its case is set
-  aside with a reason naming it; a damaged temperature channel gives no temperature the twin does not have;
+  aside with a reason naming it (a record played backwards with its load cell upside down is, for a damper whose
+  force has too little memory to tell, a faithful record of the mirrored damper: it is set aside or gives the
+  mirrored twin's points, each the negated point of the other direction); a damaged temperature channel gives
+  no temperature the twin does not have;
 - no good window lost: where the damage leaves a window intact (none of its rows touched, its case not damaged
   whole), its point is there;
 - no crash: nothing escapes ingest or the characteristic, and no campaign is refused whole for one case's damage;
@@ -119,8 +122,27 @@ def intact(twin: Twin, damage: Damage, case: str) -> list[tuple[int, int, int]]:
             if not any(p.row_start <= r < p.row_stop for r in rows)]
 
 
+def mirrored_problems(twin: Twin, out: Outcome, case: str) -> list[str]:
+    """A record of the mirrored damper (:func:`stages.realities.reversed_upside_down`) kept: every point is the
+    negated point of a twin point of the other direction, within the tolerances of :func:`point_problems`."""
+    want = twin.characteristic[twin.characteristic["case"] == case]
+    se = pd.Series(standard_error_N(twin.characteristic), index=twin.characteristic.index)[want.index]
+    problems = []
+    for p in out.characteristic[out.characteristic["case"] == case].itertuples():
+        other = want["direction"] != p.direction
+        ok = other & (np.abs(p.force_N + want["force_N"]) <= Z_SE * se) \
+            & (np.abs(p.velocity_m_s + want["velocity_m_s"]) <= VELOCITY_TOLERANCE * want["velocity_m_s"].abs())
+        if not ok.any():
+            problems.append(f"silently wrong: case {case} kept, played backwards and upside down, segment "
+                            f"{p.segment}: {p.velocity_m_s:.5g} m/s, {p.force_N:.6g} N is no negated twin point "
+                            f"of the other direction")
+    return problems
+
+
 def point_problems(twin: Twin, out: Outcome, damage: Damage, case: str) -> list[str]:
     """A status-ok case: every point its twin's within tolerance, every intact window's point there."""
+    if damage.mirrored and case in damage.whole:
+        return mirrored_problems(twin, out, case)
     want = twin.characteristic[twin.characteristic["case"] == case].set_index("segment")
     want_se = pd.Series(standard_error_N(twin.characteristic), index=twin.characteristic.index)
     got = out.characteristic[out.characteristic["case"] == case]
