@@ -3,9 +3,10 @@
 Rule (a Hampel filter, :func:`spike_mask`)
     Over a stretch of samples (a window with ``CONTEXT`` samples of the record either side of it), the residual of
     each force sample from a robust local trend, the running median of ``2 HALF_WIDTH + 1`` = 11 samples, is
-    compared with the noise's robust sigma: 1.4826 MAD (median absolute deviation) of the window's residuals from
-    the median of each sample's 10 neighbours, the sample itself left out (with it, the residuals of ordinary
-    samples shrink and the MAD would understate the noise by a third). A sample whose residual exceeds
+    compared with the noise's robust sigma: 1.4826 MAD (median absolute deviation) of the residuals from the
+    median of each sample's 10 neighbours, the sample itself left out (with it, the residuals of ordinary samples
+    shrink and the MAD would understate the noise by a third), the larger of the window's and of the
+    ``SCALE_SAMPLES`` = 200 samples around it. A sample whose residual exceeds
     ``K_SIGMA`` = 6 sigma, and which stands out from the mean of its two neighbours by half that, is an outlier
     (a smooth curve's extremum sampled a few times stands out from a median of 11, never from its neighbours).
     Its extent is the run of consecutive samples beyond ``K_EDGE`` = 3 sigma around it (from the running median of
@@ -39,7 +40,9 @@ Scale floor
     (the smallest step between its distinct values) and 1e-9 of its largest |force|, so rounding is never a spike.
 
 Limits
-    The rule needs a window of at least ``MIN_SAMPLES`` samples (fewer: no spike is looked for). A spike of more
+    The rule needs a window of at least ``MIN_SAMPLES`` samples (fewer: no spike is looked for); in a record of
+    only a few dozen samples the scale rests on them alone and false flags are more likely (1e-3 to 1e-5 a sample
+    on white noise for 11 to 40 samples). A spike of more
     than three samples (a long dropout to a rail value) is kept as an event and shows as the window's spread. The
     running median sees a sharp extremum of the force sampled more coarsely than a few samples a feature as a run
     of outliers, kept; where the trend is a smooth curve over many samples (the force around a peak of velocity),
@@ -62,6 +65,10 @@ MAX_RUN = 3
 CONTEXT = HALF_WIDTH + MAX_RUN
 #: Fewest samples a window needs for spikes to be looked for.
 MIN_SAMPLES = 2 * HALF_WIDTH + 1
+#: The noise's sigma is also measured over at least this many samples of the record around a window (the larger
+#: of the two is the scale): the MAD of a few dozen samples is uncertain by tens of %, and a scale too small by a
+#: third makes 6 sigma 4 (on white noise, 1e-3 false flags a sample for windows of 11 samples, 2e-5 for 40).
+SCALE_SAMPLES = 200
 #: A window with more spike samples than max(MIN_ALLOWED, MAX_FRACTION x its samples) is set aside.
 MAX_FRACTION = 0.01
 MIN_ALLOWED = 1
@@ -106,18 +113,20 @@ def short_runs(outside: np.ndarray, far: np.ndarray, max_run: int = MAX_RUN) -> 
 
 def spike_mask(f: np.ndarray, i0: int, i1: int, *, detrend: bool = False, context: int = CONTEXT) -> np.ndarray:
     """Which samples of the window [i0, i1) of the record's force ``f`` are spikes (module doc), a boolean array of
-    i1 - i0. The running median and the run rule see ``context`` samples of the record either side; the scale is
-    the window's own residuals. ``detrend``: a least-squares quadratic over the stretch is taken off first."""
+    i1 - i0. The running median and the run rule see ``context`` samples of the record either side (more, up to
+    ``SCALE_SAMPLES`` in all, for a short window); the scale is the larger of the window's and that stretch's.
+    ``detrend``: a least-squares quadratic over the stretch is taken off first."""
     n = i1 - i0
     if n < MIN_SAMPLES:
         return np.zeros(max(n, 0), dtype=bool)
-    s0, s1 = max(0, i0 - context), min(f.size, i1 + context)
+    reach = max(context, (SCALE_SAMPLES - n + 1) // 2)
+    s0, s1 = max(0, i0 - reach), min(f.size, i1 + reach)
     y = np.asarray(f[s0:s1], dtype=float)
     if detrend:
         y = _quadratic_residual(y)
     r = y - running_median(y)
-    apart = (y - running_median(y, own=False))[i0 - s0:i1 - s0]
-    scale = MAD_SIGMA * float(np.median(np.abs(apart - np.median(apart))))
+    apart = y - running_median(y, own=False)
+    scale = max(_mad_sigma(apart[i0 - s0:i1 - s0]), _mad_sigma(apart))
     window = np.asarray(f[i0:i1], dtype=float)
     scale = max(scale, resolution(window), 1e-9 * float(np.max(np.abs(window))), np.finfo(float).tiny)
     # an outlier stands out from its running median and from its two neighbours' mean too (half the threshold: a
@@ -134,6 +143,11 @@ def spike_mask(f: np.ndarray, i0: int, i1: int, *, detrend: bool = False, contex
     at = np.arange(y.size)
     bridged = np.where(far, np.interp(at, at[~far], y[~far]), y) if (~far).any() else y
     return short_runs(np.abs(y - running_median(bridged)) > K_EDGE * scale, far)[i0 - s0:i1 - s0]
+
+
+def _mad_sigma(x: np.ndarray) -> float:
+    """1.4826 x the median absolute deviation of x from its median (a normal sigma)."""
+    return MAD_SIGMA * float(np.median(np.abs(x - np.median(x))))
 
 
 def too_many(n_spikes: int, n_samples: int) -> bool:
