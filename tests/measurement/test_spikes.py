@@ -84,3 +84,14 @@ def test_more_than_one_spike_or_one_percent_of_a_window_sets_it_aside():
     assert not too_many(1, 50) and too_many(2, 50)
     assert not too_many(5, 500) and too_many(6, 500)
     assert "set aside" in too_many_note(6, 500) and "6 spike samples of 500" in too_many_note(6, 500)
+
+
+def test_short_windows_in_a_noisy_record_give_no_spike():
+    # a window's own MAD of a dozen samples is uncertain by a third: the scale of the 200 samples around it holds
+    rng = np.random.default_rng(10)
+    flagged = 0
+    for n in (11, 16, 25, 40):
+        for _ in range(2000):
+            f = rng.standard_normal(n + 400)
+            flagged += int(spike_mask(f, 200, 200 + n).sum())
+    assert flagged == 0
