@@ -127,3 +127,21 @@ def test_a_channel_that_repeats_the_motion_follows_it_a_drifting_temperature_doe
     drift = 40.0 + 2.0 * t / t[-1] + np.random.default_rng(2).normal(0, 0.05, t.size)
     assert pl.follows(drift, x) < pl.FOLLOW_CORRELATION
     assert pl.follows(np.full(t.size, 40.0), x) == 0.0
+
+
+def test_an_elastic_force_seen_through_a_lagging_channel_gives_back_less_than_an_inverted_damper():
+    """A passive element whose force is mostly elastic (k x) with a little damping, read through a first-order
+    low-pass that lags it past a quarter period, gives some work back: less than ENERGY_FRACTION, so it is kept
+    (flagged); the same damper with its force inverted gives back nearly all."""
+    t = np.arange(0.0, 4.0, 1e-3)
+    w = 2 * np.pi * 2.0
+    x = 1e-4 * np.sin(w * t)
+    v = 1e-4 * w * np.cos(w * t)
+    # independent: the low-pass's steady response to F = k x + c v, phase lag atan(w tau), gain 1/sqrt(1 + (w tau)^2)
+    k, c, tau = 1e6, 2e4, 1.0 / (2 * np.pi * 4.0)
+    lag, gain = np.arctan(w * tau), 1.0 / np.hypot(1.0, w * tau)
+    f = gain * 1e-4 * (k * np.sin(w * t - lag) + c * w * np.cos(w * t - lag))
+    back = pl.energy_given_back(*pl.cycle_energies(t, x, f))
+    assert pl.ENERGY_NOTE_FRACTION < back < pl.ENERGY_FRACTION
+    assert not pl.gives_energy_back(*pl.cycle_energies(t, x, f))
+    assert pl.energy_given_back(*pl.cycle_energies(t, x, -c * v)) > 0.9

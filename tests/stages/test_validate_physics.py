@@ -149,3 +149,25 @@ def test_the_lag_dampers_good_records_pass_the_physics_checks(lag_campaign, tmp_
     cases, quarantine = _run(lag_campaign, tmp_path / "results" / "lag")
     assert quarantine.empty, quarantine["reason"].tolist()
     assert (cases["status"] == "ok").all()
+
+
+def test_a_record_giving_back_a_little_work_is_kept_and_flagged():
+    """An elastic force through a lagging channel (measurement.test_plausibility's record) is no sign error: the
+    case keeps no problem, and its warning names both explanations; the same force inverted is set aside."""
+    import numpy as np
+
+    from isokinetic.physics.plan import CasePlan
+    from isokinetic.stages.validate import energy_problems, energy_warnings
+
+    t = np.arange(0.0, 4.0, 1e-3)
+    w, tau = 2 * np.pi * 2.0, 1.0 / (2 * np.pi * 4.0)
+    lag, gain = np.arctan(w * tau), 1.0 / np.hypot(1.0, w * tau)
+    x = 1e-4 * np.sin(w * t)
+    f = gain * 1e-4 * (1e6 * np.sin(w * t - lag) + 2e4 * w * np.cos(w * t - lag))
+    plan = CasePlan("H1", "sine", 1000.0, amplitude_m=1e-4, frequency_Hz=2.0)
+    df = pd.DataFrame({"time_s": t, "displacement_m": x, "force_N": f})
+    assert energy_problems(df, 1e-3) == []
+    (said,) = energy_warnings(df, plan)
+    assert "give back" in said and "filter" in said and "sign" in said
+    inverted = df.assign(force_N=-2e4 * 1e-4 * w * np.cos(w * t))
+    assert energy_problems(inverted, 1e-3)

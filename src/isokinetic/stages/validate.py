@@ -510,6 +510,21 @@ def magnitude_problems(df: pd.DataFrame, full_scale_N: float | None, campaign_pe
     return []
 
 
+def energy_warnings(df: pd.DataFrame, plan: CasePlan) -> list[str]:
+    """A kept moving record whose cycles give back more than pl.ENERGY_NOTE_FRACTION of their work (but not
+    pl.ENERGY_FRACTION, which sets it aside): flagged, as a force channel's lag on a mostly elastic force or a
+    sign error could both show it."""
+    if plan.waveform == "standstill":
+        return []
+    back = pl.energy_given_back(*pl.cycle_energies(*(df[c].to_numpy() for c in ("time_s", "displacement_m",
+                                                                                   "force_N"))))
+    if back <= pl.ENERGY_NOTE_FRACTION:
+        return []
+    return [f"the cycles give back {back:.0%} of the work |F v| dt (a damper absorbs energy): a force channel's lag "
+            f"past a quarter period on a mostly elastic force shows this, and so does a force of the wrong sign; "
+            f"kept below {pl.ENERGY_FRACTION:.0%}: check the force channel's filter and sign"]
+
+
 def physics_problems(df: pd.DataFrame, plan: CasePlan, full_scale_N: float | None = None,
                      campaign_peaks_N=None) -> list[Problem]:
     """The checks that need no damper block: a temperature that follows the motion, and for a moving case
@@ -574,7 +589,8 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
     reversed_first = [p for p in physics if REVERSED_HINT in p.message]
     for problem in gaps + flat + plausibility_problems(df, plan, damper) + reversed_first + later + physics:
         found.setdefault(problem.column, problem)
-    return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings, motion, sampling)
+    energy = energy_warnings(df, plan) if not found else []
+    return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings + energy, motion, sampling)
 
 
 def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
