@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.signal import lfilter, lfilter_zi
 
-from isokinetic.measurement.motion import estimate_motion, triangle_shape
+from isokinetic.measurement.motion import ends_early, estimate_motion, triangle_shape
 from isokinetic.physics.plan import CasePlan, triangle_displacement, triangle_wave
 from rigfiles import dropout_rows
 
@@ -158,3 +158,19 @@ def test_dropped_samples_leave_the_motion_unchanged():
     np.testing.assert_allclose(thinned.velocities_m_s, full.velocities_m_s, rtol=1e-3)
     assert thinned.noise_m == pytest.approx(full.noise_m, rel=0.1)
     assert thinned.rms_m == pytest.approx(full.rms_m, rel=0.05)
+
+
+@pytest.mark.parametrize("end_s", [32.0, 25.0, 15.5])
+def test_record_cut_short_measures_its_delay_from_the_half_periods_it_holds(end_s):
+    t, y = triangle_record(delay_s=0.015, lag_s=0.010)
+    keep = t < end_s
+    m = estimate_motion(t[keep], y[keep], plan())
+    assert ends_early(t[keep], plan())
+    assert m.delay_s == pytest.approx(0.025, abs=0.002)
+    held = int((end_s - 0.025) // 10.0) + (1 if (end_s - 0.025) % 10.0 >= 5.0 else 0)   # up to their middle
+    assert np.isfinite(m.velocities_m_s).tolist() == [k < held for k in range(4)]
+
+
+def test_complete_record_does_not_end_early():
+    t, y = triangle_record()
+    assert not ends_early(t, plan())

@@ -9,6 +9,7 @@ from isokinetic.measurement.windows import (
     case_windows,
     extract_windows,
     line_slope,
+    missing_windows_note,
     motion_start,
     window_ranges,
     windowed_half_periods,
@@ -91,10 +92,26 @@ def test_configurable_window_fractions():
     assert rows[0]["force_N"] > LEVELS_N[0] + 1000
 
 
-def test_short_record_is_refused():
+def test_record_that_ends_early_keeps_its_complete_windows_unchanged():
     series = make_series()
-    with pytest.raises(ValueError, match="holds the windows of 3 half-periods"):
-        case_windows(plan(), series[series.time_s <= 35.0])
+    full = case_windows(plan(), series)
+    assert case_windows(plan(), series[series.time_s <= 35.0]) == full[:3]      # window 4 ends at 39.5 s
+    assert case_windows(plan(), series[series.time_s <= 9.5]) == full[:1]
+
+
+def test_record_that_ends_before_its_first_window_is_refused():
+    series = make_series()
+    with pytest.raises(ValueError, match=r"holds the windows of 0 half-periods of T = 20 s, 1 needed \(the first "
+                                         r"window ends at t = 9.5 s\)"):
+        case_windows(plan(), series[series.time_s <= 9.4])
+
+
+def test_missing_windows_are_named():
+    assert missing_windows_note(plan(), 35.0, [1, 2, 3]) == (
+        "record ends at 35 s, before the plan's 40 s: window 4 missing")
+    assert missing_windows_note(plan(), 12.0, [1], motion_start_s=0.2) == (
+        "record ends at 12 s, before the plan's 40.2 s: windows 2, 3, 4 missing")
+    assert missing_windows_note(plan(), 39.9, [1, 2, 3, 4]) == ""
 
 
 def test_invalid_window_fractions_are_refused():
@@ -165,10 +182,11 @@ def test_windowed_half_periods_are_on_the_record_time_axis():
     np.testing.assert_allclose(rows[:, :2], [[7.3, 17.3], [17.3, 27.3], [27.3, 37.3], [37.3, 47.3]])
 
 
-def test_delay_too_large_for_the_record_leaves_too_few_windows():
-    with pytest.raises(ValueError, match=r"holds the windows of 3 half-periods of T = 20 s \(motion start at "
-                                         r"t = 0.6 s\), 4 needed"):
-        case_windows(plan(), make_series(), motion_start_s=0.6)
+def test_delay_too_large_for_the_record_leaves_three_windows():
+    late = case_windows(plan(), delayed(make_series(), 6), motion_start_s=0.6)
+    base = case_windows(plan(), make_series())
+    assert [(r["row_start"], r["row_stop"]) for r in late] == \
+        [(r["row_start"] + 6, r["row_stop"] + 6) for r in base[:3]]
 
 
 def test_extract_windows_cuts_each_case_at_its_motion_start():

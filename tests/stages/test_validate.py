@@ -75,12 +75,28 @@ def test_validate_rechecks_the_schema_of_ingested_series(raw_campaign):
     assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T02", "validate", "force_N", 23)])
 
 
-@pytest.mark.parametrize("keep", [300, 399])
-def test_record_shorter_than_the_plan(raw_campaign, keep):
+def test_record_that_ends_early_keeps_its_complete_windows_equal_to_the_full_records(raw_campaign):
+    raw_campaign.run()
+    full = _windows(raw_campaign).loc["T02"]
+    raw_campaign.edit_table("T02", lambda t: t.iloc[:300])      # 2.99 s of the plan's 4 s: window 4 lost
+    cases, quarantine = raw_campaign.run()
+    assert quarantine.empty, quarantine["reason"].tolist()
+    assert "record ends at 2.99 s, before the plan's 4 s: window 4 missing" in cases.set_index("case").loc["T02",
+                                                                                                            "quality"]
+    cut = _windows(raw_campaign).loc["T02"]
+    assert cut.index.tolist() == [1, 2, 3]
+    assert cut[["row_start", "row_stop"]].equals(full.loc[[1, 2, 3], ["row_start", "row_stop"]])
+    se = full["force_std_N"] / np.sqrt(full["n_samples"])
+    assert (np.abs(cut["force_N"] - full.loc[[1, 2, 3], "force_N"]) <= se.loc[[1, 2, 3]]).all()
+
+
+@pytest.mark.parametrize("keep", [80, 130])       # before window 1 ends (0.95 s); before hp 2's middle (1.5 s)
+def test_record_too_short_for_its_motion_start_is_set_aside(raw_campaign, keep):
     raw_campaign.edit_table("T02", lambda t: t.iloc[:keep])
     cases, quarantine = raw_campaign.run()
     assert_quarantine(raw_campaign, cases, quarantine, [(CAMPAIGN, "T02", "validate", "time_s", None)])
-    assert f"record lasts {(keep - 1) / 100:.6g} s, the triangle plan needs 4 s" in quarantine["reason"].iloc[0]
+    assert f"record ends at {(keep - 1) / 100:.6g} s, before the middle of its second half-period" in \
+        quarantine["reason"].iloc[0]
 
 
 def test_sine_needs_one_period(raw_campaign):
@@ -142,7 +158,7 @@ def _simulated_case(plan: CasePlan, n: int) -> tuple[dict, pd.DataFrame]:
 def test_simulated_campaign_is_validated_the_same_way(tmp_path):
     plans = [CasePlan("T01", "triangle", 100.0, amplitude_m=1e-4, period_s=2.0, duration_s=4.0),
              CasePlan("T02", "triangle", 100.0, amplitude_m=1e-4, period_s=2.0, duration_s=4.0)]
-    built = [_simulated_case(plans[0], 400), _simulated_case(plans[1], 250)]   # T02 cut short
+    built = [_simulated_case(plans[0], 400), _simulated_case(plans[1], 80)]   # T02 ends before its first window
     meta = {"format_version": 1, "campaign": "sim", "source": "simulation", "description": None,
             "temperature_C": 40.0, "damper": None, "manifest_file": "", "manifest_sha256": "", "metadata": {}}
     earlier = quarantine_rows("sim", "T00", "ingest", [Problem("file", "missing", kind="key")])

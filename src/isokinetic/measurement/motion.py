@@ -19,6 +19,13 @@ mid-stroke together. A shift within ``ZERO_DELAY_SIGMAS`` standard errors of the
 is not distinguishable from it and is taken as the first time stamp exactly (a record that starts
 with its motion is windowed exactly as planned, whatever its noise).
 
+A record that ends before the plan's two periods (:func:`ends_early`: a rig that crashed while writing) fits
+only the half-periods it holds up to their middle, where their line crosses the mid-stroke (the crossing is then
+measured, not extrapolated from the first samples of a half-period). The motion start needs a rising and a
+falling line (a ramp alone does not fix the mid-stroke: a record that ends before the middle of its second
+half-period places its windows up to T/4 off); validate sets such a record aside. A record that lasts the plan's
+duration is measured exactly as before.
+
 Every step works on the real time stamps (lines and spans by time, blocks averaged in time and
 displacement alike), so a record that dropped samples gives the same motion; the noise estimate
 (median second difference) is robust to the few differences a gap disturbs.
@@ -135,15 +142,17 @@ def line_fit(t, y) -> tuple[float, float, float, float, float]:
     return slope, float(ym), float(tm), sigma / math.sqrt(t.size), sigma / math.sqrt(sxx)
 
 
-def line_fits(t, y, starts_s, half_s: float):
+def line_fits(t, y, starts_s, half_s: float, cut: bool = False):
     """Least-squares lines over [0.1, 0.9]·T/2 after each start: (slope, value at mean time,
-    mean time, crossing-time standard error per unit slope, samples), NaN for too few samples."""
+    mean time, crossing-time standard error per unit slope, samples), NaN for too few samples, and with
+    ``cut`` (a record that ends early) for a half-period whose middle lies after the record's last sample."""
     lo, hi = LINE_FRACTIONS
-    i0 = np.searchsorted(t, np.asarray(starts_s) + lo * half_s, side="left")
-    i1 = np.searchsorted(t, np.asarray(starts_s) + hi * half_s, side="right")
+    starts = np.asarray(starts_s)
+    i0 = np.searchsorted(t, starts + lo * half_s, side="left")
+    i1 = np.searchsorted(t, starts + hi * half_s, side="right")
     out = np.full((len(i0), 5), np.nan)
     for k, (a, b) in enumerate(zip(i0, i1)):
-        if b - a < MIN_LINE_SAMPLES:
+        if b - a < MIN_LINE_SAMPLES or (cut and starts[k] + 0.5 * half_s > t[-1]):
             continue
         slope, ym, tm, se_mean, _ = line_fit(t[a:b], y[a:b])
         out[k] = (slope, ym, tm, se_mean, b - a)
@@ -195,10 +204,18 @@ def line_spans_s(plan: CasePlan, motion_start_s: float) -> np.ndarray:
     return motion_start_s + starts + np.asarray(LINE_FRACTIONS) * (plan.period_s / 2.0)
 
 
+def ends_early(t_s, plan: CasePlan) -> bool:
+    """Whether a record ends before its plan's duration (Sec. 4.3: two periods of a triangle), less one sample
+    interval of slack: a record cut short, as a rig that crashed while writing leaves it."""
+    dt_s = 1.0 / plan.sample_rate_Hz
+    return float(t_s[-1] - t_s[0]) < (plan.required_duration_s - dt_s) * (1.0 - 1e-9)
+
+
 def estimate_motion(t_s, y_m, plan: CasePlan, iterations: int = 3) -> Motion:
     """Measured kinematics of a triangle case from its time stamps and displacement (Eq. 26).
 
-    Raises ValueError for a case that is not a triangle or a record of fewer than 10 samples.
+    A record that ends early (:func:`ends_early`) fits only the half-periods it holds up to their middle
+    (module doc). Raises ValueError for a case that is not a triangle or a record of fewer than 10 samples.
     """
     if plan.waveform != "triangle":
         raise ValueError(f"case {plan.case}: motion is estimated for triangle cases, not {plan.waveform}")
@@ -217,14 +234,15 @@ def estimate_motion(t_s, y_m, plan: CasePlan, iterations: int = 3) -> Motion:
     u = triangle_shape(t - s, period, phase)
     fallback_c = float(y.mean() - np.polyfit(u, y, 1)[0] * u.mean()) if np.ptp(u) > 0 else float(y.mean())
     c, s_se = fallback_c, math.inf
+    cut = ends_early(t, plan)
     for _ in range(iterations):
-        solved = solve_shift(line_fits(t, y, s + starts, half), mids, fallback_c)
+        solved = solve_shift(line_fits(t, y, s + starts, half, cut), mids, fallback_c)
         if solved is None:
             break
         s, c, s_se = solved
     if abs(s - t[0]) <= max(ZERO_DELAY_SIGMAS * s_se, 1e-3 * dt):
         s = float(t[0])
-    fits = line_fits(t, y, s + starts, half)
+    fits = line_fits(t, y, s + starts, half, cut)
     u = triangle_shape(t - s, period, phase)
     uc = u - u.mean()
     gain = float(uc @ (y - y.mean()) / (uc @ uc)) if uc @ uc > 0 else 0.0

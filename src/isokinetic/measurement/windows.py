@@ -1,10 +1,12 @@
 """Window extraction (Sec. 4.4): one steady point per constant-velocity half-period.
 
 For each triangle case the four complete half-periods of its two-period record are found
-from the plan (Eq. 26), placed on the record's own time axis at the measured motion start
-(``motion_start_s`` of cases.parquet, :mod:`isokinetic.measurement.motion`; 0 when absent), and the samples
-in [start_fraction, end_fraction]·T/2 of each are reduced to the mean force, its standard
-deviation, and the velocity of a least-squares line through the displacement.
+from the plan (Eq. 26; a record that ends early, a rig that crashed while writing, keeps the windows that
+lie complete inside it, at least :data:`MIN_WINDOWS`, the others named by :func:`missing_windows_note`),
+placed on the record's own time axis at the measured motion start (``motion_start_s`` of cases.parquet,
+:mod:`isokinetic.measurement.motion`; 0 when absent), and the samples in [start_fraction, end_fraction]·T/2
+of each are reduced to the mean force, its standard deviation, and the velocity of a least-squares line
+through the displacement.
 
 Windows are placed by time, and every statistic uses the real time stamps, so a record that
 dropped samples (:mod:`isokinetic.measurement.sampling`) is reduced without bias: the velocity is
@@ -35,6 +37,13 @@ from isokinetic.physics.plan import CasePlan, half_periods
 
 #: Minimum samples a window must hold for a mean, a standard deviation and a line fit.
 MIN_WINDOW_SAMPLES = 3
+#: Windows a triangle record must hold complete (the first ones of the plan's four). A record cut short (a rig
+#: that crashed while writing) keeps the windows that lie complete inside it: one is enough for a point; the
+#: motion start that places it needs the record to reach the middle of the second half-period too (a rising and a
+#: falling line, :mod:`isokinetic.measurement.motion`; validate checks it). Shorter records are set aside.
+MIN_WINDOWS = 1
+#: The plan's windows of a triangle record: two periods, both directions (Sec. 4.3).
+PLAN_WINDOWS = 4
 
 
 @dataclass(frozen=True)
@@ -77,7 +86,7 @@ def window_mean_force(t, f, centre_s: float, complete: bool) -> float:
 
 def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec,
                           motion_start_s: float = 0.0):
-    """The first four half-periods (rows t_start, t_end, sign) whose window ends within the record.
+    """The half-periods, of the plan's first four, (rows t_start, t_end, sign) whose window ends within the record.
 
     Times are on the record's axis: the plan's (Eq. 26) plus ``motion_start_s``, the record time at
     which the plan's t = 0 lies (0: plan time is record time). A turning point within one sample
@@ -91,6 +100,23 @@ def windowed_half_periods(plan: CasePlan, t_end_s: float, spec: WindowSpec,
                         tolerance_s=1.0 / plan.sample_rate_Hz, max_count=4)     # bounded: 1e308 s ends no loop
     rows[:, :2] += motion_start_s
     return rows
+
+
+def first_window_end_s(plan: CasePlan, spec: WindowSpec) -> float:
+    """The end of the plan's first window in plan time [s] (Eq. 26)."""
+    rows = windowed_half_periods(plan, math.inf, spec)
+    return float(rows[0, 0] + spec.end_fraction * plan.period_s / 2.0)
+
+
+def missing_windows_note(plan: CasePlan, t_end_s: float, segments, motion_start_s: float = 0.0) -> str:
+    """What a triangle record that ends early lost: '' when it holds all PLAN_WINDOWS windows, else e.g.
+    'record ends at 14.72 s, before the plan's 16 s: windows 4 missing' (the plan's end at the motion start)."""
+    missing = [k for k in range(1, PLAN_WINDOWS + 1) if k not in {int(s) for s in segments}]
+    if not missing:
+        return ""
+    plan_end_s = motion_start_s + plan.required_duration_s
+    return (f"record ends at {t_end_s:.6g} s, before the plan's {plan_end_s:.6g} s: "
+            f"window{'s' if len(missing) > 1 else ''} {', '.join(map(str, missing))} missing")
 
 
 def time_tolerance_s(plan: CasePlan) -> float:
@@ -108,13 +134,16 @@ def window_ranges(plan: CasePlan, t, spec: WindowSpec,
     (0, the default: ``t`` is plan time, as on a model grid). Raises ValueError when the record does
     not hold four windows, a window starts before the first sample, or a window holds fewer than
     MIN_WINDOW_SAMPLES samples. Shared by the measured windows and the model run through the plan,
-    so both use the same samples.
+    so both use the same samples. A record that ends early gives the windows that lie complete inside it (at
+    least MIN_WINDOWS, else ValueError; :func:`missing_windows_note` names the others).
     """
     segments = windowed_half_periods(plan, float(t[-1]), spec, motion_start_s)
-    if len(segments) < 4:
+    if len(segments) < MIN_WINDOWS:
         aligned = f" (motion start at t = {motion_start_s:.6g} s)" if motion_start_s != 0.0 else ""
+        first_end = motion_start_s + first_window_end_s(plan, spec)
         raise ValueError(f"case {plan.case}: record of {t[-1]:.6g} s holds the windows of {len(segments)} "
-                         f"half-periods of T = {plan.period_s:.6g} s{aligned}, 4 needed")
+                         f"half-periods of T = {plan.period_s:.6g} s{aligned}, {MIN_WINDOWS} needed (the first "
+                         f"window ends at t = {first_end:.6g} s)")
     half = plan.period_s / 2.0
     eps = time_tolerance_s(plan)
     out = []
@@ -134,7 +163,8 @@ def window_ranges(plan: CasePlan, t, spec: WindowSpec,
 
 def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec(),
                  motion_start_s: float = 0.0) -> list[dict]:
-    """The four windows of one triangle case as rows (segment, direction, period, statistics).
+    """The windows of one triangle case as rows (segment, direction, period, statistics): four, or those a record
+    that ends early holds complete (:func:`window_ranges`).
 
     Cut at ``motion_start_s`` + the plan's window times (:func:`window_ranges`); window_start_s and
     window_end_s are on the record's time axis, velocity_m_s is the measured slope in the window,

@@ -54,9 +54,9 @@ from isokinetic.contracts.campaign import case_plan, read_ingested
 from isokinetic.contracts.problem import Problem
 from isokinetic.io import write_parquet
 from isokinetic.measurement import plausibility as pl
-from isokinetic.measurement.motion import Motion, estimate_motion, line_spans_s
+from isokinetic.measurement.motion import Motion, ends_early, estimate_motion, line_spans_s
 from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
-from isokinetic.measurement.windows import WindowSpec, case_windows, windowed_half_periods
+from isokinetic.measurement.windows import WindowSpec, case_windows, missing_windows_note, windowed_half_periods
 from isokinetic.physics.damper import Damper, nominal_force
 from isokinetic.physics.plan import CasePlan
 
@@ -193,9 +193,10 @@ def timeseries_problems(df: pd.DataFrame) -> list[Problem]:
 
 def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: float = 0.05,
                     min_samples: int = MIN_SAMPLES) -> list[Problem]:
-    """Too few samples, shorter than the plan needs (one sample interval of slack), or a sample interval
-    (:func:`isokinetic.measurement.sampling.sample_interval_s`) off 1/sample_rate_Hz by more than the tolerance.
-    Time must be valid already."""
+    """Too few samples, a sine or free record shorter than the plan needs (one sample interval of slack,
+    :func:`motion.ends_early`), or a sample interval (:func:`isokinetic.measurement.sampling.sample_interval_s`)
+    off 1/sample_rate_Hz by more than the tolerance. A triangle record that ends early is judged by its windows
+    (:func:`window_problems`: it keeps those that lie complete inside it). Time must be valid already."""
     n = len(time_s)
     if n < min_samples:
         return [Problem("time_s", f"only {n} samples, at least {min_samples} needed")]
@@ -203,7 +204,7 @@ def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: f
     dt_s = 1.0 / plan.sample_rate_Hz
     duration_s = float(time_s[-1] - time_s[0])
     need_s = plan.required_duration_s
-    if duration_s < (need_s - dt_s) * (1.0 - 1e-9):
+    if plan.waveform != "triangle" and ends_early(time_s, plan):
         problems.append(Problem("time_s", f"record lasts {duration_s:.6g} s, the {plan.waveform} plan needs "
                                           f"{need_s:.6g} s (less one sample interval, {dt_s:.6g} s)"))
     interval_s = sample_interval_s(time_s)       # the one rule init-campaign's draft and --check use too
@@ -433,29 +434,44 @@ def motion_problems(motion: Motion, plan: CasePlan) -> tuple[list[Problem], list
 
 
 def window_problems(df: pd.DataFrame, plan: CasePlan, motion: Motion, spec: WindowSpec
-                    ) -> list[Problem]:
-    """The four windows at the measured motion start: that they fit the record, and the force's sign.
+                    ) -> tuple[list[Problem], list[str]]:
+    """The windows at the measured motion start: that they fit the record, and the force's sign:
+    (problems, flagged-but-usable warnings).
 
-    A record that does not hold the windows at the motion start (a delay too large, a record cut
-    short) is a ``time_s`` problem; a mean force against the measured velocity in every window,
-    each mean FORCE_SIGN_SIGMAS standard errors from zero, is a ``force_N`` problem with the
-    INVERT_HINT (Force resists positive velocity: raw-campaign spec, "Waveforms and signs").
+    A record that does not hold its first window at the motion start (a delay too large, a record cut
+    short before it), or that ends early before the middle of its second half-period (its motion start rests on
+    one ramp: motion module doc), is a ``time_s`` problem; one that ends before its last windows keeps those it
+    holds complete, the others named in a warning (:func:`windows.missing_windows_note`). A mean force against the
+    measured velocity in every window, each mean FORCE_SIGN_SIGMAS standard errors from zero, is a ``force_N``
+    problem with the INVERT_HINT (Force resists positive velocity: raw-campaign spec, "Waveforms and signs").
     """
+    t_end_s = float(df["time_s"].iloc[-1])
+    velocities = np.asarray(motion.velocities_m_s)
+    if ends_early(df["time_s"].to_numpy(), plan) and not ((velocities > 0).any() and (velocities < 0).any()):
+        middle_s = float(line_spans_s(plan, 0.0)[1].mean())
+        return [Problem("time_s", f"record ends at {t_end_s:.6g} s, before the middle of its second half-period "
+                                  f"({middle_s:.6g} s after the motion start in the plan): the motion start, on "
+                                  "which the windows are placed, needs the line of a rising and of a falling "
+                                  "half-period (at least the first window and the middle of the second "
+                                  "half-period)")], []
     try:
         rows = case_windows(plan, df, spec, motion.motion_start_s)
     except ValueError as exc:
         said = str(exc).removeprefix(f"case {plan.case}: ")
         return [Problem("time_s", f"the windows do not fit the record at the measured motion start, "
-                                  f"{motion.delay_s * 1e3:.4g} ms after the first sample: {said}")]
+                                  f"{motion.delay_s * 1e3:.4g} ms after the first sample: {said}")], []
+    missing = missing_windows_note(plan, t_end_s, [r["segment"] for r in rows], motion.motion_start_s)
+    warnings = [missing] if missing else []
     forces = np.array([r["force_N"] for r in rows])
     velocities = np.array([r["velocity_m_s"] for r in rows])
     se = np.array([r["force_std_N"] / math.sqrt(r["n_samples"]) for r in rows])
     if np.all(forces * velocities < 0) and np.all(np.abs(forces) > FORCE_SIGN_SIGMAS * se):
         pairs = ", ".join(f"{f:+.4g} N at {v * 1e3:+.4g} mm/s" for f, v in zip(forces, velocities))
         row = int(rows[0]["row_start"])
-        return [Problem("force_N", f"the mean force opposes the measured velocity in all four windows ({pairs}): "
-                                   f"{INVERT_HINT} to the manifest's `force` column", row=row)]
-    return []
+        every = "all four" if len(rows) == 4 else f"all {len(rows)} of its"
+        return [Problem("force_N", f"the mean force opposes the measured velocity in {every} windows ({pairs}): "
+                                   f"{INVERT_HINT} to the manifest's `force` column", row=row)], warnings
+    return [], warnings
 
 
 def temperature_problems(df: pd.DataFrame) -> list[Problem]:
@@ -579,7 +595,8 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
     later, motion_warnings = [], []
     if motion is not None:
         later, motion_warnings = motion_problems(motion, plan)
-        windows = window_problems(df, plan, motion, window_spec)
+        windows, window_warnings = window_problems(df, plan, motion, window_spec)
+        motion_warnings += window_warnings
         # with the displacement inverted, the force is checked against a velocity of the wrong sign
         inverted = any(INVERT_HINT in p.message for p in later)
         later += [p for p in windows if not (inverted and p.column == "force_N")]
