@@ -359,6 +359,15 @@ def test_blind_score_is_rescored_from_the_truth_file_and_a_fresh_diagnosis(proje
             assert col in result.text.split("not compared:")[1].splitlines()[0]
 
 
+def rebuild_mini_raw_windows(dst: Path) -> None:
+    """Ingest, validate and windows of the copied project's mini-raw campaign, in-process."""
+    with cwd(dst):
+        root = Path("results/mini-raw")
+        ingest_campaign(Path("data/raw/mini-raw"), root)
+        write_validated(root, sample_rate_tolerance=0.05)
+        write_parquet(windows_stage(root, SPEC_W), root / "windows.parquet")
+
+
 # --------------------------------------------------------------------------------------------
 # timing from the record: windows at the measured motion start
 # --------------------------------------------------------------------------------------------
@@ -372,11 +381,7 @@ def test_windows_of_a_delayed_case_on_an_offset_time_axis_are_rederived(project,
         values = table[column].tolist()
         table[column] = values[:1] * 3 + values[:-3]
     csv.write_text(table.to_csv(index=False), encoding="utf-8")
-    with cwd(dst):
-        root = Path("results/mini-raw")
-        ingest_campaign(Path("data/raw/mini-raw"), root)
-        write_validated(root, sample_rate_tolerance=0.05)
-        write_parquet(windows_stage(root, SPEC_W), root / "windows.parquet")
+    rebuild_mini_raw_windows(dst)
     t03 = pd.read_parquet(dst / "results/mini-raw/cases.parquet").set_index("case").loc["T03"]
     assert t03["status"] == "ok" and t03["delay_s"] == pytest.approx(0.15, abs=0.005)
     assert t03["motion_start_s"] == pytest.approx(7.45, abs=0.005) and "time axis offset" in t03["quality"]
@@ -397,11 +402,7 @@ def test_a_window_with_a_spike_left_out_is_rederived_to_a_match_that_says_so(pro
     at = (int(window["row_start"].iloc[0]) + int(window["row_stop"].iloc[0])) // 2
     table.loc[at, "force_kN"] = f"{float(table.loc[at, 'force_kN']) + 10.0:.10g}"    # one 10 kN spike
     csv.write_text(table.to_csv(index=False), encoding="utf-8")
-    with cwd(dst):
-        root = Path("results/mini-raw")
-        ingest_campaign(Path("data/raw/mini-raw"), root)
-        write_validated(root, sample_rate_tolerance=0.05)
-        write_parquet(windows_stage(root, SPEC_W), root / "windows.parquet")
+    rebuild_mini_raw_windows(dst)
     row = pd.read_parquet(dst / "results/mini-raw/windows.parquet").query("case == 'T03' and segment == 2").iloc[0]
     assert row["spikes_excluded"] == 1
     result = run(dst / "results/mini-raw/windows.parquet", "case=T03,segment=2")
