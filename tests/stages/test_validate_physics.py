@@ -171,3 +171,25 @@ def test_a_record_giving_back_a_little_work_is_kept_and_flagged():
     assert "give back" in said and "filter" in said and "sign" in said
     inverted = df.assign(force_N=-2e4 * 1e-4 * w * np.cos(w * t))
     assert energy_problems(inverted, 1e-3)
+
+
+def test_a_velocity_declared_as_the_displacement_of_a_triangle_case_is_named_a_velocity():
+    """The finding 'a velocity channel given as displacement: told to add invert: true': without a command column
+    to compare with, the column's two levels (Eq. 26's piecewise constant velocity) name it; a real triangle
+    displacement is not named so."""
+    import numpy as np
+
+    from isokinetic.physics.plan import CasePlan, triangle_displacement
+    from isokinetic.stages.validate import check_case
+
+    plan = CasePlan("T1", "triangle", 100.0, amplitude_m=2e-3, period_s=4.0)
+    t = np.arange(0.0, 8.0, 0.01)
+    x = triangle_displacement(t, plan.amplitude_m, plan.period_s)
+    v = np.gradient(x, t) + np.random.default_rng(1).normal(0.0, 2e-5, t.size)
+    f = 2e4 * v
+    rows = np.arange(t.size, dtype="int64")
+    said = [p.message for p in check_case(pd.DataFrame({"row": rows, "time_s": t, "displacement_m": v,
+                                                        "force_N": f}), plan).problems if p.column == "displacement_m"]
+    assert said and "looks like a velocity" in said[0] and "invert: true" not in said[0]
+    good = check_case(pd.DataFrame({"row": rows, "time_s": t, "displacement_m": x, "force_N": f}), plan).problems
+    assert not any("looks like a velocity" in p.message for p in good)

@@ -248,6 +248,20 @@ def energy_given_back(net_J: np.ndarray, absolute_J: np.ndarray) -> float:
     return max(0.0, -float(net_J.sum()) / total) if total > 0.0 else 0.0
 
 
+#: A triangle case's displacement column is a velocity when this fraction of its samples lies within
+#: LEVEL_BAND of the two levels +-median|y - median y| (a square wave: nearly all; a triangle: 15 %).
+TWO_LEVEL_FRACTION, LEVEL_BAND = 0.6, 0.15
+
+
+def two_level_fraction(y: np.ndarray) -> float:
+    """The fraction of samples within LEVEL_BAND of the two levels +-a, a = median|y - median y|: the piecewise
+    constant velocity of a triangle test (Eq. 26's derivative) puts nearly all there, its displacement, spread
+    evenly over [-Y, Y], LEVEL_BAND of them (|y| between 0.425 and 0.575 Y)."""
+    centred = np.abs(y - np.median(y))
+    a = float(np.median(centred))
+    return float(np.mean(np.abs(centred - a) < LEVEL_BAND * a)) if a > 0.0 else 0.0
+
+
 def peak_magnitude(x: np.ndarray) -> float:
     """The 99th percentile of |x| (one wild sample does not move it)."""
     return float(np.percentile(np.abs(x), 99.0))

@@ -526,6 +526,21 @@ def magnitude_problems(df: pd.DataFrame, full_scale_N: float | None, campaign_pe
     return []
 
 
+def velocity_column_problem(df: pd.DataFrame, problem: Problem) -> Problem | None:
+    """A triangle case's displacement problem restated when the column is a velocity (pl.two_level_fraction: two
+    levels, not a ramp), which no `invert` or scale fixes; None otherwise."""
+    if problem.column != "displacement_m":
+        return None
+    y = df["displacement_m"].to_numpy()
+    share = pl.two_level_fraction(y)
+    if share < pl.TWO_LEVEL_FRACTION:
+        return None
+    return Problem("displacement_m", f"the displacement column looks like a velocity: {share:.0%} of its samples "
+                                     f"sit on two levels, as a triangle test's piecewise constant velocity does, "
+                                     f"where a displacement ramps between them; name the displacement column in "
+                                     f"the manifest (`invert` or a scale would not fix this)")
+
+
 def energy_warnings(df: pd.DataFrame, plan: CasePlan) -> list[str]:
     """A kept moving record whose cycles give back more than pl.ENERGY_NOTE_FRACTION of their work (but not
     pl.ENERGY_FRACTION, which sets it aside): flagged, as a force channel's lag on a mostly elastic force or a
@@ -601,6 +616,7 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
         inverted = any(INVERT_HINT in p.message for p in later)
         later += [p for p in windows if not (inverted and p.column == "force_N")]
     physics = physics_problems(df, plan, full_scale_N, campaign_peaks_N)
+    later = [velocity_column_problem(df, p) or p for p in later]
     if any(INVERT_HINT in p.message and p.column == "displacement_m" for p in later):
         physics = [p for p in physics if p.column != "force_N"]    # judged against a velocity of the wrong sign
     reversed_first = [p for p in physics if REVERSED_HINT in p.message]
