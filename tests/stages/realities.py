@@ -44,9 +44,8 @@ CRANK_AMPLITUDE_MM = 25.0
 #: One 10 kN spike sample (issue 34).
 SPIKE_N = 1.0e4
 
-#: Manifest keys a damage needs that format 1.4 does not have: the names format 1.5 gives them (csv.thousands in
-#: contracts/manifest_csv.py, the time units of isokinetic/timestamps.py). None for a key that does not exist: the
-#: damage then declares the nearest 1.4 spelling and its failure names the missing capability.
+#: Manifest keys of format 1.5 a damage declares (csv.thousands in contracts/manifest_csv.py, the time units of
+#: isokinetic/timestamps.py).
 THOUSANDS_KEY = "thousands"          # csv.thousands: the thousands separator (issue 34, part 4)
 CLOCK_TIME_UNIT = "hms"              # time unit of HH:MM:SS.fff stamps
 EXCEL_TIME_UNIT = "excel_serial"     # time unit of Excel serial dates (days since 1899-12-30)
@@ -173,13 +172,11 @@ def crank_base(scratch: Path) -> Campaign:
 
 @dataclass
 class Damage:
-    """What a damage did: the data rows (of the good file) it touched per case, the cases it damaged whole
-    (no window of them is good: they must be set aside or give the good points), and a capability the damage
-    needs that the format does not have yet (the case then fails naming it)."""
+    """What a damage did: the data rows (of the good file) it touched per case and the cases it damaged whole
+    (no window of them is good: they must be set aside or give the good points)."""
 
     touched: dict[str, set[int]] = field(default_factory=dict)
     whole: set[str] = field(default_factory=set)
-    missing: str | None = None
     temperature: bool = False     # the temperature channel is damaged: check cases.parquet's temperature_C
     #: the damaged cases are a faithful record of the mirrored damper (played backwards, load cell upside down):
     #: where the force has too little memory for any check to tell (docs/real-world-input.md, causality), their
@@ -337,8 +334,6 @@ def thousands_separators(c: Campaign, w: Windows, rng) -> Damage:
             r[:] = [_thousands(cell, len(cell.split(".")[1]) if "." in cell else 0) for cell in r]
         case_file.delimiter = ";"
     c.manifest["csv"] = {"delimiter": ";", "decimal": ","}
-    if THOUSANDS_KEY is None:
-        return Damage(missing="a thousands separator declared in the manifest's csv block")
     c.manifest["csv"][THOUSANDS_KEY] = "."
     return Damage()
 
@@ -365,9 +360,6 @@ def clock_times(c: Campaign, w: Windows, rng) -> Damage:
         return f"{ms // 3_600_000:02d}:{ms // 60_000 % 60:02d}:{ms // 1000 % 60:02d}.{ms % 1000:03d}"
 
     _time_column(c, render)
-    if CLOCK_TIME_UNIT is None:
-        c.manifest["columns"]["time"]["unit"] = "datetime"
-        return Damage(missing="a time unit for HH:MM:SS.fff stamps (none documented; declared `datetime`)")
     c.manifest["columns"]["time"]["unit"] = CLOCK_TIME_UNIT
     return Damage()
 
@@ -376,9 +368,6 @@ def excel_serial_dates(c: Campaign, w: Windows, rng) -> Damage:
     """Excel serial dates (days since 1899-12-30, 10 decimals: 9 microseconds) from a seeded day and time."""
     start_day = 45_000 + int(rng.integers(0, 1000)) + float(rng.integers(0, 20 * 3600)) / 86_400
     _time_column(c, lambda t_s: f"{start_day + t_s / 86_400:.10f}")
-    if EXCEL_TIME_UNIT is None:
-        c.manifest["columns"]["time"]["unit"] = "d"
-        return Damage(missing="a time unit for Excel serial dates (none documented; declared `d`, days)")
     c.manifest["columns"]["time"]["unit"] = EXCEL_TIME_UNIT
     return Damage()
 

@@ -19,9 +19,6 @@ own run, its clean twin:
 - the index complete: every case of the manifest is in ``cases.parquet`` once, a case set aside has a reason
   naming it, and the index page (:func:`isokinetic.report.report_index.render_index`) counts them all;
 - nothing under ``data/raw/`` is written.
-
-A damage that needs a manifest key the format does not have yet (:data:`stages.realities.THOUSANDS_KEY` and
-the time units there) says so in its failure.
 """
 
 from __future__ import annotations
@@ -227,5 +224,4 @@ def test_reality_gives_no_wrong_point_and_keeps_every_good_window(good, tmp_path
                                 load_yaml(folder / "campaign.yaml"))
     if tree_hashes(folder) != before:
         problems.append("the run wrote under data/raw")
-    needs = f" (needs {damage.missing})" if damage.missing else ""
-    assert not problems, f"{reality} in the {base} campaign, seed {seed}{needs}:\n  " + "\n  ".join(problems)
+    assert not problems, f"{reality} in the {base} campaign, seed {seed}:\n  " + "\n  ".join(problems)
