@@ -85,12 +85,6 @@ def test_a_damper_absorbs_energy_and_an_inverted_or_reversed_record_gives_it_bac
     assert pl.gives_energy_back(*pl.cycle_energies(t, x + 0.3, f + 500.0)) is False     # offsets cancel
 
 
-def test_force_magnitude_facts_are_init_campaigns():
-    assert (channels.TYPICAL["force_N"], channels.BOUNDS["force_N"], channels.SURE_MARGIN) == \
-        (pl.TYPICAL_FORCE_N, pl.FORCE_BOUNDS_N, pl.SURE_MARGIN)
-    assert pl.DAMPING_RANGE_N_S_M == channels.DAMPING_RANGE_N_S_M
-
-
 def test_kn_as_n_is_decided_as_init_campaign_decides_a_columns_unit():
     # independent: init-campaign's own choice between N and kN over a campaign's files (channels.choose_unit)
     rng = np.random.default_rng(5)

@@ -28,6 +28,7 @@ import numpy as np
 
 from isokinetic.init_campaign.steps import upward_crossings
 from isokinetic.measurement.motion import noise_level
+from isokinetic.measurement.plausibility import DAMPING_RANGE_N_S_M, FORCE_BOUNDS_N, SURE_MARGIN, TYPICAL_FORCE_N
 
 #: Channels in the order the manifest lists them.
 CHANNELS = ("time", "displacement", "force", "command", "temperature")
@@ -52,12 +53,14 @@ DIMENSION = {"time": "time", "displacement": "length", "command": "length", "for
 ROLE_OF_DIMENSION = {"time": "time", "length": "displacement", "force": "force", "temperature": "temperature"}
 #: Units the magnitudes choose between (others, inches, kips and pounds, only from a name or a units row).
 SCORED = {"time": ("s", "ms"), "length": ("m", "mm", "um"), "force": ("N", "kN"), "temperature": ("degC", "K")}
-#: Typical values of a damper rig (decades away from them cost score) and physical bounds (outside: implausible).
-TYPICAL = {"rate_Hz": 300.0, "duration_s": 60.0, "amplitude_m": 1e-3, "speed_m_s": 1e-3, "force_N": 300.0}
+#: Typical values of a damper rig (decades away from them cost score) and physical bounds (outside: implausible);
+#: the force's, and the margin of a sure unit, are the build's too (isokinetic.measurement.plausibility).
+TYPICAL = {"rate_Hz": 300.0, "duration_s": 60.0, "amplitude_m": 1e-3, "speed_m_s": 1e-3, "force_N": TYPICAL_FORCE_N}
 BOUNDS = {"rate_Hz": (5.0, 1e6), "duration_s": (0.05, 1e6), "amplitude_m": (1e-6, 1.0), "speed_m_s": (1e-8, 50.0),
-          "force_N": (0.5, 2e6), "degC": (-60.0, 250.0), "K": (200.0, 550.0)}
-#: Margin (decades per file) between the best and the next unit above which a guess is sure / likely.
-SURE_MARGIN, LIKELY_MARGIN = 1.5, 0.75
+          "force_N": FORCE_BOUNDS_N, "degC": (-60.0, 250.0), "K": (200.0, 550.0)}
+#: Margin (decades per file) between the best and the next unit above which a guess is sure (SURE_MARGIN, from
+#: isokinetic.measurement.plausibility) / likely.
+LIKELY_MARGIN = 0.75
 
 _SLASH = re.compile(r"^(.*?[^/\s])\s*/\s*([^/]+?)\s*$")
 _SPLIT = re.compile(r"[^a-z0-9µμ°]+")
@@ -356,12 +359,6 @@ class ForceVerdict:
 
 #: |correlation| of force and velocity under which a force does not follow the velocity as a damper's does.
 WEAK_FOLLOW = 0.3
-#: Plausible damping of a damper, force over velocity [N s/m]: a bicycle's shock at speed to a friction-dominated
-#: helicopter lag damper creeping at 0.05 mm/s (1e7 and more); outside, the force or the velocity is off by orders
-#: of magnitude (a wrong column, or units).
-DAMPING_RANGE_N_S_M = (1.0, 1.0e9)
-
-
 def plausible_damping(damping_N_s_m: float) -> bool:
     return DAMPING_RANGE_N_S_M[0] <= abs(damping_N_s_m) <= DAMPING_RANGE_N_S_M[1]
 

@@ -46,8 +46,8 @@ ENERGY_FRACTION = 0.5
 #: ... and a kept record that gives back more than this fraction is flagged in its quality.
 ENERGY_NOTE_FRACTION = 0.1
 #: Typical largest force of a damper test [N], the physical bounds of a force reading [N] and the margin
-#: (decades) init-campaign needs to call a unit sure (:data:`isokinetic.init_campaign.channels.TYPICAL`
-#: ``force_N``, ``BOUNDS`` ``force_N`` and ``SURE_MARGIN``; a test keeps them equal).
+#: (decades) a unit must win by to be sure: one source for the build and for init-campaign, which reads them
+#: (:data:`isokinetic.init_campaign.channels.TYPICAL`, ``BOUNDS``).
 TYPICAL_FORCE_N, FORCE_BOUNDS_N, SURE_MARGIN = 300.0, (0.5, 2e6), 1.5
 #: One case alone: a 99th percentile |F| below this [N] reads SURE_MARGIN decades better as kN than as N
 #: (log10(300/p) - |log10(1000 p/300)| >= 1.5 for p <= 300 x 10^-2.25 = 1.69 N). A campaign's cases together
@@ -58,7 +58,9 @@ MIN_PEAK_FORCE_N = TYPICAL_FORCE_N * 10.0 ** (-(3.0 + SURE_MARGIN) / 2.0)
 MIN_FULL_SCALE_FRACTION = 1e-4
 #: A declared full scale vouches for forces below MIN_PEAK_FORCE_N when they reach this fraction of it.
 VOUCH_FRACTION = 1e-3
-#: Plausible damping of a damper, force over velocity [N s/m] (init-campaign's DAMPING_RANGE_N_S_M).
+#: Plausible damping of a damper, force over velocity [N s/m]: a bicycle's shock at speed to a friction-dominated
+#: helicopter lag damper creeping at 0.05 mm/s (1e7 and more); outside, the force or the velocity is off by orders
+#: of magnitude (a wrong column, or units). init-campaign reads it too.
 DAMPING_RANGE_N_S_M = (1.0, 1.0e9)
 #: A temperature whose correlation with the command or the displacement reaches this is that channel.
 FOLLOW_CORRELATION = 0.9
