@@ -1,14 +1,15 @@
 """The larger blind suite of the diagnosis, outside the pipeline: >= 60 reference-rig scenarios.
 
     .venv/bin/python benchmark/blind_suite.py [--seed 777] [--per-effect 6] [--pairs 9] [--none 9]
-                                              [--out 6] [--sine 14] [--jobs 2] [--no-sensor-chain] [--keep DIR]
+                                              [--out 16] [--sine 14] [--jobs 2] [--no-sensor-chain] [--keep DIR]
 
 Generates the suite exactly as the pipeline's blind_generate does (isokinetic.stages.blind_generate,
 reference rig, nuisances and the sensor chain's in every scenario), diagnoses every scenario through
 the raw-campaign chain in ``--jobs`` processes, scores it and prints the same summary table as the
-pipeline's blind_score, plus the wall time and the CPU-seconds per scenario kind. ``--sine``: sine-only
-campaigns after the 60 triangle ones (none, then each effect alone, in turn; the triangle scenarios are the
-same with or without them). ``--no-sensor-chain``: the same scenarios with an ideal sensor
+pipeline's blind_score, plus the wall time and the CPU-seconds per scenario kind, and a table of the hidden
+out-of-catalogue kinds (target (g): their signature's rms_z, verdict, ``explained`` and the axes named).
+``--sine``: sine-only campaigns after the triangle ones (none, then each effect alone, in turn; the
+triangle scenarios are the same with or without them). ``--no-sensor-chain``: the same scenarios with an ideal sensor
 chain (no force-channel low-pass, LVDT gain error, zero drift or dropouts), to see what the chain costs.
 Works in a temporary folder (``--keep DIR``: in DIR, kept, with each scenario's diagnosis CPU-seconds in
 ``DIR/cpu.json`` and the scores in ``DIR/scores.parquet``, so that two versions' diagnoses of the same
@@ -50,7 +51,8 @@ def main() -> None:
     parser.add_argument("--per-effect", type=int, default=6)
     parser.add_argument("--pairs", type=int, default=9)
     parser.add_argument("--none", type=int, default=9)
-    parser.add_argument("--out", type=int, default=6)
+    parser.add_argument("--out", type=int, default=16, help="out-of-catalogue scenarios (cycling through the "
+                        "kinds; 16: each of the eight twice)")
     parser.add_argument("--sine", type=int, default=14, help="sine-only scenarios (0: the triangle suite alone)")
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--no-sensor-chain", action="store_true", help="an ideal sensor chain (same scenarios)")
@@ -93,6 +95,12 @@ def main() -> None:
             print("\nnot exact:")
             print(wrong[["scenario", "waveform", "truth", "verdict", "explained", "magnitude_x_detection", "true_lag_s",
                          "lag_error_s", "scale_error", "offset_error_N", "confounded"]].to_string(index=False))
+    hidden = scores[scores["hidden_rms_z"].notna()]
+    if len(hidden):
+        with pd.option_context("display.width", 200, "display.max_columns", 20):
+            print("\nhidden out-of-catalogue kinds (target g):")
+            print(hidden[["scenario", "out_of_catalogue", "hidden_rms_z", "hidden_visible", "verdict", "explained",
+                          "expected_axis", "where_axes", "axis_named"]].round(2).to_string(index=False))
 
 
 if __name__ == "__main__":

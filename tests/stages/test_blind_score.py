@@ -11,6 +11,7 @@ from isokinetic.stages.blind_score import (
     SCORE_COLUMNS,
     confusion_counts,
     confusion_title,
+    named_axes,
     read_truths,
     score,
     score_sources,
@@ -206,3 +207,72 @@ def test_truth_of_several_chunks_is_read_and_traced_to_its_raw_folder(tmp_path):
     sources = score_sources(roots, [], ["s00", "s01"]).set_index("scenario")
     assert sources.loc["s00", "raw_dir"] == (blind / "raw" / "chunk1" / "s00").as_posix()
     assert sources.loc["s01", "truth_file"] == (blind / "truth" / "chunk0" / "s01.json").as_posix()
+
+
+# --------------------------------------------------------------------------------------------
+# (g): hidden out-of-catalogue effects (issue 35)
+# --------------------------------------------------------------------------------------------
+
+def _hidden(name, kind, axis, rms_z, truth=()):
+    visible = rms_z >= 3.0
+    expected = ({"explained": False, "where_axis": axis, "verdict": None} if visible else
+                {"explained": None, "where_axis": None, "verdict": list(truth)})
+    return {**_truth(name, truth, None, kind), "expected": expected,
+            "hidden": {"kind": kind, "axis": axis, "rms_z": rms_z, "visible": visible}}
+
+
+def _where(*axes, significant=True):
+    return [{"axis": a, "range": [0.0, 1.0], "unit": "", "mean_rel": 0.01, "z": 4.0, "p_adjusted": 1e-4,
+             "significant": significant} for a in axes]
+
+
+HIDDEN = [
+    (_hidden("h00", "bypass", "position", 9.0), {**_diag(["discharge"], explained=False), "where": _where("position")}),
+    (_hidden("h01", "wear", "time", 7.0), {**_diag(["discharge"], explained=True), "where": _where("time")}),
+    (_hidden("h02", "warmup", "time", 5.0), {**_diag(["viscosity"], explained=False), "where": _where("speed")}),
+    (_hidden("h03", "worn_bore", "position", 2.0), _diag([], explained=True)),      # within the noise: not judged
+    (_hidden("h04", "gas_spring", "position", 4.0), None),                           # failed diagnosis
+    (_truth("h05", [], None, "backlash"), _diag(["air"], explained=False)),          # an old kind: (c) only
+]
+
+
+def test_g_counts_explained_verdicts_and_missed_axes_of_hidden_effects_beyond_the_noise():
+    scores = score([t for t, _ in HIDDEN], {t["scenario"]: d for t, d in HIDDEN if d is not None})
+    s = scores.set_index("scenario")
+    assert s["expected_axis"].tolist() == ["position", "time", "time", "", "position", ""]
+    assert s["axis_named"].tolist() == [True, True, False, False, False, False]
+    assert s.loc["h02", "where_axes"] == "speed" and s.loc["h04", "where_axes"] == ""
+    assert s["hidden_visible"].tolist() == [True, True, True, False, True, False]
+    assert np.isnan(s.loc["h05", "hidden_rms_z"]) and s.loc["h00", "hidden_rms_z"] == 9.0
+    summary = summarize(scores)
+    json.dumps(summary, allow_nan=False)
+    g = summary["targets"]["g_hidden_structure"]
+    assert (g["n"], g["claimed"], g["axis_named"], g["errors"]) == (4, 1, 2, 1)
+    assert g["explained_misses"] == ["h01"] and g["axis_misses"] == ["h02", "h04"] and g["pass"] is False
+    assert g["misses"] == ["h01", "h02", "h04"]
+    assert (g["n_within_noise"], g["within_noise_verdict_right"]) == (1, 1)
+    # (c) leaves out the hidden effect within the noise (h03, rightly explained by its catalogue truth)
+    c = summary["targets"]["c_out_of_catalogue"]
+    assert (c["n"], c["flagged"]) == (5, 3) and "h03" not in c["misses"]
+    text = summary_text(summary)
+    assert "(g) FAIL" in text and "explained: h01" in text and "axis missed: h02, h04" in text
+    assert confusion_title(scores, summary).endswith("(g) FAIL")
+
+
+def test_g_passes_when_every_hidden_effect_beyond_the_noise_is_unexplained_on_its_axis():
+    right = [(_hidden("h00", "bypass", "position", 9.0),
+              {**_diag(["discharge"], explained=False), "where": _where("speed", "position")}),
+             (_hidden("h01", "wear", "time", 7.0), {**_diag([], explained=False), "where": _where("time")})]
+    g = summarize(score([t for t, _ in right], {t["scenario"]: d for t, d in right}))["targets"]["g_hidden_structure"]
+    assert g["pass"] is True and g["misses"] == [] and g["axis_misses"] == []
+    none = summarize(score([t for t, _ in HAND], {t["scenario"]: d for t, d in HAND if d is not None}))
+    assert none["targets"]["g_hidden_structure"]["pass"] is None      # no hidden scenario to judge
+
+
+def test_named_axes_read_where_and_structure_and_skip_insignificant_entries():
+    d = {"where": [{"direction": "+", "v_min_m_s": 1e-5, "significant": True}, *_where("phase"),
+                   *_where("time", significant=False)],
+         "structure": {"where": _where("position")}}
+    assert named_axes(d) == ["phase", "position"]
+    assert named_axes({"where": [], "structure": _where("frequency")}) == ["frequency"]
+    assert named_axes({}) == []

@@ -42,12 +42,15 @@ from isokinetic.reference.rig import (
     IDEAL_RIG,
     NOMINAL_EFFECTS,
     TABLE1,
+    VOGEL_B_K,
+    VOGEL_C_K,
     DamperDesign,
     RigCase,
     RigImperfections,
     SineCase,
     TrueEffects,
     annular_leakage_conductance,
+    campaign_drift,
     piston_diameter_m,
     true_series,
     true_viscosity,
@@ -162,10 +165,10 @@ def measure(truth: pd.DataFrame, case: RigCase, rig: RigImperfections, seed: int
 def simulate_case(case: RigCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
                   rig: RigImperfections = IDEAL_RIG, seed: int = 0, case_index: int = 0,
                   n_cases: int = 1, rtol: float = 1e-10, viscosity_ratio: float = 1.0,
-                  campaign_time_s: float = 0.0) -> pd.DataFrame:
+                  campaign_time_s: float = 0.0, orifice_area_ratio: float = 1.0) -> pd.DataFrame:
     """:func:`true_series` followed by :func:`measure` (true and measured columns together)."""
-    return measure(true_series(case, damper, effects, rig, case_index, n_cases, rtol, viscosity_ratio), case, rig,
-                   seed, case_index, campaign_time_s)
+    return measure(true_series(case, damper, effects, rig, case_index, n_cases, rtol, viscosity_ratio,
+                               orifice_area_ratio), case, rig, seed, case_index, campaign_time_s)
 
 
 def dropped(series: pd.DataFrame, rig: RigImperfections, seed: int, case_index: int) -> pd.DataFrame:
@@ -193,8 +196,8 @@ class OilTemperature:
     """
 
     case_temperatures_C: tuple[float, ...]
-    vogel_b_K: float = 977.0
-    vogel_c_K: float = 150.0
+    vogel_b_K: float = VOGEL_B_K
+    vogel_c_K: float = VOGEL_C_K
     warmup_K: float = 0.3
     sensor_noise_K: float = 0.05
     law_points_C: tuple[float, float] = (40.0, 100.0)
@@ -256,7 +259,7 @@ def catalogue_equivalent(damper, effects: TrueEffects) -> dict:
 
 def out_of_catalogue_effects(effects: TrueEffects, strong_stribeck_ratio: float = 0.5) -> tuple[str, ...]:
     """Names of the active effects with no catalogue form: 'stribeck' (F_S >= ratio F_C and
-    F_S > 0), 'backlash', 'relief_valve'."""
+    F_S > 0), 'backlash', 'relief_valve', 'bypass', 'worn_bore', 'gas_spring', 'wear', 'warmup'."""
     names = []
     if effects.stribeck_force_N > 0.0 and effects.stribeck_force_N >= strong_stribeck_ratio * effects.coulomb_force_N:
         names.append("stribeck")
@@ -264,6 +267,11 @@ def out_of_catalogue_effects(effects: TrueEffects, strong_stribeck_ratio: float 
         names.append("backlash")
     if effects.relief_cracking_pressure_Pa is not None and effects.relief_area_gradient_m2_Pa > 0.0:
         names.append("relief_valve")
+    for name, value in (("bypass", effects.bypass_area_m2), ("worn_bore", effects.bore_wear_gap_m),
+                        ("gas_spring", effects.gas_spring_N_m), ("wear", effects.orifice_wear_rel),
+                        ("warmup", effects.warmup_K)):
+        if value != 0.0:
+            names.append(name)
     return tuple(names)
 
 
@@ -450,6 +458,15 @@ def campaign_manifest(campaign: str, cases: Sequence[RigCase], damper, descripti
     }
 
 
+def case_time_fractions(cases: Sequence[RigCase]) -> list[float]:
+    """Where each case's middle lies in the campaign's time, as a fraction of it (the cases back to back, each
+    lasting its record plus one sample interval, as :func:`write_campaign` counts campaign time)."""
+    spans = [c.duration_s + 1.0 / c.sample_rate_Hz for c in cases]
+    total = sum(spans)
+    starts = np.concatenate([[0.0], np.cumsum(spans)[:-1]])
+    return [float((s0 + 0.5 * c.duration_s) / total) for s0, c in zip(starts, cases, strict=True)]
+
+
 def write_campaign(folder: str | os.PathLike, cases: Sequence[RigCase], damper=TABLE1,
                    effects: TrueEffects = NOMINAL_EFFECTS, rig: RigImperfections = IDEAL_RIG, seed: int = 0, *,
                    description: str = "Low-velocity mapping, triangular excitation", temperature_C: float = 40.0,
@@ -466,7 +483,9 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[RigCase], damper=T
     [seed, i] and the viscosity drift fraction i/(n-1). ``oil`` (:class:`OilTemperature`) runs case i at its
     temperature's viscosity, logs the temperature channel and writes the law's datasheet points.
     ``declare_charge_pressure`` writes the chambers' charge pressure (``effects.charge_pressure_Pa``, a design
-    datum of the damper like its volumes) into the damper block. Same inputs
+    datum of the damper like its volumes) into the damper block. The effects' wear and warm-up
+    (:func:`isokinetic.reference.rig.campaign_drift`) run each case at the fraction of the campaign's time where
+    its middle lies (:func:`case_time_fractions`). Same inputs
     -> identical bytes.
     Returns {case id: true and measured series (SI, unshifted, force in this spec's sign)}.
     """
@@ -484,10 +503,12 @@ def write_campaign(folder: str | os.PathLike, cases: Sequence[RigCase], damper=T
     if oil is not None and len(oil.case_temperatures_C) != len(cases):
         raise ValueError(f"oil: {len(oil.case_temperatures_C)} case temperatures for {len(cases)} cases")
     campaign_time_s = 0.0
+    fractions = case_time_fractions(cases)
     for i, case in enumerate(cases):
-        ratio = 1.0 if oil is None else oil.viscosity_ratio(i, temperature_C)
-        s = dropped(simulate_case(case, damper, effects, rig, seed, i, len(cases), rtol, ratio, campaign_time_s),
-                    rig, seed, i)
+        warm, area = campaign_drift(effects, fractions[i], temperature_C)
+        ratio = warm * (1.0 if oil is None else oil.viscosity_ratio(i, temperature_C))
+        s = dropped(simulate_case(case, damper, effects, rig, seed, i, len(cases), rtol, ratio, campaign_time_s,
+                                  area), rig, seed, i)
         campaign_time_s += case.duration_s + 1.0 / case.sample_rate_Hz
         series[case.case_id] = s
         logged = None if oil is None else oil.logged_K(s["time_s"].to_numpy(), i, seed)

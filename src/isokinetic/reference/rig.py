@@ -42,13 +42,13 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
+from isokinetic.reference.cases import RigCase, SineCase, TriangleCase, sine_command, triangle_command  # noqa: F401
 from isokinetic.reference.motion import PistonPiece, SineActuatorPiece, piston_pieces
 
 # ---------------------------------------------------------------------------------------------
@@ -124,6 +124,25 @@ class TrueEffects:
         A spring-loaded valve pair in parallel with the orifice, see :func:`relief_flow`:
         ``relief_cracking_pressure_Pa`` (None: no valve), ``relief_area_gradient_m2_Pa``,
         ``relief_discharge_coefficient``.
+    position-sensitive bypass (out of the catalogue)
+        A groove in the bore, open while the piston is within ``bypass_half_width_m`` of mid-stroke (y = 0), as
+        dampers' bleed grooves are: a second flow path of the orifice's form (Eq. 7) with flow area
+        ``bypass_area_m2`` A_g, the orifice's length and design C_D (c1_g = 8 pi mu l_O / A_g^2,
+        c2_g = rho / (2 C_D^2 A_g^2)), in parallel with the orifice and scaled by its opening s(y): 1 for
+        |y| <= h - w/2, 0 for |y| >= h + w/2 and 1/2 (1 + cos(pi (|y| - h + w/2) / w)) between (the groove's
+        ends taper over ``bypass_taper_m`` w; h the half width).
+    worn bore (out of the catalogue)
+        The bore worn around mid-stroke, where the piston travels most: the leakage gap is
+        h + ``bore_wear_gap_m`` h_w (1 - (y/L)^2) for |y| < L = ``bore_wear_half_length_m`` (h elsewhere), the
+        annular conductance pi D h(y)^3 / (12 mu L_s) of that gap.
+    gas spring (out of the catalogue)
+        A rod's gas volume, linearised about mid-stroke: the load cell also reads ``gas_spring_N_m`` y
+        (the constant preload being an offset of the load cell's zero, not simulated).
+    wear and warm-up over the campaign (out of the catalogue)
+        ``orifice_wear_rel`` w: the orifice's flow area is A_O (1 + w (f - 1/2)) in the case whose middle lies at
+        the fraction f of the campaign's time (erosion; the campaign-mean area is the design's); ``warmup_K``
+        dT: the oil's temperature is T + dT (f - 1/2) (nothing logs it), its viscosity following Vogel's law
+        (:data:`VOGEL_B_K`, :data:`VOGEL_C_K`). See :func:`campaign_drift`.
     """
 
     coulomb_force_N: float = 0.0
@@ -143,16 +162,26 @@ class TrueEffects:
     relief_cracking_pressure_Pa: float | None = None
     relief_area_gradient_m2_Pa: float = 0.0
     relief_discharge_coefficient: float = 0.7
+    bypass_area_m2: float = 0.0
+    bypass_half_width_m: float = 1.0e-3
+    bypass_taper_m: float = 1.0e-4
+    bore_wear_gap_m: float = 0.0
+    bore_wear_half_length_m: float = 2.0e-3
+    gas_spring_N_m: float = 0.0
+    orifice_wear_rel: float = 0.0
+    warmup_K: float = 0.0
 
     def __post_init__(self):
         nonneg = ("coulomb_force_N", "stribeck_force_N", "leakage_gap_m", "air_fraction_at_charge",
-                  "backlash_m", "relief_area_gradient_m2_Pa")
+                  "backlash_m", "relief_area_gradient_m2_Pa", "bypass_area_m2", "bore_wear_gap_m", "gas_spring_N_m",
+                  "warmup_K")
         for name in nonneg:
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise ValueError(f"TrueEffects.{name} must be >= 0, got {v!r}")
         for name in ("stribeck_velocity_m_s", "friction_regularisation_m_s", "seal_length_m",
-                     "charge_pressure_Pa", "relief_discharge_coefficient"):
+                     "charge_pressure_Pa", "relief_discharge_coefficient", "bypass_half_width_m", "bypass_taper_m",
+                     "bore_wear_half_length_m"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ValueError(f"TrueEffects.{name} must be > 0, got {v!r}")
@@ -168,6 +197,10 @@ class TrueEffects:
                 raise ValueError(f"TrueEffects.{name} must be None or > 0, got {v!r}")
         if self.backlash_gap_force not in ("zero", "hydraulic"):
             raise ValueError("TrueEffects.backlash_gap_force must be 'zero' or 'hydraulic'")
+        if not (math.isfinite(self.orifice_wear_rel) and abs(self.orifice_wear_rel) < 1.0):
+            raise ValueError("TrueEffects.orifice_wear_rel must lie in (-1, 1)")
+        if not self.bypass_taper_m < 2.0 * self.bypass_half_width_m:
+            raise ValueError("TrueEffects.bypass_taper_m must be shorter than the groove (2 bypass_half_width_m)")
 
 
 NOMINAL_EFFECTS = TrueEffects()
@@ -267,139 +300,9 @@ class RigImperfections:
 IDEAL_RIG = RigImperfections()
 
 
-@dataclass(frozen=True)
-class TriangleCase:
-    """One triangle test: command c(t) = Y tri(2 pi t / T - pi/2), Y = W T / 4, 2T recorded."""
-
-    case_id: str
-    velocity_m_s: float
-    period_s: float
-    sample_rate_Hz: float = 50.0
-
-    def __post_init__(self):
-        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]*", self.case_id):
-            raise ValueError(f"case id {self.case_id!r}: letters, digits, '_' and '-' only")
-        for name in ("velocity_m_s", "period_s", "sample_rate_Hz"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"case {self.case_id}: {name} must be > 0, got {v!r}")
-
-    @property
-    def amplitude_m(self) -> float:
-        """Y = W T / 4 (Eq. 26)."""
-        return self.velocity_m_s * self.period_s / 4.0
-
-    @property
-    def stroke_amplitude_m(self) -> float:
-        """The largest |c(t)|: Y."""
-        return self.amplitude_m
-
-    @property
-    def duration_s(self) -> float:
-        return 2.0 * self.period_s
-
-    @property
-    def peak_speed_m_s(self) -> float:
-        """The largest commanded speed |dc/dt|: W."""
-        return self.velocity_m_s
-
-    @property
-    def start_position_m(self) -> float:
-        """c(0) = -Y, where the record starts at rest."""
-        return -self.amplitude_m
-
-    def command_m(self, t_s) -> np.ndarray:
-        """The ideal (undelayed) command c(t) [m]."""
-        return triangle_command(t_s, self.amplitude_m, self.period_s)
-
-    def sample_times_s(self) -> np.ndarray:
-        """t = k / fs, k = 0 .. round(2 T fs)."""
-        n = int(round(self.duration_s * self.sample_rate_Hz))
-        return np.arange(n + 1, dtype=float) / self.sample_rate_Hz
-
-
-@dataclass(frozen=True)
-class SineCase:
-    """One sine test: command c(t) = Y sin(2 pi f t) for t >= 0, 0 before; ``n_cycles`` periods recorded.
-
-    ``harmonics``: (k, h, phi) terms that distort the actuator's motion, as a servo's distortion or a crank's
-    kinematics do: the actuator moves as if commanded Y [sin(2 pi f t) + sum_k h (sin(2 pi k f t + phi) - sin phi)]
-    (each term starts at 0; k >= 2), while the command channel (:meth:`command_m`) and the manifest declare
-    the sine (f, Y)."""
-
-    case_id: str
-    frequency_Hz: float
-    amplitude_m: float
-    n_cycles: float = 4.0
-    sample_rate_Hz: float = 500.0
-    harmonics: tuple[tuple[int, float, float], ...] = ()
-
-    def __post_init__(self):
-        if not re.fullmatch(r"[A-Za-z0-9][A-Za-z0-9_-]*", self.case_id):
-            raise ValueError(f"case id {self.case_id!r}: letters, digits, '_' and '-' only")
-        for name in ("frequency_Hz", "amplitude_m", "n_cycles", "sample_rate_Hz"):
-            v = getattr(self, name)
-            if not (math.isfinite(v) and v > 0):
-                raise ValueError(f"case {self.case_id}: {name} must be > 0, got {v!r}")
-        for k, h, phi in self.harmonics:
-            if not (int(k) == k and k >= 2 and math.isfinite(h) and math.isfinite(phi)):
-                raise ValueError(f"case {self.case_id}: a harmonic needs an integer k >= 2 and finite h, phi, "
-                                 f"got {(k, h, phi)!r}")
-
-    @property
-    def stroke_amplitude_m(self) -> float:
-        """A bound on |c(t)|: Y (1 + sum 2|h|)."""
-        return self.amplitude_m * (1.0 + sum(2.0 * abs(h) for _k, h, _phi in self.harmonics))
-
-    @property
-    def duration_s(self) -> float:
-        return self.n_cycles / self.frequency_Hz
-
-    @property
-    def peak_speed_m_s(self) -> float:
-        """The largest commanded speed: 2 pi f Y."""
-        return 2.0 * math.pi * self.frequency_Hz * self.amplitude_m
-
-    @property
-    def start_position_m(self) -> float:
-        """c(0) = 0, where the record starts at rest."""
-        return 0.0
-
-    def command_m(self, t_s) -> np.ndarray:
-        """The ideal (undelayed) command c(t) [m]."""
-        return sine_command(t_s, self.amplitude_m, self.frequency_Hz)
-
-    def sample_times_s(self) -> np.ndarray:
-        """t = k / fs, k = 0 .. round(n_cycles fs / f)."""
-        n = int(round(self.duration_s * self.sample_rate_Hz))
-        return np.arange(n + 1, dtype=float) / self.sample_rate_Hz
-
-
 # ---------------------------------------------------------------------------------------------
 # Elementary physics (pure, vectorised)
 # ---------------------------------------------------------------------------------------------
-
-def triangle_command(t_s, amplitude_m: float, period_s: float) -> np.ndarray:
-    """c(t) = Y tri(2 pi t / T - pi/2) for t >= 0 and -Y before (Eq. 26 with phi = -pi/2) [m].
-
-    Written with the fractional phase, not arcsin(sin(.)), so that corners are exact.
-    """
-    t = np.asarray(t_s, dtype=float)
-    s = np.mod(t / period_s, 1.0)                        # phase in periods, 0 at -Y
-    c = amplitude_m * np.where(s < 0.5, 4.0 * s - 1.0, 3.0 - 4.0 * s)
-    return np.where(t < 0.0, -amplitude_m, c)
-
-
-#: A case the rig can run.
-RigCase = TriangleCase | SineCase
-
-
-def sine_command(t_s, amplitude_m: float, frequency_Hz: float) -> np.ndarray:
-    """c(t) = Y sin(2 pi f t) for t >= 0 and 0 before [m]."""
-    t = np.asarray(t_s, dtype=float)
-    return np.where(t < 0.0, 0.0, amplitude_m * np.sin(2.0 * math.pi * frequency_Hz * t))
-
-
 def laminar_coefficient(viscosity_Pa_s: float, length_m: float, area_m2: float) -> float:
     """c1 = 8 pi mu l_O / A_O^2 (Sec. 2.2, Table 1) [Pa s/m^3]."""
     return 8.0 * math.pi * viscosity_Pa_s * length_m / area_m2**2
@@ -514,22 +417,58 @@ class ChamberModel:
     relief_discharge_coefficient: float
     density_kg_m3: float
     c1_neg: float | None = None       # c1 for dp < 0 (a one-sided flow path); None: c1 both ways
+    bypass_c1: float = 0.0            # the groove's Eq. 7 coefficients (0: no groove)
+    bypass_c2: float = 0.0
+    bypass_half_width_m: float = 1.0e-3
+    bypass_taper_m: float = 1.0e-4
+    leakage_gap_m: float = 0.0        # worn bore: the gap's shape and pi D / (12 mu L_s)
+    bore_wear_gap_m: float = 0.0
+    bore_wear_half_length_m: float = 2.0e-3
+    leakage_per_gap3: float = 0.0
 
-    def total_flow(self, dp_Pa):
-        """Q12(dp): orifice (Eq. 7) + annular leakage + relief valves [m^3/s]."""
+    def bypass_opening(self, position_m):
+        """s(y) of the groove (1 open, 0 closed; 0 everywhere without one), see :class:`TrueEffects`."""
+        y = np.abs(np.asarray(position_m, dtype=float))
+        if self.bypass_c1 == 0.0:
+            return np.zeros_like(y)
+        return np.vectorize(lambda a: groove_opening(a, self.bypass_half_width_m, self.bypass_taper_m),
+                            otypes=[float])(y)
+
+    def leakage_at(self, position_m):
+        """The annular leakage conductance with the piston at y [m^3/(s Pa)] (the worn bore's shape)."""
+        y = np.asarray(position_m, dtype=float)
+        if self.bore_wear_gap_m == 0.0:
+            return np.full_like(y, self.leakage_m3_s_Pa)
+        u = np.clip(1.0 - (y / self.bore_wear_half_length_m) ** 2, 0.0, None)
+        return self.leakage_per_gap3 * (self.leakage_gap_m + self.bore_wear_gap_m * u) ** 3
+
+    def total_flow(self, dp_Pa, position_m: float | None = None):
+        """Q12(dp): orifice (Eq. 7) + annular leakage + relief valves, and with the piston at ``position_m`` the
+        groove and the worn bore's leakage there (None: away from both) [m^3/s]."""
         dp = np.asarray(dp_Pa, dtype=float)
-        return (orifice_flow(dp, self.c1, self.c2_pos, self.c2_neg, self.c1_neg) + self.leakage_m3_s_Pa * dp
-                + relief_flow(dp, self.relief_cracking_pressure_Pa, self.relief_area_gradient_m2_Pa,
-                              self.relief_discharge_coefficient, self.density_kg_m3))
+        leak = self.leakage_m3_s_Pa if position_m is None else self.leakage_at(position_m)
+        q = (orifice_flow(dp, self.c1, self.c2_pos, self.c2_neg, self.c1_neg) + leak * dp
+             + relief_flow(dp, self.relief_cracking_pressure_Pa, self.relief_area_gradient_m2_Pa,
+                           self.relief_discharge_coefficient, self.density_kg_m3))
+        if position_m is not None and self.bypass_c1 > 0.0:
+            q = q + self.bypass_opening(position_m) * orifice_flow(dp, self.bypass_c1, self.bypass_c2, self.bypass_c2)
+        return q
 
-    def scalar_flow(self, dp: float) -> tuple[float, float]:
-        """Q12(dp) and dQ12/ddp for a float (fast path of the ODE right-hand side)."""
+    def scalar_flow(self, dp: float, position_m: float | None = None) -> tuple[float, float]:
+        """Q12(dp) and dQ12/ddp for a float (fast path of the ODE right-hand side); ``position_m`` as in
+        :meth:`total_flow`."""
         a = abs(dp)
         c2 = self.c2_pos if dp >= 0.0 else self.c2_neg
         c1 = self.c1 if dp >= 0.0 or self.c1_neg is None else self.c1_neg
         root = math.sqrt(c1 * c1 + 4.0 * c2 * a)
-        q = 2.0 * dp / (c1 + root) + self.leakage_m3_s_Pa * dp
-        dq = 1.0 / root + self.leakage_m3_s_Pa            # d(dp)/dQ = c1 + 2 c2 |Q| = root
+        leak = self.leakage_m3_s_Pa if position_m is None else float(self.leakage_at(position_m))
+        q = 2.0 * dp / (c1 + root) + leak * dp
+        dq = 1.0 / root + leak            # d(dp)/dQ = c1 + 2 c2 |Q| = root
+        if position_m is not None and self.bypass_c1 > 0.0:
+            s = groove_opening(abs(position_m), self.bypass_half_width_m, self.bypass_taper_m)
+            root_g = math.sqrt(self.bypass_c1 ** 2 + 4.0 * self.bypass_c2 * a)
+            q += s * 2.0 * dp / (self.bypass_c1 + root_g)
+            dq += s / root_g
         pc = self.relief_cracking_pressure_Pa
         if pc is not None and a > pc and self.relief_area_gradient_m2_Pa > 0.0:
             k = self.relief_discharge_coefficient * self.relief_area_gradient_m2_Pa
@@ -537,6 +476,32 @@ class ChamberModel:
             q += math.copysign(k * (a - pc) * s, dp)
             dq += k * (s + (a - pc) / (self.density_kg_m3 * s))
         return q, dq
+
+
+def groove_opening(abs_position_m: float, half_width_m: float, taper_m: float) -> float:
+    """s(|y|) of a groove open within ``half_width_m`` h of mid-stroke, its ends tapered over ``taper_m`` w:
+    1 for |y| <= h - w/2, 0 for |y| >= h + w/2, 1/2 (1 + cos(pi (|y| - h + w/2) / w)) between."""
+    lo = half_width_m - 0.5 * taper_m
+    if abs_position_m <= lo:
+        return 1.0
+    if abs_position_m >= half_width_m + 0.5 * taper_m:
+        return 0.0
+    return 0.5 * (1.0 + math.cos(math.pi * (abs_position_m - lo) / taper_m))
+
+
+#: Vogel's law of the oil, mu = A exp(b / (T - c)) (T in K): the warm-up's and :class:`OilTemperature`'s.
+VOGEL_B_K = 977.0
+VOGEL_C_K = 150.0
+
+
+def campaign_drift(effects: TrueEffects, fraction: float, temperature_C: float = 40.0) -> tuple[float, float]:
+    """(viscosity ratio, orifice area ratio) of the case whose middle lies at the fraction f of the campaign's
+    time: mu(T + dT (f - 1/2)) / mu(T) of the unlogged warm-up (Vogel's law) and 1 + w (f - 1/2) of the
+    orifice's wear (:class:`TrueEffects`); (1, 1) without them."""
+    d = float(fraction) - 0.5
+    visc = 1.0 if effects.warmup_K == 0.0 else float(
+        vogel_viscosity_ratio(temperature_C + effects.warmup_K * d, temperature_C, VOGEL_B_K, VOGEL_C_K))
+    return visc, 1.0 + effects.orifice_wear_rel * d
 
 
 def true_viscosity(damper, effects: TrueEffects) -> float:
@@ -557,12 +522,15 @@ def vogel_viscosity_ratio(temperature_C, reference_C: float, b_K: float, c_K: fl
     return np.exp(b_K / (t - c_K) - b_K / (reference_C + 273.15 - c_K))
 
 
-def chamber_model(damper, effects: TrueEffects = NOMINAL_EFFECTS, viscosity_Pa_s: float | None = None) -> ChamberModel:
-    """Coefficients of the real damper (design + effects) at the viscosity ``viscosity_Pa_s``."""
+def chamber_model(damper, effects: TrueEffects = NOMINAL_EFFECTS, viscosity_Pa_s: float | None = None,
+                  orifice_area_ratio: float = 1.0) -> ChamberModel:
+    """Coefficients of the real damper (design + effects) at the viscosity ``viscosity_Pa_s``, its orifice's
+    area times ``orifice_area_ratio`` (worn, :func:`campaign_drift`)."""
     mu = true_viscosity(damper, effects) if viscosity_Pa_s is None else float(viscosity_Pa_s)
     cd = damper.discharge_coefficient if effects.discharge_coefficient is None else effects.discharge_coefficient
-    a_o = damper.orifice_area_m2
+    a_o = damper.orifice_area_m2 * float(orifice_area_ratio)
     p0 = effects.charge_pressure_Pa
+    a_g = effects.bypass_area_m2
     return ChamberModel(
         piston_area_m2=float(damper.piston_area_m2),
         chamber_volume_1_m3=float(damper.chamber_volume_1_m3),
@@ -583,6 +551,14 @@ def chamber_model(damper, effects: TrueEffects = NOMINAL_EFFECTS, viscosity_Pa_s
         relief_area_gradient_m2_Pa=float(effects.relief_area_gradient_m2_Pa),
         relief_discharge_coefficient=float(effects.relief_discharge_coefficient),
         density_kg_m3=float(damper.density_kg_m3),
+        bypass_c1=laminar_coefficient(mu, damper.orifice_length_m, a_g) if a_g > 0.0 else 0.0,
+        bypass_c2=turbulent_coefficient(damper.density_kg_m3, damper.discharge_coefficient, a_g) if a_g > 0.0 else 0.0,
+        bypass_half_width_m=float(effects.bypass_half_width_m),
+        bypass_taper_m=float(effects.bypass_taper_m),
+        leakage_gap_m=float(effects.leakage_gap_m),
+        bore_wear_gap_m=float(effects.bore_wear_gap_m),
+        bore_wear_half_length_m=float(effects.bore_wear_half_length_m),
+        leakage_per_gap3=annular_leakage_conductance(damper.piston_area_m2, 1.0, mu, effects.seal_length_m),
     )
 
 
@@ -615,6 +591,30 @@ def _check_stroke(case: RigCase, model: ChamberModel) -> None:
             raise ValueError(f"case {case.case_id}: amplitude {case.amplitude_m:g} m empties a chamber")
 
 
+def _position_flow(model: ChamberModel):
+    """f(y, dp, |dp|) -> (Q, dQ/ddp) of the flow paths that depend on the piston's position, beyond the
+    position-free ones of :meth:`ChamberModel.scalar_flow` (the groove's, the worn bore's extra leakage); None
+    without them."""
+    groove, worn = model.bypass_c1 > 0.0, model.bore_wear_gap_m > 0.0
+    if not (groove or worn):
+        return None
+    gc1, four_gc2, gh, gw = model.bypass_c1, 4.0 * model.bypass_c2, model.bypass_half_width_m, model.bypass_taper_m
+    leak = model.leakage_m3_s_Pa
+
+    def flow(y: float, dp: float, ad: float) -> tuple[float, float]:
+        q = dq = 0.0
+        s = groove_opening(abs(y), gh, gw) if groove else 0.0
+        if s > 0.0:
+            root_g = math.sqrt(gc1 * gc1 + four_gc2 * ad)
+            q, dq = s * 2.0 * dp / (gc1 + root_g), s / root_g
+        if worn:
+            extra = float(model.leakage_at(y)) - leak
+            q, dq = q + extra * dp, dq + extra
+        return q, dq
+
+    return flow
+
+
 def _piece_system(model: ChamberModel, piece: PistonPiece):
     """rhs and analytic Jacobian of the two pressure rises u = p_i - p0 on one piece.
 
@@ -639,6 +639,7 @@ def _piece_system(model: ChamberModel, piece: PistonPiece):
                                                   act.transient_m)
     off = piece.offset_m
     lag = tau > 0.0
+    at_position = _position_flow(model)
 
     def terms(tt, u):
         """(C1, dC1/dp1, C2, dC2/dp2, net flow A dy/dt - Q12, dQ12/ddp)."""
@@ -674,6 +675,10 @@ def _piece_system(model: ChamberModel, piece: PistonPiece):
             sq = math.sqrt(2.0 * ad / rho)
             q += math.copysign(k_relief * (ad - pc) * sq, dp)
             dq += k_relief * (sq + (ad - pc) / (rho * sq))
+        if at_position is not None:
+            q_y, dq_y = at_position(y, dp, ad)
+            q += q_y
+            dq += dq_y
         return c1_, d1, c2_, d2, a * ydot - q, dq
 
     def rhs(tt, u):
@@ -726,17 +731,18 @@ def integrate_pressures(case: RigCase, model: ChamberModel, pieces: Sequence[Pis
 
 def true_series(case: RigCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFFECTS,
                 rig: RigImperfections = IDEAL_RIG, case_index: int = 0, n_cases: int = 1,
-                rtol: float = 1e-10, viscosity_ratio: float = 1.0) -> pd.DataFrame:
+                rtol: float = 1e-10, viscosity_ratio: float = 1.0, orifice_area_ratio: float = 1.0) -> pd.DataFrame:
     """Noise-free record of one case at the sample times; ``viscosity_ratio`` multiplies the case's
-    viscosity (the oil at this case's temperature: :func:`vogel_viscosity_ratio`).
+    viscosity (the oil at this case's temperature: :func:`vogel_viscosity_ratio`), ``orifice_area_ratio`` its
+    orifice's area (wear: :func:`campaign_drift`).
 
     Columns: time_s, command_m (ideal, undelayed), actuator_m (x, what the LVDT sees), piston_m,
     piston_velocity_m_s, p1_Pa, p2_Pa (absolute), viscosity_Pa_s (this case, after drift),
-    force_N (true load-cell force, Eq. 8; 0 in a backlash gap unless
+    force_N (true load-cell force, Eq. 8, plus a gas spring's k y; 0 in a backlash gap unless
     ``effects.backlash_gap_force == "hydraulic"``).
     """
     mu = case_viscosity(damper, effects, rig, case_index, n_cases) * float(viscosity_ratio)
-    model = chamber_model(damper, effects, mu)
+    model = chamber_model(damper, effects, mu, orifice_area_ratio)
     _check_stroke(case, model)
     pieces = piston_pieces(case, effects, rig)
     t, p1, p2 = integrate_pressures(case, model, pieces, rtol)
@@ -753,7 +759,7 @@ def true_series(case: RigCase, damper=TABLE1, effects: TrueEffects = NOMINAL_EFF
         contact[sel] = piece.contact
     friction = stribeck_friction(velocity, effects.coulomb_force_N, effects.stribeck_force_N,
                                  effects.stribeck_velocity_m_s, effects.friction_regularisation_m_s)
-    force = model.piston_area_m2 * (p1 - p2) + friction
+    force = model.piston_area_m2 * (p1 - p2) + friction + effects.gas_spring_N_m * piston
     if effects.backlash_gap_force == "zero":
         force = np.where(contact, force, 0.0)
     return pd.DataFrame({

@@ -24,8 +24,11 @@ Scenario
     gain is measurable (its speed against the command's). It has
     zero, one or two of the catalogue effects :data:`EFFECTS` at 1x-5x their detection level, or one
     effect outside the catalogue (:data:`OUT_OF_CATALOGUE`: Stribeck friction, backlash, a relief
-    valve; :func:`out_of_catalogue_true_effects`). The rig writes its own column names and units
-    and rounds the manifest as a person would.
+    valve, :func:`out_of_catalogue_true_effects`; or one that hides from the steady characteristic and shows on
+    one ``where`` axis, issue 35: a groove open near mid-stroke, a worn bore, a gas spring, an orifice's wear or
+    the oil's unlogged warm-up over the campaign, :mod:`isokinetic.stages.blind_hidden`, its truth saying whether
+    it moves the observations beyond their noise and so what answer is expected). The rig writes its own column
+    names and units and rounds the manifest as a person would.
 
 Sine-only scenario (issue 21)
     The same damper draw, nuisances and sensor chain, but the plan is a sine sweep
@@ -72,7 +75,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from isokinetic.contracts.scenarios import EFFECTS, MULTIPLE_RANGE, OUT_OF_CATALOGUE, scenario_names, suite_composition
 from isokinetic.io import write_json
@@ -82,6 +84,7 @@ from isokinetic.physics.damper import NOMINAL, TABLE_1, Damper, Effects, frictio
 from isokinetic.physics.plan import CasePlan, paper_plan
 from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
+from isokinetic.stages.blind_hidden import HIDDEN_AXES, expected_answer, hidden_effects, plan_table
 
 log = logging.getLogger(__name__)
 
@@ -190,14 +193,6 @@ def effect_fields(effect: str, magnitude: float, sign: float, damper: Damper) ->
     if effect == "air":
         return {"air_volume_fraction": magnitude}
     raise KeyError(f"unknown effect {effect!r}; known: {EFFECTS}")
-
-
-def plan_table(name: str, cases: Sequence[CasePlan]) -> pd.DataFrame:
-    """A status-ok cases table (the columns ModelPlan reads) of a plan."""
-    rows = [{"campaign": name, "case": c.case, "waveform": c.waveform, "sample_rate_Hz": c.sample_rate_Hz,
-             "amplitude_m": c.amplitude_m, "period_s": c.period_s, "frequency_Hz": c.frequency_Hz,
-             "phase_rad": c.phase_rad, "duration_s": c.duration_s, "status": "ok"} for c in cases]
-    return pd.DataFrame(rows)
 
 
 class MeanDetection:
@@ -371,6 +366,7 @@ class Scenario:
     multiple: dict[str, float] = field(default_factory=dict)        # magnitude / detection level
     redraws: int = 0
     sine_harmonics: tuple[tuple[int, float, float], ...] = ()       # the servo's distortion of its sine cases
+    hidden: dict = field(default_factory=dict)      # a hidden kind's strength and signature (blind_hidden)
 
     @property
     def truth_text(self) -> str:
@@ -411,12 +407,14 @@ class Scenario:
     def truth_record(self) -> dict:
         """JSON-ready truth (results/blind/truth/<scenario>.json)."""
         return {
-            "format_version": 2,
+            "format_version": 3,
             "scenario": self.name,
             "generator": "isokinetic.reference",
             "truth": list(self.truth),
             "truth_text": self.truth_text,
             "out_of_catalogue": self.out_of_catalogue,
+            "expected": expected_answer(self.out_of_catalogue, self.truth, self.hidden),
+            "hidden": dict(self.hidden),
             "params": self.truth_params(),
             "instrument": self.instrument_truth(),
             "effects": dataclasses.asdict(self.effects),
@@ -608,7 +606,8 @@ def out_of_catalogue_true_effects(kind: str, damper: Damper, cases: Sequence[Cas
         unit = float(rr.relief_flow(dp_max, crack, 1.0, 0.7, damper.density_kg_m3))
         return rr.TrueEffects(relief_cracking_pressure_Pa=crack,
                               relief_area_gradient_m2_Pa=0.3 * damper.piston_area_m2 * speeds.max() / unit)
-    raise KeyError(f"unknown out-of-catalogue effect {kind!r}; known: {OUT_OF_CATALOGUE}")
+    raise KeyError(f"unknown out-of-catalogue effect {kind!r} (the hidden kinds: blind_hidden); known: "
+                   f"{OUT_OF_CATALOGUE}")
 
 
 def detection_levels(name: str, effects: Iterable[str], cases: Sequence[CasePlan], damper: Damper,
@@ -679,13 +678,19 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
         mult = {e: float(multiples.get(e, drawn[e])) for e in truth}
         magnitude = {e: mult[e] * detection[e] for e in truth}
         effects = physical_effects(damper, magnitude, signs, charge_pressure_Pa(damper, cases))
-        if out_of_catalogue:
+        hidden: dict = {}
+        if out_of_catalogue in HIDDEN_AXES:
+            fields, hidden = hidden_effects(out_of_catalogue, name, damper, cases, effects, the_rig,
+                                            np.random.default_rng(np.random.SeedSequence(
+                                                seed_seq.entropy, spawn_key=(*seed_seq.spawn_key, 23))), spec)
+            effects = dataclasses.replace(effects, **fields)
+        elif out_of_catalogue:
             effects = overlay(effects, out_of_catalogue_true_effects(out_of_catalogue, damper, cases,
                                                                      detection.get("friction", 0.0)))
         return Scenario(name=name, damper=damper, cases=cases, effects=effects, rig=the_rig, noise_seed=noise_seed,
                         truth=truth, out_of_catalogue=out_of_catalogue, magnitude=magnitude,
                         sign={e: signs[e] for e in truth}, detection_level={e: detection[e] for e in truth},
-                        multiple=mult, redraws=redraw, sine_harmonics=harmonics)
+                        multiple=mult, redraws=redraw, sine_harmonics=harmonics, hidden=hidden)
     raise RuntimeError(f"{name}: no plan within {MAX_REDRAWS} re-draws makes {truth} detectable within bounds")
 
 

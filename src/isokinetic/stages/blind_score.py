@@ -4,7 +4,7 @@ The only reader of the truth (``results/blind/truth/<scenario>.json``, written b
 :mod:`isokinetic.stages.blind_generate`). Each scenario is scored (:func:`score`): truth and verdict
 as effect sets, exact or not, the gap before and after, the fitted effect sizes and instrument
 terms (delay, load-cell offset and gain, force-channel lag, LVDT scale, zero drift) against the truth.
-The suite is summarised (:func:`summarize`) per magnitude bin and against six targets, written as
+The suite is summarised (:func:`summarize`) per magnitude bin and against seven targets, written as
 scores.parquet, summary.json and the confusion figure (:mod:`isokinetic.plots.blind_score`).
 """
 
@@ -30,7 +30,8 @@ from isokinetic.stages.blind_generate import MAGNITUDE_BINS, PARAM_KEYS, effect_
 SCORE_COLUMNS = ("scenario", "waveform", "truth", "out_of_catalogue", "verdict", "exact", "exact_up_to_confounding",
                  "explained", "n_truth", "magnitude_x_detection", "magnitude_bin", "gap_before", "gap_after",
                  "shrink", "confounded", "param_error_max", "param_z_max", "delay_error_s", "offset_error_N",
-                 "gain_error", "true_lag_s", "lag_error_s", "true_scale", "scale_error", "drift_error_N_s", "error")
+                 "gain_error", "true_lag_s", "lag_error_s", "true_scale", "scale_error", "drift_error_N_s", "error",
+                 "expected_axis", "where_axes", "axis_named", "hidden_rms_z", "hidden_visible")
 #: A scenario's diagnosis, in its work folder (as rule diagnosis names it).
 DIAGNOSIS_FILE = STAGE_OUTPUTS["diagnosis"]["json"]
 #: Row-level lineage columns of scores.parquet (:func:`score_sources`), after SCORE_COLUMNS.
@@ -38,7 +39,7 @@ SOURCE_COLUMNS = ("raw_dir", "truth_file", "diagnosis_file")
 _FLOAT_COLUMNS = ("magnitude_x_detection", "gap_before", "gap_after", "shrink", "param_error_max", "param_z_max",
                   "delay_error_s",
                   "offset_error_N", "gain_error", "true_lag_s", "lag_error_s", "true_scale", "scale_error",
-                  "drift_error_N_s")
+                  "drift_error_N_s", "hidden_rms_z")
 
 TARGET_SINGLE_RATE = 0.95
 TARGET_SINGLE_MIN_MULTIPLE = 2.0
@@ -56,7 +57,7 @@ TARGET_LAG_ERROR_S = 0.005
 TARGET_SCALE_ERROR = 0.003
 #: The targets of the summary, in the order they are reported.
 TARGETS = ("a_single_at_2x", "b_none_clean", "c_out_of_catalogue", "d_median_shrink", "e_parameters",
-           "f_none_explained")
+           "f_none_explained", "g_hidden_structure")
 
 
 # --------------------------------------------------------------------------------------------
@@ -183,6 +184,31 @@ def sensor_chain_errors(truth: Mapping, diagnosis: Mapping) -> dict[str, float]:
     return out
 
 
+def named_axes(diagnosis: Mapping) -> list[str]:
+    """The axes a diagnosis names in ``where`` (sorted): its entries with an ``axis`` that are not marked
+    ``significant: false`` (speed bands without one are not counted; issue 35's contract), and those of a
+    ``structure`` list or of ``structure.where`` if the diagnosis reports one."""
+    entries = list(diagnosis.get("where") or [])
+    structure = diagnosis.get("structure")
+    if isinstance(structure, Mapping):
+        structure = structure.get("where") or structure.get("tests") or []
+    entries += list(structure or []) if isinstance(structure, list) else []
+    return sorted({str(e["axis"]) for e in entries
+                   if isinstance(e, Mapping) and e.get("axis") and e.get("significant", True) is not False})
+
+
+def hidden_columns(t: Mapping, d: Mapping | None) -> dict:
+    """The truth's expected ``where`` axis ('' where none is expected), the axes the diagnosis names, whether it
+    names the expected one, and the hidden effect's signature rms_z and visibility (NaN / False for scenarios
+    without a hidden kind)."""
+    expected = t.get("expected") or {}
+    hidden = t.get("hidden") or {}
+    axis = str(expected.get("where_axis") or "")
+    axes = named_axes(d) if d is not None and d.get("status") in ("ok", None) else []
+    return {"expected_axis": axis, "where_axes": ";".join(axes), "axis_named": bool(axis and axis in axes),
+            "hidden_rms_z": _float(hidden.get("rms_z")), "hidden_visible": bool(hidden.get("visible", False))}
+
+
 def score_row(t: Mapping, d: Mapping | None) -> dict:
     """The score of one scenario: its truth record ``t`` against its diagnosis ``d`` (None: failed)."""
     name = str(t["scenario"])
@@ -194,7 +220,7 @@ def score_row(t: Mapping, d: Mapping | None) -> dict:
            "out_of_catalogue": str(t.get("out_of_catalogue") or ""),
            "n_truth": len(truth), "magnitude_x_detection": mult, "magnitude_bin": magnitude_bin(mult),
            "true_lag_s": _float((t.get("instrument") or {}).get("force_lag_s")),
-           "true_scale": _float((t.get("instrument") or {}).get("displacement_scale"))}
+           "true_scale": _float((t.get("instrument") or {}).get("displacement_scale")), **hidden_columns(t, d)}
     if d is None or d.get("status") not in ("ok", None):
         row.update(verdict="error", exact=False, exact_up_to_confounding=False, explained=False,
                    gap_before=math.nan, gap_after=math.nan, shrink=math.nan, confounded="",
@@ -228,7 +254,8 @@ def score(truths: Iterable[Mapping], diagnoses: Mapping[str, Mapping | None]) ->
     """
     rows = [score_row(t, diagnoses.get(str(t["scenario"]))) for t in truths]
     df = pd.DataFrame(rows, columns=list(SCORE_COLUMNS))
-    types = {"exact": bool, "exact_up_to_confounding": bool, "explained": bool, "error": bool, "n_truth": "int64"}
+    types = {"exact": bool, "exact_up_to_confounding": bool, "explained": bool, "error": bool, "n_truth": "int64",
+             "axis_named": bool, "hidden_visible": bool, "expected_axis": str, "where_axes": str}
     if df.empty:
         return df.astype(types)
     df = df.astype({**types, **dict.fromkeys(_FLOAT_COLUMNS, float)})
@@ -283,8 +310,16 @@ def target_none_clean(none: pd.DataFrame, alpha: float) -> dict:
             "misses": sorted(claimed["scenario"])}
 
 
+def hidden_below_noise(out: pd.DataFrame) -> pd.Series:
+    """Out-of-catalogue scenarios of a hidden kind whose effect stays within the noise (expected: their
+    catalogue truth, ``explained`` either way)."""
+    return out["hidden_rms_z"].notna() & ~out["hidden_visible"]
+
+
 def target_out_of_catalogue(out: pd.DataFrame) -> dict:
-    """(c) >= TARGET_OUT_OF_CATALOGUE_RATE of out-of-catalogue scenarios reported ``explained: false``."""
+    """(c) >= TARGET_OUT_OF_CATALOGUE_RATE of out-of-catalogue scenarios reported ``explained: false`` (leaving out
+    those of a hidden kind whose effect stays within the noise)."""
+    out = out[~hidden_below_noise(out)]
     flagged = out[~out["explained"] & ~out["error"]]
     rate = float(len(flagged) / len(out)) if len(out) else None
     return {"description": "out-of-catalogue scenarios reported explained: false",
@@ -366,6 +401,29 @@ def target_none_explained(none: pd.DataFrame) -> dict:
             "pass": None if none.empty else bool(claimed.empty), "misses": sorted(claimed["scenario"])}
 
 
+def target_hidden_structure(out: pd.DataFrame) -> dict:
+    """(g) no ``explained: true`` on an out-of-catalogue scenario whose effect moves the observations beyond their
+    noise (a hidden kind whose signature reaches rms_z = 3, :mod:`isokinetic.stages.blind_hidden`), and on each
+    of them the expected ``where`` axis named (a failed diagnosis misses both). ``claimed``: how many were
+    reported explained (``explained_misses``); ``axis_misses``: those that do not name the axis; ``misses``:
+    either. The hidden kinds within the noise are counted apart, with how many verdicts equal their catalogue
+    truth."""
+    hidden = out[out["hidden_rms_z"].notna()]
+    seen = hidden[hidden["hidden_visible"]]
+    unseen = hidden[~hidden["hidden_visible"]]
+    explained = seen[seen["explained"] & ~seen["error"]]
+    no_axis = seen[~seen["axis_named"]]
+    return {"description": "no explained: true on a hidden out-of-catalogue effect beyond the noise, its where axis "
+                           "named",
+            "n": int(len(seen)), "claimed": int(len(explained)), "axis_named": int(seen["axis_named"].sum()),
+            "errors": int(seen["error"].sum()),
+            "n_within_noise": int(len(unseen)), "within_noise_verdict_right": int((unseen["verdict"]
+                                                                                    == unseen["truth"]).sum()),
+            "pass": None if seen.empty else bool(explained.empty and no_axis.empty),
+            "misses": sorted(set(explained["scenario"]) | set(no_axis["scenario"])),
+            "explained_misses": sorted(explained["scenario"]), "axis_misses": sorted(no_axis["scenario"])}
+
+
 def by_waveform(inside: pd.DataFrame) -> dict:
     """Per waveform ('triangle', 'sine'), over the in-catalogue scenarios: how many, how many with effects and
     how many of those attributed exactly, how many without effects and how many of those with effects claimed."""
@@ -392,7 +450,9 @@ def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
         standard errors, where those exceed 5 % of the size: :func:`target_parameters`), and on every
         in-catalogue scenario the actuator delay within 2 ms and the load-cell offset within 2 N; where the
         truth has them, the force-channel lag within 5 ms and the LVDT scale within 0.3 %;
-    (f) no damper effect claimed with ``explained: true`` on any scenario without one.
+    (f) no damper effect claimed with ``explained: true`` on any scenario without one;
+    (g) no ``explained: true`` on an out-of-catalogue scenario whose (hidden) effect moves the observations
+        beyond their noise, and its ``where`` axis named (:func:`target_hidden_structure`).
     A target without any scenario to judge is 'N/A' (pass: null).
     """
     alpha = ALPHA if alpha is None else alpha
@@ -403,10 +463,11 @@ def summarize(scores: pd.DataFrame, alpha: float | None = None) -> dict:
     out = scores[scores["out_of_catalogue"] != ""]
     targets = {"a_single_at_2x": target_single(singles), "b_none_clean": target_none_clean(none, alpha),
                "c_out_of_catalogue": target_out_of_catalogue(out), "d_median_shrink": target_median_shrink(eff),
-               "e_parameters": target_parameters(eff, inside), "f_none_explained": target_none_explained(none)}
+               "e_parameters": target_parameters(eff, inside), "f_none_explained": target_none_explained(none),
+               "g_hidden_structure": target_hidden_structure(out)}
     passes = [targets[k]["pass"] for k in TARGETS]
     return {
-        "format_version": 2,
+        "format_version": 3,
         "n_scenarios": int(len(scores)),
         "n_single": int(len(singles)),
         "n_pairs": int((eff["n_truth"] == 2).sum()),
@@ -455,7 +516,7 @@ def summary_text(summary: Mapping) -> str:
         if w["n"]:
             lines.append(f"  {wave} campaigns: with effects {w['exact']}/{w['n_effects']} exact; effects claimed on "
                          f"{w['none_claimed']}/{w['n_none']} without; {w['errors']} diagnosis errors")
-    a, bn, c, d, e, f = (t[k] for k in TARGETS)
+    a, bn, c, d, e, f, g = (t[k] for k in TARGETS)
     lines.append(f"(a) {pass_text(a['pass'])}: single effect at >= 2x detection exact {a['exact']}/{a['n']} "
                  f"= {_percent(a['rate'])} (target >= {100 * a['threshold']:.0f} %)" + _misses(a["misses"], "missed "))
     lines.append(f"(b) {pass_text(bn['pass'])}: effects claimed on {bn['claimed']}/{bn['n']} scenarios without "
@@ -481,6 +542,11 @@ def summary_text(summary: Mapping) -> str:
                            ("param_misses", "delay_misses", "offset_misses", "lag_misses", "scale_misses") if e[k]))
     lines.append(f"(f) {pass_text(f['pass'])}: damper effects claimed as explained on {f['claimed']}/{f['n']} "
                  f"scenarios without effects (target 0)" + _misses(f["misses"], ""))
+    lines.append(f"(g) {pass_text(g['pass'])}: hidden out-of-catalogue effects beyond the noise reported explained "
+                 f"{g['claimed']}/{g['n']} (target 0), their where axis named {g['axis_named']}/{g['n']} (target "
+                 f"all); within the noise {g['n_within_noise']}, verdict = catalogue truth "
+                 f"{g['within_noise_verdict_right']}" + _misses(g["explained_misses"], "explained: ")
+                 + _misses(g["axis_misses"], "axis missed: "))
     return "\n".join(lines)
 
 
