@@ -53,6 +53,7 @@ from isokinetic.diagnosis.instrument import (
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import CONTRACT_VERSION, FORMAT_VERSION, METRIC, json_safe
 from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.diagnosis.structure import residual_structure, structure_note
 from isokinetic.physics.damper import Damper
 from isokinetic.stats import chi2_isf
 
@@ -220,14 +221,33 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
                                                              dg.linear.offset_bound_N],
                                           "force_drift_N_s": [-dg.linear.drift_bound_N_s, dg.linear.drift_bound_N_s]}}
     instrument_confounding(out, bdg, best, candidates, verdict, hyp, scale)
+    residual_inputs = structure_keys(out, dg.obs, best.measured_prediction, alpha, sensor)
     if dg.failed or (bdg is not dg and bdg.failed):
         out["failed_fits"] = dg.failed + (bdg.failed if bdg is not dg else [])
     out["nominal_explains"] = nominal_ok
     out["model_evaluations"] = dg.calls   # every diagnoser here shares dg's evaluators (Diagnoser.with_channel)
     out["seconds"] = round(time.perf_counter() - started, 3)
-    predictions = {"nominal": dg.nominal,
+    predictions = {"nominal": dg.nominal, "structure": residual_inputs,
                    "verdict": None if best is None or not verdict else best.measured_prediction}
     return json_safe(out), predictions
+
+
+def structure_keys(out: dict, obs: Observations, prediction: np.ndarray, alpha: float, sensor: Mapping) -> dict:
+    """The residual-structure tests of the verdict's prediction
+    (:func:`isokinetic.diagnosis.structure.residual_structure`, each observation's campaign time and each case's
+    temperature from ``sensor``) as ``out['structure']``, their significant axes added to ``where``; where any
+    axis shows structure, the verdict is not ``explained`` and ``structure_note`` names the axes (contract 1.3).
+    Returns the tests' inputs (``prediction``, ``time_s``, ``temperature_C``) for Fig. 16's structure panels."""
+    inputs = {"prediction": prediction, "time_s": sensor.get("obs_time_s"),
+              "temperature_C": sensor.get("case_temperature_C")}
+    structure = residual_structure(obs, **inputs, alpha=alpha)
+    out["where"] = [*out["where"], *structure.pop("where")]
+    out["structure"] = structure
+    note = structure_note(structure)
+    if note is not None:
+        out["structure_note"] = note
+        out["explained"] = False
+    return inputs
 
 
 def lag_report(lag_s: float, form: int, chi2_drop: float, threshold: float) -> dict:
@@ -355,7 +375,8 @@ def gap_before_keys(dg: Diagnoser, alpha: float) -> dict:
     z_nom = dg.z(dg.nominal)
     return {"format_version": FORMAT_VERSION, "contract_version": CONTRACT_VERSION, "campaign": obs.campaign,
             "status": "ok", "metric": METRIC,
-            "gap_before": rms(z_nom[win]), "where": [b for b in gap_bands(obs, dg.nominal) if b["significant"]],
+            "gap_before": rms(z_nom[win]),
+            "where": [{"axis": "speed", **b} for b in gap_bands(obs, dg.nominal) if b["significant"]],
             "noise": {**{k: v for k, v in obs.noise.items() if k != "objects"}, "repeatability_rel": obs.rep_rel,
                       "n_windows": int(win.sum()), "n_transient_bins": int((~win).sum()), "alpha": alpha},
             "rms_rel_before": rms(((obs.force_N - dg.nominal) / np.abs(obs.force_N))[win])}

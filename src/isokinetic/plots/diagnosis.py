@@ -1,4 +1,5 @@
-"""Fig. 16: the sim-to-real gap, relative residual against velocity, before and after the verdict.
+"""Fig. 16: the sim-to-real gap, relative residual against velocity, before and after the verdict, and a panel per
+axis along which the verdict's residuals show structure (:mod:`isokinetic.diagnosis.structure`).
 
 A pipeline figure beyond those of the paper "A method for the identification of hydraulic damper
 characteristics from steady velocity inputs" (Titurus et al.): it compares the characteristic
@@ -12,7 +13,14 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from isokinetic.diagnosis.structure import axis_units
 from isokinetic.plots.style import new_figure, say_missing
+
+#: Axis labels of the structure panels: (label, scale of the value).
+STRUCTURE_LABELS = {"position": ("stroke amplitude [mm]", 1e3), "time": ("campaign time [s]", 1.0),
+                    "temperature": ("temperature [°C]", 1.0), "frequency": ("frequency [Hz]", 1.0),
+                    "acceleration": ("peak acceleration [m/s²]", 1.0),
+                    "phase": ("phase from the reversal [rad]", 1.0), "direction": ("direction", 1.0)}
 
 
 def gap_figure(result: dict, obs, predictions: dict) -> Figure:
@@ -20,8 +28,15 @@ def gap_figure(result: dict, obs, predictions: dict) -> Figure:
     damper is weaker than the model), of each characteristic point against |v|, per direction:
     nominal model (before) and nominal + the verdict's effects (after), with the band ±3σ/|F| that
     noise and repeatability explain."""
-    fig = new_figure(11, 4.8)
-    axes = fig.subplots(1, 2, sharey=True)
+    structured = structure_axes(result, obs, predictions)
+    fig = new_figure(11, 4.8 + (3.2 if structured else 0.0))
+    if structured:
+        grid = fig.add_gridspec(2, 2 * len(structured), height_ratios=[3, 2])
+        axes = [fig.add_subplot(grid[0, :len(structured)])]
+        axes.append(fig.add_subplot(grid[0, len(structured):], sharey=axes[0]))
+        structure_panels(fig, grid, result, obs, predictions, structured)
+    else:
+        axes = fig.subplots(1, 2, sharey=True)
     campaign = result.get("campaign", "")
     verdict = result.get("verdict") or []
     fig.suptitle(f"{campaign}: gap between identified characteristic and model")
@@ -59,6 +74,40 @@ def gap_figure(result: dict, obs, predictions: dict) -> Figure:
     fig.suptitle(f"{campaign}: gap between identified characteristic and model\n"
                  f"verdict: {' + '.join(verdict) if verdict else 'none needed'}; {_gap_text(result)}")
     return fig
+
+
+def structure_axes(result: dict, obs, predictions: dict) -> list[str]:
+    """The axes along which the verdict's residuals show structure (``structure.axes``), where the figure has
+    the observations and the verdict's prediction to show them."""
+    if obs is None or (predictions.get("structure") or {}).get("prediction") is None:
+        return []
+    return list((result.get("structure") or {}).get("axes") or [])
+
+
+def structure_panels(fig, grid, result: dict, obs, predictions: dict, structured: list[str]) -> None:
+    """A panel per axis with structure: each unit's residual U = Σz/√n (z signed in the direction of motion:
+    > 0, the damper stronger than the verdict) against the axis' value, ±3 dashed, the ``where`` ranges shaded."""
+    inputs = predictions["structure"]
+    units = axis_units(obs, inputs["prediction"], inputs.get("time_s"), inputs.get("temperature_C"))
+    tests = {t["axis"]: t for t in (result.get("structure") or {}).get("tests") or []}
+    for k, axis in enumerate(structured):
+        ax = fig.add_subplot(grid[1, 2 * k:2 * k + 2])
+        label, scale = STRUCTURE_LABELS.get(axis, (axis, 1.0))
+        x, u = units.get(axis, (np.zeros(0), np.zeros(0)))
+        for entry in (e for e in result.get("where") or [] if e.get("axis") == axis):
+            lo, hi = (v * scale for v in entry["range"])
+            pad = 0.02 * (float(np.ptp(x)) * scale if x.size else 1.0)
+            ax.axvspan(lo - pad, hi + pad, color="tab:orange", alpha=0.25, gid=f"structure-{axis}-range")
+        ax.plot(x * scale, u, ls="none", marker="o", ms=3.5, color="tab:blue", gid=f"structure-{axis}")
+        for level in (-3.0, 3.0):
+            ax.axhline(level, color="0.5", ls="--", lw=0.8)
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.set_xlabel(label)
+        p = tests.get(axis, {}).get("p_adjusted")
+        ax.set_title(f"{axis}: structure, Holm p = {p:.2g}" if p is not None else axis, fontsize=9)
+        ax.grid(True, alpha=0.3)
+        if k == 0:
+            ax.set_ylabel("unit residual Σz/√n (verdict)")
 
 
 def _gap_text(result: dict) -> str:

@@ -3,8 +3,9 @@
 Read from ``results/<campaign>/diagnosis.json`` (:mod:`isokinetic.stages.diagnosis`): the
 verdict and whether it explains the gap within noise, the gap before and after, the instrument
 terms, the fitted effect parameters with their standard errors and correlations, the speed bands
-where the nominal model misses, the top candidates, confounded effects and the observations
-used. Every value's title names its JSON key path, which ``python -m isokinetic trace`` audits.
+where the nominal model misses, the residual-structure tests of the verdict on every axis (contract 1.3), the
+top candidates, confounded effects and the observations used. Every value's title names its JSON key path,
+which ``python -m isokinetic trace`` audits.
 """
 
 from __future__ import annotations
@@ -28,6 +29,14 @@ WHERE_COLS = [Col("direction", "dir", text, False), Col("v_min_m_s", "from [mm/s
               Col("v_max_m_s", "to [mm/s]", scale=1e3), Col("n_cases", "cases"),
               Col("mean_rel_error", "mean signed rel. error", fmt_pct), Col("mean_z", "mean z", lambda x: fmt(x, 3)),
               Col("significant", "significant", yes_no, False)]
+STRUCTURE_COLS = [Col("axis", "axis", text, False), Col("range_text", "range", text, False),
+                  Col("mean_rel", "mean signed rel. error", fmt_pct), Col("z", "bin z", lambda x: fmt(x, 3)),
+                  Col("p_adjusted", "Holm-adjusted p", lambda x: fmt(x, 2)),
+                  Col("quantity", "value binned", text, False)]
+TEST_COLS = [Col("axis", "axis", text, False), Col("n_units", "units"), Col("n_bins", "bins"),
+             Col("bins_p", "binned-means p", lambda x: fmt(x, 2)), Col("trend_p", "trend p", lambda x: fmt(x, 2)),
+             Col("p_adjusted", "Holm-adjusted p", lambda x: fmt(x, 2)),
+             Col("significant", "structure", yes_no, False)]
 CANDIDATE_COLS = [Col("rank", "rank"), Col("effects", "effects", text, False),
                   Col("explained", "explains", yes_no, False), Col("gap_after", "gap after"),
                   Col("holdout_gap_after", "holdout gap"), Col("score", "score"),
@@ -137,14 +146,49 @@ def _correlation(diag: Mapping) -> dict | None:
 
 
 def _where(diag: Mapping, src: Source) -> Table | None:
-    """The speed bands where the nominal model misses (|z| > 3)."""
+    """The speed bands where the nominal model misses (|z| > 3): the ``where`` entries of axis speed (or none)."""
     where = diag.get("where") or []
-    if not where:
+    bands = [(i, b) for i, b in enumerate(where) if b.get("axis", "speed") == "speed"]
+    if not bands:
         return None
-    wdf = pd.DataFrame(where).reset_index(drop=True)
-    wdf["band"] = [f"where.{i}" for i in range(len(wdf))]
+    wdf = pd.DataFrame([b for _i, b in bands]).reset_index(drop=True)
+    wdf["band"] = [f"where.{i}" for i, _b in bands]
     cols = [c for c in WHERE_COLS if c.key in wdf]
-    return json_table_view(wdf, cols, src, "band", "where-bands", json_keys=set(pd.DataFrame(where).columns))
+    return json_table_view(wdf, cols, src, "band", "where-bands", json_keys=set(wdf.columns) - {"band"})
+
+
+def _range_text(entry: Mapping) -> str:
+    """'2 to 5 m', '+' (a direction), or one value."""
+    if entry.get("axis") == "direction":
+        return str(entry.get("direction", ""))
+    lo, hi = entry.get("range") or [None, None]
+    unit = entry.get("unit", "")
+    return f"{fmt(lo, 3)} {unit}".strip() if lo == hi else f"{fmt(lo, 3)} to {fmt(hi, 3)} {unit}".strip()
+
+
+def _structure(diag: Mapping, src: Source) -> dict | None:
+    """The residual-structure tests of the verdict (``structure``): a table of the tests on every axis, the
+    ``where`` entries of the axes with structure, and the note; None for a diagnosis without them (before 1.3)."""
+    structure = diag.get("structure")
+    if not isinstance(structure, Mapping):
+        return None
+    tests = list(structure.get("tests") or [])
+    tdf = pd.DataFrame(tests)
+    if tests:
+        tdf["key"] = [f"structure.tests.{i}" for i in range(len(tests))]
+    test_table = json_table_view(tdf, TEST_COLS, src, "key", "structure-tests",
+                                 json_keys={"n_units", "n_bins", "bins_p", "trend_p", "p_adjusted"}) if tests else None
+    entries = [(i, e) for i, e in enumerate(diag.get("where") or []) if e.get("axis", "speed") != "speed"]
+    where_table = None
+    if entries:
+        wdf = pd.DataFrame([e for _i, e in entries])
+        wdf["key"] = [f"where.{i}" for i, _e in entries]
+        wdf["range_text"] = [_range_text(e) for _i, e in entries]
+        where_table = json_table_view(wdf, STRUCTURE_COLS, src, "key", "where-structure",
+                                      json_keys={"mean_rel", "z", "p_adjusted"})
+    return {"tests": test_table, "where": where_table, "note": diag.get("structure_note"),
+            "alpha": structure.get("alpha"), "skipped": "; ".join(f"{k}: {v}" for k, v in
+                                                                   (structure.get("skipped") or {}).items())}
 
 
 def _candidates(diag: Mapping, src: Source) -> dict | None:
@@ -206,6 +250,7 @@ def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[Figur
             "unexplained_note": diag.get("unexplained_note", ""), "how_far": _how_far(diag, src),
             "instrument": _instrument(diag, src), "instrument_note": diag.get("confounded_instrument_note"),
             "params": _params(diag, src), "correlation": _correlation(diag), "where": _where(diag, src),
+            "structure": _structure(diag, src),
             "viscosity_note": Markup(viscosity_note) if viscosity_note else None,
             "candidates": _candidates(diag, src), "confounded": _confounded(diag),
             "lineage": lineage_of(src, "verdict"), "observations": _observations(diag), "figures": figures}

@@ -1,0 +1,329 @@
+"""Structure in the verdict's residuals along every axis the observations carry (issue 35, part 2).
+
+The verdict explains the gap when its χ² is consistent with noise; a χ² spreads its power over every
+observation, so an effect outside the catalogue that a catalogue effect absorbs on average can pass it
+and still leave its residuals ordered along an axis the fit never looked at: piston position, campaign
+time, temperature, frequency, acceleration, the phase of the cycle, the direction. This module tests the
+verdict's residuals for such order, after the fit, with stated tests:
+
+Residuals. z = sign(v)·(F_meas - F_verdict)/σ per observation (positive: the damper is stronger than the
+verdict). Observations are pooled into *units* that share what correlates them (a case's direction for a
+case-level axis; a case's direction and phase slot for the phase axis) as U = Σz/√n, N(0, 1) per unit
+when the z are independent standard normal.
+
+Tests of one axis (:func:`axis_test`), on the units ordered by the axis' value x:
+- *binned means* (:func:`binned_test`): the units in at most MAX_BINS bins of equal count along x (ties
+  never split), the between-bin sum of squares of U about the grand mean over its degrees of freedom,
+  divided by the within-bin mean square floored at 1 (the stated standard errors are never made smaller;
+  a larger scatter between units, as between-case errors leave, is not taken for structure), referred to
+  the F distribution (B - 1, N - B): conservative where the floor binds;
+- *trend* (:func:`trend_test`): the least-squares slope of U on the rank of x, its t statistic with the
+  residual mean square floored at 1, referred to Student's t (N - 2), two-sided.
+The axis' p-value is the smaller of the two, Bonferroni-doubled; the axes' p-values are adjusted by
+Holm's step-down procedure (:func:`holm`), so the family-wise false-alarm rate over all the axes tested
+is at most alpha. The grand mean is taken off (the verdict's load-cell offset and gain leave none to
+find); what the verdict's fit removes along an axis (a speed dependence, a lag's transient shape) makes
+the residuals along it smaller, so the tests are conservative there.
+
+Axes (vocabulary agreed in issue 35): ``position`` (the case's stroke amplitude: a triangle's window spans
+-0.1 to 0.9 of it in the direction of motion, a sine's bins all of it, so a position-dependent force moves
+the windows' means with the amplitude), ``time`` (campaign time, bins in run order), ``temperature``
+(the case's logged temperature), ``frequency`` (a sine's frequency, a triangle's 1/period),
+``acceleration`` (a sine's peak acceleration (2πf)²Y), ``phase`` (of the half cycle from the reversal,
+[0, π): a triangle's transient bins against its window, a sine's phase bins) and ``direction``. An axis
+with fewer than two distinct values, or too few units, is not tested (``structure.skipped`` says why).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from isokinetic.diagnosis.observations import Observations
+from isokinetic.physics.sine_drive import SineDrive
+
+#: The axes tested, in the order they are reported (issue 35's vocabulary; "speed" is the gap bands').
+AXES = ("position", "time", "temperature", "frequency", "acceleration", "phase", "direction")
+#: Unit of each axis' range in a ``where`` entry.
+AXIS_UNITS = {"position": "m", "time": "s", "temperature": "degC", "frequency": "Hz", "acceleration": "m/s2",
+              "phase": "rad", "direction": ""}
+#: What each axis' value is.
+QUANTITIES = {"position": "stroke amplitude of the case (a triangle's window spans -0.1 to 0.9 of it)",
+              "time": "campaign time of the case's windows (bins in run order)",
+              "temperature": "logged temperature of the case", "frequency": "sine frequency, or 1/period",
+              "acceleration": "peak acceleration of a sine, (2πf)²Y",
+              "phase": "phase of the half cycle from the last reversal (transient bins against windows)",
+              "direction": "direction of motion (+1 / -1)"}
+#: Most bins of a binned-means test (the phase axis takes one bin per distinct slot up to PHASE_BINS).
+MAX_BINS = 5
+PHASE_BINS = 8
+#: Phases [rad] closer than this are one slot (the same bin of different cases and cycles).
+PHASE_TOLERANCE_RAD = 0.05
+#: |z| of a bin's mean beyond which it is named in ``where`` besides the strongest one.
+Z_BIN = 3.0
+STRUCTURE_NOTE = ("the verdict's residuals are ordered along {axes} beyond noise (Holm-adjusted p {p}): an effect "
+                  "the catalogue lacks, or one the verdict does not reproduce, lies there; the verdict is not "
+                  "an explanation")
+
+
+@dataclass(frozen=True)
+class AxisData:
+    """One axis' units: each observation used (``rows``), its unit label and the unit's axis value."""
+
+    axis: str
+    rows: np.ndarray     # indices of the observations used
+    unit: np.ndarray     # unit label per used observation (int)
+    x: np.ndarray        # axis value per used observation (equal within a unit)
+    categorical: bool = False   # binned by distinct value only, no trend (direction)
+
+
+def unit_sums(unit: np.ndarray, z: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(U, x, n) per unit: U = Σz/√n over the unit's observations (N(0, 1) for independent standard normal z),
+    its axis value (the mean of its observations') and its number of observations."""
+    labels, inverse = np.unique(unit, return_inverse=True)
+    n = np.bincount(inverse, minlength=labels.size).astype(float)
+    u = np.bincount(inverse, weights=z, minlength=labels.size) / np.sqrt(n)
+    xs = np.bincount(inverse, weights=x, minlength=labels.size) / n
+    return u, xs, n
+
+
+def tie_bins(x: np.ndarray, max_bins: int) -> np.ndarray:
+    """Bin label (0 ..) of each value: at most ``max_bins`` bins of about equal counts in the order of x,
+    equal values always in one bin."""
+    values, inverse, counts = np.unique(x, return_inverse=True, return_counts=True)
+    if values.size <= max_bins:
+        return inverse
+    before = np.concatenate([[0], np.cumsum(counts)[:-1]]) + 0.5 * counts   # each value's middle rank
+    value_bin = np.minimum((before / x.size * max_bins).astype(int), max_bins - 1)
+    _, dense = np.unique(value_bin, return_inverse=True)
+    return dense[inverse]
+
+
+def binned_test(u: np.ndarray, labels: np.ndarray) -> dict:
+    """Binned-means test of the unit residuals ``u`` (N(0, 1) under no structure) across bins ``labels``:
+    F = [Σ_b m_b (ū_b - ū)²/(B - 1)] / max(1, Σ (u - ū_b)²/(N - B)), p from F(B - 1, N - B) (from χ²_{B-1}/(B-1)
+    where N = B). Also each bin's z = (ū_b - ū)·√(m_b/s²), s² the denominator."""
+    from scipy import special
+
+    bins, inverse = np.unique(labels, return_inverse=True)
+    m = np.bincount(inverse).astype(float)
+    means = np.bincount(inverse, weights=u) / m
+    grand = float(u.mean())
+    b, n = bins.size, u.size
+    between = float(np.sum(m * (means - grand) ** 2))
+    within = float(np.sum((u - means[inverse]) ** 2))
+    scale = max(1.0, within / (n - b)) if n > b else 1.0
+    stat = between / (b - 1) / scale
+    p = float(special.fdtrc(b - 1, n - b, stat)) if n > b else float(special.chdtrc(b - 1, stat * (b - 1)))
+    return {"F": stat, "df": [int(b - 1), int(n - b)], "p": p, "scale": scale,
+            "bin_z": (means - grand) * np.sqrt(m / scale), "bin_of_unit": inverse}
+
+
+def trend_test(u: np.ndarray, x: np.ndarray) -> dict:
+    """Trend of the unit residuals ``u`` along the rank of ``x`` (ties share their mean rank): the least-squares
+    slope over its standard error, residual mean square floored at 1, p two-sided from Student's t (N - 2)."""
+    from scipy import special
+
+    r = pd.Series(x).rank().to_numpy(dtype=float)
+    rc = r - r.mean()
+    sxx = float(rc @ rc)
+    if u.size < 3 or sxx <= 0.0:
+        return {"t": 0.0, "df": 0, "p": 1.0}
+    slope = float(rc @ (u - u.mean())) / sxx
+    resid = u - u.mean() - slope * rc
+    scale = max(1.0, float(resid @ resid) / (u.size - 2))
+    t = slope / math.sqrt(scale / sxx)
+    return {"t": t, "df": int(u.size - 2), "p": float(2.0 * special.stdtr(u.size - 2, -abs(t)))}
+
+
+def holm(p: Sequence[float]) -> np.ndarray:
+    """Holm's step-down adjusted p-values: the k-th smallest of m times (m - k + 1), made monotone, at most 1.
+    Rejecting where the adjusted p < alpha keeps the family-wise error rate at most alpha."""
+    p = np.asarray(p, dtype=float)
+    order = np.argsort(p)
+    m = p.size
+    adjusted = np.maximum.accumulate((m - np.arange(m)) * p[order])
+    out = np.empty(m)
+    out[order] = np.minimum(adjusted, 1.0)
+    return out
+
+
+def axis_test(data: AxisData, z: np.ndarray) -> dict | None:
+    """The test of one axis on the signed residuals ``z`` of all observations: binned means (and, unless
+    categorical, the rank trend), p = min(1, 2·min(p_bins, p_trend)); None where the axis cannot be tested
+    (fewer than two bins, or no unit left for the within-bin scatter and the trend)."""
+    u, x, _n = unit_sums(data.unit, z[data.rows], data.x)
+    labels = tie_bins(x, len(np.unique(x)) if data.categorical else
+                      PHASE_BINS if data.axis == "phase" else MAX_BINS)
+    if np.unique(labels).size < 2 or u.size < np.unique(labels).size + 2:
+        return None
+    bins = binned_test(u, labels)
+    trend = None if data.categorical else trend_test(u, x)
+    p = bins["p"] if trend is None else min(1.0, 2.0 * min(bins["p"], trend["p"]))
+    return {"axis": data.axis, "quantity": QUANTITIES[data.axis], "unit": AXIS_UNITS[data.axis],
+            "n_units": int(u.size), "n_bins": int(np.unique(labels).size), "bins_F": bins["F"],
+            "bins_df": bins["df"], "bins_p": bins["p"], "scale": bins["scale"],
+            "trend_t": None if trend is None else trend["t"], "trend_p": None if trend is None else trend["p"],
+            "p": p, "_x": x, "_bins": bins}
+
+
+def where_entries(test: Mapping, data: AxisData, rel: np.ndarray) -> list[dict]:
+    """The ``where`` entries of a significant axis: its strongest bin, and every other bin with |z| > Z_BIN,
+    each with the range of the axis' value, the mean signed relative residual of its observations, its z and
+    the axis' Holm-adjusted p-value."""
+    bins = test["_bins"]
+    x = test["_x"]
+    labels, inverse = np.unique(data.unit, return_inverse=True)
+    unit_bin = bins["bin_of_unit"][inverse]            # bin of each used observation
+    bin_z = bins["bin_z"]
+    strongest = int(np.argmax(np.abs(bin_z)))
+    out = []
+    for b in sorted({strongest, *np.flatnonzero(np.abs(bin_z) > Z_BIN).tolist()}):
+        xb = x[bins["bin_of_unit"] == b]
+        entry = {"axis": test["axis"], "quantity": test["quantity"], "range": [float(xb.min()), float(xb.max())],
+                 "unit": test["unit"], "mean_rel": float(np.mean(rel[data.rows][unit_bin == b])),
+                 "z": float(bin_z[b]), "p_adjusted": test["p_adjusted"], "significant": True,
+                 "n_units": int(xb.size)}
+        if test["axis"] == "direction":
+            entry["direction"] = "+" if xb[0] > 0 else "-"
+        out.append(entry)
+    return out
+
+
+def plan_time_s(obs: Observations) -> np.ndarray:
+    """Each observation's middle in its case's plan time [s] (its model samples' middle)."""
+    offsets = []
+    for drive in (obs.drives or (None,) * len(obs.plans)):
+        offsets.append(drive.grid_start_s if isinstance(drive, SineDrive)
+                       else getattr(drive, "grid_offset_s", 0.0) if drive is not None else 0.0)
+    fs = np.array([p.sample_rate_Hz for p in obs.plans])[obs.case_index]
+    return np.asarray(offsets, dtype=float)[obs.case_index] + 0.5 * (obs.start + obs.stop - 1) / fs
+
+
+def half_cycle_phase(obs: Observations) -> np.ndarray:
+    """Each observation's phase within its half cycle from the last reversal, in [0, π) [rad]: a triangle's
+    π·(τ mod T/2)/(T/2), a sine's (2πfτ + π/2) mod π (y = Y sin 2πfτ reverses at 2πfτ = ±π/2)."""
+    tau = plan_time_s(obs)
+    out = np.empty(len(obs))
+    for i, plan in enumerate(obs.plans):
+        at = obs.case_index == i
+        if plan.waveform == "sine":
+            out[at] = np.mod(2.0 * math.pi * plan.frequency_Hz * tau[at] + 0.5 * math.pi, math.pi)
+        else:
+            half = 0.5 * plan.period_s
+            out[at] = math.pi * np.mod(tau[at], half) / half
+    return out
+
+
+def phase_slots(phase: np.ndarray, tolerance: float = PHASE_TOLERANCE_RAD) -> np.ndarray:
+    """Each phase replaced by its slot's median: sorted phases split where they are more than ``tolerance``
+    apart (the same bin of different cases and cycles lies within a few samples)."""
+    order = np.argsort(phase)
+    cluster = np.concatenate([[0], np.cumsum(np.diff(phase[order]) > tolerance)])
+    medians = pd.Series(phase[order]).groupby(cluster).transform("median").to_numpy()
+    out = np.empty_like(phase)
+    out[order] = medians
+    return out
+
+
+def case_values(obs: Observations, time_s: np.ndarray | None,
+                temperature_C: Mapping[str, float] | None) -> dict[str, np.ndarray]:
+    """Per observation, the value of each case-level axis that it has (NaN where a case lacks it): stroke
+    amplitude, campaign time, temperature, frequency, a sine's peak acceleration."""
+    amp = np.array([p.amplitude_m for p in obs.plans])[obs.case_index]
+    sine = np.array([p.waveform == "sine" for p in obs.plans])[obs.case_index]
+    freq = np.array([p.frequency_Hz if p.waveform == "sine" else 1.0 / p.period_s for p in obs.plans])[obs.case_index]
+    temps = temperature_C or {}
+    out = {"position": amp, "frequency": freq,
+           "acceleration": np.where(sine, (2.0 * math.pi * freq) ** 2 * amp, np.nan),
+           "temperature": np.array([float(temps.get(c, math.nan)) for c in obs.case], dtype=float)}
+    if time_s is not None and len(time_s) == len(obs):
+        out["time"] = np.asarray(time_s, dtype=float)
+    return out
+
+
+def axis_data(obs: Observations, time_s: np.ndarray | None = None,
+              temperature_C: Mapping[str, float] | None = None) -> list[AxisData]:
+    """The units of every axis the observations carry: case-level axes (and direction) on the steady windows,
+    one unit per case and direction; the phase on every observation, one unit per case, direction and slot."""
+    win = obs.is_window
+    case_dir = pd.factorize(pd.Series(obs.case).astype(str) + np.where(obs.sign > 0, "/+", "/-"))[0]
+    values = case_values(obs, time_s, temperature_C)
+    out = []
+    for axis in AXES:
+        if axis == "phase":
+            slot = phase_slots(half_cycle_phase(obs))
+            unit = pd.factorize(pd.Series(case_dir.astype(str)) + "@" + pd.Series(slot).round(6).astype(str))[0]
+            out.append(AxisData(axis, np.arange(len(obs)), unit, slot))
+            continue
+        x = obs.sign.astype(float) if axis == "direction" else values.get(axis)
+        if x is None:
+            continue
+        rows = np.flatnonzero(win & np.isfinite(x))
+        if axis == "time" and rows.size:   # a unit's value: its windows' mean time
+            x = pd.Series(x[rows]).groupby(case_dir[rows]).transform("mean").to_numpy()
+            out.append(AxisData(axis, rows, case_dir[rows], x))
+            continue
+        out.append(AxisData(axis, rows, case_dir[rows], x[rows], categorical=axis == "direction"))
+    return out
+
+
+def residual_structure(obs: Observations, prediction: np.ndarray, alpha: float, time_s: np.ndarray | None = None,
+                       temperature_C: Mapping[str, float] | None = None) -> dict:
+    """The structure tests of the residuals of ``prediction`` (the verdict's measured prediction) on every axis
+    (:func:`axis_data`, :func:`axis_test`), Holm-adjusted (:func:`holm`): {"alpha", "tests": per axis tested,
+    "skipped": axis -> why, "where": entries of the significant axes, "axes": the significant axes}."""
+    z = obs.sign * (obs.force_N - prediction) / obs.sigma_N
+    rel = obs.sign * (obs.force_N - prediction) / np.abs(obs.force_N)
+    datas = {d.axis: d for d in axis_data(obs, time_s, temperature_C)}
+    tests, skipped = [], {}
+    for axis in AXES:
+        data = datas.get(axis)
+        test = None if data is None or data.rows.size == 0 else axis_test(data, z)
+        if test is None:
+            skipped[axis] = ("not recorded" if data is None or data.rows.size == 0
+                             else "fewer than two distinct values or too few units")
+        else:
+            tests.append(test)
+    for test, p_adj in zip(tests, holm([t["p"] for t in tests]), strict=True):
+        test["p_adjusted"] = float(p_adj)
+        test["significant"] = bool(p_adj < alpha)
+    where = [e for t in tests if t["significant"] for e in where_entries(t, datas[t["axis"]], rel)]
+    public = [{k: v for k, v in t.items() if not k.startswith("_")} for t in tests]
+    return {"alpha": alpha, "tests": public, "skipped": skipped, "where": where,
+            "axes": [t["axis"] for t in tests if t["significant"]]}
+
+
+def axis_units(obs: Observations, prediction: np.ndarray, time_s: np.ndarray | None = None,
+               temperature_C: Mapping[str, float] | None = None) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """axis -> (value, U) of each unit of the axes the observations carry (:func:`axis_data`,
+    :func:`unit_sums`): what Fig. 16's structure panels show."""
+    z = obs.sign * (obs.force_N - prediction) / obs.sigma_N
+    out = {}
+    for data in axis_data(obs, time_s, temperature_C):
+        if data.rows.size:
+            u, x, _n = unit_sums(data.unit, z[data.rows], data.x)
+            out[data.axis] = (x, u)
+    return out
+
+
+def structure_note(structure: Mapping) -> str | None:
+    """The note of a verdict whose residuals show structure (None where they show none): the axes, with
+    their Holm-adjusted p-values."""
+    hits = [t for t in structure.get("tests", []) if t.get("significant")]
+    if not hits:
+        return None
+    return STRUCTURE_NOTE.format(axes=", ".join(t["axis"] for t in hits),
+                                 p=", ".join(f"{t['p_adjusted']:.2g}" for t in hits))
+
+
+def case_temperatures(cases: pd.DataFrame) -> dict[str, float]:
+    """case -> logged temperature [°C] of cases.parquet (``temperature_C``), finite ones only; empty without."""
+    if cases is None or "temperature_C" not in cases or cases.empty:
+        return {}
+    t = pd.to_numeric(cases["temperature_C"], errors="coerce")
+    return {str(c): float(v) for c, v in zip(cases["case"], t, strict=True) if np.isfinite(v)}

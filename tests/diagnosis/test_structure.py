@@ -1,0 +1,249 @@
+"""Structure in the verdict's residuals along every axis (isokinetic.diagnosis.structure)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from isokinetic.diagnosis.observations import Observations
+from isokinetic.diagnosis.sine_observations import phase_bins
+from isokinetic.diagnosis.structure import (
+    AXES,
+    binned_test,
+    half_cycle_phase,
+    holm,
+    residual_structure,
+    tie_bins,
+    trend_test,
+)
+from isokinetic.diagnosis.verdict import structure_keys
+from isokinetic.physics.plan import CasePlan
+
+FS = 100.0
+ALPHA = 1e-3
+#: The triangle cases' amplitudes, periods and temperatures: each a different permutation of the run order, so
+#: that a pattern along one axis is no pattern along the others.
+AMPLITUDES_M = np.repeat([2e-3, 5e-3, 10e-3, 20e-3], 4)
+PERIODS_S = np.tile([4.0, 8.0, 16.0, 32.0], 4)
+TEMPERATURES_C = np.array([30, 45, 60, 38, 52, 34, 41, 57, 49, 36, 55, 43, 32, 47, 59, 39], dtype=float)
+
+
+def triangle_rows(n_bins: int = 4, start: float = 0.45, end: float = 0.95):
+    """(segment, sign, kind, a, b) of one triangle case: 4 half-periods, each n_bins transient bins and a
+    window, as fractions of the half-period."""
+    rows = []
+    for k in range(1, 5):
+        sign = 1.0 if k % 2 else -1.0
+        edges = np.linspace(0.0, start, n_bins + 1)
+        rows += [(k, sign, "transient", a, b) for a, b in zip(edges[:-1], edges[1:], strict=True)]
+        rows.append((k, sign, "window", start, end))
+    return rows
+
+
+def triangle_campaign(order: np.ndarray | None = None) -> Observations:
+    """16 triangle cases (amplitude, period and temperature each permuted against the run order), model 100 N
+    in each direction, σ = 1 N; force_N holds the model (the tests add their residuals)."""
+    order = np.arange(AMPLITUDES_M.size) if order is None else order
+    plans, cols = [], {k: [] for k in ("case", "case_index", "kind", "segment", "sign", "start", "stop")}
+    for i, c in enumerate(order):
+        plan = CasePlan(f"T{i:02d}", "triangle", FS, amplitude_m=float(AMPLITUDES_M[c]), period_s=float(PERIODS_S[c]))
+        plans.append(plan)
+        half = plan.period_s / 2
+        for k, sign, kind, a, b in triangle_rows():
+            t0 = (k - 1) * half
+            cols["case"].append(plan.case)
+            cols["case_index"].append(i)
+            cols["kind"].append(kind)
+            cols["segment"].append(k)
+            cols["sign"].append(sign)
+            cols["start"].append(int(round((t0 + a * half) * FS)))
+            cols["stop"].append(int(round((t0 + b * half) * FS)))
+    return observations(plans, cols)
+
+
+def sine_campaign(frequencies_Hz=(0.5, 1.0, 2.0, 4.0, 0.7, 1.4, 2.8, 5.6), amplitude_m=5e-3) -> Observations:
+    """Sine cases of 4 cycles of 16 phase bins each (the diagnosis' own bins)."""
+    plans, cols = [], {k: [] for k in ("case", "case_index", "kind", "segment", "sign", "start", "stop")}
+    for i, f in enumerate(frequencies_Hz):
+        plan = CasePlan(f"S{i:02d}", "sine", FS * 8, amplitude_m=amplitude_m * (1 + 0.3 * (i % 3)), frequency_Hz=f)
+        plans.append(plan)
+        for m in range(4):
+            for fa, fb, sign, kind in phase_bins(16):
+                cols["case"].append(plan.case)
+                cols["case_index"].append(i)
+                cols["kind"].append(kind)
+                cols["segment"].append(2 * m + (1 if sign > 0 else 2))
+                cols["sign"].append(sign)
+                cols["start"].append(int(round((m + fa) / f * plan.sample_rate_Hz)))
+                cols["stop"].append(int(round((m + fb) / f * plan.sample_rate_Hz)))
+    return observations(plans, cols)
+
+
+def observations(plans, cols) -> Observations:
+    n = len(cols["case"])
+    sign = np.array(cols["sign"])
+    return Observations(campaign="c", plans=tuple(plans), case=np.array(cols["case"], dtype=object),
+                        case_index=np.array(cols["case_index"]), kind=np.array(cols["kind"], dtype=object),
+                        segment=np.array(cols["segment"]), period=(np.array(cols["segment"]) + 1) // 2, sign=sign,
+                        speed_m_s=np.full(n, 1e-3), start=np.array(cols["start"]), stop=np.array(cols["stop"]),
+                        force_N=100.0 * sign, sigma_N=np.ones(n), rep_rel=0.0)
+
+
+def case_times_s(obs: Observations) -> np.ndarray:
+    """Campaign time: the cases back to back, 100 s each."""
+    return obs.case_index * 100.0 + 0.5 * (obs.start + obs.stop) / FS
+
+
+def with_residuals(obs: Observations, z: np.ndarray) -> Observations:
+    """The observations measured at model + z·σ in the direction of motion (z > 0: stronger)."""
+    from dataclasses import replace
+
+    return replace(obs, force_N=obs.force_N + obs.sign * z * obs.sigma_N)
+
+
+def structure_of(obs: Observations, z: np.ndarray, alpha: float = ALPHA) -> dict:
+    prediction = obs.force_N.copy()
+    temps = {c: float(TEMPERATURES_C[i % TEMPERATURES_C.size]) for i, c in enumerate(dict.fromkeys(obs.case))}
+    return residual_structure(with_residuals(obs, z), prediction, alpha, case_times_s(obs), temps)
+
+
+def test_tie_bins_never_split_equal_values_and_keep_at_most_max_bins():
+    x = np.array([1, 1, 1, 1, 2, 3, 3, 4, 5, 5, 5, 6, 7, 8, 8, 9], dtype=float)
+    labels = tie_bins(x, 4)
+    assert np.unique(labels).size <= 4
+    for v in np.unique(x):
+        assert np.unique(labels[x == v]).size == 1
+    assert np.all(np.diff(labels[np.argsort(x, kind="stable")]) >= 0)   # bins follow the order of x
+
+
+def test_holm_adjusts_by_step_down_multipliers():
+    # sorted p 0.01, 0.03, 0.04 times 3, 2, 1 -> 0.03, 0.06, 0.04 -> monotone 0.03, 0.06, 0.06
+    assert holm([0.04, 0.01, 0.03]) == pytest.approx([0.06, 0.03, 0.06])
+    assert holm([0.5, 0.9]) == pytest.approx([1.0, 1.0])   # 2 x 0.5, then the larger of 1.0 and 0.9
+
+
+def test_holm_correction_stops_a_false_alarm_that_one_uncorrected_test_of_many_raises():
+    p = [0.03, 0.2, 0.5, 0.6, 0.7, 0.9, 0.95]   # one axis below 0.05 alone
+    assert min(p) < 0.05
+    assert np.all(holm(p) >= 0.05)
+
+
+def test_binned_test_matches_a_one_way_anova_on_unit_normal_residuals():
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=40) * 2.0 + np.repeat([0.0, 1.0, -1.0, 0.5], 10)
+    labels = np.repeat(np.arange(4), 10)
+    from scipy import stats
+
+    f, p = stats.f_oneway(*(u[labels == b] for b in range(4)))
+    got = binned_test(u, labels)
+    assert got["F"] == pytest.approx(f)   # the within-bin mean square (> 1 here) is the denominator, as ANOVA's
+    assert got["p"] == pytest.approx(p)
+
+
+def test_binned_test_never_takes_a_scatter_below_the_stated_errors():
+    u = np.repeat([0.0, 1.0], 20) + 1e-3 * np.tile([1.0, -1.0], 20)
+    got = binned_test(u, np.repeat([0, 1], 20))
+    assert got["scale"] == 1.0
+    assert got["F"] == pytest.approx(20 * 2 * 0.5**2)   # m Σ (ū_b - ū)² / (B - 1) with σ² = 1
+
+
+def test_trend_test_finds_a_slope_and_not_a_constant():
+    x = np.linspace(0.0, 1.0, 30)
+    assert trend_test(np.linspace(-2.0, 2.0, 30), x)["p"] < 1e-6
+    assert trend_test(np.zeros(30), x)["p"] == pytest.approx(1.0)
+
+
+def test_half_cycle_phase_is_zero_at_a_reversal_and_half_pi_mid_stroke():
+    sine = sine_campaign((1.0,))
+    phase = half_cycle_phase(sine)
+    # slot j's centre is at 2π(j + 0.5)/16; y = Y sin 2πfτ reverses at ±π/2, so slot 3 ends at the top reversal
+    first = phase[:16]
+    assert first[0] == pytest.approx(math.pi / 2 + math.pi / 16, abs=0.02)
+    assert first[4] == pytest.approx(math.pi / 16, abs=0.02)
+    tri = triangle_campaign()
+    assert half_cycle_phase(tri)[4] == pytest.approx(0.7 * math.pi, abs=0.02)   # window [0.45, 0.95]
+
+
+def noise(obs: Observations, seed: int) -> np.ndarray:
+    return np.random.default_rng(seed).normal(size=len(obs))
+
+
+PATTERNS = {
+    # each: the axis, and the residual it adds [σ] to an observation (of the triangle campaign unless "sine")
+    "position": lambda o: np.where(o.kind == "window",
+                                   -3.0 * (np.array([p.amplitude_m for p in o.plans])[o.case_index] < 3e-3), 0.0),
+    "time": lambda o: np.where(o.kind == "window", -2.5 * o.case_index / 15.0, 0.0),
+    "temperature": lambda o: np.where(o.kind == "window",
+                                      0.15 * (TEMPERATURES_C[o.case_index] - TEMPERATURES_C.mean()), 0.0),
+    "frequency": lambda o: np.where(o.kind == "window",
+                                    2.5 * (np.array([p.period_s for p in o.plans])[o.case_index] == 4.0), 0.0),
+    "phase": lambda o: np.where(half_cycle_phase(o) < 0.1 * math.pi, 2.5, 0.0),
+    "direction": lambda o: np.where(o.kind == "window", 1.2 * o.sign, 0.0),
+}
+
+
+@pytest.mark.parametrize("axis", list(PATTERNS))
+def test_a_structure_along_one_axis_of_a_triangle_campaign_is_found_on_that_axis(axis):
+    obs = triangle_campaign()
+    found = structure_of(obs, noise(obs, 11) + PATTERNS[axis](obs))
+    assert axis in found["axes"]
+    entries = [e for e in found["where"] if e["axis"] == axis]
+    assert entries and all(e["significant"] and e["p_adjusted"] < ALPHA for e in entries)
+
+
+def test_the_strongest_bin_of_a_position_structure_names_the_small_strokes():
+    obs = triangle_campaign()
+    found = structure_of(obs, noise(obs, 12) + PATTERNS["position"](obs))
+    entry = max((e for e in found["where"] if e["axis"] == "position"), key=lambda e: abs(e["z"]))
+    assert entry["range"] == [pytest.approx(2e-3), pytest.approx(2e-3)]
+    assert entry["unit"] == "m" and entry["z"] < 0 and entry["mean_rel"] < 0   # weaker there
+
+
+def test_a_structure_in_a_sine_campaigns_acceleration_is_found():
+    obs = sine_campaign()
+    accel = np.array([(2 * math.pi * p.frequency_Hz) ** 2 * p.amplitude_m for p in obs.plans])[obs.case_index]
+    z = noise(obs, 13) + np.where(obs.kind == "window", -1.5 * np.log(accel / np.median(accel)), 0.0)
+    found = structure_of(obs, z)
+    assert "acceleration" in found["axes"]
+
+
+def test_a_structure_in_a_sine_campaigns_phase_is_found_at_the_reversals():
+    obs = sine_campaign()
+    phase = half_cycle_phase(obs)
+    found = structure_of(obs, noise(obs, 14) + np.where(phase < math.pi / 8, 1.5, 0.0))
+    assert "phase" in found["axes"]
+    strongest = max((e for e in found["where"] if e["axis"] == "phase"), key=lambda e: abs(e["z"]))
+    assert strongest["range"][1] < math.pi / 8 and strongest["z"] > 0
+
+
+@pytest.mark.parametrize("make", [triangle_campaign, sine_campaign])
+def test_pure_noise_raises_structure_on_at_most_alpha_of_campaigns(make):
+    obs = make()
+    alpha, n = 0.05, 300
+    alarms = sum(bool(structure_of(obs, noise(obs, 1000 + k), alpha)["axes"]) for k in range(n))
+    # family-wise over every axis: at most alpha, with a binomial margin of 3 standard errors
+    assert alarms / n <= alpha + 3.0 * math.sqrt(alpha * (1 - alpha) / n)
+
+
+def test_every_axis_of_a_campaign_that_records_it_is_tested():
+    obs = triangle_campaign()
+    tested = {t["axis"] for t in structure_of(obs, noise(obs, 5))["tests"]}
+    assert tested == set(AXES) - {"acceleration"}   # a triangle has no sine's peak acceleration
+
+
+def test_a_verdict_whose_residuals_show_structure_is_not_explained_and_names_the_axis():
+    obs = triangle_campaign()
+    measured = with_residuals(obs, noise(obs, 15) + PATTERNS["time"](obs))
+    out = {"explained": True, "where": [{"axis": "speed", "direction": "+"}]}
+    structure_keys(out, measured, obs.force_N.copy(), ALPHA, {"obs_time_s": case_times_s(obs)})
+    assert out["explained"] is False
+    assert "time" in out["structure"]["axes"] and "time" in out["structure_note"]
+    assert out["where"][0]["axis"] == "speed" and any(e["axis"] == "time" for e in out["where"][1:])
+
+
+def test_a_verdict_whose_residuals_are_noise_stays_explained():
+    obs = triangle_campaign()
+    out = {"explained": True, "where": []}
+    structure_keys(out, with_residuals(obs, noise(obs, 16)), obs.force_N.copy(), ALPHA,
+                   {"obs_time_s": case_times_s(obs)})
+    assert out["explained"] is True and "structure_note" not in out and out["where"] == []

@@ -1,0 +1,43 @@
+"""The campaign page's diagnosis section: the residual-structure tests of the verdict (contract 1.3)."""
+
+from __future__ import annotations
+
+from isokinetic.diagnosis.result import validate_diagnosis
+from isokinetic.io import write_json
+from isokinetic.report.campaign_report import render_campaign_report
+
+from .fixture_results import build_campaign, diagnosis, plain
+
+NOTE = "the verdict's residuals are ordered along position beyond noise (Holm-adjusted p 2e-05)"
+
+
+def with_structure(d: dict) -> dict:
+    """The fixture's diagnosis with a position structure found (and a time axis tested without one)."""
+    tests = [{"axis": "position", "n_units": 20, "n_bins": 4, "bins_F": 9.1, "bins_df": [3, 16], "bins_p": 1e-5,
+              "trend_t": -5.2, "trend_p": 8e-6, "p": 1.6e-5, "p_adjusted": 2e-5, "significant": True},
+             {"axis": "time", "n_units": 20, "n_bins": 5, "bins_F": 0.4, "bins_df": [4, 15], "bins_p": 0.8,
+              "trend_t": 0.3, "trend_p": 0.77, "p": 1.0, "p_adjusted": 1.0, "significant": False}]
+    entry = {"axis": "position", "quantity": "stroke amplitude", "range": [0.002, 0.003], "unit": "m",
+             "mean_rel": -0.0456, "z": -6.25, "p_adjusted": 2e-5, "significant": True, "n_units": 4}
+    d = {**d, "explained": False, "structure_note": NOTE, "where": [{"axis": "speed", **d["where"][0]}, entry],
+         "structure": {"alpha": 1e-3, "tests": tests, "skipped": {"temperature": "not recorded"},
+                       "axes": ["position"]}}
+    validate_diagnosis(d)
+    return d
+
+
+def test_the_page_names_the_axis_with_structure_and_its_range(results):
+    root = build_campaign(results)
+    write_json(with_structure(diagnosis()), root / "diagnosis.json")
+    page = render_campaign_report(root)
+    text = plain(page)
+    assert "Residual structure of the verdict on every axis" in text
+    assert NOTE in text and "0.00200 to 0.00300 m" in text and "-4.56 %" in text
+    assert "diagnosis.json where.1.z\"" in page   # the entry's place in where
+    assert "Not tested: temperature: not recorded" in text
+
+
+def test_a_diagnosis_before_contract_1_3_shows_no_structure_section(results):
+    root = build_campaign(results)
+    page = render_campaign_report(root)
+    assert "Residual structure" not in plain(page)
