@@ -27,6 +27,8 @@ SINE_TRUTHS: tuple[tuple[str, ...], ...] = ((),) + tuple((e,) for e in EFFECTS)
 SCENARIO_PREFIX = "blind-"
 #: Range of the magnitudes drawn, in detection levels.
 MULTIPLE_RANGE = (1.0, 5.0)
+#: One detection level: an effect's noise-free change of the observations at this rms_z (in standard errors).
+DETECTION_RMS_Z = 3.0
 
 #: Expected CPU-seconds of one scenario's diagnosis, by kind: the means of benchmark/blind_suite.py (seed 777, 74
 #: scenarios with the sensor chain; a sine-only one's median is 7 s, its range 1-23 s; a force-channel low-pass

@@ -76,7 +76,14 @@ from pathlib import Path
 
 import numpy as np
 
-from isokinetic.contracts.scenarios import EFFECTS, MULTIPLE_RANGE, OUT_OF_CATALOGUE, scenario_names, suite_composition
+from isokinetic.contracts.scenarios import (
+    DETECTION_RMS_Z,
+    EFFECTS,
+    MULTIPLE_RANGE,
+    OUT_OF_CATALOGUE,
+    scenario_names,
+    suite_composition,
+)
 from isokinetic.io import write_json
 from isokinetic.measurement.model_windows import ModelPlan
 from isokinetic.measurement.windows import WindowSpec
@@ -103,7 +110,7 @@ UNITS = {"friction": "coulomb_force_N", "leakage": "leakage_conductance_m3_s_Pa"
 #: Effects whose magnitude carries a random sign.
 SIGNED = ("asymmetry", "discharge", "viscosity")
 
-TARGET_RMS_Z = 3.0
+TARGET_RMS_Z = DETECTION_RMS_Z
 MAGNITUDE_BINS = (("1-2x", 1.0, 2.0), ("2-3x", 2.0, 3.0), ("3-5x", 3.0, math.inf))
 
 PERIODS_S = (20.0, 80.0, 240.0)

@@ -45,7 +45,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import pandas as pd
 
-from isokinetic.contracts.scenarios import HIDDEN_AXES
+from isokinetic.contracts.scenarios import DETECTION_RMS_Z, HIDDEN_AXES
 from isokinetic.measurement.model_windows import ModelPlan
 from isokinetic.measurement.windows import WindowSpec
 from isokinetic.physics.damper import Damper
@@ -71,7 +71,7 @@ GROOVE_TAPER_M = 1.0e-4
 WORN_HALF_LENGTH_M = 1.5e-3
 #: Integration tolerance of the noise-free signature runs (the export's is 1e-10).
 SIGNATURE_RTOL = 1.0e-8
-TARGET_RMS_Z = 3.0
+TARGET_RMS_Z = DETECTION_RMS_Z
 
 
 def plan_table(name: str, cases: Sequence[CasePlan]) -> pd.DataFrame:
