@@ -8,10 +8,13 @@ means; a candidate adds damper effects with fitted parameters. With a viscosity 
 :func:`isokinetic.physics.responses.triangle_responses` (Eq. 13-14 of "A method for the
 identification of hydraulic damper characteristics from steady velocity inputs", Titurus et al.),
 force from Eq. 8. A sine case (:class:`isokinetic.physics.sine_drive.SineDrive`) is driven by its fitted
-measured sine, Eq. (1) integrated on the record's own sample times
-(:func:`isokinetic.physics.sine_drive.sine_drive_response`); its model forces join the triangle cases' on
-one sample grid, so every reduction below serves both. A campaign without sine cases keeps the closed-form
-sums of the triangle windows (:class:`isokinetic.physics.responses.PressureSums`).
+measured sine: its runs are made on a grid set by the physics, not by the record's samples
+(:class:`isokinetic.diagnosis.sine_model.GridEvaluator`, the bins' means read off it; the cost of a run does not
+grow with the sampling rate, and a record's cycles after its response repeats cost nothing); a run with a Stribeck
+friction, and ``grid=False``, integrate Eq. (1) on the record's own sample times instead
+(:func:`isokinetic.physics.sine_drive.sine_drive_response`), the reference the grid is tested against. A campaign
+without sine cases keeps the closed-form sums of the triangle windows
+(:class:`isokinetic.physics.responses.PressureSums`).
 
 Before the fits, the nominal model marks the windows that are still relaxing
 (:func:`unsteady_windows`, kept out of the noise fit) and the variance the measured drive speed's
@@ -28,6 +31,7 @@ from dataclasses import replace
 import numpy as np
 
 from isokinetic.diagnosis.observations import Observations
+from isokinetic.diagnosis.sine_model import GridEvaluator
 from isokinetic.physics.damper import NOMINAL, Damper, Effects, friction_force
 from isokinetic.physics.hydraulics import Hydraulics
 from isokinetic.physics.responses import PressureSums, drive_times, scaled_viscosity, triangle_responses_at
@@ -57,7 +61,7 @@ RUN_CACHE_SAMPLES = 3_000_000
 class Evaluator:
     """Noise-free model means over the observations' sample ranges, for any effects."""
 
-    def __init__(self, obs: Observations, damper: Damper):
+    def __init__(self, obs: Observations, damper: Damper, grid: bool = True):
         self.obs = obs
         self.damper = damper
         drives = obs.drives or (None,) * len(obs.plans)
@@ -75,7 +79,7 @@ class Evaluator:
         self._n = (obs.stop - obs.start - np.bincount(self._hole_row, minlength=len(obs))).astype(float)
         self._fs = np.array([p.sample_rate_Hz for p in obs.plans])[obs.case_index] if len(obs) else np.zeros(0)
         self._sums = np.empty(int(offsets[-1]))  # per case: 0, then the running sum of its samples
-        self.calls = 0   # model runs (simulations of the damper), remembered ones not counted
+        self._calls = 0   # model runs (simulations of the damper) on the samples, remembered ones not counted
         self._unit: list[np.ndarray] | None = None   # sign(v) per case (:meth:`friction_read`)
         self._friction_reads: dict = {}             # (form, lag) -> friction_read
         # effects -> mean forces, and -> forces on every sample, least recent first; how many of each are kept
@@ -85,7 +89,30 @@ class Evaluator:
         self._split = None   # triangles and sines: each part's own evaluator, the triangles' closed-form sums kept
         if any(self._sine) and not all(self._sine):
             rows = np.array([self._sine[i] for i in obs.case_index], dtype=bool)
-            self._split = (rows, Evaluator(obs.subset(~rows), damper), Evaluator(obs.subset(rows), damper))
+            self._split = (rows, Evaluator(obs.subset(~rows), damper, grid), Evaluator(obs.subset(rows), damper, grid))
+        # sine cases: runs without friction on the physics' grids (:mod:`isokinetic.diagnosis.sine_model`)
+        self._grid = GridEvaluator(obs, damper) if grid and len(obs) and all(self._sine) else None
+
+    @property
+    def calls(self) -> int:
+        """Model runs (simulations of the damper), remembered ones not counted."""
+        return self._calls + (self._grid.calls if self._grid is not None else 0)
+
+    def _on_grid(self, effects: Effects) -> bool:
+        """Whether a run of ``effects`` is made on the sine cases' grids: without a Stribeck term (a Coulomb
+        friction is added as its profiled column, :meth:`friction_read`: the force channel is linear)."""
+        return self._grid is not None and not effects.stribeck_force_N
+
+    def _grid_read(self, effects: Effects, form: int, lags: np.ndarray) -> np.ndarray:
+        """The sine cases' model means on their grids through the channel ``form``, one row per lag; a Coulomb
+        friction F_C added as F_C times its column through the same channel."""
+        coulomb = effects.coulomb_force_N
+        hydraulic = replace(effects, coulomb_force_N=0.0)
+        out = self._grid.lagged(hydraulic, lags) if form == 0 else self._grid.filtered(hydraulic, lags, form)
+        if coulomb:
+            out = out + coulomb * np.array([self.friction_read(form, float(lag)) if (form or lag)
+                                            else self.friction_ideal() for lag in lags])
+        return out
 
     def share_forces(self, other: Evaluator) -> bool:
         """Remember the forces on every sample together with ``other`` where both run the same damper, cases, sample
@@ -97,6 +124,8 @@ class Evaluator:
                 and o.viscosity_scale == p.viscosity_scale and self._kept["forces"] == other._kept["forces"])
         if same:
             self._runs["forces"] = other._runs["forces"]
+            if self._grid is not None and other._grid is not None:
+                self._grid.share_runs(other._grid)
         return same
 
     def _remembered(self, kind: str, effects: Effects, run: Callable):
@@ -118,9 +147,11 @@ class Evaluator:
         return self._remembered("mean", effects, lambda: self._predict(effects)).copy()
 
     def _predict(self, effects: Effects) -> np.ndarray:
+        if self._on_grid(effects):
+            return self._grid_read(effects, 0, np.zeros(1))[0]
         friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
         if self._split is not None and not friction:
-            self.calls += 1
+            self._calls += 1
             rows, triangles, sines = self._split
             out = np.empty(len(self.obs))
             out[~rows], out[rows] = triangles.predict(effects), sines.predict(effects)
@@ -143,7 +174,7 @@ class Evaluator:
     def _pressure_sums(self, effects: Effects) -> tuple[float, PressureSums]:
         """(A_p, the running sums of Δp of the triangle cases) of a run without friction (remembered)."""
         def run():
-            self.calls += 1
+            self._calls += 1
             hyd = Hydraulics.from_damper(self.damper, effects)
             return hyd.piston_area_m2, PressureSums(self.obs.plans, hyd, self.obs.viscosity_scale, 0.0, MODEL_STEP,
                                                     self.obs.drives or None)
@@ -156,6 +187,8 @@ class Evaluator:
         sample). One simulation for all lags (a pure delay: the force channel's low-frequency group delay);
         triangle cases without friction from the running sums of Δp (:class:`PressureSums`), as :meth:`predict`."""
         lags = np.atleast_1d(np.asarray(lags_s, dtype=float))
+        if self._on_grid(effects):
+            return self._grid_read(effects, 0, lags)
         if effects.coulomb_force_N or effects.stribeck_force_N or any(self._sine):
             return self._shifted_means(self.forces(effects), lags)
         k, frac = self._lag_steps(lags)
@@ -218,9 +251,12 @@ class Evaluator:
         key = (int(form), float(lag_s))
         hit = self._friction_reads.get(key)
         if hit is None:
-            unit = self._unit_friction()
-            lags = np.array([float(lag_s)])
-            hit = self._shifted_means(unit, lags)[0] if form == 0 else self._filtered_means(unit, lags, form)[0]
+            if self._grid is not None and (form or lag_s):   # sine cases: on the drive's reversals
+                hit = self._grid.friction_read(form, lag_s)
+            else:
+                unit = self._unit_friction()
+                lags = np.array([float(lag_s)])
+                hit = self._shifted_means(unit, lags)[0] if form == 0 else self._filtered_means(unit, lags, form)[0]
             if len(self._friction_reads) >= RUN_CACHE:
                 self._friction_reads.pop(next(iter(self._friction_reads)))
             self._friction_reads[key] = hit
@@ -228,8 +264,11 @@ class Evaluator:
 
     def _unit_friction(self) -> list[np.ndarray]:
         """sign(v) of the driven piston on every case's sample grid (one nominal run, remembered)."""
+        if self._unit is None and self._grid is not None:   # sine drives: their velocity needs no model run
+            self._unit = [np.sign(np.where(d.times(p.sample_rate_Hz) > 0.0, d.velocity(d.times(p.sample_rate_Hz)),
+                                           0.0)) for d, p in zip(self.obs.drives, self.obs.plans, strict=True)]
         if self._unit is None:
-            self.calls += 1
+            self._calls += 1
             unit_friction = Effects(coulomb_force_N=1.0)
             self._unit = [friction_force(vel, unit_friction)
                           for _t, _dp, vel in self._responses(Hydraulics.from_damper(self.damper, NOMINAL))]
@@ -238,7 +277,8 @@ class Evaluator:
     def spread(self, effects: Effects = NOMINAL) -> np.ndarray:
         """Standard deviation of the model force over each observation's samples [N]: how far the
         window is from steady (a window that starts before convergence, Eq. 28-29, is not)."""
-        mean, square = self._moments(effects, 2)
+        grid = self._on_grid(effects) and not effects.coulomb_force_N
+        mean, square = self._grid.moments(effects) if grid else self._moments(effects, 2)
         return np.sqrt(np.maximum(square - mean * mean, 0.0))
 
     def filtered(self, effects: Effects, group_delays_s, order: int) -> np.ndarray:
@@ -247,6 +287,8 @@ class Evaluator:
         (one simulation for all). The analog filter of group delay L has the corner Ω = c/L (c = 1, √2);
         each case's digital filter is its bilinear transform at the case's sample rate (same DC group
         delay), at rest before the record (scipy.signal ``butter``/``lfilter``)."""
+        if self._on_grid(effects):
+            return self._grid_read(effects, order, np.atleast_1d(np.asarray(group_delays_s, dtype=float)))
         return self._filtered_means(self.forces(effects), group_delays_s, order)
 
     def _filtered_means(self, forces: list[np.ndarray], group_delays_s, order: int) -> np.ndarray:
@@ -270,7 +312,7 @@ class Evaluator:
         return self._remembered("forces", effects, lambda: self._forces(effects))
 
     def _forces(self, effects: Effects) -> list[np.ndarray]:
-        self.calls += 1
+        self._calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
         friction = bool(effects.coulomb_force_N or effects.stribeck_force_N)
         forces = []

@@ -1,0 +1,67 @@
+"""The damper on the physics' grid (physics.sine_grid): against LSODA on every sample, an independent integrator."""
+
+import math
+
+import numpy as np
+import pytest
+
+from isokinetic.physics.damper import NOMINAL, Damper, Effects
+from isokinetic.physics.hydraulics import Hydraulics
+from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
+from isokinetic.physics.sine_grid import POINTS_PER_CYCLE, grid_response, stage_motion
+from isokinetic.reference.rig import TABLE1
+
+DAMPER = Damper.from_mapping({**TABLE1.to_dict(), "charge_pressure_Pa": 2.0e6})
+FS = 2000.0
+
+
+def hermite_at(resp, tau):
+    """The grid response read at times ``tau`` by its cubic Hermite interpolant."""
+    p, f = resp.unfolded(float(tau[-1]))
+    x = np.clip(tau / resp.step_s, 0.0, p.size - 1 - 1e-9)
+    j = np.floor(x).astype(int)
+    s = x - j
+    h = resp.step_s
+    return (p[j] * (2 * s**3 - 3 * s**2 + 1) + h * f[j] * (s**3 - 2 * s**2 + s) + p[j + 1] * (3 * s**2 - 2 * s**3)
+            + h * f[j + 1] * (s**3 - s**2))
+
+
+@pytest.mark.parametrize("effects", [NOMINAL, Effects(leakage_conductance_m3_s_Pa=2e-12, asymmetry=0.1),
+                                     Effects(air_volume_fraction=0.01)], ids=["nominal", "leakage", "air"])
+@pytest.mark.parametrize("frequency_Hz, harmonics", [(0.5, ()), (5.0, ((2, 0.03, 0.4), (3, 0.01, -1.0)))],
+                         ids=["slow", "fast-distorted"])
+def test_the_grid_response_is_the_sampled_integration_after_the_first_cycle(effects, frequency_Hz, harmonics):
+    hyd = Hydraulics.from_damper(DAMPER, effects)
+    amplitude = 0.2e-3 / frequency_Hz
+    harm = tuple((k, a * amplitude, th) for k, a, th in harmonics)
+    cycles = 6
+    n = int(cycles / frequency_Hz * FS)
+    tau, dp, _vel = sine_drive_response(SineDrive(amplitude, frequency_Hz, 0.0, n, harm), FS, hyd)
+    grid = grid_response(amplitude, frequency_Hz, harm, hyd, float(tau[-1]))
+    later = tau >= 1.0 / frequency_Hz
+    # read between grid points by a cubic: within O((2π/128)²) of the pressure scale where the orifice's q|q|
+    # turns its curvature at each flow reversal (a bin's mean is closer: tests/diagnosis/test_sine_model.py)
+    assert np.max(np.abs(hermite_at(grid, tau)[later] - dp[later])) < 5e-4 * np.max(np.abs(dp))
+
+
+def test_a_response_that_settles_stops_integrating_and_repeats_its_last_cycle():
+    hyd = Hydraulics.from_damper(DAMPER, NOMINAL)
+    frequency = 0.2   # relaxation in milliseconds against a 5 s period: settled within the first cycles
+    long_record = grid_response(0.5e-3, frequency, (), hyd, 100 / frequency)
+    assert 0 <= long_record.periodic_from <= 3 * POINTS_PER_CYCLE
+    assert long_record.dp_Pa.size <= 5 * POINTS_PER_CYCLE
+    p, _f = long_record.unfolded(100 / frequency)
+    assert p.size >= 100 * POINTS_PER_CYCLE
+    tau = np.arange(int(8 / frequency * 200.0)) / 200.0
+    _t, dp, _v = sine_drive_response(SineDrive(0.5e-3, frequency, 0.0, tau.size), 200.0, hyd)
+    later = tau >= 1 / frequency
+    assert np.max(np.abs(hermite_at(long_record, tau)[later] - dp[later])) < 5e-4 * np.max(np.abs(dp))
+
+
+def test_the_grid_does_not_depend_on_the_sampling_rate():
+    # the grid is one cycle's POINTS_PER_CYCLE points whatever the record's rate: the motion tables are a cycle's
+    y, v = stage_motion(1e-3, 2.0, (), POINTS_PER_CYCLE)
+    assert y.shape == v.shape == (POINTS_PER_CYCLE, 4)
+    u = 2 * math.pi * np.arange(POINTS_PER_CYCLE) / POINTS_PER_CYCLE
+    np.testing.assert_allclose(y[:, 3], 1e-3 * np.sin(u), atol=1e-15)
+    np.testing.assert_allclose(v[:, 3], 1e-3 * 2 * math.pi * 2.0 * np.cos(u), atol=1e-15)
