@@ -5,6 +5,7 @@ before, naming the first."""
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from conftest import CAMPAIGN, N_SAMPLES, assert_quarantine, edit_bytes, set_cell
@@ -122,3 +123,17 @@ def test_a_velocity_declared_as_the_displacement_is_named_a_velocity(raw_campaig
     reason = quarantine["reason"].iloc[0]
     assert "looks like a velocity, not a displacement" in reason and "`invert` would not fix this" in reason
 
+
+
+def test_a_displacement_lagging_a_fast_sine_command_is_no_velocity():
+    # a servo above its bandwidth lags a 10 Hz command by 80 degrees: the shape of the derivative, the amplitude of
+    # the command (a velocity would be 2 pi 10 = 63 times larger per metre)
+    from isokinetic.stages.ingest import velocity_problem
+
+    t = np.arange(0, 2.0, 1e-3)
+    command = 20e-6 * np.sin(2 * np.pi * 10 * t)
+    lagged = 18e-6 * np.sin(2 * np.pi * 10 * t - np.radians(80))
+    df = pd.DataFrame({"time_s": t, "displacement_m": lagged, "command_m": command})
+    assert velocity_problem(df, {}) is None
+    velocity = pd.DataFrame({"time_s": t, "displacement_m": np.gradient(command, t), "command_m": command})
+    assert velocity_problem(velocity, {"displacement": type("C", (), {"name": "v"})()}) is not None

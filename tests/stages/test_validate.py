@@ -486,3 +486,16 @@ def test_one_wild_displacement_sample_is_named_at_its_row():
     df = pd.DataFrame({"row": np.arange(t.size), "time_s": t, "displacement_m": y, "force_N": np.ones(t.size)})
     problems = plausibility_problems(df, PLAN, None)
     assert [(p.column, p.row) for p in problems] == [("displacement_m", 500)]
+
+
+def test_a_smooth_crest_read_at_the_channels_resolution_is_not_saturation():
+    # a 0.28 Hz sine of 35 um at 2 kHz, read to 1 nm, stays within a step of its crest for ~20 samples
+    from isokinetic.stages.validate import clipped
+
+    t = np.arange(0, 4.0, 1 / 2000.0)
+    smooth = np.round(35e-6 * np.sin(2 * np.pi * 0.28 * t) / 1e-9) * 1e-9
+    at = np.flatnonzero(smooth == smooth.max())
+    assert at.size >= 10 and not clipped(t, smooth, at[0], at[-1] + 1, smooth.max(), True)
+    cut = np.minimum(smooth, 0.97 * smooth.max())   # the same sine through a channel that ends at 97 %
+    at = np.flatnonzero(cut == cut.max())
+    assert clipped(t, cut, at[0], at[-1] + 1, cut.max(), True)

@@ -45,6 +45,12 @@ LEAD_BOUND_SAMPLES, LEAD_BOUND_S = 2.0, 0.005
 ENERGY_FRACTION = 0.5
 #: ... and a kept record that gives back more than this fraction is flagged in its quality.
 ENERGY_NOTE_FRACTION = 0.1
+#: The longest group delay of a rig's force channel (an anti-alias low-pass of 1.3 Hz, first order; the blind
+#: suite's go to 113 ms) [s], and the share of a cycle it may span for the energy to decide: a lag of a twelfth of
+#: a period turns a force by 30 degrees, so that a sign error (most of the work given back) stays apart from a lag.
+#: Faster records give back energy through such a channel whatever their sign: they are flagged, not set aside.
+FORCE_LAG_MAX_S = 0.12
+ENERGY_PERIODS_PER_LAG = 12.0
 #: Typical largest force of a damper test [N], the physical bounds of a force reading [N] and the margin
 #: (decades) a unit must win by to be sure: one source for the build and for init-campaign, which reads them
 #: (:data:`isokinetic.init_campaign.channels.TYPICAL`, ``BOUNDS``).
@@ -242,6 +248,16 @@ def gives_energy_back(net_J: np.ndarray, absolute_J: np.ndarray) -> bool:
     """At least one complete cycle, and over all of them more than ENERGY_FRACTION of the absolute work
     returned (summed: one cycle cut by a spurious reversal does not decide)."""
     return net_J.size >= 1 and float(net_J.sum()) < -ENERGY_FRACTION * float(absolute_J.sum())
+
+
+def energy_decides(t: np.ndarray, displacement_m: np.ndarray) -> bool:
+    """Whether the record's cycles are slow enough for their energy to tell a sign error from a force channel's
+    lag: the median cycle (every second reversal, :func:`velocity_reversals`) lasts at least
+    ENERGY_PERIODS_PER_LAG × FORCE_LAG_MAX_S (no complete cycle: False)."""
+    times = velocity_reversals(t, displacement_m).times_s
+    if times.size < 3:
+        return False
+    return float(np.median(times[2:] - times[:-2])) >= ENERGY_PERIODS_PER_LAG * FORCE_LAG_MAX_S
 
 
 def energy_given_back(net_J: np.ndarray, absolute_J: np.ndarray) -> float:

@@ -568,10 +568,25 @@ def velocity_problem(df: pd.DataFrame, columns: dict[str, Column]) -> Problem | 
     fits = [_residual(y0, dcdt - dcdt.mean()), _residual(y0, c - c.mean())]
     if not (fits[0] < VELOCITY_RESIDUAL < COMMAND_RESIDUAL < fits[1]):
         return None
+    if lagging_displacement(y0, c - c.mean(), dcdt - dcdt.mean()):
+        return None
     name = columns["displacement"].name
     return Problem(name, f"looks like a velocity, not a displacement: it equals the command's derivative times a "
                          f"constant to {fits[0]:.1%} rms, while the command itself leaves {fits[1]:.0%} of it "
                          "unexplained; declare the displacement column (`invert` would not fix this)")
+
+
+def lagging_displacement(y: np.ndarray, c: np.ndarray, dcdt: np.ndarray) -> bool:
+    """Whether y (centred), which the command's derivative explains, is rather the displacement lagging a sine
+    command by about a quarter period (a servo above its bandwidth): of a sine, a lagged copy and the derivative have
+    one shape, but the displacement keeps the command's amplitude (rms ratio near 1) where the velocity has the
+    command's angular frequency ω (ratio near ω [1/s]); decided by the nearer of the two, by more than a factor 2
+    (ω within a factor 4 of 1/s cannot tell them apart)."""
+    yy, cc, dd = (math.sqrt(float(v @ v)) for v in (y, c, dcdt))
+    if not (yy > 0 and cc > 0 and dd > 0):
+        return False
+    ratio, omega = yy / cc, dd / cc
+    return abs(math.log(ratio)) + math.log(2.0) < abs(math.log(ratio / omega))
 
 
 def _residual(y: np.ndarray, x: np.ndarray) -> float:

@@ -296,10 +296,39 @@ def gap_problems(df: pd.DataFrame, plan: CasePlan, spans, tolerance: GapToleranc
     return [], [warning], summary
 
 
+def clipped(t: np.ndarray, x: np.ndarray, i0: int, i1: int, extreme: float, top: bool) -> bool:
+    """Whether the run x[i0:i1] at the record's ``extreme`` (``top``: a maximum) is a channel's end of range rather
+    than a smooth crest read at the channel's resolution (a slow sine sampled fast stays within one step of its
+    peak for many samples). A smooth crest is reached from the samples beside it within a few resolution steps,
+    and a parabola through the samples flanking it (as many on each side as the run is long) peaks within 3 steps
+    (the smallest step the record makes) or 3 noise σ (from the flanks' second differences) of it; anything else
+    (the signal heading beyond, or jumping onto the plateau) is clipped, and so is a run with fewer than 3
+    flanking samples."""
+    n = i1 - i0
+    left, right = np.arange(max(i0 - n, 0), i0), np.arange(i1, min(i1 + n, x.size))
+    flank = np.concatenate([left, right])
+    if flank.size < 3 or not left.size or not right.size:
+        return True
+    steps = np.abs(np.diff(x))
+    step = float(steps[steps > 0].min()) if np.any(steps > 0) else 0.0
+    curvature = [np.diff(x[side], 2) for side in (left, right) if side.size > 2]
+    noise = float(np.std(np.concatenate(curvature))) / math.sqrt(6.0) if curvature else 0.0
+    tolerance = 3.0 * max(step, noise)
+    if max(abs(x[i0 - 1] - extreme), abs(x[i1] - extreme)) > tolerance:
+        return True
+    tc = t[flank] - 0.5 * (t[i0] + t[i1 - 1])
+    coef = np.polyfit(tc, x[flank], 2)
+    if coef[0] == 0.0:
+        return True
+    vertex = float(np.polyval(coef, float(np.clip(-coef[1] / (2.0 * coef[0]), tc.min(), tc.max()))))
+    return (vertex - extreme if top else extreme - vertex) > tolerance
+
+
 def saturation_problems(df: pd.DataFrame, spans, min_run: int = SATURATION_MIN_RUN
                         ) -> tuple[list[Problem], list[str]]:
     """Flat tops: ``min_run`` or more consecutive identical samples at the maximum or minimum of the
-    force or displacement channel (a load cell or LVDT at the end of its range). Inside an analysed
+    force or displacement channel (a load cell or LVDT at the end of its range), the signal heading beyond them
+    (:func:`clipped`; a smooth crest read at the channel's resolution is none). Inside an analysed
     span a problem (first run, its first row), outside a warning."""
     t = df["time_s"].to_numpy()
     rows = df["row"].to_numpy()
@@ -310,7 +339,8 @@ def saturation_problems(df: pd.DataFrame, spans, min_run: int = SATURATION_MIN_R
         for side, extreme in (("maximum", x.max()), ("minimum", x.min())):
             at = np.concatenate([[False], x == extreme, [False]])
             edges = np.flatnonzero(np.diff(at.astype(np.int8)))
-            runs += [(i0, i1, side, extreme) for i0, i1 in zip(edges[::2], edges[1::2]) if i1 - i0 >= min_run]
+            runs += [(i0, i1, side, extreme) for i0, i1 in zip(edges[::2], edges[1::2])
+                     if i1 - i0 >= min_run and clipped(t, x, i0, i1, extreme, side == "maximum")]
         for i0, i1, side, extreme in sorted(runs, key=lambda r: r[0]):
             ta, tb = float(t[i0]), float(t[i1 - 1])
             what = (f"saturated: {i1 - i0} consecutive samples at the {side} {extreme:.6g} {unit} "
@@ -492,19 +522,20 @@ def temperature_problems(df: pd.DataFrame) -> list[Problem]:
 
 def energy_problems(df: pd.DataFrame, dt_s: float) -> list[Problem]:
     """Dissipation and causality (:mod:`isokinetic.measurement.plausibility`): a record whose cycles give
-    energy back has the opposite sign convention (INVERT_HINT), or runs backwards when its negated force leads
-    the motion (REVERSED_HINT); a record whose force leads the motion at every reversal (the lead beyond
+    energy back runs backwards when its negated force leads the motion (REVERSED_HINT), else has the opposite sign
+    convention (INVERT_HINT) where its cycles are slow enough to tell that from a channel's lag
+    (pl.energy_decides; a faster one is flagged by :func:`energy_warnings`); a record whose force leads the motion at every reversal (the lead beyond
     pl.lead_bound_s and three standard errors) is time reversed or shifted (REVERSED_HINT)."""
     t, x, f = (df[c].to_numpy() for c in ("time_s", "displacement_m", "force_N"))
     net, absolute = pl.cycle_energies(t, x, f)
-    back = pl.gives_energy_back(net, absolute)
+    back = pl.gives_energy_back(net, absolute)   # a lag can make a fast record do it, never make a force lead
     lead = pl.causality(t, x, -f if back else f, dt_s)
     gave = (f"over its {net.size} complete cycle(s) the record gives back {-net.sum():.4g} J, "
             f"{-net.sum() / absolute.sum():.0%} of the work |F v| dt; a damper absorbs energy") if back else ""
     if lead.leads_everywhere:
         said = f"{gave}, and with the force negated {lead.said()}" if back else lead.said()
         return [Problem("force_N", f"{said}: {REVERSED_HINT}")]
-    if back:
+    if back and pl.energy_decides(t, x):
         return [Problem("force_N", f"{gave}: {INVERT_HINT} to the manifest's `force` column (or the record runs "
                                    "backwards in time: then the force leads its motion, not measured here)")]
     return []
@@ -547,13 +578,19 @@ def energy_warnings(df: pd.DataFrame, plan: CasePlan) -> list[str]:
     sign error could both show it."""
     if plan.waveform == "standstill":
         return []
-    back = pl.energy_given_back(*pl.cycle_energies(*(df[c].to_numpy() for c in ("time_s", "displacement_m",
-                                                                                   "force_N"))))
+    t, x = df["time_s"].to_numpy(), df["displacement_m"].to_numpy()
+    back = pl.energy_given_back(*pl.cycle_energies(t, x, df["force_N"].to_numpy()))
     if back <= pl.ENERGY_NOTE_FRACTION:
         return []
+    decides = pl.energy_decides(t, x)
+    if back > pl.ENERGY_FRACTION and decides:
+        return []   # set aside (energy_problems)
+    kept = (f"kept below {pl.ENERGY_FRACTION:.0%}" if decides else
+            f"kept: its cycles are shorter than {pl.ENERGY_PERIODS_PER_LAG:g} x {pl.FORCE_LAG_MAX_S:g} s, where a "
+            "channel's lag alone can turn the force past a quarter period")
     return [f"the cycles give back {back:.0%} of the work |F v| dt (a damper absorbs energy): a force channel's lag "
             f"past a quarter period on a mostly elastic force shows this, and so does a force of the wrong sign; "
-            f"kept below {pl.ENERGY_FRACTION:.0%}: check the force channel's filter and sign"]
+            f"{kept}: check the force channel's filter and sign"]
 
 
 def physics_problems(df: pd.DataFrame, plan: CasePlan, full_scale_N: float | None = None,
