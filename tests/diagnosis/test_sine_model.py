@@ -72,8 +72,10 @@ def test_the_monomial_responses_are_the_integrals_they_name():
         h = 0.02
         got = monomial_responses(pole, h)
         for k in range(4):
-            re = integrate.quad(lambda t, k=k: (np.exp(pole * (h - t)) * (t / h) ** k).real, 0, h, epsabs=1e-16)[0]
-            im = integrate.quad(lambda t, k=k: (np.exp(pole * (h - t)) * (t / h) ** k).imag, 0, h, epsabs=1e-16)[0]
+            def part(t, k=k, pole=pole, h=h, take=np.real):
+                return take(np.exp(pole * (h - t)) * (t / h) ** k)
+            re = integrate.quad(part, 0, h, epsabs=1e-16)[0]
+            im = integrate.quad(lambda t, k=k, pole=pole, h=h: part(t, k, pole, h, np.imag), 0, h, epsabs=1e-16)[0]
             assert abs(got[k] - complex(re, im)) < 1e-12 * h
 
 

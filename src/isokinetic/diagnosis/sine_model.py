@@ -185,7 +185,8 @@ def reversals(drive: SineDrive, end_s: float, points: int = 4096) -> tuple[np.nd
 
 
 def sweep(jumps: np.ndarray, signs: np.ndarray, lam: complex, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`isokinetic.physics.sine_grid.mode_sweep` at any ``queries`` (sorted here, returned in their order; times <= 0: 0)."""
+    """:func:`isokinetic.physics.sine_grid.mode_sweep` at any ``queries`` (sorted here, returned in their order;
+    times <= 0: 0)."""
     from isokinetic.physics.sine_grid import mode_sweep  # numba: only where a sine campaign is modelled
 
     order = np.argsort(queries, kind="stable")

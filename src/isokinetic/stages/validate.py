@@ -524,8 +524,9 @@ def energy_problems(df: pd.DataFrame, dt_s: float) -> list[Problem]:
     """Dissipation and causality (:mod:`isokinetic.measurement.plausibility`): a record whose cycles give
     energy back runs backwards when its negated force leads the motion (REVERSED_HINT), else has the opposite sign
     convention (INVERT_HINT) where its cycles are slow enough to tell that from a channel's lag
-    (pl.energy_decides; a faster one is flagged by :func:`energy_warnings`); a record whose force leads the motion at every reversal (the lead beyond
-    pl.lead_bound_s and three standard errors) is time reversed or shifted (REVERSED_HINT)."""
+    (pl.energy_decides; a faster one is flagged by :func:`energy_warnings`); a record whose force leads the
+    motion at every reversal (the lead beyond pl.lead_bound_s and three standard errors) is time reversed or
+    shifted (REVERSED_HINT)."""
     t, x, f = (df[c].to_numpy() for c in ("time_s", "displacement_m", "force_N"))
     net, absolute = pl.cycle_energies(t, x, f)
     back = pl.gives_energy_back(net, absolute)   # a lag can make a fast record do it, never make a force lead
