@@ -20,7 +20,9 @@ issue 11; asserts nothing. Run with the project's environment (.venv/bin/python)
   rule's job (benchmark/imports.py) and the rule's share of the critical path (benchmark/jobtimes.py);
 - the load average (1/5/15 min) beside each figure: wall times on a busy machine are longer;
 - diagnosis: each built campaign's diagnosis in a fresh process on one core (``--diagnoses PROJECT``:
-  only this, on a project already built, read-only).
+  only this, on a project already built, read-only), then the periodic-record campaigns of
+  benchmark/diagnosis_speed.py (the blind benchmark's sine campaigns, a 12-step 10-cycle 2 kHz sweep, a crank-like
+  sweep).
 """
 
 from __future__ import annotations
@@ -149,6 +151,8 @@ def main() -> None:
     print_rules(rebuild_rows, rebuild_jobs, work)
     sys.stdout.flush()
     print_diagnoses(work)
+    subprocess.run([sys.executable, str(ROOT / "benchmark" / "diagnosis_speed.py")], cwd=ROOT / "benchmark",
+                   check=True)
     subprocess.run([sys.executable, str(ROOT / "benchmark" / "virtual_rig_throughput.py")], cwd=ROOT, check=True)
     if not args.keep:
         shutil.rmtree(work, ignore_errors=True)
@@ -176,11 +180,12 @@ def built_campaigns(work: Path) -> list[str]:
 
 
 def print_diagnoses(work: Path) -> None:
-    """The diagnosis time of every built campaign, one core each (issue 21: <= 3 s for paper-lag-damper)."""
+    """The diagnosis time of every built campaign, one core each (issue 35: <= 2 s for paper-lag-damper, 27
+    triangle cases)."""
     print(f"\n{'diagnosis, one core':<26}{'cases':>6}{'model runs':>12}{'wall s':>9}{'CPU s':>8}")
     for campaign in built_campaigns(work):
         seconds, cpu, cases, runs = diagnosis_seconds(work, campaign)
-        target = "   target <= 3 s" if campaign == "paper-lag-damper" else ""
+        target = "   target <= 2 s" if campaign == "paper-lag-damper" else ""
         print(f"{campaign:<26}{cases:>6}{runs:>12}{seconds:>9.2f}{cpu:>8.2f}   load {load_average()}{target}",
               flush=True)
 
