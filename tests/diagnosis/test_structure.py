@@ -1,11 +1,13 @@
 """Structure in the verdict's residuals along every axis (isokinetic.diagnosis.structure)."""
 
 import math
+from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from isokinetic.diagnosis.observations import Observations
+from isokinetic.diagnosis.observations import WINDOW_PARTS, Observations
 from isokinetic.diagnosis.sine_observations import phase_bins
 from isokinetic.diagnosis.structure import (
     AXES,
@@ -15,6 +17,7 @@ from isokinetic.diagnosis.structure import (
     residual_structure,
     tie_bins,
     trend_test,
+    window_position_m,
 )
 from isokinetic.diagnosis.verdict import structure_keys
 from isokinetic.physics.plan import CasePlan
@@ -40,25 +43,32 @@ def triangle_rows(n_bins: int = 4, start: float = 0.45, end: float = 0.95):
     return rows
 
 
-def triangle_campaign(order: np.ndarray | None = None) -> Observations:
+def triangle_campaign() -> Observations:
     """16 triangle cases (amplitude, period and temperature each permuted against the run order), model 100 N
-    in each direction, σ = 1 N; force_N holds the model (the tests add their residuals)."""
-    order = np.arange(AMPLITUDES_M.size) if order is None else order
-    plans, cols = [], {k: [] for k in ("case", "case_index", "kind", "segment", "sign", "start", "stop")}
-    for i, c in enumerate(order):
-        plan = CasePlan(f"T{i:02d}", "triangle", FS, amplitude_m=float(AMPLITUDES_M[c]), period_s=float(PERIODS_S[c]))
+    in each direction, σ = 1 N, and each window's WINDOW_PARTS parts (``subwindows``, σ = 2 N); force_N holds the
+    model (the tests add their residuals)."""
+    plans = []
+    cols = {k: [] for k in ("case", "case_index", "kind", "segment", "sign", "start", "stop")}
+    parts = {k: [] for k in cols}
+    for i in range(AMPLITUDES_M.size):
+        plan = CasePlan(f"T{i:02d}", "triangle", FS, amplitude_m=float(AMPLITUDES_M[i]), period_s=float(PERIODS_S[i]))
         plans.append(plan)
         half = plan.period_s / 2
         for k, sign, kind, a, b in triangle_rows():
             t0 = (k - 1) * half
-            cols["case"].append(plan.case)
-            cols["case_index"].append(i)
-            cols["kind"].append(kind)
-            cols["segment"].append(k)
-            cols["sign"].append(sign)
-            cols["start"].append(int(round((t0 + a * half) * FS)))
-            cols["stop"].append(int(round((t0 + b * half) * FS)))
-    return observations(plans, cols)
+            add_row(cols, plan.case, i, kind, k, sign, (t0 + a * half) * FS, (t0 + b * half) * FS)
+            if kind == "window":
+                edges = np.linspace(a, b, WINDOW_PARTS + 1)
+                for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+                    add_row(parts, plan.case, i, kind, k, sign, (t0 + lo * half) * FS, (t0 + hi * half) * FS)
+    sub = observations(plans, parts)
+    return replace(observations(plans, cols), subwindows=replace(sub, sigma_N=2.0 * sub.sigma_N))
+
+
+def add_row(cols: dict, case: str, index: int, kind: str, segment: int, sign: float, start: float, stop: float):
+    for key, value in (("case", case), ("case_index", index), ("kind", kind), ("segment", segment), ("sign", sign),
+                       ("start", int(round(start))), ("stop", int(round(stop)))):
+        cols[key].append(value)
 
 
 def sine_campaign(frequencies_Hz=(0.5, 1.0, 2.0, 4.0, 0.7, 1.4, 2.8, 5.6), amplitude_m=5e-3) -> Observations:
@@ -94,17 +104,30 @@ def case_times_s(obs: Observations) -> np.ndarray:
     return obs.case_index * 100.0 + 0.5 * (obs.start + obs.stop) / FS
 
 
-def with_residuals(obs: Observations, z: np.ndarray) -> Observations:
-    """The observations measured at model + z·σ in the direction of motion (z > 0: stronger)."""
-    from dataclasses import replace
+def with_residuals(obs: Observations, z: np.ndarray, z_parts: np.ndarray | None = None) -> Observations:
+    """The observations (and window parts, with ``z_parts``) measured at model + z·σ in the direction of motion
+    (z > 0: stronger)."""
+    parts = obs.subwindows
+    if parts is not None and z_parts is not None:
+        parts = replace(parts, force_N=parts.force_N + parts.sign * z_parts * parts.sigma_N)
+    return replace(obs, force_N=obs.force_N + obs.sign * z * obs.sigma_N, subwindows=parts)
 
-    return replace(obs, force_N=obs.force_N + obs.sign * z * obs.sigma_N)
 
-
-def structure_of(obs: Observations, z: np.ndarray, alpha: float = ALPHA) -> dict:
-    prediction = obs.force_N.copy()
+def structure_of(obs: Observations, z: np.ndarray, alpha: float = ALPHA, z_parts: np.ndarray | None = None,
+                 seed: int = 0) -> dict:
+    """The structure tests of ``obs`` measured at the model + z·σ (window parts: + z_parts·σ, else noise of
+    ``seed``), with the model as the verdict."""
     temps = {c: float(TEMPERATURES_C[i % TEMPERATURES_C.size]) for i, c in enumerate(dict.fromkeys(obs.case))}
-    return residual_structure(with_residuals(obs, z), prediction, alpha, case_times_s(obs), temps)
+    parts = obs.subwindows
+    if parts is not None and z_parts is None:
+        z_parts = np.random.default_rng([seed, 1]).normal(size=len(parts))
+    return residual_structure(with_residuals(obs, z, z_parts), obs.force_N.copy(), alpha, case_times_s(obs), temps,
+                              None if parts is None else parts.force_N.copy())
+
+
+def verdict(prediction: np.ndarray) -> SimpleNamespace:
+    """A verdict that predicts ``prediction`` (what structure_keys reads of a Candidate without a damper)."""
+    return SimpleNamespace(measured_prediction=prediction)
 
 
 def test_tie_bins_never_split_equal_values_and_keep_at_most_max_bins():
@@ -220,22 +243,49 @@ def test_a_structure_in_a_sine_campaigns_phase_is_found_at_the_reversals():
 def test_pure_noise_raises_structure_on_at_most_alpha_of_campaigns(make):
     obs = make()
     alpha, n = 0.05, 300
-    alarms = sum(bool(structure_of(obs, noise(obs, 1000 + k), alpha)["axes"]) for k in range(n))
+    alarms = sum(bool(structure_of(obs, noise(obs, 1000 + k), alpha, seed=1000 + k)["axes"]) for k in range(n))
     # family-wise over every axis: at most alpha, with a binomial margin of 3 standard errors
     assert alarms / n <= alpha + 3.0 * math.sqrt(alpha * (1 - alpha) / n)
 
 
 def test_every_axis_of_a_campaign_that_records_it_is_tested():
     obs = triangle_campaign()
-    tested = {t["axis"] for t in structure_of(obs, noise(obs, 5))["tests"]}
-    assert tested == set(AXES) - {"acceleration"}   # a triangle has no sine's peak acceleration
+    found = structure_of(obs, noise(obs, 5))
+    assert [t["axis"] for t in found["tests"]] == [a for a in AXES if a != "acceleration"]   # a triangle has none
+    assert "within_window" in found   # reported beside them
+
+
+def test_a_groove_at_mid_stroke_is_found_within_the_windows_and_decides_nothing():
+    obs = triangle_campaign()
+    parts = obs.subwindows
+    groove = np.abs(window_position_m(parts)) < 1.2e-3   # a bypass open within about 1 mm of mid-stroke
+    z_parts = np.random.default_rng(31).normal(size=len(parts)) - 3.0 * groove
+    found = structure_of(obs, noise(obs, 31), z_parts=z_parts)
+    assert found["within_window"]["p"] < ALPHA
+    assert found["within_window"]["decides"] is False and found["axes"] == []   # reported only (WITHIN_NOTE)
+
+
+def test_the_within_window_test_is_calibrated_on_noise():
+    obs = triangle_campaign()
+    n = 300
+    p = np.array([structure_of(obs, noise(obs, 2000 + k), seed=2000 + k)["within_window"]["p"] for k in range(n)])
+    assert (p < 0.05).mean() <= 0.05 + 3.0 * math.sqrt(0.05 * 0.95 / n)
+    assert (p < 0.5).mean() > 0.3   # not so conservative that it could find nothing
+
+
+def test_a_force_that_moves_whole_windows_is_no_structure_within_them():
+    obs = triangle_campaign()
+    parts = obs.subwindows
+    shift = 5.0 * (np.array([p.amplitude_m for p in parts.plans])[parts.case_index] < 3e-3)   # whole windows
+    found = structure_of(obs, noise(obs, 32), z_parts=np.random.default_rng(32).normal(size=len(parts)) + shift)
+    assert found["within_window"]["p"] > 0.01
 
 
 def test_a_verdict_whose_residuals_show_structure_is_not_explained_and_names_the_axis():
     obs = triangle_campaign()
     measured = with_residuals(obs, noise(obs, 15) + PATTERNS["time"](obs))
     out = {"explained": True, "where": [{"axis": "speed", "direction": "+"}]}
-    structure_keys(out, measured, obs.force_N.copy(), ALPHA, {"obs_time_s": case_times_s(obs)})
+    structure_keys(out, measured, verdict(obs.force_N.copy()), ALPHA, {"obs_time_s": case_times_s(obs)})
     assert out["explained"] is False
     assert "time" in out["structure"]["axes"] and "time" in out["structure_note"]
     assert out["where"][0]["axis"] == "speed" and any(e["axis"] == "time" for e in out["where"][1:])
@@ -244,6 +294,6 @@ def test_a_verdict_whose_residuals_show_structure_is_not_explained_and_names_the
 def test_a_verdict_whose_residuals_are_noise_stays_explained():
     obs = triangle_campaign()
     out = {"explained": True, "where": []}
-    structure_keys(out, with_residuals(obs, noise(obs, 16)), obs.force_N.copy(), ALPHA,
+    structure_keys(out, with_residuals(obs, noise(obs, 16)), verdict(obs.force_N.copy()), ALPHA,
                    {"obs_time_s": case_times_s(obs)})
     assert out["explained"] is True and "structure_note" not in out and out["where"] == []

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from diagnosis.test_structure import ALPHA, PATTERNS, case_times_s, noise, triangle_campaign, with_residuals
+from diagnosis.test_structure import ALPHA, PATTERNS, case_times_s, noise, triangle_campaign, verdict, with_residuals
 from isokinetic.diagnosis.verdict import structure_keys
 from isokinetic.plots.diagnosis import gap_figure
 
@@ -14,7 +14,7 @@ def figure_of(z: np.ndarray):
     obs = triangle_campaign()
     measured = with_residuals(obs, z)
     result = {"campaign": "c", "verdict": [], "where": []}
-    inputs = structure_keys(result, measured, obs.force_N.copy(), ALPHA, {"obs_time_s": case_times_s(obs)})
+    inputs = structure_keys(result, measured, verdict(obs.force_N.copy()), ALPHA, {"obs_time_s": case_times_s(obs)})
     return result, gap_figure(result, measured, {"nominal": obs.force_N.copy(), "verdict": None,
                                                  "structure": inputs})
 
@@ -39,3 +39,4 @@ def test_fig16_without_structure_keeps_its_two_gap_panels():
     result, fig = figure_of(noise(obs, 22))
     assert result["structure"]["axes"] == []
     assert len(fig.axes) == 2
+

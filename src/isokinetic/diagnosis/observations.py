@@ -25,6 +25,11 @@ windows' variograms, so autocorrelated noise is not mistaken for signal) at the 
 square force, and (b) a between-period scatter ``rep_rel·|F|``, the period-to-period difference of
 the window means beyond (a), estimated robustly and consistently
 (:func:`isokinetic.measurement.noise.between_period_scatter`).
+
+Within-window parts. Each triangle window is also split into WINDOW_PARTS equal times (equal strokes: the
+piston moves at constant speed there) whose means (``Observations.subwindows``, kind 'window', the same cases
+and segments, standard errors from the pooled noise model alone) are never fitted: the residual-structure tests
+look at how the force changes along the stroke inside a window (:mod:`isokinetic.diagnosis.structure`).
 """
 
 from __future__ import annotations
@@ -62,6 +67,8 @@ COLUMNS = ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s
 KEPT_COLUMNS = ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s", "start", "stop", "force_N")
 _INT_COLUMNS = ("case_index", "segment", "period", "start", "stop", "n", "slot", "cycle")
 _TEXT_COLUMNS = ("case", "kind")
+#: Equal parts of each triangle window kept as ``Observations.subwindows`` (positions along the stroke).
+WINDOW_PARTS = 4
 
 
 @dataclass(frozen=True)
@@ -89,6 +96,8 @@ class Observations:
     # (observation, model sample within its case) of the model samples in an observation's range that have no
     # measured sample (dropped samples): the model's mean leaves them out (:func:`missing_samples`)
     holes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
+    # the triangle windows' WINDOW_PARTS parts (never fitted; None: not built, or a subset)
+    subwindows: Observations | None = None
 
     def __len__(self) -> int:
         return int(self.force_N.size)
@@ -157,6 +166,7 @@ class _Collector:
     all_windows: dict = field(default_factory=dict)      # sample rate -> every window's samples
     sine_model_means: Mapping = field(default_factory=dict)   # (case, model start sample) -> a model's bin mean
     holes: list = field(default_factory=list)            # (observation, model sample) without a measured sample
+    parts: _Collector | None = None                      # the windows' WINDOW_PARTS parts (same plans)
 
     def add(self, rec: CaseRecord, kind: str, k: int, sign: float, a: float, b: float, period: int | None = None,
             speed_m_s: float | None = None, slot: int | None = None, cycle: int = -1) -> int:
@@ -225,6 +235,8 @@ class _Collector:
             a, b = t0 + spec.start_fraction * half, t0 + spec.end_fraction * half + 0.5 / fs
             before = len(self.cols["case"])
             last = max(last, self.add(rec, "window", k, sign, a, b))
+            if self.parts is not None:
+                self.parts.add_parts(rec, k, sign, a, b)
             rel_se = speed_relative_se(rec.tau_s, rec.displacement_m, a, b)
             edges = t0 + np.linspace(0.0, spec.start_fraction * half, n_bins + 1)
             for a, b in zip(edges[:-1], edges[1:], strict=True):
@@ -233,6 +245,15 @@ class _Collector:
         self.plans.append(replace(plan, duration_s=float(rec.model_times_s[max(last - 1, 0)])))
         self.drives.append(rec.drive)
         self.scales.append(float(viscosity_scale))
+
+    def add_parts(self, rec: CaseRecord, k: int, sign: float, a: float, b: float) -> None:
+        """The WINDOW_PARTS equal parts of the window [a, b) of segment ``k`` (a collector of parts, whose plans
+        are the windows' collector's)."""
+        edges = np.linspace(a, b, WINDOW_PARTS + 1)
+        for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+            before = len(self.cols["case"])
+            self.add(rec, "window", k, sign, lo, hi)
+            self.cols["speed_rel_se"] += [0.0] * (len(self.cols["case"]) - before)
 
     def add_sine_case(self, rec: CaseRecord, n_bins: int, viscosity_scale: float = 1.0) -> None:
         """The ``n_bins`` phase bins of every steady cycle of a sine case (:mod:`sine_observations`; of the
@@ -331,6 +352,8 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
     by_case = {c: g.set_index("segment") for c, g in char.groupby("case")}
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle") & cases["case"].isin(by_case)]
     collector = _Collector(force_offset_N, unsteady, sine_model_means=sine_model_means or {})
+    collector.parts = _Collector(force_offset_N, unsteady, plans=collector.plans, drives=collector.drives,
+                                 scales=collector.scales)
     for _, row in ok.iterrows():
         series = load_series(row)
         rec = case_record(row, series, by_case[case_plan(row).case])
@@ -362,7 +385,27 @@ def _observations(campaign: str, collector: _Collector, input_var_N2: np.ndarray
     return Observations(campaign=campaign, plans=tuple(collector.plans), drives=tuple(collector.drives),
                         viscosity_scale=scales, holes=holes,
                         rep_rel=rep_rel, sigma_N=sigma, noise={**noise, "between_period_rel": rep_rel},
-                        speed_rel_se=arrays["speed_rel_se"], **keep)
+                        speed_rel_se=arrays["speed_rel_se"], subwindows=_parts(campaign, collector, noise), **keep)
+
+
+def _parts(campaign: str, collector: _Collector, noise: Mapping) -> Observations | None:
+    """The windows' parts (``collector.parts``) with the standard errors of the pooled noise model alone (what the
+    parts of one window share, the between-period scatter, the drive's speed error, cancels within it); None
+    where there are none."""
+    if collector.parts is None or not collector.parts.cols["case"]:
+        return None
+    arrays = collector.parts.arrays()
+    se2 = np.zeros(arrays["force_N"].size)
+    for fs, model in (noise.get("objects") or {}).items():
+        at = arrays["fs"] == fs
+        se2[at] = model.mean_variance(arrays["n"][at], arrays["msq_N2"][at])
+    floor = np.maximum(arrays["white_se2"], (1e-9 * np.abs(arrays["force_N"]) + 1e-9) ** 2)
+    sigma = np.sqrt(np.where(se2 > 0.0, se2, floor))
+    holes = np.array(collector.parts.holes, dtype=np.int64).reshape(-1, 2)
+    return Observations(campaign=campaign, plans=tuple(collector.plans), drives=tuple(collector.drives),
+                        rep_rel=0.0, sigma_N=sigma, holes=holes,
+                        viscosity_scale=tuple(collector.scales) if any(x != 1.0 for x in collector.scales) else (),
+                        **{k: arrays[k] for k in KEPT_COLUMNS})
 
 
 def missing_samples(measured_s: np.ndarray, model_s: np.ndarray, fs: float) -> np.ndarray:

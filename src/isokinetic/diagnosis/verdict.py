@@ -53,7 +53,7 @@ from isokinetic.diagnosis.instrument import (
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import CONTRACT_VERSION, FORMAT_VERSION, METRIC, json_safe
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.diagnosis.structure import residual_structure, structure_note
+from isokinetic.diagnosis.structure import parts_prediction, residual_structure, structure_note
 from isokinetic.physics.damper import Damper
 from isokinetic.stats import chi2_isf
 
@@ -221,7 +221,7 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
                                                              dg.linear.offset_bound_N],
                                           "force_drift_N_s": [-dg.linear.drift_bound_N_s, dg.linear.drift_bound_N_s]}}
     instrument_confounding(out, bdg, best, candidates, verdict, hyp, scale)
-    residual_inputs = structure_keys(out, dg.obs, best.measured_prediction, alpha, sensor)
+    residual_inputs = structure_keys(out, dg.obs, best, alpha, sensor, damper)
     if dg.failed or (bdg is not dg and bdg.failed):
         out["failed_fits"] = dg.failed + (bdg.failed if bdg is not dg else [])
     out["nominal_explains"] = nominal_ok
@@ -232,15 +232,25 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
     return json_safe(out), predictions
 
 
-def structure_keys(out: dict, obs: Observations, prediction: np.ndarray, alpha: float, sensor: Mapping) -> dict:
-    """The residual-structure tests of the verdict's prediction
+def structure_keys(out: dict, obs: Observations, best: Candidate, alpha: float, sensor: Mapping,
+                   damper: Damper | None = None) -> dict:
+    """The residual-structure tests of the verdict ``best``
     (:func:`isokinetic.diagnosis.structure.residual_structure`, each observation's campaign time and each case's
-    temperature from ``sensor``) as ``out['structure']``, their significant axes added to ``where``; where any
-    axis shows structure, the verdict is not ``explained`` and ``structure_note`` names the axes (contract 1.3).
-    Returns the tests' inputs (``prediction``, ``time_s``, ``temperature_C``) for Fig. 16's structure panels."""
-    inputs = {"prediction": prediction, "time_s": sensor.get("obs_time_s"),
+    temperature from ``sensor``; with ``damper``, the position within the triangle windows too, reported only,
+    the verdict run at their parts: :func:`isokinetic.diagnosis.structure.parts_prediction`) as
+    ``out['structure']``, their significant axes added to ``where``; where any axis shows structure, the verdict is
+    not ``explained`` and ``structure_note`` names the axes (contract 1.3). Returns the tests' inputs
+    (``prediction``, ``time_s``, ``temperature_C``) for Fig. 16."""
+    inputs = {"prediction": best.measured_prediction, "time_s": sensor.get("obs_time_s"),
               "temperature_C": sensor.get("case_temperature_C")}
-    structure = residual_structure(obs, **inputs, alpha=alpha)
+    parts, failed = None, None
+    try:
+        parts = None if damper is None else parts_prediction(obs, damper, best)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:   # the other tests stand
+        failed = f"the verdict's model run at the window parts failed: {type(exc).__name__}: {exc}"
+    structure = residual_structure(obs, **inputs, alpha=alpha, parts_prediction=parts)
+    if failed:
+        structure["within_window"] = {"error": failed}
     out["where"] = [*out["where"], *structure.pop("where")]
     out["structure"] = structure
     note = structure_note(structure)
