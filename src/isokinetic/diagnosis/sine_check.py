@@ -4,10 +4,11 @@ Beside triangle windows the sine cases are left out of the search (a short recor
 error that their standard errors do not describe, and every model run would integrate them), but they are data
 the verdict did not see: the verdict's effects, with the instrument terms and the force channel fitted on the
 triangles, are driven by each sine record's measured motion (Eq. 1, :mod:`isokinetic.physics.sine_drive`) and
-compared with its phase bins (:mod:`isokinetic.diagnosis.sine_observations`), nothing refitted. The check is
-reported and changes no verdict: on the reference rig's mixed campaigns the sine bins' standard errors are not
-calibrated well enough for its χ² test to overrule the triangles (right verdicts fail it too, docs/diagnosis.md);
-whether the verdict predicts the sine records better than the nominal model is the sturdier part of it.
+compared with its phase bins (:mod:`isokinetic.diagnosis.sine_observations`), nothing refitted. A verdict the
+check fails is not explained, and the search is repeated on the triangles and the sine records together
+(:mod:`isokinetic.diagnosis.joint`, called by :func:`isokinetic.stages.diagnosis.judge_on_all_records`): a force
+channel fitted on the triangles' slow reversals need not carry over to a 10 Hz sine, so a right verdict can fail the
+check and pass the joint search, which fits its effects and lag on both.
 """
 
 from __future__ import annotations
@@ -112,6 +113,6 @@ def sine_check(obs: Observations, damper: Damper, result: Mapping, time_s: np.nd
     if not out["consistent"]:
         out["note"] = ("the verdict, fitted on the triangle cases, does not predict the sine records within their "
                        f"standard errors (rms_z {out['verdict']['rms_z']:.3g} over {dof} degrees of freedom, the "
-                       f"nominal model {out['nominal']['rms_z']:.3g}); right verdicts can miss this test too, so it "
-                       "does not change the verdict")
+                       f"nominal model {out['nominal']['rms_z']:.3g}): the verdict does not explain all the "
+                       "campaign's records")
     return out

@@ -33,17 +33,20 @@ from isokinetic.diagnosis.instrument import (
     rescaled_drives,
     sine_servo_terms,
 )
+from isokinetic.diagnosis.joint import joint_search, judged_on_all_records
 from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
 from isokinetic.diagnosis.observations import Observations, build_observations, has_four_windows
 from isokinetic.diagnosis.result import (
+    json_safe,
     no_model,
     observation_sources,
     validate_diagnosis,
 )
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.diagnosis.sine_check import sine_check
+from isokinetic.diagnosis.sine_check import channel_of, sine_check
 from isokinetic.diagnosis.sine_observations import PERIODIC_RESIDUAL, periodic_motion
-from isokinetic.diagnosis.verdict import diagnose_observations
+from isokinetic.diagnosis.structure import case_temperatures
+from isokinetic.diagnosis.verdict import diagnose_observations, structure_keys
 from isokinetic.io import write_json
 from isokinetic.measurement.windows import WindowSpec, motion_start
 from isokinetic.physics.damper import NOMINAL, Damper
@@ -58,7 +61,11 @@ log = logging.getLogger(__name__)
 #: the compressibility and sensor lag that the sine bins would add.
 SINES_BESIDE_TRIANGLES = ("sine cases beside triangle windows are not diagnosed: their phase bins share a slow-noise "
                           "error per record that the bins' standard errors do not describe; the triangles decide, "
-                          "and the sine cases check their verdict (sine_check)")
+                          "and the sine cases check their verdict (sine_check); where they fail it, the search is "
+                          "repeated on both, each sine record's even error profiled out (joint)")
+#: Why no joint search is made on a mixed campaign whose triangles no catalogue set explains (``joint.skipped``).
+JOINT_SKIPPED = ("no candidate of the catalogue explains the triangle records alone (unexplained_note), so none "
+                 "explains them beside the sine records: the joint search is not made")
 #: What a periodic free record is diagnosed as (``sources.periodic``), and why one that is not periodic is not.
 PERIODIC_FREE = (f"free records whose motion a sine and its second and third harmonics explain to within "
                  f"{100 * PERIODIC_RESIDUAL:g} % beyond the noise (a crank's) are diagnosed as sine records of their "
@@ -107,7 +114,8 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     Sine cases are diagnosed where a campaign has no triangle window (a sine-only campaign); beside
     triangle windows they are left out of the search (SINES_BESIDE_TRIANGLES says why), ``sources`` names them,
     and their observations (``sensor['sine_obs']``, with ``sine_time_s``) check the triangles' verdict
-    (:func:`isokinetic.diagnosis.sine_check.sine_check`).
+    (:func:`isokinetic.diagnosis.sine_check.sine_check`) and, where they fail it, enter a joint search
+    (:func:`judge_on_all_records`).
 
     Observations are built twice: first to profile the load-cell offset against the nominal model,
     then with the noise model fitted to offset-free samples (the proportional noise scales with the
@@ -162,7 +170,7 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins:
     spans = {row["case"]: record_span(load(row)) for _, row in pd.concat([ok, sines, set_aside]).iterrows()}
     sensor = {"displacement_scale": scale, "delays": delays, "obs_time_s": campaign_times(obs, cases, spans),
               "time_ref_s": 0.5 * float(np.sum(case_lengths_s(cases, spans))), "periodic": periodic,
-              "not_periodic": refused}
+              "not_periodic": refused, "case_temperature_C": case_temperatures(cases)}
     if not set_aside.empty:
         sine_obs = observations(set_aside, char.iloc[0:0])
         if len(sine_obs):
@@ -303,13 +311,45 @@ def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int =
         result["sources"]["not_used"] = f"{prior}; {note}" if prior else note
     if "sine_obs" in sensor:   # the sine cases set aside beside the triangles check their verdict
         check_verdict_on_sines(result, sensor, damper, alpha)
+        if (result.get("sine_check") or {}).get("consistent") is False:   # and where they fail it, judge on both
+            result = judge_on_all_records(result, predictions, obs, sensor, damper, alpha)
     return result, obs, predictions
+
+
+def judge_on_all_records(result: dict, predictions: dict, obs: Observations, sensor: dict, damper: Damper,
+                         alpha: float) -> dict:
+    """A mixed campaign whose sine records fail the triangles' verdict, judged on all its records
+    (:mod:`isokinetic.diagnosis.joint`): the search repeated on the triangles and the sine records together, each
+    record with its own errors (a sine record's block noise profiled out), with and without the verdict's force
+    channel; the joint verdict replaces the triangles' where it explains both (``predictions['verdict']`` then its
+    triangles' prediction, whose residuals are tested for structure again: the triangles' verdict's structure keys
+    move into ``triangles_verdict``), else the triangles' verdict stands, not explained. A joint search that cannot
+    be made is reported with its reason, the verdict not explained; none is made where no candidate explained the
+    triangles alone (JOINT_SKIPPED)."""
+    if "unexplained_note" in result:   # no catalogue set explains the triangles: none explains them and the sines
+        return json_safe(judged_on_all_records(result, {"skipped": JOINT_SKIPPED}, None, None))
+    dg = Diagnoser(obs, damper, alpha, sensor.get("obs_time_s"), sensor.get("time_ref_s"))
+    try:
+        joint, best = joint_search(dg, sensor["sine_obs"], damper, tuple(result.get("verdict") or ()),
+                                   channel_of(result))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        log.warning("%s: the joint search failed: %s", result.get("campaign"), exc)
+        joint, best = {"error": f"{type(exc).__name__}: {exc}"}, None
+    out = judged_on_all_records(result, joint, best, dg)
+    if best is not None and best.explained:   # the joint verdict's residuals tested for structure in turn
+        for key in ("structure", "structure_note"):
+            if key in out:
+                out["triangles_verdict"][key] = out.pop(key)
+        out["where"] = [w for w in out.get("where", []) if w.get("axis") == "speed"]   # the nominal model's gap
+        predictions.update(verdict=best.triangles.measured_prediction,
+                           structure=structure_keys(out, obs, best.triangles, alpha, sensor, damper))
+    return json_safe(out)
 
 
 def check_verdict_on_sines(result: dict, sensor: dict, damper: Damper, alpha: float) -> None:
     """``result['sine_check']`` (:func:`isokinetic.diagnosis.sine_check.sine_check`) of the sine observations set
-    aside beside the triangles: reported, the verdict left as it is. A check that cannot be made (a model run
-    that fails) is reported with its reason."""
+    aside beside the triangles (where it fails, :func:`judge_on_all_records` follows). A check that cannot be
+    made (a model run that fails) is reported with its reason, the verdict left as it is."""
     sine_obs = sensor["sine_obs"]
     try:
         check = sine_check(sine_obs, damper, result, sensor["sine_time_s"], sensor["time_ref_s"], alpha)
