@@ -48,14 +48,27 @@ def test_a_response_that_settles_stops_integrating_and_repeats_its_last_cycle():
     hyd = Hydraulics.from_damper(DAMPER, NOMINAL)
     frequency = 0.2   # relaxation in milliseconds against a 5 s period: settled within the first cycles
     long_record = grid_response(0.5e-3, frequency, (), hyd, 100 / frequency)
-    assert 0 <= long_record.periodic_from <= 3 * POINTS_PER_CYCLE
-    assert long_record.dp_Pa.size <= 5 * POINTS_PER_CYCLE
+    assert 0 <= long_record.periodic_from <= 4 * POINTS_PER_CYCLE   # its change from cycle to cycle settled
+    assert long_record.dp_Pa.size <= 6 * POINTS_PER_CYCLE
     p, _f = long_record.unfolded(100 / frequency)
     assert p.size >= 100 * POINTS_PER_CYCLE
     tau = np.arange(int(8 / frequency * 200.0)) / 200.0
     _t, dp, _v = sine_drive_response(SineDrive(0.5e-3, frequency, 0.0, tau.size), 200.0, hyd)
     later = tau >= 1 / frequency
     assert np.max(np.abs(hermite_at(long_record, tau)[later] - dp[later])) < 5e-4 * np.max(np.abs(dp))
+
+
+def test_the_gas_laws_drift_from_cycle_to_cycle_is_carried_on_after_the_integration_stops():
+    # entrained air under the gas law: the chambers' mean pressure drifts by a constant step a cycle (the oil term),
+    # so the response never repeats; once the step repeats, the later cycles carry it on
+    hyd = Hydraulics.from_damper(DAMPER, Effects(air_volume_fraction=0.01))
+    frequency, rate = 0.5, 250.0
+    grid = grid_response(0.2e-3, frequency, (), hyd, 60 / frequency)
+    assert grid.periodic_from >= 0 and grid.dp_Pa.size < 40 * POINTS_PER_CYCLE   # stopped well before the end
+    tau = np.arange(int(60 / frequency * rate)) / rate
+    _t, dp, _v = sine_drive_response(SineDrive(0.2e-3, frequency, 0.0, tau.size), rate, hyd)
+    later = tau >= 1 / frequency
+    assert np.max(np.abs(hermite_at(grid, tau)[later] - dp[later])) < 5e-4 * np.max(np.abs(dp))
 
 
 def test_the_grid_does_not_depend_on_the_sampling_rate():

@@ -9,9 +9,11 @@ cut into geometrically growing sub-steps: the pressure starts at 0 while the pis
 transient as short as the relaxation time of Eq. (14).
 
 The periodic steady state is reached after a number of cycles set by the physics (the relaxation against the
-period); a cycle that repeats the one before to within ``CONVERGED`` of the pressure scale ends the integration and
-every later cycle is that one (:attr:`GridResponse.periodic_from`). A record of a hundred cycles costs as little
-as its first few. The kernel is compiled once by numba (cached beside this module).
+period); a cycle whose change from the one before repeats the change before it to within ``CONVERGED`` of the
+pressure scale ends the integration, and every later cycle is that one plus as many of that change (none, or the
+constant drift of the chambers' mean pressure the gas law's oil term makes: some 1e-7 of the pressure a cycle)
+(:attr:`GridResponse.periodic_from`). A record of a hundred cycles costs as little as its first few. The kernel
+is compiled once by numba (cached beside this module).
 
 The piston motion is that of :class:`isokinetic.physics.sine_drive.SineDrive`: y = Y sin ωτ + Σ A_k (sin(kωτ +
 θ_k) - sin θ_k) for τ >= 0, at rest at y = 0 before (the diagnosis' sine drive has no backlash).
@@ -53,8 +55,9 @@ RADAU_A = np.array([[(88.0 - 7.0 * _S6) / 360.0, (296.0 - 169.0 * _S6) / 1800.0,
 @dataclass(frozen=True)
 class GridResponse:
     """Δp and dΔp/dτ of one drive at τ_j = j·``step_s``, j = 0 .. (from τ = 0, the motion's start, at rest before);
-    ``periodic_from``: the index of the first grid point of the cycle from which on the response repeats (the
-    arrays end with that cycle; :meth:`unfolded`), or -1 where the record ended before the response settled."""
+    ``periodic_from``: the index of the first grid point of the cycle from which on the response repeats, or
+    changes from cycle to cycle by a constant drift (the arrays end with that cycle; :meth:`unfolded`), or -1 where
+    the record ended before the response settled."""
 
     step_s: float
     points_per_cycle: int
@@ -63,14 +66,20 @@ class GridResponse:
     periodic_from: int
 
     def unfolded(self, end_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(Δp, dΔp/dτ) on the grid from τ = 0 to at least ``end_s``, the repeating cycle copied as often as needed."""
+        """(Δp, dΔp/dτ) on the grid from τ = 0 to at least ``end_s``: after the integrated cycles, the last one plus
+        m times its change from the one before, m = 1, 2, ... (the change is none, or the drift of the chambers' mean
+        pressure that the gas law's oil term makes each cycle: constant)."""
         need = int(math.ceil(end_s / self.step_s)) + 2
         p, f = self.dp_Pa, self.slope_Pa_s
         if self.periodic_from < 0 or need <= p.size:
             return p, f
-        cycle = slice(self.periodic_from + 1, self.periodic_from + 1 + self.points_per_cycle)
-        copies = int(math.ceil((need - p.size) / self.points_per_cycle))
-        return (np.concatenate([p, np.tile(p[cycle], copies)]), np.concatenate([f, np.tile(f[cycle], copies)]))
+        last = slice(self.periodic_from + 1, self.periodic_from + 1 + self.points_per_cycle)
+        before = slice(self.periodic_from + 1 - self.points_per_cycle, self.periodic_from + 1)
+        copies = np.arange(1, int(math.ceil((need - p.size) / self.points_per_cycle)) + 1)[:, None]
+
+        def extend(x):   # the last cycle plus m times its change from the one before (the gas law's slow drift)
+            return np.concatenate([x, (x[last] + copies * (x[last] - x[before])).ravel()])
+        return extend(p), extend(f)
 
 
 def _drive_terms(amplitude_m: float, harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -277,10 +286,10 @@ def _integrate(par, ks, aks, ths, radau_a, radau_c, n_steps, per_cycle, substeps
             continue
         k1 = (j + 1) % per_cycle
         _store(j + 1, stage_y[k1, 3], stage_v[k1, 3], z, par, out_p, out_f, f0, j0)
-        if (j + 1) % per_cycle == 0 and j + 1 >= 2 * per_cycle:
-            worst = 0.0
+        if (j + 1) % per_cycle == 0 and j + 1 >= 3 * per_cycle:
+            worst = 0.0   # the change from cycle to cycle, changing no more (a drift) or none
             for k in range(j + 1 - per_cycle, j + 1):
-                worst = max(worst, abs(out_p[k + 1] - out_p[k + 1 - per_cycle]))
+                worst = max(worst, abs(out_p[k + 1] - 2.0 * out_p[k + 1 - per_cycle] + out_p[k + 1 - 2 * per_cycle]))
             if worst <= converged * par[18]:
                 return j + 1 - per_cycle
     return -1
