@@ -7,18 +7,20 @@ time, temperature, frequency, acceleration, the phase of the cycle, the directio
 verdict's residuals for such order, after the fit, with stated tests:
 
 Residuals. z = sign(v)·(F_meas - F_verdict)/σ per observation (positive: the damper is stronger than the
-verdict). Observations are pooled into *units* that share what correlates them (a case's direction for a
-case-level axis; a case's direction and phase slot for the phase axis) as U = Σz/√n, N(0, 1) per unit
-when the z are independent standard normal.
+verdict). Observations are pooled into *units* that share what correlates them (a case for a case-level
+axis; a case's direction for the direction; a case's direction and phase slot for the phase axis) as
+U = Σz/√n, N(0, 1) per unit when the z are independent standard normal.
 
 Tests of one axis (:func:`axis_test`), on the units ordered by the axis' value x:
 - *binned means* (:func:`binned_test`): the units in at most MAX_BINS bins of equal count along x (ties
   never split), the between-bin sum of squares of U about the grand mean over its degrees of freedom,
   divided by the within-bin mean square floored at 1 (the stated standard errors are never made smaller;
   a larger scatter between units, as between-case errors leave, is not taken for structure), referred to
-  the F distribution (B - 1, N - B): conservative where the floor binds;
+  χ²_{B-1}/(B - 1) where the floor binds, else to F(B - 1, N - B) (the two sums are independent: at most
+  alpha either way);
 - *trend* (:func:`trend_test`): the least-squares slope of U on the rank of x, its t statistic with the
-  residual mean square floored at 1, referred to Student's t (N - 2), two-sided.
+  residual mean square floored at 1, referred to the normal where the floor binds, else to Student's
+  t (N - 2), two-sided.
 The axis' p-value is the smaller of the two, Bonferroni-doubled; the axes' p-values are adjusted by
 Holm's step-down procedure (:func:`holm`), so the family-wise false-alarm rate over all the axes tested
 is at most alpha. The grand mean is taken off (the verdict's load-cell offset and gain leave none to
@@ -116,8 +118,10 @@ def tie_bins(x: np.ndarray, max_bins: int) -> np.ndarray:
 
 def binned_test(u: np.ndarray, labels: np.ndarray) -> dict:
     """Binned-means test of the unit residuals ``u`` (N(0, 1) under no structure) across bins ``labels``:
-    F = [Σ_b m_b (ū_b - ū)²/(B - 1)] / max(1, Σ (u - ū_b)²/(N - B)), p from F(B - 1, N - B) (from χ²_{B-1}/(B-1)
-    where N = B). Also each bin's z = (ū_b - ū)·√(m_b/s²), s² the denominator."""
+    F = [Σ_b m_b (ū_b - ū)²/(B - 1)] / s², s² = max(1, Σ (u - ū_b)²/(N - B)); p from χ²_{B-1}/(B-1) where the
+    floor binds (the stated errors hold: the between-bin sum is χ²_{B-1} whatever the within-bin one, independent
+    of it), else from F(B - 1, N - B) (conditional on a within-bin scatter above 1, conservative). Also each
+    bin's z = (ū_b - ū)·√(m_b/s²)."""
     from scipy import special
 
     bins, inverse = np.unique(labels, return_inverse=True)
@@ -129,14 +133,15 @@ def binned_test(u: np.ndarray, labels: np.ndarray) -> dict:
     within = float(np.sum((u - means[inverse]) ** 2))
     scale = max(1.0, within / (n - b)) if n > b else 1.0
     stat = between / (b - 1) / scale
-    p = float(special.fdtrc(b - 1, n - b, stat)) if n > b else float(special.chdtrc(b - 1, stat * (b - 1)))
+    p = float(special.fdtrc(b - 1, n - b, stat)) if scale > 1.0 else float(special.chdtrc(b - 1, stat * (b - 1)))
     return {"F": stat, "df": [int(b - 1), int(n - b)], "p": p, "scale": scale,
             "bin_z": (means - grand) * np.sqrt(m / scale), "bin_of_unit": inverse}
 
 
 def trend_test(u: np.ndarray, x: np.ndarray) -> dict:
     """Trend of the unit residuals ``u`` along the rank of ``x`` (ties share their mean rank): the least-squares
-    slope over its standard error, residual mean square floored at 1, p two-sided from Student's t (N - 2)."""
+    slope over its standard error, residual mean square s² floored at 1; p two-sided from the normal where the
+    floor binds, else from Student's t (N - 2)."""
     from scipy import special
 
     r = pd.Series(x).rank().to_numpy(dtype=float)
@@ -148,7 +153,8 @@ def trend_test(u: np.ndarray, x: np.ndarray) -> dict:
     resid = u - u.mean() - slope * rc
     scale = max(1.0, float(resid @ resid) / (u.size - 2))
     t = slope / math.sqrt(scale / sxx)
-    return {"t": t, "df": int(u.size - 2), "p": float(2.0 * special.stdtr(u.size - 2, -abs(t)))}
+    p = special.stdtr(u.size - 2, -abs(t)) if scale > 1.0 else special.ndtr(-abs(t))
+    return {"t": t, "df": int(u.size - 2), "p": float(2.0 * p)}
 
 
 def holm(p: Sequence[float]) -> np.ndarray:
@@ -260,9 +266,12 @@ def case_values(obs: Observations, time_s: np.ndarray | None,
 
 def axis_data(obs: Observations, time_s: np.ndarray | None = None,
               temperature_C: Mapping[str, float] | None = None) -> list[AxisData]:
-    """The units of every axis the observations carry: case-level axes (and direction) on the steady windows,
-    one unit per case and direction; the phase on every observation, one unit per case, direction and slot."""
+    """The units of every axis the observations carry: the case-level axes on the steady windows, one unit per
+    case (its two directions share the case's own error: they are no two replicates of the axis' value); the
+    direction on the steady windows, one unit per case and direction; the phase on every observation, one unit
+    per case, direction and slot."""
     win = obs.is_window
+    case = pd.factorize(pd.Series(obs.case).astype(str))[0]
     case_dir = pd.factorize(pd.Series(obs.case).astype(str) + np.where(obs.sign > 0, "/+", "/-"))[0]
     values = case_values(obs, time_s, temperature_C)
     out = []
@@ -276,11 +285,14 @@ def axis_data(obs: Observations, time_s: np.ndarray | None = None,
         if x is None:
             continue
         rows = np.flatnonzero(win & np.isfinite(x))
-        if axis == "time" and rows.size:   # a unit's value: its windows' mean time
-            x = pd.Series(x[rows]).groupby(case_dir[rows]).transform("mean").to_numpy()
-            out.append(AxisData(axis, rows, case_dir[rows], x))
+        if axis == "direction":
+            out.append(AxisData(axis, rows, case_dir[rows], x[rows], categorical=True))
             continue
-        out.append(AxisData(axis, rows, case_dir[rows], x[rows], categorical=axis == "direction"))
+        if axis == "time" and rows.size:   # a unit's value: its windows' mean time
+            x = pd.Series(x[rows]).groupby(case[rows]).transform("mean").to_numpy()
+            out.append(AxisData(axis, rows, case[rows], x))
+            continue
+        out.append(AxisData(axis, rows, case[rows], x[rows]))
     return out
 
 
