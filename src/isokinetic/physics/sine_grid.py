@@ -90,7 +90,8 @@ def _drive_terms(amplitude_m: float, harmonics) -> tuple[np.ndarray, np.ndarray,
 
 
 # The kernel below is compiled by numba (cached beside this module). ``par``: amp, omega, h, area, beta, v01, v02,
-# c1p, c1n, c2p, c2n, leak, gas, b_oil, g1, g2, p0, low, scale (:func:`grid_parameters`).
+# c1p, c1n, c2p, c2n, leak, gas, b_oil, g1, g2, p0, low, scale (:func:`grid_parameters`), a tuple. Its functions pass
+# scalars, not array views (each view costs a reference count), and are inlined into :func:`_integrate`.
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def _motion(t, par, ks, aks, ths, start):   # pragma: no cover - compiled
@@ -120,34 +121,27 @@ def _flow(p, par):   # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _rhs(y, v, z, f, jac, want_jac, par):   # pragma: no cover - compiled
-    """Eq. (1) at piston position y and speed v: f = dz/dτ (and its Jacobian): one state Δp with the composite
-    volume of Eq. (2); with the gas law, the two chamber pressures (:mod:`isokinetic.physics.gas_law`)."""
+def _rhs(y, v, p1, p2, par):   # pragma: no cover - compiled
+    """Eq. (1) at piston position y and speed v: (f1, f2, J11, J12, J21, J22), the rates of the state and their
+    Jacobian: one state Δp = p1 with the composite volume of Eq. (2) (f2, J12, J21, J22 zero); with the gas law
+    the two chamber pressures p1, p2 (:mod:`isokinetic.physics.gas_law`). Scalars only: no array is passed."""
     area, beta, v01, v02 = par[3], par[4], par[5], par[6]
     qin = area * v
     if par[12] < 0.5:
-        q, dq = _flow(z[0], par)
+        q, dq = _flow(p1, par)
         cap = beta * ((v01 - area * y) * (v02 + area * y) / (v01 + v02))
-        f[0] = (qin - q) / cap
-        if want_jac:
-            jac[0, 0] = -dq / cap
-        return
+        return (qin - q) / cap, 0.0, -dq / cap, 0.0, 0.0, 0.0
     b_oil, g1, g2, low = par[13], par[14], par[15], par[17]
-    u1 = 1.0 / max(z[0], low)
-    u2 = 1.0 / max(z[1], low)
+    u1 = 1.0 / max(p1, low)
+    u2 = 1.0 / max(p2, low)
     cap1 = b_oil * (v01 - area * y) + g1 * u1 * (u1 - b_oil)
     cap2 = b_oil * (v02 + area * y) + g2 * u2 * (u2 - b_oil)
-    q, dq = _flow(z[0] - z[1], par)
+    q, dq = _flow(p1 - p2, par)
     net = qin - q
-    f[0] = net / cap1
-    f[1] = -net / cap2
-    if want_jac:
-        s1 = g1 * u1 * u1 * (b_oil - 2.0 * u1)
-        s2 = g2 * u2 * u2 * (b_oil - 2.0 * u2)
-        jac[0, 0] = (-dq - net / cap1 * s1) / cap1
-        jac[0, 1] = dq / cap1
-        jac[1, 0] = dq / cap2
-        jac[1, 1] = (-dq + net / cap2 * s2) / cap2
+    s1 = g1 * u1 * u1 * (b_oil - 2.0 * u1)
+    s2 = g2 * u2 * u2 * (b_oil - 2.0 * u2)
+    return (net / cap1, -net / cap2, (-dq - net / cap1 * s1) / cap1, dq / cap1, dq / cap2,
+            (-dq + net / cap2 * s2) / cap2)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
@@ -194,12 +188,13 @@ def _newton(z, hh, my, mv, stage, par, radau_a, newton_iterations, newton_tol, w
     iteration matrix built and factorised once, from the Jacobian at the predicted stages); then z += Z_3.
     ``work``: the scratch arrays of :func:`_work`."""
     dim = z.size
-    fst, jst, big, piv, res, zz = work
+    fst, jst, big, piv, res = work
     for it in range(newton_iterations):
         for i in range(3):
-            for d in range(dim):
-                zz[d] = z[d] + stage[i, d]
-            _rhs(my[i], mv[i], zz, fst[i], jst[i], it == 0, par)
+            q2 = z[1] + stage[i, 1] if dim == 2 else 0.0
+            f1, f2, j11, j12, j21, j22 = _rhs(my[i], mv[i], z[0] + stage[i, 0], q2, par)
+            fst[i, 0], fst[i, 1] = f1, f2
+            jst[i, 0, 0], jst[i, 0, 1], jst[i, 1, 0], jst[i, 1, 1] = j11, j12, j21, j22
         if it == 0:
             for i in range(3):
                 for d in range(dim):
@@ -228,18 +223,21 @@ def _newton(z, hh, my, mv, stage, par, radau_a, newton_iterations, newton_tol, w
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
 def _work(dim):   # pragma: no cover - compiled
-    """Scratch arrays of :func:`_newton`: stage rates and Jacobians, the iteration matrix, pivots, residual."""
+    """Scratch arrays of :func:`_newton`: stage rates and Jacobians (room for two states), the iteration matrix,
+    pivots, residual."""
     n = 3 * dim
-    return (np.empty((3, dim)), np.empty((3, dim, dim)), np.empty((n, n)), np.empty(n, dtype=np.int64),
-            np.empty(n), np.empty(dim))
+    return np.zeros((3, 2)), np.zeros((3, 2, 2)), np.empty((n, n)), np.empty(n, dtype=np.int64), np.empty(n)
 
 
 @numba.njit(cache=True, inline="always", error_model="numpy")
-def _store(j, y, v, z, par, out_p, out_f, f0, j0):   # pragma: no cover - compiled
+def _store(j, y, v, z, par, out_p, out_f):   # pragma: no cover - compiled
     """Δp and dΔp/dτ of state ``z`` at grid point ``j``."""
-    _rhs(y, v, z, f0, j0, False, par)
-    out_p[j] = z[0] - z[1] if z.size == 2 else z[0]
-    out_f[j] = f0[0] - f0[1] if z.size == 2 else f0[0]
+    if z.size == 2:
+        f1, f2, _a, _b, _c, _d = _rhs(y, v, z[0], z[1], par)
+        out_p[j], out_f[j] = z[0] - z[1], f1 - f2
+    else:
+        f1, _f2, _a, _b, _c, _d = _rhs(y, v, z[0], 0.0, par)
+        out_p[j], out_f[j] = z[0], f1
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -254,10 +252,10 @@ def _integrate(par, ks, aks, ths, radau_a, radau_c, n_steps, per_cycle, substeps
     for i in range(ks.size):
         start += aks[i] * math.sin(ths[i])
     z = np.full(dim, par[16]) if dim == 2 else np.zeros(1)
-    stage, f0, j0 = np.zeros((3, dim)), np.empty(dim), np.empty((dim, dim))
+    stage = np.zeros((3, dim))
     my, mv = np.empty(3), np.empty(3)
     work = _work(dim)
-    _store(0, stage_y[0, 3], stage_v[0, 3], z, par, out_p, out_f, f0, j0)
+    _store(0, stage_y[0, 3], stage_v[0, 3], z, par, out_p, out_f)
     ratio = (1.0 / first_sub) ** (1.0 / (substeps - 1))   # the first step: geometric sub-steps summing to h
     hh = par[2] * (ratio - 1.0) / (ratio ** substeps - 1.0)
     t = 0.0
@@ -273,19 +271,20 @@ def _integrate(par, ks, aks, ths, radau_a, radau_c, n_steps, per_cycle, substeps
                 my[i], mv[i] = stage_y[k, i], stage_v[k, i]
         if j < 0 or j == 1:   # Euler's predictor after a change of step, else the last step's increments
             y0, v0 = _motion(t, par, ks, aks, ths, start)
-            _rhs(y0, v0, z, f0, j0, False, par)
+            f1, f2, _a, _b, _c, _d = _rhs(y0, v0, z[0], z[1] if dim == 2 else 0.0, par)
             for i in range(3):
-                for d in range(dim):
-                    stage[i, d] = radau_c[i] * hh * f0[d]
+                stage[i, 0] = radau_c[i] * hh * f1
+                if dim == 2:
+                    stage[i, 1] = radau_c[i] * hh * f2
         _newton(z, hh, my, mv, stage, par, radau_a, newton_iterations, newton_tol, work)
         if j < 0:
             t += hh
             hh *= ratio
             if j == -1:
-                _store(1, stage_y[1 % per_cycle, 3], stage_v[1 % per_cycle, 3], z, par, out_p, out_f, f0, j0)
+                _store(1, stage_y[1 % per_cycle, 3], stage_v[1 % per_cycle, 3], z, par, out_p, out_f)
             continue
         k1 = (j + 1) % per_cycle
-        _store(j + 1, stage_y[k1, 3], stage_v[k1, 3], z, par, out_p, out_f, f0, j0)
+        _store(j + 1, stage_y[k1, 3], stage_v[k1, 3], z, par, out_p, out_f)
         if (j + 1) % per_cycle == 0 and j + 1 >= 3 * per_cycle:
             worst = 0.0   # the change from cycle to cycle, changing no more (a drift) or none
             for k in range(j + 1 - per_cycle, j + 1):
@@ -365,7 +364,9 @@ def grid_response(amplitude_m: float, frequency_Hz: float, harmonics, hyd: Hydra
     out_p, out_f = np.empty(n_steps + 1), np.empty(n_steps + 1)
     ks, aks, ths = _drive_terms(amplitude_m, harmonics)
     stage_y, stage_v = stage_motion(amplitude_m, frequency_Hz, tuple(harmonics), points_per_cycle)
-    periodic = _integrate(par, ks, aks, ths, RADAU_A, RADAU_C, n_steps, points_per_cycle, SUBSTEPS, FIRST_SUBSTEP,
-                         CONVERGED, NEWTON_ITERATIONS, NEWTON_TOL, stage_y, stage_v, out_p, out_f)
+    # the parameters as a tuple: the kernel keeps them in registers
+    periodic = _integrate(tuple(float(x) for x in par), ks, aks, ths, RADAU_A, RADAU_C, n_steps, points_per_cycle,
+                          SUBSTEPS, FIRST_SUBSTEP, CONVERGED, NEWTON_ITERATIONS, NEWTON_TOL, stage_y, stage_v, out_p,
+                          out_f)
     last = n_steps + 1 if periodic < 0 else periodic + points_per_cycle + 1
     return GridResponse(float(par[2]), points_per_cycle, out_p[:last], out_f[:last], int(periodic))
