@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from isokinetic.diagnosis.candidate import Candidate
-from isokinetic.diagnosis.joint import JointCandidate, judged_on_all_records
+from isokinetic.diagnosis.joint import JointCandidate, block_parameters, judged_on_all_records
 
 FORCE_N = np.array([100.0, -100.0, 50.0, -50.0])
 KIND = np.array(["window", "window", "transient", "transient"])
@@ -61,3 +61,9 @@ def test_without_a_joint_search_the_verdict_is_not_explained_and_the_note_says_w
     out = judged_on_all_records(RESULT, {"skipped": "no candidate explains the triangles"}, None, None)
     assert out["verdict"] == ["friction"] and out["explained"] is False
     assert "joint says why" in out["mixed_note"] and out["joint"]["skipped"]
+
+
+def test_each_block_of_sine_bins_costs_two_parameters_or_one_where_it_holds_one_bin():
+    # two full cycles of 16 bins, and a record's last cycle cut after its first bin
+    blocks = SimpleNamespace(case=np.array(["H01/0"] * 16 + ["H01/2"] * 16 + ["H02/0"], dtype=object))
+    assert block_parameters(blocks) == 5

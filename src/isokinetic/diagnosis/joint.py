@@ -29,7 +29,7 @@ from scipy import optimize
 
 from isokinetic.contracts.scenarios import CATALOGUE
 from isokinetic.diagnosis.candidate import Candidate, consistent_with_noise
-from isokinetic.diagnosis.instrument import LAG_FORMS
+from isokinetic.diagnosis.instrument import LAG_FORM_NAMES, LAG_FORMS
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.search import BEAM, DIFF_STEP, FIT_ERRORS, FIT_TOL, LAG_BOUNDS_S, Diagnoser, SecantJacobian
@@ -77,7 +77,8 @@ class JointCandidate:
                 "sine_rms_z_fit": math.sqrt(self.sine_chi2_fit / max(self.sine_dof_fit, 1)),
                 "sine_chi2_holdout": self.sine_chi2_hold, "sine_dof_holdout": self.sine_dof_hold,
                 "sine_rms_z_holdout": math.sqrt(self.sine_chi2_hold / max(self.sine_dof_hold, 1)),
-                "force_lag_s": None if self.triangles.channel is None else self.triangles.channel[1]}
+                "force_lag_s": None if self.triangles.channel is None else self.triangles.channel[1],
+                "force_lag_form": None if self.triangles.channel is None else LAG_FORM_NAMES[self.triangles.channel[0]]}
 
 
 def cycle_blocks(sines: Observations) -> Observations:
@@ -87,9 +88,11 @@ def cycle_blocks(sines: Observations) -> Observations:
     return replace(sines, case=np.array([f"{c}/{k}" for c, k in zip(sines.case, cycle, strict=True)], dtype=object))
 
 
-def block_count(sines: Observations) -> int:
-    """Distinct blocks (``case`` values) among ``sines``."""
-    return len(set(sines.case.tolist()))
+def block_parameters(sines: Observations) -> int:
+    """The even modes' parameters among ``sines``: two a block (``case`` value), one where a block holds one bin
+    (a record's last cycle may end after its first bin)."""
+    _names, counts = np.unique(sines.case.astype(str), return_counts=True)
+    return int(np.minimum(counts, 2).sum())
 
 
 class JointDiagnoser:
@@ -199,8 +202,8 @@ class JointDiagnoser:
         except FIT_ERRORS as exc:
             self.failed.append({"effects": list(names), "reason": f"scoring failed: {type(exc).__name__}: {exc}"})
             return None
-        dof1 = z1.size - 2 * block_count(self.fit_sines) - len(nonlinear) - (tri.channel is not None)
-        dof2 = z2.size - 2 * block_count(self.hold_sines)
+        dof1 = z1.size - block_parameters(self.fit_sines) - len(nonlinear) - (tri.channel is not None)
+        dof2 = z2.size - block_parameters(self.hold_sines)
         chi1, chi2 = float(z1 @ z1), float(z2 @ z2)
         passes = consistent_with_noise(chi1, dof1, dg.alpha, self.scale_rel_sd) and \
             (dof2 <= 0 or consistent_with_noise(chi2, dof2, dg.alpha, self.scale_rel_sd))
@@ -288,7 +291,7 @@ def joint_search(dg: Diagnoser, sines: Observations, damper: Damper, prior: Sequ
               "verdict": None if best is None else list(best.effects),
               "explained": bool(best is not None and best.explained),
               "params": None if best is None else best.triangles.params,
-              "force_lag_s": None if best is None or best.triangles.channel is None else best.triangles.channel[1],
+              **{k: None if best is None else best.to_dict()[k] for k in ("force_lag_s", "force_lag_form")},
               "candidates": [c.to_dict() for c in found],
               "model_evaluations": dg.calls - calls + evaluator.calls,
               "seconds": round(time.perf_counter() - started, 3)}
