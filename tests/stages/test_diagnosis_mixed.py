@@ -14,6 +14,7 @@ from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
 from isokinetic.stages.blind_diagnose import diagnose_raw_campaign
+from isokinetic.stages.diagnosis import JOINT_SKIPPED, judge_on_all_records
 
 QUIET = {"force_noise_N": 3.0, "force_noise_rel": 0.015, "noise_corner_Hz": 0.2, "displacement_noise_m": 1e-6,
          "force_resolution_N": 0.01, "displacement_resolution_m": 1e-8, "command_resolution_m": 1e-8,
@@ -73,3 +74,13 @@ def test_an_effect_outside_the_catalogue_that_the_sine_records_show_is_not_expla
     assert result["joint"]["explained"] is False and result["joint"]["candidates"]
     assert result["verdict"] == result["triangles_verdict"]["verdict"]
     assert "stands, not explained" in result["mixed_note"]
+
+
+def test_no_joint_search_where_no_catalogue_set_explains_the_triangles_alone():
+    # none explains them beside the sines either: the verdict stays, not explained, and joint says why
+    result = {"verdict": ["friction"], "explained": False, "unexplained_note": "no candidate ...",
+              "sine_check": {"consistent": False}}
+    out = judge_on_all_records(result, {}, None, {}, None, 0.001)
+    assert out["joint"] == {"skipped": JOINT_SKIPPED}
+    assert out["verdict"] == ["friction"] and out["explained"] is False
+    assert out["triangles_verdict"]["unexplained_note"] == "no candidate ..."
