@@ -282,7 +282,7 @@ def joint_search(dg: Diagnoser, sines: Observations, damper: Damper, prior: Sequ
     for cdg in [dg, *(dg.with_channel((form, max(channel[1], LAG_BOUNDS_S[form][0]))) for form in forms)]:
         jd = JointDiagnoser(cdg, sines, damper, evaluator)
         explaining = [len(c.effects) for c in found if c.explained]   # a larger set cannot be the verdict
-        found += jd.search(prior, warm, min(explaining, default=MAX_JOINT_SIZE))
+        found += jd.search(prior, warm, min(explaining, default=max(MAX_JOINT_SIZE, len(prior))))
         failed += jd.failed
     found.sort(key=lambda c: (not c.explained, len(c.effects) if c.explained else 0, c.score))
     best = found[0] if found else None
