@@ -167,6 +167,7 @@ class _Collector:
     sine_model_means: Mapping = field(default_factory=dict)   # (case, model start sample) -> a model's bin mean
     holes: list = field(default_factory=list)            # (observation, model sample) without a measured sample
     parts: _Collector | None = None                      # the windows' WINDOW_PARTS parts (same plans)
+    spikes: dict = field(default_factory=dict)           # (case, first, end sample) -> its spike mask
 
     def add(self, rec: CaseRecord, kind: str, k: int, sign: float, a: float, b: float, period: int | None = None,
             speed_m_s: float | None = None, slot: int | None = None, cycle: int = -1) -> int:
@@ -215,7 +216,10 @@ class _Collector:
         (:func:`isokinetic.measurement.spikes.spike_mask`, the same samples), each spike's model sample made a hole
         of observation ``row`` so that the model's mean leaves it out too."""
         fw = rec.force_N[m0:m1]
-        spikes = spike_mask(rec.force_N, int(m0), int(m1))
+        key = (rec.plan.case, int(m0), int(m1))
+        spikes = self.spikes.get(key)
+        if spikes is None:
+            spikes = self.spikes[key] = spike_mask(rec.force_N, int(m0), int(m1))
         if not spikes.any():
             return fw
         model = rec.model_times_s[j0:j1]
@@ -333,7 +337,8 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
                        unsteady: frozenset = frozenset(), input_var_N2: np.ndarray | None = None,
                        viscosity_scales: Mapping[str, float] | None = None, sine_bins: int = N_SINE_BINS,
                        displacement_scale: float = 1.0,
-                       sine_model_means: Mapping[tuple[str, int], float] | None = None) -> Observations:
+                       sine_model_means: Mapping[tuple[str, int], float] | None = None,
+                       spike_masks: dict | None = None) -> Observations:
     """Windows and transient bins of every triangle case, in plan time, with honest standard errors, and
     the phase bins of every status-ok sine case (:func:`sine_case_record`, :mod:`sine_observations`; its
     drive's amplitude divided by ``displacement_scale``; ``sine_model_means``: (case, model start sample) -> a
@@ -348,12 +353,15 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
     ``input_var_N2`` adds, per observation, the variance that the measured drive speed's own error
     propagates into the model (:func:`isokinetic.diagnosis.model.drive_input_variance`).
     ``viscosity_scales`` (case -> μ(T_case)/μ_nominal) models each case at its own temperature's viscosity.
+    ``spike_masks``: a dict that remembers each window's spike mask across builds of the same records (a mask
+    depends on the samples alone).
     """
     by_case = {c: g.set_index("segment") for c, g in char.groupby("case")}
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle") & cases["case"].isin(by_case)]
-    collector = _Collector(force_offset_N, unsteady, sine_model_means=sine_model_means or {})
+    masks = {} if spike_masks is None else spike_masks
+    collector = _Collector(force_offset_N, unsteady, sine_model_means=sine_model_means or {}, spikes=masks)
     collector.parts = _Collector(force_offset_N, unsteady, plans=collector.plans, drives=collector.drives,
-                                 scales=collector.scales)
+                                 scales=collector.scales, spikes=masks)
     for _, row in ok.iterrows():
         series = load_series(row)
         rec = case_record(row, series, by_case[case_plan(row).case])

@@ -212,8 +212,9 @@ def two_pass_observations(campaign: str, damper: Damper, modelled: pd.DataFrame,
     (:func:`prepare_sensor`): first to profile the load-cell offset against the nominal model, then with the
     noise model fitted to offset-free samples, the unsteady windows left out of it and, for sine cases, the
     nominal model's bin means (its cycle-to-cycle convergence is no noise); ``scaled`` applies the LVDT scale."""
+    masks: dict = {}   # each window's spike mask, for both builds
     obs = scaled(build_observations(campaign, modelled, char, load, spec, n_bins, viscosity_scales=scales,
-                                    displacement_scale=lvdt))
+                                    displacement_scale=lvdt, spike_masks=masks))
     if not len(obs):
         return obs
     dg0 = Diagnoser(obs, damper, alpha)
@@ -225,7 +226,7 @@ def two_pass_observations(campaign: str, damper: Damper, modelled: pd.DataFrame,
     return scaled(build_observations(campaign, modelled, char, load, spec, n_bins, offset,
                                      unsteady_windows(obs, dg0.evaluator.spread(NOMINAL)),
                                      drive_input_variance(obs, damper, dg0.nominal), scales,
-                                     displacement_scale=lvdt, sine_model_means=sine_means))
+                                     displacement_scale=lvdt, sine_model_means=sine_means, spike_masks=masks))
 
 
 def any_four_windows(char: pd.DataFrame) -> bool:
