@@ -339,22 +339,24 @@ class Diagnoser:
         return {e: self.fit((e,), [[s] for s in self.param.starts(e)] if e != "friction" else [[]])
                 for e in CATALOGUE}
 
-    def search(self) -> list[Candidate]:
+    def search(self, max_size: int | None = None) -> list[Candidate]:
         """Singles, then pairs (warm-started from the singles), then greedy extension of the BEAM best of
         the largest size, each size only while no smaller set explains the gap (the verdict is the
         smallest explaining set, so larger ones cannot change it) and until STABLE_SIZES larger sizes in a row
-        have not moved the choice among the unexplained candidates (:func:`parsimonious`)."""
+        have not moved the choice among the unexplained candidates (:func:`parsimonious`); no set larger than
+        ``max_size`` (a rival search against a verdict of that size that explains: a larger set cannot win)."""
+        limit = len(CATALOGUE) if max_size is None else max_size
         singles = self.singles()
         found = [c for c in singles.values() if c is not None]
         start = {e: (c.x[0] if c is not None else self.param.starts(e)[0]) for e, c in singles.items()}
-        if not any(c.explained for c in found):
+        if limit >= 2 and not any(c.explained for c in found):
             for pair in itertools.combinations(CATALOGUE, 2):
                 c = self.fit(pair, _warm_start(pair, start))
                 if c is not None:
                     found.append(c)
         size, stable = 2, 0
         pick = parsimonious(found).effects if found else ()
-        while found and not any(c.explained for c in found) and size < len(CATALOGUE) and stable < STABLE_SIZES:
+        while found and not any(c.explained for c in found) and size < limit and stable < STABLE_SIZES:
             found += self._extend(found, size, start)
             size += 1
             now = parsimonious(found).effects

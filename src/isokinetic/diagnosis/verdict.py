@@ -346,7 +346,8 @@ def joint_lag(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate]
     1 - alpha) or ``best`` claims air (compressibility lags the force as a low-pass does, so a lag read as
     air shows no need of a lag), the search is run again with the lag a fitted parameter of every
     candidate (started from that lag and from LAG_SECOND_START_S), in the form (delay, 1st- or 2nd-order
-    low-pass) that fits ``best``'s effects other than air best (air would take up part of the lag's shape).
+    low-pass) that fits ``best``'s effects other than air best (air would take up part of the lag's shape); where
+    ``best`` explains, only sets no larger than it (no larger set could replace it).
     Its verdict replaces ``best`` where :func:`lag_preferred` and its lag is needed against the same effects
     without one. The lag test reports the final verdict's lag."""
     threshold = float(chi2_isf(dg.alpha, 1))
@@ -366,7 +367,8 @@ def joint_lag(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate]
             chosen_form = (fdg, c, f)
     if chosen_form is not None:
         ldg, _c, form = chosen_form
-    found = ldg.search()
+    # against an explaining verdict only an explaining set no larger can win (lag_preferred): search no further
+    found = ldg.search(len(best.effects) if best.explained else None)
     if not found:
         return best, dg, first, []
     alt = chosen_candidate(ldg, found)
