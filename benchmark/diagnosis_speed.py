@@ -3,8 +3,9 @@ and a crank-like sweep (issue 35: each <= 10 s), all written by the reference ri
 
     .venv/bin/python benchmark/diagnosis_speed.py [--keep DIR] [--sine N]
 
-- the blind benchmark's sine-only scenarios (benchmark/blind_suite.py's seed 777, ``--sine`` of them, default 14):
-  5-7 frequencies of 4 cycles at 1 kHz, each with no effect or one catalogue effect;
+- the blind benchmark's sine-only scenarios (benchmark/blind_suite.py's composition: seed 777, 6 per effect, 9 pairs,
+  9 without effect, 16 out of the catalogue, ``--sine`` sine-only, default 14): 5-7 frequencies of 4 cycles at
+  1 kHz, each with no effect or one catalogue effect;
 - a sweep of 12 frequencies (0.2-10 Hz, peak speeds 0.05-1.2 mm/s), 10 cycles each at 2 kHz, with entrained air,
   the rig's nuisances and a servo's second and third harmonics;
 - a crank-like sweep: 8 speeds of a slider-crank's motion (second harmonic 6 % of the stroke, fourth 0.2 %), 10
@@ -70,9 +71,10 @@ def blind_sines(raw: Path, truth: Path, n_sine: int) -> list[str]:
     from isokinetic.contracts.scenarios import suite_composition
     from isokinetic.stages.blind_generate import generate_scenarios, scenario_names, write_suite
 
-    composition = suite_composition(777, 6, 9, 9, 6, n_sine)
+    suite = (777, 6, 9, 9, 16, n_sine)   # benchmark/blind_suite.py's defaults
+    composition = suite_composition(*suite)
     names = [n for n, c in zip(scenario_names(len(composition)), composition, strict=True) if c[3] == "sine"]
-    write_suite(generate_scenarios(777, 6, 9, 9, 6, n_sine, names=names), raw, truth)
+    write_suite(generate_scenarios(*suite, names=names), raw, truth)
     return names
 
 
