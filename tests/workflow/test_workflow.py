@@ -323,8 +323,10 @@ def test_an_interrupted_campaign_is_shown_interrupted_until_it_is_rebuilt(projec
         fh.write("# edited\n")                                         # its jobs rerun
     log = tmp_path / "interrupted.log"
     with open(log, "w") as out:
+        # unbuffered: a redirected stdout is block-buffered, and its "rule analysis:" could reach the file only as
+        # Snakemake exits, after the build it was to interrupt
         proc = subprocess.Popen([SNAKEMAKE, "--cores", "2"], cwd=work, stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True)
+                                start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
         deadline = time.monotonic() + 90
         while "rule analysis:" not in log.read_text(encoding="utf-8", errors="replace"):
