@@ -323,10 +323,12 @@ def test_an_interrupted_campaign_is_shown_interrupted_until_it_is_rebuilt(projec
         fh.write("# edited\n")                                         # its jobs rerun
     log = tmp_path / "interrupted.log"
     with open(log, "w") as out:
-        # unbuffered: a redirected stdout is block-buffered, and its "rule analysis:" could reach the file only as
-        # Snakemake exits, after the build it was to interrupt
+        # SIGINT at its default: a test run started in the background of a shell without job control inherits it
+        # ignored (POSIX), and Snakemake would then build on through the Ctrl-C; unbuffered, so that "rule analysis:"
+        # reaches the log as the job starts
         proc = subprocess.Popen([SNAKEMAKE, "--cores", "2"], cwd=work, stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"})
+                                start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         deadline = time.monotonic() + 90
         while "rule analysis:" not in log.read_text(encoding="utf-8", errors="replace"):
