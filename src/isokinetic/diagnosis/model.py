@@ -265,8 +265,9 @@ class Evaluator:
     def _unit_friction(self) -> list[np.ndarray]:
         """sign(v) of the driven piston on every case's sample grid (one nominal run, remembered)."""
         if self._unit is None and self._grid is not None:   # sine drives: their velocity needs no model run
-            self._unit = [np.sign(np.where(d.times(p.sample_rate_Hz) > 0.0, d.velocity(d.times(p.sample_rate_Hz)),
-                                           0.0)) for d, p in zip(self.obs.drives, self.obs.plans, strict=True)]
+            times = [d.times(p.sample_rate_Hz) for d, p in zip(self.obs.drives, self.obs.plans, strict=True)]
+            self._unit = [np.sign(np.where(t > 0.0, d.velocity(t), 0.0)) for d, t in zip(self.obs.drives, times,
+                                                                                         strict=True)]
         if self._unit is None:
             self._calls += 1
             unit_friction = Effects(coulomb_force_N=1.0)

@@ -31,7 +31,7 @@ from collections import OrderedDict
 import numpy as np
 
 from isokinetic.diagnosis.observations import Observations
-from isokinetic.physics.damper import NOMINAL, Damper, Effects
+from isokinetic.physics.damper import Damper, Effects
 from isokinetic.physics.hydraulics import Hydraulics
 from isokinetic.physics.responses import scaled_viscosity
 from isokinetic.physics.sine_drive import SineDrive
@@ -100,15 +100,15 @@ class Grids:
 
 
 def butterworth_modes(order: int, group_delay_s: float) -> tuple[tuple[complex, complex], ...]:
-    """(pole λ, residue r) of the analog Butterworth low-pass of ``order`` (1, 2) and DC group delay L, corner
-    Ω = c/L (c = 1, √2): 1/(1 + s/Ω) = Ω/(s + Ω); Ω²/(s² + √2 Ω s + Ω²), whose two modes are conjugate (one
-    is kept: the output is 2 Re r w)."""
+    """(pole λ, weight r) of each mode w' = λ w + u of the analog Butterworth low-pass of ``order`` (1, 2) and DC
+    group delay L, corner Ω = c/L (c = 1, √2), its output Re Σ r w: 1/(1 + s/Ω) = Ω/(s + Ω); Ω²/(s² + √2 Ω s +
+    Ω²), whose two modes are conjugate (one is kept, its residue doubled)."""
     if order == 1:
         w = 1.0 / group_delay_s
         return ((complex(-w, 0.0), complex(w, 0.0)),)
     w = math.sqrt(2.0) / group_delay_s
     pole = w * complex(-1.0, 1.0) / math.sqrt(2.0)
-    return ((pole, complex(0.0, -w / math.sqrt(2.0))),)
+    return ((pole, 2.0 * complex(0.0, -w / math.sqrt(2.0))),)
 
 
 def monomial_responses(pole: complex, h: float) -> np.ndarray:
@@ -149,9 +149,8 @@ def low_pass(p: np.ndarray, f: np.ndarray, h: float, order: int, group_delay_s: 
     for pole, residue in butterworth_modes(order, group_delay_s):
         g = monomial_responses(pole, h) @ c
         w = np.concatenate([[0.0], lfilter([1.0], [1.0, -np.exp(pole * h)], g)])
-        weight = 1.0 if order == 1 else 2.0
-        y += weight * np.real(residue * w)
-        slope += weight * np.real(residue * (pole * w + p))
+        y += np.real(residue * w)
+        slope += np.real(residue * (pole * w + p))
     return y, slope
 
 
@@ -260,10 +259,6 @@ class GridEvaluator:
             sums = sums - np.bincount(self._hole_row, holes, minlength=len(self.obs))
         return area * sums / self._n
 
-    def predict(self, effects: Effects = NOMINAL) -> np.ndarray:
-        area, parts, steps = self._grids(effects)
-        return self._bin_means(Grids(parts, steps), 0.0, area)
-
     def lagged(self, effects: Effects, lags_s) -> np.ndarray:
         area, parts, steps = self._grids(effects)
         grids = Grids(parts, steps)
@@ -277,9 +272,6 @@ class GridEvaluator:
             rows.append(self._bin_means(Grids(out, steps), 0.0, area))
         return np.array(rows)
 
-    def read(self, effects: Effects, form: int, lags_s) -> np.ndarray:
-        return self.lagged(effects, lags_s) if form == 0 else self.filtered(effects, lags_s, form)
-
     def friction_read(self, form: int, lag_s: float) -> np.ndarray:
         """Each bin's mean of the unit Coulomb friction sign(v) (Eq. 8 per newton of F_C) as a force channel of
         ``form`` (0: a delay, 1 or 2: the Butterworth low-pass of :func:`butterworth_modes`) and group delay
@@ -288,7 +280,6 @@ class GridEvaluator:
         ci, h, n = self.obs.case_index, self._h, len(self.obs)
         shift = lag_s if form == 0 else 0.0
         modes = ((0j, 1.0 + 0j),) if form == 0 else butterworth_modes(form, lag_s)
-        weight = 1.0 if form in (0, 1) else 2.0
         sums = np.zeros(n)
         hole_case = ci[self._hole_row]
         for i in range(len(self.drives)):
@@ -303,9 +294,9 @@ class GridEvaluator:
                 if form == 0:   # the delayed sign itself: its integral w, no slope between reversals
                     y, slope, value = np.real(w), np.zeros(q.size), sigma
                 else:           # the mode's output r w, its integral r W and slope r (λ w + σ)
-                    y = weight * np.real(residue * big)
-                    slope = weight * np.real(residue * (lam * w + sigma))
-                    value = weight * np.real(residue * w)
+                    y = np.real(residue * big)
+                    slope = np.real(residue * (lam * w + sigma))
+                    value = np.real(residue * w)
                 m = rows.size
                 ya, yb, da, db = y[:m], y[m:2 * m], slope[:m], slope[m:2 * m]
                 sums[rows] += (yb - ya - h[rows] ** 2 / 24.0 * (db - da)) / h[rows]

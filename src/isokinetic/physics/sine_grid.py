@@ -82,7 +82,8 @@ class GridResponse:
         return extend(p), extend(f)
 
 
-def _drive_terms(amplitude_m: float, harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _drive_terms(harmonics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(k, A_k, θ_k) of the drive's harmonics as three arrays (the kernel's form)."""
     ks = np.array([float(k) for k, _a, _t in harmonics])
     aks = np.array([float(a) for _k, a, _t in harmonics])
     ths = np.array([float(t) for _k, _a, t in harmonics])
@@ -362,7 +363,7 @@ def grid_response(amplitude_m: float, frequency_Hz: float, harmonics, hyd: Hydra
     par = grid_parameters(amplitude_m, frequency_Hz, hyd, points_per_cycle)
     n_steps = max(int(math.ceil(end_s / par[2])) + 1, 2)
     out_p, out_f = np.empty(n_steps + 1), np.empty(n_steps + 1)
-    ks, aks, ths = _drive_terms(amplitude_m, harmonics)
+    ks, aks, ths = _drive_terms(harmonics)
     stage_y, stage_v = stage_motion(amplitude_m, frequency_Hz, tuple(harmonics), points_per_cycle)
     # the parameters as a tuple: the kernel keeps them in registers
     periodic = _integrate(tuple(float(x) for x in par), ks, aks, ths, RADAU_A, RADAU_C, n_steps, points_per_cycle,
