@@ -1,7 +1,8 @@
 """The diagnosis.json document: its versions, the document of a campaign not diagnosed, JSON-safe
 values, validation against the schema shipped with the package, and its row-level sources.
 
-Contract ``docs/diagnosis-output.md``, version 1.3 (1.1 and 1.2 readers keep working: 1.2 and 1.3 only add keys);
+Contract ``docs/diagnosis-output.md``, version 1.4 (1.1 and 1.2 readers keep working: 1.2 and 1.3 only add keys,
+1.4 makes the within-window structure test decide);
 schema ``diagnosis.schema.json``, package data of :mod:`isokinetic.contracts`
 (read through ``importlib.resources``, so a regular, non-editable install validates too).
 """
@@ -22,7 +23,7 @@ from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.sine_drive import SineDrive
 
 FORMAT_VERSION = 1
-CONTRACT_VERSION = "1.3"
+CONTRACT_VERSION = "1.4"
 METRIC = "rms_z"
 #: The diagnosis.json schema, package data of isokinetic.contracts.
 SCHEMA_PACKAGE = "isokinetic.contracts"

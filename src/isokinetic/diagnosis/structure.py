@@ -21,11 +21,16 @@ Tests of one axis (:func:`axis_test`), on the units ordered by the axis' value x
 - *trend* (:func:`trend_test`): the least-squares slope of U on the rank of x, its t statistic with the
   residual mean square floored at 1, referred to the normal where the floor binds, else to Student's
   t (N - 2), two-sided.
-The axis' p-value is the smaller of the two, Bonferroni-doubled; the axes' p-values are adjusted by
-Holm's step-down procedure (:func:`holm`), so the family-wise false-alarm rate over all the axes tested
-is at most alpha. The grand mean is taken off (the verdict's load-cell offset and gain leave none to
-find); what the verdict's fit removes along an axis (a speed dependence, a lag's transient shape) makes
-the residuals along it smaller, so the tests are conservative there.
+- on a case-level axis (CASE_AXES) also the *trend of the relative residuals* (:func:`unit_relative`): each
+  case's mean relative residual over √(its SE² + τ²), τ² the scatter between cases beyond a trend
+  (DerSimonian and Laird's estimate in a meta-regression), tested as the trend above: a case's own errors and
+  an effect that changes the force by a share weigh every case alike, where U weighs them by their force.
+The axis' p-value is the smallest of its tests' times their number (Bonferroni); the p-values of all the
+tests made (with the position within the windows, below) are adjusted by Holm's step-down procedure
+(:func:`holm`), so the family-wise false-alarm rate over them is at most alpha. The grand mean is taken
+off (the verdict's load-cell offset and gain leave none to find); what the verdict's fit removes along an axis
+(a speed dependence, a lag's transient shape) makes the residuals along it smaller, so the tests are conservative
+there.
 
 Axes (vocabulary agreed in issue 35): ``position`` (the case's stroke amplitude: a triangle's window spans
 -0.1 to 0.9 of it in the direction of motion, a sine's bins all of it, so a position-dependent force moves
@@ -35,10 +40,14 @@ the windows' means with the amplitude), ``time`` (campaign time, bins in run ord
 [0, π): a triangle's transient bins against its window, a sine's phase bins) and ``direction``. An axis
 with fewer than two distinct values, or too few units, is not tested (``structure.skipped`` says why).
 
-Within the windows. The position inside each triangle window (its WINDOW_PARTS parts,
-:attr:`isokinetic.diagnosis.observations.Observations.subwindows`) is tested too (:func:`within_window_test`)
-and reported (``structure.within_window``), but decides nothing (WITHIN_NOTE): on catalogue scenarios of the
-reference rig the verdict's model misses the force's shape inside the windows beyond the noise.
+Within the windows. The piston's position inside each triangle window (its WINDOW_PARTS parts,
+:attr:`isokinetic.diagnosis.observations.Observations.subwindows`) is an axis of its own (:func:`within_window_test`,
+axis ``position``, in the Holm family like the others): a groove or a worn band at mid-stroke, a gas spring, change
+the force *within* each window as the piston passes, where the windows' means hide it. The parts of a window share
+the coloured noise, so they are weighed by their covariance under the pooled noise model (generalised least
+squares, :func:`part_covariance`), and each window's own level, a shape common to all windows of a direction and
+each case's own scale of the verdict's shape inside its windows (a transient tail the verdict places imperfectly
+at slow speeds) are taken out before the position is looked at.
 """
 
 from __future__ import annotations
@@ -55,12 +64,16 @@ from isokinetic.physics.sine_drive import SineDrive
 
 #: The axes tested, in the order they are reported (issue 35's vocabulary; "speed" is the gap bands').
 AXES = ("position", "time", "temperature", "frequency", "acceleration", "phase", "direction")
+#: The axes whose units are cases (:func:`axis_data`): their trend is also tested in relative terms
+#: (:func:`unit_relative`).
+CASE_AXES = ("position", "time", "temperature", "frequency", "acceleration")
 #: Unit of each axis' range in a ``where`` entry.
 AXIS_UNITS = {"position": "m", "time": "s", "temperature": "degC", "frequency": "Hz", "acceleration": "m/s2",
               "phase": "rad", "direction": ""}
 #: What each test's value is.
 QUANTITIES = {"position": "stroke amplitude of the case (a triangle's window spans -0.1 to 0.9 of it)",
-              "position_within": "piston position within the triangle windows (each window's mean residual off)",
+              "position_within": "piston position within the triangle windows (each window's level, a shape common "
+                                 "to its direction and its case's scale of the verdict's shape off)",
               "time": "campaign time of the case's windows (bins in run order)",
               "temperature": "logged temperature of the case", "frequency": "sine frequency, or 1/period",
               "acceleration": "peak acceleration of a sine, (2πf)²Y",
@@ -71,11 +84,9 @@ MAX_BINS = 5
 PHASE_BINS = 8
 #: Phases [rad] closer than this are one slot (the same bin of different cases and cycles).
 PHASE_TOLERANCE_RAD = 0.05
-#: Bins of the piston's position in the within-window test (:func:`within_window_test`).
-WITHIN_BINS = 6
-WITHIN_NOTE = ("reported only, it decides nothing: on catalogue scenarios of the reference rig (leakage, air, "
-               "asymmetry) the verdict's model misses the force's shape inside the windows beyond the noise "
-               "(issue 35's measurement), so a small p-value here is no evidence of an effect outside the catalogue")
+#: Bins of the piston's position (signed, equal counts) in the within-window test (:func:`within_window_test`): about
+#: a millimetre wide on the reference rig's strokes, finer than the groove or worn band a bore has at mid-stroke.
+WITHIN_BINS = 12
 #: |z| of a bin's mean beyond which it is named in ``where`` besides the strongest one.
 Z_BIN = 3.0
 STRUCTURE_NOTE = ("the verdict's residuals are ordered along {axes} beyond noise (Holm-adjusted p {p}): an effect "
@@ -102,6 +113,39 @@ def unit_sums(unit: np.ndarray, z: np.ndarray, x: np.ndarray) -> tuple[np.ndarra
     u = np.bincount(inverse, weights=z, minlength=labels.size) / np.sqrt(n)
     xs = np.bincount(inverse, weights=x, minlength=labels.size) / n
     return u, xs, n
+
+
+def unit_relative(unit: np.ndarray, rel: np.ndarray, s_rel: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """u per unit of a case-level axis in relative terms: R = the mean relative residual of the unit's observations
+    (``rel``, standard errors ``s_rel``), SE = √(Σ s²)/n, u = R/√(SE² + τ²), τ² the relative scatter between units
+    beyond their errors and beyond a trend along the rank of x (:func:`between_unit_variance`). A case's own error
+    (a speed or gain error) and an effect that changes the force by a share (an orifice's wear) are relative: the
+    units are then weighed alike, where U (:func:`unit_sums`) weighs them by their force (a random-effects
+    meta-regression's weights)."""
+    labels, inverse = np.unique(unit, return_inverse=True)
+    n = np.bincount(inverse, minlength=labels.size).astype(float)
+    mean = np.bincount(inverse, weights=rel, minlength=labels.size) / n
+    se2 = np.bincount(inverse, weights=s_rel**2, minlength=labels.size) / n**2
+    xs = np.bincount(inverse, weights=x, minlength=labels.size) / n
+    rank = pd.Series(xs).rank().to_numpy(dtype=float)
+    return mean / np.sqrt(se2 + between_unit_variance(mean, se2, rank))
+
+
+def between_unit_variance(mean: np.ndarray, se2: np.ndarray, covariate: np.ndarray) -> float:
+    """DerSimonian and Laird's moment estimate of the variance τ² between units beyond their own (``se2``) and
+    beyond a weighted least-squares line in ``covariate`` (meta-regression): max(0, (Q_E - (k - p))/tr P),
+    Q_E = Σ w e², w = 1/SE², P = W - W X (Xᵀ W X)⁻¹ Xᵀ W, X = [1, covariate] (p its rank)."""
+    design = np.column_stack([np.ones_like(mean), covariate - covariate.mean()])
+    w = 1.0 / se2
+    xtwx = design.T @ (w[:, None] * design)
+    p = np.linalg.matrix_rank(xtwx)
+    if mean.size <= p:
+        return 0.0
+    inv = np.linalg.pinv(xtwx)
+    resid = mean - design @ (inv @ (design.T @ (w * mean)))
+    q = float(np.sum(w * resid**2))
+    trace = float(np.sum(w) - np.trace(inv @ (design.T @ ((w**2)[:, None] * design))))
+    return max(0.0, (q - (mean.size - p)) / trace) if trace > 0.0 else 0.0
 
 
 def tie_bins(x: np.ndarray, max_bins: int) -> np.ndarray:
@@ -169,10 +213,13 @@ def holm(p: Sequence[float]) -> np.ndarray:
     return out
 
 
-def axis_test(data: AxisData, z: np.ndarray) -> dict | None:
+def axis_test(data: AxisData, z: np.ndarray, rel: np.ndarray | None = None,
+              s_rel: np.ndarray | None = None) -> dict | None:
     """The test of one axis on the signed residuals ``z`` of all observations: binned means (and, unless
-    categorical, the rank trend), p = min(1, 2·min(p_bins, p_trend)); None where the axis cannot be tested
-    (fewer than two bins, or no unit left for the within-bin scatter and the trend)."""
+    categorical, the rank trend), p = min(1, 2·min(p_bins, p_trend)); a case-level axis (CASE_AXES) with the
+    relative residuals ``rel`` and their errors ``s_rel`` has a second trend, on the relative units
+    (:func:`unit_relative`), and p = min(1, 3·min(p_bins, p_trend, p_trend_rel)). None where the axis cannot be
+    tested (fewer than two bins, or no unit left for the within-bin scatter and the trend)."""
     u, x, _n = unit_sums(data.unit, z[data.rows], data.x)
     labels = tie_bins(x, len(np.unique(x)) if data.categorical else
                       PHASE_BINS if data.axis == "phase" else MAX_BINS)
@@ -180,11 +227,15 @@ def axis_test(data: AxisData, z: np.ndarray) -> dict | None:
         return None
     bins = binned_test(u, labels)
     trend = None if data.categorical else trend_test(u, x)
-    p = bins["p"] if trend is None else min(1.0, 2.0 * min(bins["p"], trend["p"]))
+    relative = (trend_test(unit_relative(data.unit, rel[data.rows], s_rel[data.rows], data.x), x)
+                if data.axis in CASE_AXES and rel is not None else None)
+    ps = [bins["p"]] + [t["p"] for t in (trend, relative) if t is not None]
+    p = min(1.0, len(ps) * min(ps))
     return {"axis": data.axis, "quantity": QUANTITIES[data.axis], "unit": AXIS_UNITS[data.axis],
             "n_units": int(u.size), "n_bins": int(np.unique(labels).size), "bins_F": bins["F"],
             "bins_df": bins["df"], "bins_p": bins["p"], "scale": bins["scale"],
             "trend_t": None if trend is None else trend["t"], "trend_p": None if trend is None else trend["p"],
+            **({} if relative is None else {"trend_rel_t": relative["t"], "trend_rel_p": relative["p"]}),
             "p": p, "_x": x, "_bins": bins}
 
 
@@ -304,51 +355,149 @@ def window_position_m(parts: Observations) -> np.ndarray:
     return parts.sign * (2.0 * c - 1.0) * amp
 
 
-def window_centred(v: np.ndarray, window: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``v`` (rows: window parts, whitened) less its projection on each window's q (q = (1/σ)/‖1/σ‖ over the
-    window's parts): what is left once each window's weighted mean is taken off."""
-    v2 = v.reshape(v.shape[0], -1)
-    sums = np.stack([np.bincount(window, weights=q * v2[:, j]) for j in range(v2.shape[1])], axis=1)
-    return (v2 - q[:, None] * sums[window]).reshape(v.shape)
+def ar1_block_factor(n_i: np.ndarray, n_j: np.ndarray, gap: np.ndarray, a: float) -> np.ndarray:
+    """Mean of exp(-a|s - t|) over s in a block of n_i samples and t in one of n_j samples starting ``gap`` >= n_i
+    samples after it: ρ^(gap - n_i + 1)·G(n_i)·G(n_j)/(n_i n_j), ρ = e^-a, G(n) = (1 - ρ^n)/(1 - ρ) (the sums of the
+    two geometric series); the covariance of two block means of unit-variance AR(1) noise (a = 1/(fs τ_c))."""
+    rho = math.exp(-a)
+    om = -math.expm1(-a)
+    g = lambda n: -np.expm1(-a * n) / om   # noqa: E731
+    return rho ** (gap - n_i + 1.0) * g(n_i) * g(n_j) / (n_i * n_j)
 
 
-def within_window_test(parts: Observations | None, prediction: np.ndarray, n_bins: int = WITHIN_BINS) -> dict | None:
-    """The test of a force that depends on the piston's position inside the triangle windows (reported only:
-    WITHIN_NOTE).
+def part_covariance(parts: Observations, models: Mapping | None) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per window: (its parts' rows in time order, the covariance of their means [N²]) under the pooled noise model
+    of their sample rate (:class:`isokinetic.measurement.noise.NoiseModel`): the white part (s_w² + s_q² F²)/n on
+    the diagonal, the coloured part (s_a² + s_r² |F_i F_j|)·c_ij with c_ij the AR(1) factor of the two blocks
+    (:func:`isokinetic.measurement.noise.ar1_mean_factor` on the diagonal, :func:`ar1_block_factor` off it). Where
+    no model holds the rate, the parts' own σ² on the diagonal."""
+    from isokinetic.measurement.noise import ar1_mean_factor
 
-    Model: each window part k (position y_k, :func:`window_position_m`) departs from the verdict in the force's
-    magnitude by a function of position, a share f(y) of it (a bypass groove, a worn bore: a flow path opened
-    there) plus a force g(y) (a spring, a rubbing seal), f and g constant over ``n_bins`` bins of y of equal counts,
-    beyond a constant per window and a shape common to all windows of a direction (a share and a force per part
-    index: what a servo's or the oil's settling leaves along every window alike). Whitened: z_k =
-    sign(v)(F_k - P_k)/σ_k, columns 1{y_k in bin j}·|P_k|/σ_k (f) and 1{y_k in bin j}/σ_k (g), each window's
-    weighted mean projected out (:func:`window_centred`). Statistic: the χ² drop the position columns give beyond
-    the common shape, over their added rank r, divided by the residual mean square floored at 1, referred to
-    F(r, N - windows - rank). None with no degree of freedom left."""
+    window = pd.factorize(pd.Series(parts.case).astype(str) + "/" + pd.Series(parts.segment).astype(str))[0]
+    fs = np.array([p.sample_rate_Hz for p in parts.plans])[parts.case_index]
+    n = np.maximum(parts.stop - parts.start, 1).astype(float)
+    out = []
+    for w in range(window.max() + 1):
+        rows = np.flatnonzero(window == w)
+        rows = rows[np.argsort(parts.start[rows], kind="stable")]
+        model = (models or {}).get(float(fs[rows[0]]))
+        if model is None:
+            out.append((rows, np.diag(parts.sigma_N[rows] ** 2)))
+            continue
+        a = 1.0 / (model.fs_Hz * model.tau_c_s)
+        m, s, f = n[rows], parts.start[rows].astype(float), np.abs(parts.force_N[rows])
+        lo, hi = np.minimum.outer(np.arange(rows.size), np.arange(rows.size)), np.maximum.outer(
+            np.arange(rows.size), np.arange(rows.size))
+        c = ar1_block_factor(m[lo], m[hi], s[hi] - s[lo], a)
+        c[np.diag_indices(rows.size)] = ar1_mean_factor(m, a)
+        cov = (model.coloured_var_N2 + model.coloured_rel_var * np.outer(f, f)) * c
+        out.append((rows, cov + np.diag(model.white_variance_N2(f * f) / m)))
+    return out
+
+
+def within_window_design(parts: Observations, prediction: np.ndarray, n_bins: int) -> tuple[np.ndarray, ...]:
+    """(nuisance columns, position columns, position bin of each part) of :func:`within_window_test`: each window's
+    level; per part index and direction a share and a force common to all windows (what a servo's or the oil's
+    settling leaves along every window alike); per case and direction the verdict's own force sign(v)·P (its
+    within-window shape, a transient tail, scaled freely); and, per bin of the signed position y (``n_bins`` of
+    equal counts), a share 1{y in bin}·|P| and a force 1{y in bin}."""
+    window = pd.factorize(pd.Series(parts.case).astype(str) + "/" + pd.Series(parts.segment).astype(str))[0]
+    case_dir = pd.factorize(pd.Series(parts.case).astype(str) + np.where(parts.sign > 0, "/+", "/-"))[0]
+    part = pd.Series(parts.start).groupby(window).rank(method="first").to_numpy().astype(int) - 1
+    size, sign = np.abs(prediction)[:, None], parts.sign[:, None]
+    one_hot = lambda k: (k[:, None] == np.arange(k.max() + 1)[None, :]).astype(float)   # noqa: E731
+    shape = one_hot(part)
+    nuisance = np.hstack([one_hot(window), shape * size, shape, shape * size * sign, shape * sign,
+                          one_hot(case_dir) * (parts.sign * prediction)[:, None]])
+    labels = tie_bins(window_position_m(parts), n_bins)
+    bins = one_hot(labels)
+    return nuisance, np.hstack([bins * size, bins]), labels
+
+
+def within_window_test(parts: Observations | None, prediction: np.ndarray, models: Mapping | None = None,
+                       drift_N: np.ndarray | None = None, n_bins: int = WITHIN_BINS) -> dict | None:
+    """The test of a force that depends on the piston's position inside the triangle windows.
+
+    Residuals r = sign(v)(F - P - D) of the window parts (P the verdict's model, D its zero drift, ``drift_N``),
+    whitened window by window with the Cholesky factor of their covariance (:func:`part_covariance`); the position
+    columns (a share f(y) and a force g(y) in ``n_bins`` bins of
+    y, :func:`within_window_design`) beyond the nuisance columns: the χ² drop over their added rank, divided by the
+    residual mean square floored at 1, referred to F(rank, N - rank of the full design). Each bin's z: the signed
+    square root of the χ² drop its two columns alone give (over the same mean square), for ``where``. None without
+    parts or with no degree of freedom left."""
     if parts is None or len(parts) == 0:
         return None
     from scipy import special
 
-    window = pd.factorize(pd.Series(parts.case).astype(str) + "/" + pd.Series(parts.segment).astype(str))[0]
-    inv = 1.0 / parts.sigma_N
-    q = inv / np.sqrt(np.bincount(window, weights=inv**2))[window]
-    size = np.abs(prediction)[:, None]
-    part = pd.Series(parts.start).groupby(window).rank(method="first").to_numpy().astype(int) - 1
-    shape = (part[:, None] == np.arange(part.max() + 1)[None, :]) * inv[:, None]
-    common = np.hstack([shape * size, shape, shape * size * parts.sign[:, None], shape * parts.sign[:, None]])
-    labels = tie_bins(window_position_m(parts), n_bins)
-    onehot = (labels[:, None] == np.arange(labels.max() + 1)[None, :]) * inv[:, None]
-    z = window_centred(parts.sign * (parts.force_N - prediction) * inv, window, q)
-    r0, k0 = least_squares_residual(window_centred(common, window, q), z)
-    r1, k1 = least_squares_residual(window_centred(np.hstack([common, onehot * size, onehot]), window, q), z)
-    dof, rank = int(len(parts) - (window.max() + 1) - k1), k1 - k0
+    nuisance, position, labels = within_window_design(parts, prediction, n_bins)
+    r = parts.sign * (parts.force_N - prediction - (0.0 if drift_N is None else drift_N))
+    y, xn, xp = np.empty_like(r), np.empty_like(nuisance), np.empty_like(position)
+    for rows, cov in part_covariance(parts, models):
+        chol = np.linalg.cholesky(cov + np.diag(1e-12 * np.diag(cov) + 1e-300))   # a ridge far below the noise
+        y[rows], xn[rows], xp[rows] = (np.linalg.solve(chol, m[rows]) for m in (r, nuisance, position))
+    k0, (y0, xp0) = off_span(xn, y, xp)                     # the nuisance columns' part taken off
+    r1, rank = least_squares_residual(xp0, y0)
+    dof = int(len(parts) - k0 - rank)
     if rank < 1 or dof < 1:
         return None
     scale = max(1.0, float(r1 @ r1) / dof)
-    stat = (float(r0 @ r0) - float(r1 @ r1)) / rank / scale
-    return {"quantity": QUANTITIES["position_within"], "n_parts": int(len(parts)), "n_bins": int(labels.max() + 1),
+    stat = (float(y0 @ y0) - float(r1 @ r1)) / rank / scale
+    n_b = int(labels.max() + 1)
+    rel = r / np.abs(parts.force_N)
+    bin_z = np.zeros(n_b)
+    for b in range(n_b):
+        rb, _ = least_squares_residual(xp0[:, [b, n_b + b]], y0)
+        drop = max(float(y0 @ y0) - float(rb @ rb), 0.0)
+        bin_z[b] = math.copysign(math.sqrt(drop / scale), float(np.mean(rel[labels == b]) - np.mean(rel)))
+    y_m = window_position_m(parts)
+    bins = [{"range": [float(y_m[labels == b].min()), float(y_m[labels == b].max())], "z": float(bin_z[b]),
+             "mean_rel": float(np.mean(rel[labels == b]) - np.mean(rel))} for b in range(n_b)]
+    return {"quantity": QUANTITIES["position_within"], "n_parts": int(len(parts)), "n_bins": n_b,
             "F": stat, "df": [int(rank), dof], "scale": scale, "p": float(special.fdtrc(rank, dof, stat)),
-            "decides": False, "note": WITHIN_NOTE}
+            "decides": True, "bins": bins, "_bin_z": bin_z, "_labels": labels, "_y": y_m, "_rel": rel}
+
+
+def within_window_where(test: Mapping) -> list[dict]:
+    """The ``where`` entries of a significant within-window test: each run of neighbouring position bins
+    (``test['bins']``, in the order of the position) whose |z| exceeds Z_BIN with one sign, and the strongest bin
+    (a run of its own if none exceeds it): the range of the piston's position [m], the mean signed relative
+    residual of its parts about all parts' mean, the largest |z| of the run (signed) and the Holm-adjusted p."""
+    z = np.array([b["z"] for b in test["bins"]])
+    keep = np.abs(z) > Z_BIN
+    keep[int(np.argmax(np.abs(z)))] = True
+    runs, start = [], None
+    for b in range(z.size + 1):
+        same = b < z.size and keep[b] and start is not None and np.sign(z[b]) == np.sign(z[start])
+        if start is not None and not same:
+            runs.append((start, b))
+            start = None
+        if b < z.size and keep[b] and start is None:
+            start = b
+    labels, rel = test["_labels"], test["_rel"]
+    out = []
+    for lo, hi in runs:
+        at = (labels >= lo) & (labels < hi)
+        strongest = lo + int(np.argmax(np.abs(z[lo:hi])))
+        out.append({"axis": "position", "quantity": test["quantity"],
+                    "range": [test["bins"][lo]["range"][0], test["bins"][hi - 1]["range"][1]], "unit": "m",
+                    "mean_rel": float(np.mean(rel[at]) - np.mean(rel)), "z": float(z[strongest]),
+                    "p_adjusted": test["p_adjusted"], "significant": True, "n_units": int(at.sum())})
+    return out
+
+
+def within_window_entry(within: Mapping) -> dict:
+    """The within-window test as one of the family's ``tests`` (axis ``position``, ``test: within_window``)."""
+    return {"axis": "position", "test": "within_window", "quantity": within["quantity"], "unit": "m",
+            "n_units": within["n_parts"], "n_bins": within["n_bins"], "bins_F": within["F"], "bins_df": within["df"],
+            "bins_p": within["p"], "scale": within["scale"], "trend_t": None, "trend_p": None, "p": within["p"]}
+
+
+def off_span(design: np.ndarray, *arrays: np.ndarray) -> tuple[int, list[np.ndarray]]:
+    """(the rank of ``design``, each array less its projection on the span of its columns: its left singular
+    vectors above numpy's rank tolerance)."""
+    u, sv, _ = np.linalg.svd(design, full_matrices=False)
+    u = u[:, sv > sv.max() * max(design.shape) * np.finfo(float).eps] if sv.size else u[:, :0]
+    return u.shape[1], [a - u @ (u.T @ a) for a in arrays]
 
 
 def least_squares_residual(design: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, int]:
@@ -359,34 +508,41 @@ def least_squares_residual(design: np.ndarray, z: np.ndarray) -> tuple[np.ndarra
 
 def residual_structure(obs: Observations, prediction: np.ndarray, alpha: float, time_s: np.ndarray | None = None,
                        temperature_C: Mapping[str, float] | None = None,
-                       parts_prediction: np.ndarray | None = None) -> dict:
+                       parts_prediction: np.ndarray | None = None, parts_drift_N: np.ndarray | None = None) -> dict:
     """The structure tests of the residuals of ``prediction`` (the verdict's measured prediction) on every axis
-    (:func:`axis_data`, :func:`axis_test`), Holm-adjusted (:func:`holm`): {"alpha", "tests": per axis tested,
-    "skipped": axis -> why, "where": entries of the significant axes, "axes": the axes with structure}; with
-    ``parts_prediction`` (the verdict's model at the windows' parts ``obs.subwindows``) also "within_window",
-    the test of the position within the windows (:func:`within_window_test`), reported only: it decides
-    nothing (WITHIN_NOTE)."""
+    (:func:`axis_data`, :func:`axis_test`) and, with ``parts_prediction`` (the verdict's model at the windows' parts
+    ``obs.subwindows``; ``parts_drift_N``, its zero drift there), of the position within the windows
+    (:func:`within_window_test`, its details also as "within_window"), Holm-adjusted together (:func:`holm`):
+    {"alpha", "tests": per test made, "skipped": axis -> why, "where": entries of the significant tests, "axes":
+    the axes with structure}."""
     z = obs.sign * (obs.force_N - prediction) / obs.sigma_N
     rel = obs.sign * (obs.force_N - prediction) / np.abs(obs.force_N)
+    s_rel = obs.sigma_N / np.abs(obs.force_N)
     datas = {d.axis: d for d in axis_data(obs, time_s, temperature_C)}
     tests, skipped = [], {}
     for axis in AXES:
         data = datas.get(axis)
-        test = None if data is None or data.rows.size == 0 else axis_test(data, z)
+        test = None if data is None or data.rows.size == 0 else axis_test(data, z, rel, s_rel)
         if test is None:
             skipped[axis] = ("not recorded" if data is None or data.rows.size == 0
                              else "fewer than two distinct values or too few units")
         else:
             tests.append(test)
+    within = None if parts_prediction is None else within_window_test(
+        obs.subwindows, parts_prediction, (obs.noise or {}).get("objects"), parts_drift_N)
+    if within is not None:
+        tests.append(within_window_entry(within))
     for test, p_adj in zip(tests, holm([t["p"] for t in tests]), strict=True):
         test["p_adjusted"] = float(p_adj)
         test["significant"] = bool(p_adj < alpha)
-    where = [e for t in tests if t["significant"] for e in where_entries(t, datas[t["axis"]], rel)]
+    where = [e for t in tests if t["significant"] for e in
+             (within_window_where({**within, **t}) if t.get("test") == "within_window"
+              else where_entries(t, datas[t["axis"]], rel))]
     public = [{k: v for k, v in t.items() if not k.startswith("_")} for t in tests]
     out = {"alpha": alpha, "tests": public, "skipped": skipped, "where": where,
-           "axes": [t["axis"] for t in tests if t["significant"]]}
+           "axes": list(dict.fromkeys(t["axis"] for t in tests if t["significant"]))}
     if parts_prediction is not None:
-        out["within_window"] = within_window_test(obs.subwindows, parts_prediction) or {
+        out["within_window"] = {k: v for k, v in within.items() if not k.startswith("_")} if within else {
             "note": "fewer than two position bins or too few window parts: not tested"}
     return out
 
@@ -407,8 +563,8 @@ def axis_units(obs: Observations, prediction: np.ndarray, time_s: np.ndarray | N
 def parts_prediction(obs: Observations, damper, best) -> np.ndarray | None:
     """The verdict ``best`` (a :class:`isokinetic.diagnosis.candidate.Candidate`) at the windows' parts
     (``obs.subwindows``, driven as ``obs``' cases are): gain·(F_model + F_C·friction column) through its force
-    channel; the load-cell offset and zero drift are left out (constant within a window, they cancel in
-    :func:`within_window`). None without parts. One model run."""
+    channel; the load-cell's offset and zero drift are left out (:func:`parts_drift`). None without parts. One model
+    run."""
     parts = obs.subwindows
     if parts is None or len(parts) == 0:
         return None
@@ -428,13 +584,25 @@ def parts_prediction(obs: Observations, damper, best) -> np.ndarray | None:
     return best.gain * (hydraulic + friction_N * column)
 
 
+def parts_drift(obs: Observations, best) -> np.ndarray | None:
+    """The verdict's load-cell zero drift at the windows' parts [N], from each case's start (the offset and the
+    drift's level at a case's start are constant within a window: :func:`within_window_test` takes each window's
+    level off); None without parts."""
+    parts = obs.subwindows
+    if parts is None or len(parts) == 0:
+        return None
+    fs = np.array([p.sample_rate_Hz for p in obs.plans])[parts.case_index]
+    return float(best.drift_N_s or 0.0) * 0.5 * (parts.start + parts.stop) / fs
+
+
 def structure_note(structure: Mapping) -> str | None:
     """The note of a verdict whose residuals show structure (None where they show none): the axes, with
     their Holm-adjusted p-values."""
     hits = [t for t in structure.get("tests", []) if t.get("significant")]
     if not hits:
         return None
-    return STRUCTURE_NOTE.format(axes=", ".join(t["axis"] for t in hits),
+    return STRUCTURE_NOTE.format(axes=", ".join(t["axis"] + (" (within the windows)" if t.get("test") else "")
+                                                for t in hits),
                                  p=", ".join(f"{t['p_adjusted']:.2g}" for t in hits))
 
 

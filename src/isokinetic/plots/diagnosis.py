@@ -20,7 +20,8 @@ from isokinetic.plots.style import new_figure, say_missing
 STRUCTURE_LABELS = {"position": ("stroke amplitude [mm]", 1e3), "time": ("campaign time [s]", 1.0),
                     "temperature": ("temperature [°C]", 1.0), "frequency": ("frequency [Hz]", 1.0),
                     "acceleration": ("peak acceleration [m/s²]", 1.0),
-                    "phase": ("phase from the reversal [rad]", 1.0), "direction": ("direction", 1.0)}
+                    "phase": ("phase from the reversal [rad]", 1.0), "direction": ("direction", 1.0),
+                    "position_within": ("piston position within the windows [mm]", 1e3)}
 
 
 def gap_figure(result: dict, obs, predictions: dict) -> Figure:
@@ -81,20 +82,29 @@ def structure_axes(result: dict, obs, predictions: dict) -> list[str]:
     the observations and the verdict's prediction to show them."""
     if obs is None or (predictions.get("structure") or {}).get("prediction") is None:
         return []
-    return list((result.get("structure") or {}).get("axes") or [])
+    tests = (result.get("structure") or {}).get("tests") or []
+    return list(dict.fromkeys("position_within" if t.get("test") == "within_window" else t["axis"]
+                              for t in tests if t.get("significant")))
 
 
 def structure_panels(fig, grid, result: dict, obs, predictions: dict, structured: list[str]) -> None:
     """A panel per axis with structure: each unit's residual U = Σz/√n (z signed in the direction of motion:
-    > 0, the damper stronger than the verdict) against the axis' value, ±3 dashed, the ``where`` ranges shaded."""
+    > 0, the damper stronger than the verdict) against the axis' value (the position within the windows: each
+    position bin's z), ±3 dashed, the ``where`` ranges shaded."""
     inputs = predictions["structure"]
     units = axis_units(obs, inputs["prediction"], inputs.get("time_s"), inputs.get("temperature_C"))
-    tests = {t["axis"]: t for t in (result.get("structure") or {}).get("tests") or []}
+    structure = result.get("structure") or {}
+    tests = {"position_within" if t.get("test") == "within_window" else t["axis"]: t
+             for t in structure.get("tests") or []}
+    bins = (structure.get("within_window") or {}).get("bins") or []
+    units["position_within"] = (np.array([0.5 * sum(b["range"]) for b in bins]), np.array([b["z"] for b in bins]))
     for k, axis in enumerate(structured):
         ax = fig.add_subplot(grid[1, 2 * k:2 * k + 2])
         label, scale = STRUCTURE_LABELS.get(axis, (axis, 1.0))
         x, u = units.get(axis, (np.zeros(0), np.zeros(0)))
-        for entry in (e for e in result.get("where") or [] if e.get("axis") == axis):
+        quantity = tests.get(axis, {}).get("quantity")
+        for entry in (e for e in result.get("where") or []
+                      if e.get("axis") == axis.split("_")[0] and e.get("quantity") == quantity):
             lo, hi = (v * scale for v in entry["range"])
             pad = 0.02 * (float(np.ptp(x)) * scale if x.size else 1.0)
             ax.axvspan(lo - pad, hi + pad, color="tab:orange", alpha=0.25, gid=f"structure-{axis}-range")
@@ -107,7 +117,7 @@ def structure_panels(fig, grid, result: dict, obs, predictions: dict, structured
         ax.set_title(f"{axis}: structure, Holm p = {p:.2g}" if p is not None else axis, fontsize=9)
         ax.grid(True, alpha=0.3)
         if k == 0:
-            ax.set_ylabel("unit residual Σz/√n (verdict)")
+            ax.set_ylabel("unit residual Σz/√n, bin z (verdict)")
 
 
 def _gap_text(result: dict) -> str:
