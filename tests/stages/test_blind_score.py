@@ -143,6 +143,16 @@ def test_sensor_chain_errors_and_target_e():
     assert "lag misses s01, s03" in summary_text(summarize(scores.reset_index()))
 
 
+def test_target_e_judges_the_lag_where_the_verdict_names_its_effects_and_lists_the_others():
+    # a verdict that misses the truth's effect fits the lag with it: listed beside, not judged, as the sizes
+    cases = [(_sensor_truth("s00", 0.03, 1.0, ["viscosity"]), _sensor_diag(["viscosity"], lag_s=0.032)),
+             (_sensor_truth("s01", 0.03, 1.0, ["viscosity"]), _sensor_diag(["friction"], lag_s=0.045))]
+    scores = score([t for t, _ in cases], {t["scenario"]: d for t, d in cases})
+    e = summarize(scores)["targets"]["e_parameters"]
+    assert (e["n_lag"], e["lag_misses"]) == (1, [])
+    assert e["lag_off_beside_missed_effects"] == ["s01 (15.0 ms)"]
+
+
 def _sized(name, true_cd, got_cd, se):
     """A discharge scenario (manifest C_D 0.6) and its exact verdict with a reported standard error."""
     t = dict(_truth(name, ["discharge"], 3.0), params={"discharge_coefficient": true_cd},
