@@ -358,11 +358,11 @@ def window_position_m(parts: Observations) -> np.ndarray:
 def ar1_block_factor(n_i: np.ndarray, n_j: np.ndarray, gap: np.ndarray, a: float) -> np.ndarray:
     """Mean of exp(-a|s - t|) over s in a block of n_i samples and t in one of n_j samples starting ``gap`` >= n_i
     samples after it: ρ^(gap - n_i + 1)·G(n_i)·G(n_j)/(n_i n_j), ρ = e^-a, G(n) = (1 - ρ^n)/(1 - ρ) (the sums of the
-    two geometric series); the covariance of two block means of unit-variance AR(1) noise (a = 1/(fs τ_c))."""
-    rho = math.exp(-a)
+    two geometric series); the covariance of two block means of unit-variance AR(1) noise (a = 1/(fs τ_c)). A gap
+    shorter than n_i (a block with itself) is not such a pair: its value is then meaningless but finite."""
     om = -math.expm1(-a)
     g = lambda n: -np.expm1(-a * n) / om   # noqa: E731
-    return rho ** (gap - n_i + 1.0) * g(n_i) * g(n_j) / (n_i * n_j)
+    return np.exp(-a * np.maximum(gap - n_i + 1.0, 0.0)) * g(n_i) * g(n_j) / (n_i * n_j)
 
 
 def part_covariance(parts: Observations, models: Mapping | None) -> list[tuple[np.ndarray, np.ndarray]]:
