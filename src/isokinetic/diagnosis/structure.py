@@ -23,7 +23,8 @@ Tests of one axis (:func:`axis_test`), on the units ordered by the axis' value x
   t (N - 2), two-sided.
 - on a case-level axis (CASE_AXES) also the *trend of the relative residuals* (:func:`unit_relative`): each
   case's mean relative residual over √(its SE² + τ²), τ² the scatter between cases beyond a trend
-  (DerSimonian and Laird's estimate in a meta-regression), tested as the trend above: a case's own errors and
+  (DerSimonian and Laird's estimate in a meta-regression), tested as the trend above but always against
+  Student's t (τ² is estimated: Knapp and Hartung's reference): a case's own errors and
   an effect that changes the force by a share weigh every case alike, where U weighs them by their force.
 The axis' p-value is the smallest of its tests' times their number (Bonferroni); the p-values of all the
 tests made (with the position within the windows, below) are adjusted by Holm's step-down procedure
@@ -182,10 +183,10 @@ def binned_test(u: np.ndarray, labels: np.ndarray) -> dict:
             "bin_z": (means - grand) * np.sqrt(m / scale), "bin_of_unit": inverse}
 
 
-def trend_test(u: np.ndarray, x: np.ndarray) -> dict:
+def trend_test(u: np.ndarray, x: np.ndarray, student: bool = False) -> dict:
     """Trend of the unit residuals ``u`` along the rank of ``x`` (ties share their mean rank): the least-squares
     slope over its standard error, residual mean square s² floored at 1; p two-sided from the normal where the
-    floor binds, else from Student's t (N - 2)."""
+    floor binds, else (or always, ``student``: units scaled by an estimated variance) from Student's t (N - 2)."""
     from scipy import special
 
     r = pd.Series(x).rank().to_numpy(dtype=float)
@@ -197,7 +198,7 @@ def trend_test(u: np.ndarray, x: np.ndarray) -> dict:
     resid = u - u.mean() - slope * rc
     scale = max(1.0, float(resid @ resid) / (u.size - 2))
     t = slope / math.sqrt(scale / sxx)
-    p = special.stdtr(u.size - 2, -abs(t)) if scale > 1.0 else special.ndtr(-abs(t))
+    p = special.stdtr(u.size - 2, -abs(t)) if scale > 1.0 or student else special.ndtr(-abs(t))
     return {"t": t, "df": int(u.size - 2), "p": float(2.0 * p)}
 
 
@@ -227,7 +228,7 @@ def axis_test(data: AxisData, z: np.ndarray, rel: np.ndarray | None = None,
         return None
     bins = binned_test(u, labels)
     trend = None if data.categorical else trend_test(u, x)
-    relative = (trend_test(unit_relative(data.unit, rel[data.rows], s_rel[data.rows], data.x), x)
+    relative = (trend_test(unit_relative(data.unit, rel[data.rows], s_rel[data.rows], data.x), x, student=True)
                 if data.axis in CASE_AXES and rel is not None else None)
     ps = [bins["p"]] + [t["p"] for t in (trend, relative) if t is not None]
     p = min(1.0, len(ps) * min(ps))
