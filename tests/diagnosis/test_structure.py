@@ -15,6 +15,7 @@ from isokinetic.diagnosis.structure import (
     QUANTITIES,
     between_unit_variance,
     binned_test,
+    drift_test,
     half_cycle_phase,
     holm,
     part_covariance,
@@ -417,3 +418,32 @@ def test_a_share_of_the_force_lost_over_the_campaign_is_found_in_time_whatever_e
     time = next(t for t in found["tests"] if t["axis"] == "time")
     assert "time" in found["axes"] and time["trend_rel_t"] < 0
     assert time["trend_rel_p"] < time["trend_p"]
+
+
+def drift_case_sensitivity(obs: Observations, seed: int = 21) -> np.ndarray:
+    """A parameter's sensitivity ∂F/∂ln θ [N] per observation: each case's own, spread over 100× (an orifice's
+    coefficient matters at the fast cases only), in the direction of motion."""
+    per_case = np.geomspace(0.05, 5.0, len(obs.plans))[np.random.default_rng(seed).permutation(len(obs.plans))]
+    return obs.sign * per_case[obs.case_index] * obs.sigma_N
+
+
+def test_the_drift_test_keeps_its_level_with_each_cases_own_error():
+    obs = triangle_campaign()
+    sens = drift_case_sensitivity(obs)
+    n, alarms = 300, 0
+    for k in range(n):
+        case_error = np.random.default_rng([78, k]).normal(0.0, 3.0, len(obs.plans))[obs.case_index]
+        z = noise(obs, 4000 + k) + case_error
+        alarms += drift_test(obs, z, case_times_s(obs), sens, "discharge_coefficient")["p"] < 0.05
+    assert alarms / n <= 0.05 + 3.0 * math.sqrt(0.05 * 0.95 / n)
+
+
+def test_a_parameter_drifting_in_time_is_found_through_its_own_sensitivity():
+    # θ grows 2 % a case in run order: its signature is 10 σ in the most sensitive case, nil in the least
+    obs = triangle_campaign()
+    sens = drift_case_sensitivity(obs)
+    z = noise(obs, 41) + 0.02 * (obs.case_index - obs.case_index.mean()) * obs.sign * sens / obs.sigma_N * 15
+    found = drift_test(obs, z, case_times_s(obs), sens, "discharge_coefficient")
+    assert found["p"] < ALPHA and found["trend_t"] > 0 and found["change_rel"] > 0
+    trend = next(t for t in structure_of(obs, z)["tests"] if t["axis"] == "time")
+    assert found["p"] < trend["trend_p"]   # the trend of U weighs every case alike

@@ -44,8 +44,20 @@ def test_orifice_wear_over_the_campaign_is_not_explained_and_is_located_in_time(
     result = diagnose_rig(tmp_path, "wear", effects, plan=shuffled_campaign())
     assert result["explained"] is False
     assert "time" in result["structure"]["axes"]
-    test = next(t for t in result["structure"]["tests"] if t["axis"] == "time")
+    test = next(t for t in result["structure"]["tests"] if t["axis"] == "time" and "test" not in t)
     assert test["trend_rel_t"] < 0    # weaker and weaker as the campaign goes on
+    drift = next(t for t in result["structure"]["tests"] if t.get("parameter") == "discharge_coefficient")
+    assert drift["significant"] and drift["change_rel"] > 0   # the orifice passes more and more
+
+
+def test_an_unlogged_warm_up_is_not_explained_and_is_a_viscosity_falling_in_time(tmp_path):
+    # the oil 8 K warmer at the campaign's end than at its start, no temperature channel
+    effects = rr.TrueEffects(**hidden_fields("warmup", 8.0, TABLE_1))
+    result = diagnose_rig(tmp_path, "warm", effects, plan=shuffled_campaign(5))
+    assert result["explained"] is False
+    drift = next(t for t in result["structure"]["tests"] if t.get("parameter") == "viscosity_Pa_s")
+    assert drift["significant"] and drift["change_rel"] < 0
+    assert any(e.get("parameter") == "viscosity_Pa_s" for e in result["where"])
 
 
 @pytest.mark.parametrize("seed", [3, 11])

@@ -68,6 +68,14 @@ AXES = ("position", "time", "temperature", "frequency", "acceleration", "phase",
 #: The axes whose units are cases (:func:`axis_data`): their trend is also tested in relative terms
 #: (:func:`unit_relative`).
 CASE_AXES = ("position", "time", "temperature", "frequency", "acceleration")
+#: The damper parameters whose drift over the campaign's time is tested (:func:`drift_test`), and what a drift of
+#: each is on a real damper.
+DRIFT_PARAMETERS = {"discharge_coefficient": "the orifice's discharge coefficient (its area: an orifice wearing)",
+                    "viscosity_Pa_s": "the oil's viscosity (its temperature: an unlogged warm-up)"}
+#: Relative step of a parameter for its sensitivity (:func:`drift_sensitivities`).
+DRIFT_STEP_REL = 0.01
+#: How ``structure_note`` names a test that is not its axis' own.
+TEST_NAMES = {"within_window": " (within the windows)", "drift": " (a drift of {parameter})"}
 #: Unit of each axis' range in a ``where`` entry.
 AXIS_UNITS = {"position": "m", "time": "s", "temperature": "degC", "frequency": "Hz", "acceleration": "m/s2",
               "phase": "rad", "direction": ""}
@@ -507,13 +515,79 @@ def least_squares_residual(design: np.ndarray, z: np.ndarray) -> tuple[np.ndarra
     return z - design @ beta, int(rank)
 
 
+def drift_test(obs: Observations, z: np.ndarray, time_s: np.ndarray, sensitivity_N: np.ndarray,
+               parameter: str) -> dict | None:
+    """The score test of a damper parameter θ that drifts over the campaign's time, against the verdict's
+    residuals: with s_i = sign(v)·∂F_i/∂ln θ / σ_i (``sensitivity_N`` the derivative [N], :func:`drift_sensitivities`)
+    summed per case as U is (C_c = Σ s/√n), U_c = b0·C_c + b1·C_c·(r_c - r̄) over the cases' ranks r in campaign
+    time: b1 is θ's relative change per case of the run order (b0 a constant change the verdict missed). The t
+    of b1 with the residual mean square floored at 1 (normal where the floor binds, else Student's t (N - 2), as
+    :func:`trend_test`). A drift's signature follows the parameter's own sensitivity, large in some cases and
+    nil in others, which a trend of U alone weighs alike. None with fewer than four cases."""
+    from scipy import special
+
+    data = next((d for d in axis_data(obs, time_s) if d.axis == "time"), None)
+    if data is None or np.unique(data.unit).size < 4:
+        return None
+    u, x, _n = unit_sums(data.unit, z[data.rows], data.x)
+    c, _x, _n = unit_sums(data.unit, (obs.sign * sensitivity_N / obs.sigma_N)[data.rows], data.x)
+    r = pd.Series(x).rank().to_numpy(dtype=float)
+    design = np.column_stack([c, c * (r - r.mean())])
+    if np.linalg.matrix_rank(design) < 2:
+        return None
+    beta, *_ = np.linalg.lstsq(design, u, rcond=None)
+    resid = u - design @ beta
+    dof = u.size - 2
+    ms = float(resid @ resid) / dof
+    t = float(beta[1] / math.sqrt(max(1.0, ms) * np.linalg.inv(design.T @ design)[1, 1]))
+    p = 2.0 * float(special.stdtr(dof, -abs(t)) if ms > 1.0 else special.ndtr(-abs(t)))
+    return {"axis": "time", "test": "drift", "parameter": parameter,
+            "quantity": f"a drift over campaign time of {DRIFT_PARAMETERS[parameter]}", "unit": "s",
+            "n_units": int(u.size), "n_bins": 0, "bins_F": None, "bins_p": None, "scale": max(1.0, ms),
+            "trend_t": t, "trend_p": p, "p": p, "change_rel": float(beta[1] * (u.size - 1)),
+            "range": [float(x.min()), float(x.max())]}
+
+
+def drift_where(test: Mapping) -> list[dict]:
+    """The ``where`` entry of a significant drift test: the campaign's time span, ``mean_rel`` the parameter's
+    fitted relative change from the first case to the last, z its t."""
+    return [{"axis": "time", "quantity": test["quantity"], "range": test["range"], "unit": "s",
+             "mean_rel": test["change_rel"], "z": test["trend_t"], "p_adjusted": test["p_adjusted"],
+             "significant": True, "n_units": test["n_units"], "parameter": test["parameter"]}]
+
+
+def drift_sensitivities(obs: Observations, damper, best) -> dict[str, np.ndarray]:
+    """∂F/∂ln θ [N] of the verdict ``best``'s measured force at each observation, for each parameter θ of
+    DRIFT_PARAMETERS (its value in the verdict, else the damper's), by a forward difference of DRIFT_STEP_REL
+    through the verdict's force channel and gain. One model run per parameter and one at the verdict."""
+    from isokinetic.diagnosis.model import Evaluator
+    from isokinetic.physics.damper import Effects
+
+    ev = Evaluator(obs, damper)
+    params = {k: v for k, v in best.params.items() if k != "coulomb_force_N"}
+
+    def run(effects):
+        return ev.predict(effects) if best.channel is None else ev.read(effects, best.channel[0], [best.channel[1]])[0]
+
+    base = run(Effects(**params))
+    out = {}
+    for key in DRIFT_PARAMETERS:
+        value = float(params.get(key) or getattr(damper, key))
+        stepped = run(Effects(**{**params, key: value * (1.0 + DRIFT_STEP_REL)}))
+        out[key] = best.gain * (stepped - base) / math.log1p(DRIFT_STEP_REL)
+    return out
+
+
 def residual_structure(obs: Observations, prediction: np.ndarray, alpha: float, time_s: np.ndarray | None = None,
                        temperature_C: Mapping[str, float] | None = None,
-                       parts_prediction: np.ndarray | None = None, parts_drift_N: np.ndarray | None = None) -> dict:
+                       parts_prediction: np.ndarray | None = None, parts_drift_N: np.ndarray | None = None,
+                       drift_sensitivity_N: Mapping[str, np.ndarray] | None = None) -> dict:
     """The structure tests of the residuals of ``prediction`` (the verdict's measured prediction) on every axis
     (:func:`axis_data`, :func:`axis_test`) and, with ``parts_prediction`` (the verdict's model at the windows' parts
     ``obs.subwindows``; ``parts_drift_N``, its zero drift there), of the position within the windows
-    (:func:`within_window_test`, its details also as "within_window"), Holm-adjusted together (:func:`holm`):
+    (:func:`within_window_test`, its details also as "within_window") and, with ``drift_sensitivity_N``
+    (:func:`drift_sensitivities`), of each parameter's drift over campaign time (:func:`drift_test`),
+    Holm-adjusted together (:func:`holm`):
     {"alpha", "tests": per test made, "skipped": axis -> why, "where": entries of the significant tests, "axes":
     the axes with structure}."""
     z = obs.sign * (obs.force_N - prediction) / obs.sigma_N
@@ -533,13 +607,16 @@ def residual_structure(obs: Observations, prediction: np.ndarray, alpha: float, 
         obs.subwindows, parts_prediction, (obs.noise or {}).get("objects"), parts_drift_N)
     if within is not None:
         tests.append(within_window_entry(within))
+    if time_s is not None and len(time_s) == len(obs):
+        tests += [t for key, sens in (drift_sensitivity_N or {}).items()
+                  if (t := drift_test(obs, z, time_s, sens, key)) is not None]
     for test, p_adj in zip(tests, holm([t["p"] for t in tests]), strict=True):
         test["p_adjusted"] = float(p_adj)
         test["significant"] = bool(p_adj < alpha)
     where = [e for t in tests if t["significant"] for e in
              (within_window_where({**within, **t}) if t.get("test") == "within_window"
-              else where_entries(t, datas[t["axis"]], rel))]
-    public = [{k: v for k, v in t.items() if not k.startswith("_")} for t in tests]
+              else drift_where(t) if t.get("test") == "drift" else where_entries(t, datas[t["axis"]], rel))]
+    public = [{k: v for k, v in t.items() if not k.startswith("_") and k != "range"} for t in tests]
     out = {"alpha": alpha, "tests": public, "skipped": skipped, "where": where,
            "axes": list(dict.fromkeys(t["axis"] for t in tests if t["significant"]))}
     if parts_prediction is not None:
@@ -602,7 +679,7 @@ def structure_note(structure: Mapping) -> str | None:
     hits = [t for t in structure.get("tests", []) if t.get("significant")]
     if not hits:
         return None
-    return STRUCTURE_NOTE.format(axes=", ".join(t["axis"] + (" (within the windows)" if t.get("test") else "")
+    return STRUCTURE_NOTE.format(axes=", ".join(t["axis"] + TEST_NAMES.get(t.get("test"), "").format(**t)
                                                 for t in hits),
                                  p=", ".join(f"{t['p_adjusted']:.2g}" for t in hits))
 

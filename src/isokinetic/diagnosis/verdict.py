@@ -53,7 +53,13 @@ from isokinetic.diagnosis.instrument import (
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import CONTRACT_VERSION, FORMAT_VERSION, METRIC, json_safe
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.diagnosis.structure import parts_drift, parts_prediction, residual_structure, structure_note
+from isokinetic.diagnosis.structure import (
+    drift_sensitivities,
+    parts_drift,
+    parts_prediction,
+    residual_structure,
+    structure_note,
+)
 from isokinetic.physics.damper import Damper
 from isokinetic.stats import chi2_isf
 
@@ -237,19 +243,25 @@ def structure_keys(out: dict, obs: Observations, best: Candidate, alpha: float, 
     """The residual-structure tests of the verdict ``best``
     (:func:`isokinetic.diagnosis.structure.residual_structure`, each observation's campaign time and each case's
     temperature from ``sensor``; with ``damper``, the position within the triangle windows too, the verdict run at
-    their parts: :func:`isokinetic.diagnosis.structure.parts_prediction`) as
+    their parts: :func:`isokinetic.diagnosis.structure.parts_prediction`, and the drift of the orifice and of the
+    viscosity over the campaign's time: :func:`isokinetic.diagnosis.structure.drift_sensitivities`) as
     ``out['structure']``, their significant axes added to ``where``; where any axis shows structure, the verdict is
     not ``explained`` and ``structure_note`` names the axes (contract 1.3). Returns the tests' inputs
     (``prediction``, ``time_s``, ``temperature_C``) for Fig. 16."""
     inputs = {"prediction": best.measured_prediction, "time_s": sensor.get("obs_time_s"),
               "temperature_C": sensor.get("case_temperature_C")}
-    parts, failed = None, None
+    parts, failed, drifts = None, None, None
     try:
         parts = None if damper is None else parts_prediction(obs, damper, best)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:   # the other tests stand
         failed = f"the verdict's model run at the window parts failed: {type(exc).__name__}: {exc}"
+    try:
+        drifts = None if damper is None else drift_sensitivities(obs, damper, best)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):   # no drift test: the other tests stand
+        drifts = None
     structure = residual_structure(obs, **inputs, alpha=alpha, parts_prediction=parts,
-                                   parts_drift_N=None if parts is None else parts_drift(obs, best))
+                                   parts_drift_N=None if parts is None else parts_drift(obs, best),
+                                   drift_sensitivity_N=drifts)
     if failed:
         structure["within_window"] = {"error": failed}
     out["where"] = [*out["where"], *structure.pop("where")]
