@@ -83,8 +83,14 @@ def structure_axes(result: dict, obs, predictions: dict) -> list[str]:
     if obs is None or (predictions.get("structure") or {}).get("prediction") is None:
         return []
     tests = (result.get("structure") or {}).get("tests") or []
-    return list(dict.fromkeys("position_within" if t.get("test") == "within_window" else t["axis"]
-                              for t in tests if t.get("significant")))
+    return list(dict.fromkeys(panel_of(t) for t in tests if t.get("significant")))
+
+
+def panel_of(test: dict) -> str:
+    """The structure panel a test or a ``where`` entry belongs to: the position within the windows has its own,
+    every other test its axis' (a drift over time is drawn on the time panel)."""
+    within = test.get("test") == "within_window" or "within the triangle windows" in str(test.get("quantity"))
+    return "position_within" if within else test["axis"]
 
 
 def structure_panels(fig, grid, result: dict, obs, predictions: dict, structured: list[str]) -> None:
@@ -94,17 +100,17 @@ def structure_panels(fig, grid, result: dict, obs, predictions: dict, structured
     inputs = predictions["structure"]
     units = axis_units(obs, inputs["prediction"], inputs.get("time_s"), inputs.get("temperature_C"))
     structure = result.get("structure") or {}
-    tests = {"position_within" if t.get("test") == "within_window" else t["axis"]: t
-             for t in structure.get("tests") or []}
+    tests: dict[str, dict] = {}
+    for t in structure.get("tests") or []:   # a panel's title: its most significant test
+        if t.get("p_adjusted") is not None and t["p_adjusted"] < tests.get(panel_of(t), {}).get("p_adjusted", 2.0):
+            tests[panel_of(t)] = t
     bins = (structure.get("within_window") or {}).get("bins") or []
     units["position_within"] = (np.array([0.5 * sum(b["range"]) for b in bins]), np.array([b["z"] for b in bins]))
     for k, axis in enumerate(structured):
         ax = fig.add_subplot(grid[1, 2 * k:2 * k + 2])
         label, scale = STRUCTURE_LABELS.get(axis, (axis, 1.0))
         x, u = units.get(axis, (np.zeros(0), np.zeros(0)))
-        quantity = tests.get(axis, {}).get("quantity")
-        for entry in (e for e in result.get("where") or []
-                      if e.get("axis") == axis.split("_")[0] and e.get("quantity") == quantity):
+        for entry in (e for e in result.get("where") or [] if "range" in e and panel_of(e) == axis):
             lo, hi = (v * scale for v in entry["range"])
             pad = 0.02 * (float(np.ptp(x)) * scale if x.size else 1.0)
             ax.axvspan(lo - pad, hi + pad, color="tab:orange", alpha=0.25, gid=f"structure-{axis}-range")
