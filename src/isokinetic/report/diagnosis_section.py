@@ -36,7 +36,7 @@ STRUCTURE_COLS = [Col("axis", "axis", text, False), Col("range_text", "range", t
 TEST_COLS = [Col("axis", "axis", text, False), Col("n_units", "units"), Col("n_bins", "bins"),
              Col("bins_p", "binned-means p", lambda x: fmt(x, 2)), Col("trend_p", "trend p", lambda x: fmt(x, 2)),
              Col("p_adjusted", "Holm-adjusted p", lambda x: fmt(x, 2)),
-             Col("significant", "structure", yes_no, False)]
+             Col("significant", "structure", yes_no, False), Col("quantity", "what is tested", text, False)]
 CANDIDATE_COLS = [Col("rank", "rank"), Col("effects", "effects", text, False),
                   Col("explained", "explains", yes_no, False), Col("gap_after", "gap after"),
                   Col("holdout_gap_after", "holdout gap"), Col("score", "score"),
