@@ -6,7 +6,7 @@ import math
 import numpy as np
 from scipy.signal import lfilter
 
-from isokinetic.measurement.spikes import MAX_RUN, spike_mask, too_many, too_many_note
+from isokinetic.measurement.spikes import MAX_RUN, running_medians, spike_mask, too_many, too_many_note
 
 
 def noise(n: int, seed: int, sigma: float = 9.0) -> np.ndarray:
@@ -95,3 +95,16 @@ def test_short_windows_in_a_noisy_record_give_no_spike():
             f = rng.standard_normal(n + 400)
             flagged += int(spike_mask(f, 200, 200 + n).sum())
     assert flagged == 0
+
+
+def test_the_running_medians_are_each_samples_window_median_with_and_without_it():
+    rng = np.random.default_rng(5)
+    for n in (3, 7, 11, 40):
+        x = np.round(np.cumsum(rng.standard_normal(n)) * 2.0) / 2.0   # quantised: ties in most windows
+        x[rng.integers(n)] += 50.0
+        padded = np.concatenate([2 * x[0] - x[5:0:-1], x, 2 * x[-1] - x[-2:-7:-1]]) if n > 5 else None
+        own, apart = running_medians(x)
+        for i in range(n):
+            window = padded[i:i + 11] if padded is not None else x
+            assert own[i] == np.median(window)
+            assert apart[i] == (np.median(np.delete(window, 5)) if padded is not None else np.median(x))

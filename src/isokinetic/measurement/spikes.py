@@ -80,11 +80,24 @@ def running_median(x: np.ndarray, half: int = HALF_WIDTH, *, own: bool = True) -
     """The median of the 2 half + 1 samples around each sample (``own`` False: of the 2 half around it, the sample
     itself left out); the ends continued by odd reflection (``np.pad`` 'reflect', 'odd': a trend goes on as a
     trend, so the end of a sloped record is no extremum)."""
+    return running_medians(x, half)[0 if own else 1]
+
+
+def running_medians(x: np.ndarray, half: int = HALF_WIDTH) -> tuple[np.ndarray, np.ndarray]:
+    """(:func:`running_median` with the sample, without it) from one sort of each sample's 2 half + 1 window: with
+    s its sorted window and m = s[half] the median, the 2 half others have the middle pair (s[half], s[half + 1])
+    where the sample is below m, (s[half - 1], s[half]) above it, (s[half - 1], s[half + 1]) at it, and their median
+    is the pair's mean, as ``np.median``'s (the same values, bit for bit; about twice as fast as two medians)."""
     if x.size <= half:
-        return np.full(x.shape, float(np.median(x)) if x.size else np.nan)
+        m = np.full(x.shape, float(np.median(x)) if x.size else np.nan)
+        return m, m
     padded = np.pad(x, half, mode="reflect", reflect_type="odd")
-    view = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)
-    return np.median(view if own else np.delete(view, half, axis=1), axis=1)
+    s = np.sort(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+    m = s[:, half]
+    below, above = s[:, half - 1], s[:, half + 1]
+    lo = np.where(x < m, m, below)
+    hi = np.where(x > m, m, above)
+    return m, (lo + hi) / 2
 
 
 def resolution(x: np.ndarray) -> float:
@@ -124,8 +137,9 @@ def spike_mask(f: np.ndarray, i0: int, i1: int, *, detrend: bool = False, contex
     y = np.asarray(f[s0:s1], dtype=float)
     if detrend:
         y = _quadratic_residual(y)
-    r = y - running_median(y)
-    apart = y - running_median(y, own=False)
+    with_own, without_own = running_medians(y)
+    r = y - with_own
+    apart = y - without_own
     scale = max(_mad_sigma(apart[i0 - s0:i1 - s0]), _mad_sigma(apart))
     window = np.asarray(f[i0:i1], dtype=float)
     scale = max(scale, resolution(window), 1e-9 * float(np.max(np.abs(window))), np.finfo(float).tiny)
