@@ -52,6 +52,7 @@ Limits
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -665,8 +666,7 @@ def scaled_chi2_isf(alpha: float, dof: int, scale_rel_sd: float) -> float:
     q0 = float(chi2_isf(alpha, dof))
     if eps == 0.0:
         return q0
-    x, w = np.polynomial.hermite_e.hermegauss(40)
-    w = w / w.sum()
+    x, w = _gauss_hermite()
     scale = np.exp(eps * x)
 
     def excess(log_q: float) -> float:
@@ -688,8 +688,18 @@ def scaled_chi2_sf(x: float, dof: int, scale_rel_sd: float) -> float:
         raise ValueError(f"need dof >= 1, scale_rel_sd >= 0; got {dof}, {eps}")
     if eps == 0.0:
         return float(chi2_sf(x, dof))
-    z, w = np.polynomial.hermite_e.hermegauss(40)
-    return float(np.sum(w / w.sum() * chi2_sf(x / np.exp(eps * z), dof)))
+    z, w = _gauss_hermite()
+    return float(np.sum(w * chi2_sf(x / np.exp(eps * z), dof)))
+
+
+@functools.cache
+def _gauss_hermite(n: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """The n-point Gauss-Hermite rule of the standard normal (nodes, weights summing to 1), computed once (an
+    eigenproblem: a diagnosis asks for it at every χ² test, over a thousand times on the blind suite)."""
+    x, w = np.polynomial.hermite_e.hermegauss(n)
+    w = w / w.sum()
+    x.flags.writeable = w.flags.writeable = False
+    return x, w
 
 
 def between_period_scatter(d_N, base_var_N2, mean_force_N) -> float:
