@@ -5,7 +5,7 @@ import time
 
 from snakemake.scheduling.job_scheduler import JobScheduler
 
-from isokinetic.scheduling import coalesce_reevaluations, schedule_one_reevaluation
+from isokinetic.scheduling import SWITCH, coalesce_reevaluations, schedule_one_reevaluation
 
 
 class FakeScheduler:
@@ -59,3 +59,15 @@ def test_a_scheduler_without_the_method_is_left_alone(caplog):
     assert not coalesce_reevaluations(Other)
     assert not hasattr(Other, "_schedule_reevalutation")
     assert "not coalesced" in caplog.text
+
+
+def test_the_switch_at_zero_leaves_snakemake_as_it_ships():
+    class Scheduler:
+        def _schedule_reevalutation(self, delay):
+            pass
+
+    shipped = Scheduler._schedule_reevalutation
+    assert not coalesce_reevaluations(Scheduler, {SWITCH: "0"})
+    assert Scheduler._schedule_reevalutation is shipped
+    assert coalesce_reevaluations(Scheduler, {SWITCH: "1"})
+    assert Scheduler._schedule_reevalutation is schedule_one_reevaluation

@@ -12,18 +12,24 @@ one (up to 1 s) before it exits.
 :func:`coalesce_reevaluations` keeps at most one such timer pending (a daemon thread). A pass it
 triggers arms the next one, so the rate limiter is still reevaluated every timespan while jobs
 wait. Scheduling decisions are unchanged: jobs are started from the pass that follows a job's end,
-as before.
+as before. It replaces a private method, which no documented setting reaches (``--max-jobs-per-timespan``
+only sets the timers' delay); ``ISOKINETIC_COALESCE_REEVALUATIONS=0`` in the environment builds without it, as
+Snakemake ships (benchmark/run.py times the default rebuild both ways).
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import threading
+from collections.abc import Mapping
 
 log = logging.getLogger(__name__)
 
 #: The attribute of a scheduler that holds its one pending timer.
 PENDING = "_isokinetic_pending_reevaluation"
+#: The environment variable that, set to 0, leaves Snakemake's scheduler as it ships.
+SWITCH = "ISOKINETIC_COALESCE_REEVALUATIONS"
 
 
 def schedule_one_reevaluation(scheduler, delay: float) -> None:
@@ -38,10 +44,14 @@ def schedule_one_reevaluation(scheduler, delay: float) -> None:
     timer.start()
 
 
-def coalesce_reevaluations(scheduler_class=None) -> bool:
+def coalesce_reevaluations(scheduler_class=None, environ: Mapping[str, str] = os.environ) -> bool:
     """Install :func:`schedule_one_reevaluation` on Snakemake's ``JobScheduler`` (or on
     ``scheduler_class``). Returns False, with a warning, when the class has no such method (a
-    Snakemake whose scheduler changed): the build then runs as Snakemake ships it."""
+    Snakemake whose scheduler changed), and False where ``environ`` sets SWITCH to 0: the build then runs as
+    Snakemake ships it."""
+    if environ.get(SWITCH, "1") == "0":
+        log.info("%s=0: scheduler reevaluations not coalesced", SWITCH)
+        return False
     if scheduler_class is None:
         from snakemake.scheduling.job_scheduler import JobScheduler as scheduler_class
     if not callable(getattr(scheduler_class, "_schedule_reevalutation", None)):

@@ -32,7 +32,8 @@ from isokinetic.scheduling import coalesce_reevaluations
 
 # Snakemake 9 arms a new 1 s scheduler wake-up after every scheduling pass, so wake-ups pile up with
 # every finished job and the scheduling work grows with the square of the job count; one pending
-# wake-up is enough (isokinetic.scheduling; benchmark/scaling.py).
+# wake-up is enough (isokinetic.scheduling; benchmark/scaling.py). ISOKINETIC_COALESCE_REEVALUATIONS=0 in the
+# environment leaves Snakemake as it ships (benchmark/run.py times the default rebuild both ways).
 coalesce_reevaluations()
 
 validate(config, schema="../schemas/config.schema.yaml")
