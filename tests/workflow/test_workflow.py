@@ -351,3 +351,35 @@ def test_an_interrupted_campaign_is_shown_interrupted_until_it_is_rebuilt(projec
     assert "interrupted" not in plain_text((work / "results/index.html").read_text(encoding="utf-8"))
     assert 'href="tiny-export/report.html"' in (work / "results/index.html").read_text(encoding="utf-8")
     assert planned_rules(work) == []
+
+
+def with_package_copy(work):
+    """A copy of the package beside the scratch project, first on the path of its builds: (its folder, the
+    environment that runs Snakemake and its jobs with it)."""
+    import isokinetic
+
+    copy = work / "pkg" / "isokinetic"
+    shutil.copytree(os.path.dirname(isokinetic.__file__), copy, ignore=shutil.ignore_patterns("__pycache__"))
+    return copy, {**os.environ, "PYTHONPATH": str(copy.parent)}
+
+
+def planned_rules_with(work, env):
+    out = subprocess.run([SNAKEMAKE, "--cores", "2", "-n"], cwd=work, capture_output=True, text=True, env=env,
+                         check=True).stdout
+    return out, {block.split(":", 1)[0] for marker in ("\nrule ", "\nlocalrule ")
+                 for block in ("\n" + out).split(marker)[1:]}
+
+
+def test_editing_a_method_module_reruns_the_jobs_that_run_it_and_what_follows_only(project, tmp_path):
+    work = copy_project(project, tmp_path)
+    copy, env = with_package_copy(work)
+    out, planned = planned_rules_with(work, env)
+    assert "Nothing to be done" in out   # the same code from another folder: nothing to redo
+    draft = copy / "init_campaign" / "draft.py"   # no rule runs init-campaign
+    draft.write_text(draft.read_text(encoding="utf-8") + "\n# edited\n", encoding="utf-8")
+    assert "Nothing to be done" in planned_rules_with(work, env)[0]
+    plot = copy / "plots" / "diagnosis.py"        # Fig. 16: drawn by the diagnosis rule
+    plot.write_text(plot.read_text(encoding="utf-8") + "\n# edited\n", encoding="utf-8")
+    _out, planned = planned_rules_with(work, env)
+    assert "diagnosis" in planned
+    assert planned <= {"diagnosis", "campaign_report", "report_index", "all"}   # downstream of it only

@@ -20,6 +20,7 @@ rule analysis:
     resources:
         **rule_resources("analysis"),
     params:
+        code=code_version("analysis.py"),
         phi=config["design"]["convergence_fraction"],
         max_amplitude_m=config["design"]["max_amplitude_mm"] * 1e-3,
         min_amplitude_m=config["design"]["min_amplitude_mm"] * 1e-3,

@@ -20,6 +20,7 @@ rule blind_generate:
     resources:
         **rule_resources("blind_generate"),
     params:
+        code=code_version("blind_generate.py"),
         seed=BLIND.get("seed", 0),
         n_per_effect=BLIND.get("n_per_effect", 0),
         n_pairs=BLIND.get("n_pairs", 0),
@@ -49,6 +50,7 @@ rule blind_diagnose:
     resources:
         **rule_resources("blind_diagnose"),
     params:
+        code=code_version("blind_diagnose.py"),
         names=blind_chunk,
         start_fraction=config["windows"]["start_fraction"],
         end_fraction=config["windows"]["end_fraction"],
@@ -72,6 +74,7 @@ rule blind_score:
     resources:
         **rule_resources("blind_score"),
     params:
+        code=code_version("blind_score.py"),
         vector_format=VECTOR_FORMAT,
     script:
         "../scripts/blind_score.py"

@@ -16,6 +16,7 @@ rule characteristic:
     resources:
         **rule_resources("characteristic"),
     params:
+        code=code_version("characteristic.py"),
         sample_rate_tolerance=config["validation"]["sample_rate_tolerance"],
         max_missing_fraction=config["validation"]["max_missing_fraction"],
         max_gap_s=config["validation"]["max_gap_s"],

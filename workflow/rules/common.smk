@@ -11,9 +11,11 @@ from pathlib import Path
 from snakemake.exceptions import WorkflowError
 from snakemake.utils import validate
 
+import isokinetic
 from isokinetic.audit.raw_folder import SnakemakeInputs, snakemake_inputs
 from isokinetic.audit.raw_inventory import UnusableFolder, orphaned_results, unusable_folders
 from isokinetic.audit.refused import refusal
+from isokinetic.code_closure import code_hash
 from isokinetic.contracts.outputs import (
     BLIND_DIR,
     CAMPAIGN_ID,
@@ -62,6 +64,17 @@ def export_git_state():
 
 
 export_git_state()
+
+#: The rules' scripts and the package they run (its source folder, wherever it is installed from).
+SCRIPTS_DIR = Path(workflow.current_basedir).parent / "scripts"
+PACKAGE_DIR = Path(isokinetic.__file__).parent
+
+
+def code_version(script):
+    """sha256 of the package modules a rule's script runs (its import closure: isokinetic.code_closure), a
+    param of every rule: editing a module reruns each job whose script reaches it, and what follows from it,
+    and no other (Snakemake's own code trigger sees only the thin script)."""
+    return code_hash(SCRIPTS_DIR / script, PACKAGE_DIR)
 
 
 RAW_DIR = Path(config["raw_dir"])

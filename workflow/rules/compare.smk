@@ -22,6 +22,7 @@ rule compare:
     resources:
         **rule_resources("compare"),
     params:
+        code=code_version("compare.py"),
         campaigns=lambda wildcards: COMPARISONS[wildcards.comparison]["campaigns"],
         settings=lambda wildcards: comparison_settings(wildcards.comparison),
         vector_format=VECTOR_FORMAT,

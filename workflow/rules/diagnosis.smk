@@ -14,6 +14,7 @@ rule diagnosis:
     resources:
         **rule_resources("diagnosis"),
     params:
+        code=code_version("diagnosis.py"),
         start_fraction=config["windows"]["start_fraction"],
         end_fraction=config["windows"]["end_fraction"],
         vector_format=VECTOR_FORMAT,

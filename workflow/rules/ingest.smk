@@ -14,6 +14,7 @@ rule ingest:
     resources:
         **rule_resources("ingest"),
     params:
+        code=code_version("ingest.py"),
         campaign_dir=lambda wildcards: str(RAW_DIR / wildcards.campaign),
         max_case_file_MB=config.get("ingest", {}).get("max_case_file_MB", 256),
         raw_dir=str(RAW_DIR),

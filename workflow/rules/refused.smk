@@ -13,6 +13,7 @@ rule refused:
     wildcard_constraints:
         campaign=one_of(REFUSED),
     params:
+        code=code_version("refused.py"),
         reason=lambda wildcards: REFUSED[wildcards.campaign],
     script:
         "../scripts/refused.py"

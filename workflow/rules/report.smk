@@ -32,6 +32,8 @@ rule campaign_report:
         campaign=one_of(ACTIVE),
     resources:
         **rule_resources("campaign_report"),
+    params:
+        code=code_version("campaign_report.py"),
     script:
         "../scripts/campaign_report.py"
 
@@ -58,6 +60,7 @@ rule report_index:
     resources:
         **rule_resources("report_index"),
     params:
+        code=code_version("report_index.py"),
         campaigns=CAMPAIGNS,
         raw_dirs={campaign: str(RAW_DIR / campaign) for campaign in RAW_CAMPAIGNS if campaign not in REFUSED},
         blind_dir=lambda wildcards, input: str(Path(input.blind[0]).parent) if input.blind else None,

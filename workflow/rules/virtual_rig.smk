@@ -11,6 +11,7 @@ rule virtual_rig:
     resources:
         **rule_resources("virtual_rig"),
     params:
+        code=code_version("virtual_rig.py"),
         spec=lambda wildcards: config["virtual_campaigns"][wildcards.campaign],
     script:
         "../scripts/virtual_rig.py"
