@@ -429,11 +429,11 @@ def within_window_test(parts: Observations | None, prediction: np.ndarray, model
 
     Residuals r = sign(v)(F - P - D) of the window parts (P the verdict's model, D its zero drift, ``drift_N``),
     whitened window by window with the Cholesky factor of their covariance (:func:`part_covariance`); the position
-    columns (a share f(y) and a force g(y) in ``n_bins`` bins of
-    y, :func:`within_window_design`) beyond the nuisance columns: the χ² drop over their added rank, divided by the
-    residual mean square floored at 1, referred to F(rank, N - rank of the full design). Each bin's z: the signed
-    square root of the χ² drop its two columns alone give (over the same mean square), for ``where``. None without
-    parts or with no degree of freedom left."""
+    columns (a share f(y) and a force g(y) in ``n_bins`` bins of y, :func:`within_window_design`) beyond the
+    nuisance columns: the χ² drop over their added rank, divided by the residual mean square floored at 1, referred
+    to F(rank, N - rank of the full design). Each bin's z (``bins``, for ``where``): the signed square root of the
+    χ² drop its two columns alone give, over the same mean square. None without parts or with no degree of
+    freedom left."""
     if parts is None or len(parts) == 0:
         return None
     from scipy import special
@@ -451,19 +451,18 @@ def within_window_test(parts: Observations | None, prediction: np.ndarray, model
         return None
     scale = max(1.0, float(r1 @ r1) / dof)
     stat = (float(y0 @ y0) - float(r1 @ r1)) / rank / scale
-    n_b = int(labels.max() + 1)
     rel = r / np.abs(parts.force_N)
-    bin_z = np.zeros(n_b)
-    for b in range(n_b):
-        rb, _ = least_squares_residual(xp0[:, [b, n_b + b]], y0)
-        drop = max(float(y0 @ y0) - float(rb @ rb), 0.0)
-        bin_z[b] = math.copysign(math.sqrt(drop / scale), float(np.mean(rel[labels == b]) - np.mean(rel)))
     y_m = window_position_m(parts)
-    bins = [{"range": [float(y_m[labels == b].min()), float(y_m[labels == b].max())], "z": float(bin_z[b]),
-             "mean_rel": float(np.mean(rel[labels == b]) - np.mean(rel))} for b in range(n_b)]
-    return {"quantity": QUANTITIES["position_within"], "n_parts": int(len(parts)), "n_bins": n_b,
+    bins = []
+    for b in range(int(labels.max() + 1)):
+        rb, _ = least_squares_residual(xp0[:, [b, b + labels.max() + 1]], y0)
+        mean_rel = float(np.mean(rel[labels == b]) - np.mean(rel))
+        z = math.copysign(math.sqrt(max(float(y0 @ y0) - float(rb @ rb), 0.0) / scale), mean_rel)
+        bins.append({"range": [float(y_m[labels == b].min()), float(y_m[labels == b].max())], "z": z,
+                     "mean_rel": mean_rel})
+    return {"quantity": QUANTITIES["position_within"], "n_parts": int(len(parts)), "n_bins": len(bins),
             "F": stat, "df": [int(rank), dof], "scale": scale, "p": float(special.fdtrc(rank, dof, stat)),
-            "decides": True, "bins": bins, "_bin_z": bin_z, "_labels": labels, "_y": y_m, "_rel": rel}
+            "decides": True, "bins": bins, "_labels": labels, "_rel": rel}
 
 
 def within_window_where(test: Mapping) -> list[dict]:
