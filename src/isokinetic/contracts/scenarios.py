@@ -1,6 +1,6 @@
 """Names, composition and chunks of the blind suite's scenarios: the one place the workflow and
-isokinetic.stages.blind_* read them from. Imports only numpy (which Snakemake has loaded already), so that
-building the workflow's DAG stays fast."""
+isokinetic.stages.blind_* read them from. Imports only numpy (which Snakemake has loaded already) and the effect
+registry (which imports nothing), so that building the workflow's DAG stays fast."""
 
 from __future__ import annotations
 
@@ -8,11 +8,14 @@ import itertools
 
 import numpy as np
 
-#: Effect names of the diagnosis contract, in their canonical order (verdict/truth text order).
-EFFECTS = ("friction", "leakage", "asymmetry", "discharge", "viscosity", "air")
-#: The diagnosis' catalogue, in canonical order: the suite's EFFECTS and effects the suite does not draw yet
-#: (path_asymmetry: a one-sided resistance of the whole flow path, issue 21).
-CATALOGUE = ("friction", "leakage", "asymmetry", "path_asymmetry", "discharge", "viscosity", "air")
+from isokinetic.physics import effects as registry
+
+#: Effects the suite draws (those of the registry with a blind-suite draw), in their canonical order
+#: (verdict/truth text order).
+EFFECTS = registry.BLIND_EFFECTS
+#: The diagnosis' catalogue (the registry's fitted effects), in canonical order: the suite's EFFECTS and effects
+#: the suite does not draw yet (path_asymmetry: a one-sided resistance of the whole flow path, issue 21).
+CATALOGUE = registry.CATALOGUE
 #: Out-of-catalogue effects of the suite that hide from the steady characteristic (issue 35), each with the
 #: ``where`` axis it shows on (isokinetic.stages.blind_hidden): a groove open near mid-stroke, a bore worn there,
 #: a rod's gas spring; an orifice wearing and the oil warming (unlogged) over the campaign.

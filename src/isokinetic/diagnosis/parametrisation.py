@@ -1,18 +1,41 @@
 """Optimiser units of each candidate damper effect: scaled to order one, bounded, mapped to SI.
 
-The catalogue's effects (:data:`isokinetic.contracts.scenarios.CATALOGUE`) each have one parameter:
-Coulomb friction force, leakage conductance, discharge asymmetry, one-sided flow-path resistance,
-discharge coefficient, viscosity and air volume fraction, the effect forms of :mod:`isokinetic.physics.damper`.
+The catalogue's effects (:data:`isokinetic.physics.effects.CATALOGUE`) each have one parameter, its record's
+``field`` (Coulomb friction force, leakage conductance, discharge asymmetry, one-sided flow-path resistance,
+discharge coefficient, viscosity and air volume fraction, the effect forms of :mod:`isokinetic.physics.damper`);
+its record's :class:`~isokinetic.physics.effects.Fit` names the optimiser unit (:data:`TRANSFORMS`), the bounds
+and the starting points.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from isokinetic.contracts.scenarios import CATALOGUE
 from isokinetic.physics.damper import AIR_COMPRESSIBILITY_1_PA, Damper, Effects, laminar_coefficient
+from isokinetic.physics.effects import BY_NAME, CATALOGUE, Effect
+
+
+@dataclass(frozen=True)
+class Transform:
+    """An optimiser unit: ``to_si(p, field, x)`` the SI value of optimiser value x, ``from_si(p, field, v)`` its
+    inverse (``p`` the campaign's :class:`Parametrisation`, ``field`` the effect's Effects field)."""
+
+    to_si: Callable[[Parametrisation, str, float], float]
+    from_si: Callable[[Parametrisation, str, float], float]
+
+
+#: The optimiser units a record's Fit.transform names (:class:`isokinetic.physics.effects.Fit`).
+TRANSFORMS = {
+    "per_force_ref": Transform(lambda p, f, x: x * p.force_ref_N, lambda p, f, v: v / p.force_ref_N),
+    "laminar_conductance": Transform(lambda p, f, x: x / p.c1, lambda p, f, v: v * p.c1),
+    "identity": Transform(lambda p, f, x: x, lambda p, f, v: v),
+    "log1p": Transform(lambda p, f, x: math.expm1(x), lambda p, f, v: math.log1p(v)),
+    "log_nominal": Transform(lambda p, f, x: getattr(p.damper, f) * math.exp(x),
+                             lambda p, f, v: math.log(v / getattr(p.damper, f))),
+    "air_vs_oil": Transform(lambda p, f, x: x / p.air_ratio, lambda p, f, v: v * p.air_ratio),
+}
 
 
 @dataclass(frozen=True)
@@ -21,53 +44,50 @@ class Parametrisation:
 
     friction: F_C / F_ref (F_ref median |F| of the windows); leakage: g·c1 (leakage relative to the
     orifice's laminar conductance); asymmetry: a; path_asymmetry: ln(1 + b); discharge, viscosity: ln(θ/θ_nominal);
-    air: V_G/V_C · β_air/β_oil (air compressibility relative to the oil's).
+    air: V_G/V_C · β_air/β_oil (air compressibility relative to the oil's). Each from its registry record.
     """
 
     damper: Damper
     force_ref_N: float
 
     @property
-    def _c1(self) -> float:
+    def c1(self) -> float:
+        """The nominal orifice's laminar coefficient c1 [Pa s/m³]."""
         return float(laminar_coefficient(self.damper))
 
     @property
-    def _air_ratio(self) -> float:
+    def air_ratio(self) -> float:
+        """β_air / β_oil of the damper's oil."""
         return AIR_COMPRESSIBILITY_1_PA / self.damper.oil_compressibility_1_Pa
 
+    @staticmethod
+    def _record(effect: str) -> Effect:
+        record = BY_NAME.get(effect)
+        if record is None or record.fit is None:
+            raise KeyError(f"unknown effect {effect!r}; known: {CATALOGUE}")
+        return record
+
     def bounds(self, effect: str) -> tuple[float, float]:
-        return {"friction": (0.0, 20.0), "leakage": (0.0, 1.0e3), "asymmetry": (-0.9, 0.9),
-                "path_asymmetry": (math.log(0.2), math.log(5.0)),
-                "discharge": (math.log(0.1), math.log(10.0)), "viscosity": (math.log(0.02), math.log(50.0)),
-                "air": (0.0, 0.5 * AIR_COMPRESSIBILITY_1_PA / self.damper.oil_compressibility_1_Pa)}[effect]
+        """Bounds of the effect's optimiser value."""
+        record = self._record(effect)
+        fit = record.fit
+        if not fit.bounds_si:
+            return fit.bounds
+        back = TRANSFORMS[fit.transform].from_si
+        lo, hi = fit.bounds
+        return back(self, record.field, lo), back(self, record.field, hi)
 
     def starts(self, effect: str) -> list[float]:
         """Starting points of a single-effect fit (two, to avoid a local minimum)."""
-        return {"friction": [0.01, 0.3], "leakage": [0.05, 3.0], "asymmetry": [0.02, -0.02],
-                "path_asymmetry": [0.02, -0.02],
-                "discharge": [0.2, -0.2], "viscosity": [0.2, -0.2], "air": [0.05, 5.0]}[effect]
+        return list(self._record(effect).fit.starts)
 
     def si(self, effect: str, x: float) -> tuple[str, float]:
         """(SI parameter name, value) of an optimiser value (clipped to the effect's bounds)."""
-        d = self.damper
+        record = self._record(effect)
         lo, hi = self.bounds(effect)
         x = min(max(float(x), lo), hi)
         # only the requested effect is evaluated: exp() of another effect's value may overflow
-        if effect == "friction":
-            return "coulomb_force_N", x * self.force_ref_N
-        if effect == "leakage":
-            return "leakage_conductance_m3_s_Pa", x / self._c1
-        if effect == "asymmetry":
-            return "asymmetry", x
-        if effect == "path_asymmetry":
-            return "path_asymmetry", math.expm1(x)
-        if effect == "discharge":
-            return "discharge_coefficient", d.discharge_coefficient * math.exp(x)
-        if effect == "viscosity":
-            return "viscosity_Pa_s", d.viscosity_Pa_s * math.exp(x)
-        if effect == "air":
-            return "air_volume_fraction", x / self._air_ratio
-        raise KeyError(f"unknown effect {effect!r}; known: {CATALOGUE}")
+        return record.field, TRANSFORMS[record.fit.transform].to_si(self, record.field, x)
 
     def effects(self, names: Sequence[str], x: Sequence[float]) -> Effects:
         return Effects(**dict(self.si(n, v) for n, v in zip(names, x, strict=True)))

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from isokinetic.physics.effects import REGISTRY
+
 #: Isothermal compressibility of air at atmospheric pressure, Table 1 [1/Pa].
 AIR_COMPRESSIBILITY_1_PA = 9.9e-6
 
@@ -107,21 +109,8 @@ class Effects:
     air_volume_fraction: float = 0.0
     backlash_m: float = 0.0
 
-    #: config group name -> {config key: field name}
-    CONFIG_KEYS = {
-        "friction": {
-            "coulomb_force_N": "coulomb_force_N",
-            "stribeck_force_N": "stribeck_force_N",
-            "stribeck_velocity_m_s": "stribeck_velocity_m_s",
-        },
-        "leakage": {"conductance_m3_s_Pa": "leakage_conductance_m3_s_Pa"},
-        "asymmetry": {"asymmetry": "asymmetry"},
-        "path_asymmetry": {"path_asymmetry": "path_asymmetry"},
-        "discharge": {"discharge_coefficient": "discharge_coefficient"},
-        "viscosity": {"viscosity_Pa_s": "viscosity_Pa_s"},
-        "air": {"volume_fraction": "air_volume_fraction"},
-        "backlash": {"gap_m": "backlash_m"},
-    }
+    #: config group name -> {config key: field name}, from the effect registry
+    CONFIG_KEYS = {e.name: e.config_keys for e in REGISTRY}
 
     @classmethod
     def from_config(cls, groups: Mapping[str, Mapping[str, float]] | None) -> Effects:
@@ -137,26 +126,13 @@ class Effects:
         return cls(**kwargs)
 
     def active(self) -> list[str]:
-        """Names of the effect groups that differ from the nominal model."""
-        names = []
-        if self.coulomb_force_N or self.stribeck_force_N:
-            names.append("friction")
-        if self.leakage_conductance_m3_s_Pa:
-            names.append("leakage")
-        if self.asymmetry:
-            names.append("asymmetry")
-        if self.path_asymmetry:
-            names.append("path_asymmetry")
-        if self.discharge_coefficient is not None:
-            names.append("discharge")
-        if self.viscosity_Pa_s is not None:
-            names.append("viscosity")
-        if self.air_volume_fraction:
-            names.append("air")
-        if self.backlash_m:
-            names.append("backlash")
-        return names
+        """Names of the effect groups that differ from the nominal model (registry order: a field of the record's
+        ``active_fields`` away from its default)."""
+        return [e.name for e in REGISTRY if any(getattr(self, f) != _FIELD_DEFAULTS[f] for f in e.active_fields)]
 
+
+#: Each Effects field's default (the nominal model's value).
+_FIELD_DEFAULTS = {f.name: f.default for f in dataclasses.fields(Effects)}
 
 NOMINAL = Effects()
 

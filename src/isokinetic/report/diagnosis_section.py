@@ -16,15 +16,16 @@ from collections.abc import Mapping, Sequence
 import pandas as pd
 from markupsafe import Markup
 
+from isokinetic.physics.effects import REGISTRY
 from isokinetic.physics.viscosity import ViscosityLaw, equivalent_temperature_offset_C
 from isokinetic.report.cells import Cell, Col, Row, Table, json_table_view, kv_table, number_cell
 from isokinetic.report.embed import FigureView
 from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, short, text, yes_no
 from isokinetic.report.sources import Source, lineage_of
 
-EFFECT_PARAM_UNITS = {"coulomb_force_N": "N", "leakage_conductance_m3_s_Pa": "m^3/(s Pa)", "asymmetry": "-",
-                      "path_asymmetry": "-", "discharge_coefficient": "-", "viscosity_Pa_s": "Pa s",
-                      "air_volume_fraction": "-"}
+#: Unit and words of each effect parameter a verdict fits (its registry record's field).
+EFFECT_PARAM_UNITS = {e.field: e.unit for e in REGISTRY if e.fit is not None}
+EFFECT_PARAM_NAMES = {e.field: e.display_name for e in REGISTRY if e.fit is not None}
 WHERE_COLS = [Col("direction", "dir", text, False), Col("v_min_m_s", "from [mm/s]", scale=1e3),
               Col("v_max_m_s", "to [mm/s]", scale=1e3), Col("n_cases", "cases"),
               Col("mean_rel_error", "mean signed rel. error", fmt_pct), Col("mean_z", "mean z", lambda x: fmt(x, 3)),
@@ -99,12 +100,14 @@ def _instrument(diag: Mapping, src: Source) -> Table | None:
 
 
 def _params(diag: Mapping, src: Source) -> Table | None:
-    """The verdict's fitted effect parameters with their standard errors."""
+    """The verdict's fitted effect parameters (each in its effect's words and unit, from the effect registry) with
+    their standard errors."""
     params = diag.get("params") or {}
     if not params:
         return None
     ident = (diag.get("identifiability") or {}).get("parameters") or {}
-    rows = [Row([Cell(f"<code>{esc(k)}</code>"), number_cell(fmt(v), src.title(f"params.{k}", k)),
+    rows = [Row([Cell(f"{esc(EFFECT_PARAM_NAMES.get(k, ''))} <code>{esc(k)}</code>".lstrip()),
+                 number_cell(fmt(v), src.title(f"params.{k}", k)),
                  number_cell(fmt((ident.get(k) or {}).get("std_error"), 3),
                              src.title(f"identifiability.parameters.{k}.std_error", "std_error")),
                  Cell(formula(EFFECT_PARAM_UNITS.get(k, "")))]) for k, v in params.items()]

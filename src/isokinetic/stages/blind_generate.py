@@ -88,6 +88,7 @@ from isokinetic.io import write_json
 from isokinetic.measurement.model_windows import ModelPlan
 from isokinetic.measurement.windows import WindowSpec
 from isokinetic.physics.damper import NOMINAL, TABLE_1, Damper, Effects, friction_force, nominal_force
+from isokinetic.physics.effects import REGISTRY
 from isokinetic.physics.plan import CasePlan, paper_plan
 from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
@@ -100,15 +101,15 @@ GEOMETRY_FIELDS = ("piston_area_m2", "orifice_area_m2", "orifice_length_m", "cha
                    "chamber_volume_2_m3")
 GEOMETRY_SPREAD = 0.30
 
+#: The suite's effects' records (isokinetic.physics.effects: each with a BlindDraw), by name.
+DRAWN = {e.name: e for e in REGISTRY if e.blind is not None}
 #: Largest plausible magnitude of each effect (its unit: see the module doc). 5x the detection
 #: level must stay below it, else the scenario is re-drawn.
-BOUNDS = {"friction": 2000.0, "leakage": 1.0e-10, "asymmetry": 0.5, "discharge": 0.5, "viscosity": 0.8,
-          "air": 0.2}
+BOUNDS = {name: e.blind.bound for name, e in DRAWN.items()}
 #: Unit of each effect's magnitude (truth files).
-UNITS = {"friction": "coulomb_force_N", "leakage": "leakage_conductance_m3_s_Pa", "asymmetry": "abs(asymmetry)",
-         "discharge": "abs(C_D/C_D0 - 1)", "viscosity": "abs(mu/mu0 - 1)", "air": "air_volume_fraction"}
+UNITS = {name: e.blind.unit for name, e in DRAWN.items()}
 #: Effects whose magnitude carries a random sign.
-SIGNED = ("asymmetry", "discharge", "viscosity")
+SIGNED = tuple(name for name, e in DRAWN.items() if e.blind.signed)
 
 TARGET_RMS_Z = DETECTION_RMS_Z
 MAGNITUDE_BINS = (("1-2x", 1.0, 2.0), ("2-3x", 2.0, 3.0), ("3-5x", 3.0, math.inf))
@@ -161,8 +162,13 @@ DISTORTION_RANGES = {"harmonic_2": (0.0, 0.03), "harmonic_3": (0.0, 0.02)}
 
 DESCRIPTION = "Blind-test scenario: simulated damper test campaign; its unmodelled effects are withheld."
 #: Parameter keys of the catalogue effects in truth records and diagnoses (SI, the catalogue's form).
-PARAM_KEYS = {"friction": "coulomb_force_N", "leakage": "leakage_conductance_m3_s_Pa", "asymmetry": "asymmetry",
-              "discharge": "discharge_coefficient", "viscosity": "viscosity_Pa_s", "air": "air_volume_fraction"}
+PARAM_KEYS = {name: e.field for name, e in DRAWN.items()}
+#: The reference rig's conversions a record's RigMapping names: (model value, damper, charge pressure [Pa]) ->
+#: the rig's field (isokinetic.reference.campaign); a record without one maps the model's value as it is.
+RIG_CONVERSIONS = {
+    "leakage_gap_from_conductance": lambda value, damper, charge_Pa: rrc.leakage_gap_from_conductance(value, damper),
+    "air_fraction_from_catalogue": lambda value, damper, charge_Pa: rrc.air_fraction_from_catalogue(value, charge_Pa),
+}
 
 
 def effect_text(effects: Iterable[str]) -> str:
@@ -186,20 +192,16 @@ def magnitude_bin(multiple: float) -> str:
 # --------------------------------------------------------------------------------------------
 
 def effect_fields(effect: str, magnitude: float, sign: float, damper: Damper) -> dict[str, float]:
-    """Effects keyword arguments of one effect at ``magnitude`` (its unit) and ``sign``."""
-    if effect == "friction":
-        return {"coulomb_force_N": magnitude}
-    if effect == "leakage":
-        return {"leakage_conductance_m3_s_Pa": magnitude}
-    if effect == "asymmetry":
-        return {"asymmetry": sign * magnitude}
-    if effect == "discharge":
-        return {"discharge_coefficient": damper.discharge_coefficient * (1.0 + sign * magnitude)}
-    if effect == "viscosity":
-        return {"viscosity_Pa_s": damper.viscosity_Pa_s * (1.0 + sign * magnitude)}
-    if effect == "air":
-        return {"air_volume_fraction": magnitude}
-    raise KeyError(f"unknown effect {effect!r}; known: {EFFECTS}")
+    """Effects keyword arguments of one effect at ``magnitude`` (its unit) and ``sign``, in its record's
+    BlindDraw form: 'absolute' the magnitude, 'signed' sign x magnitude, 'relative' the damper's own value
+    x (1 + sign x magnitude)."""
+    record = DRAWN.get(effect)
+    if record is None:
+        raise KeyError(f"unknown effect {effect!r}; known: {EFFECTS}")
+    form = record.blind.form
+    if form == "relative":
+        return {record.field: getattr(damper, record.field) * (1.0 + sign * magnitude)}
+    return {record.field: sign * magnitude if form == "signed" else magnitude}
 
 
 class MeanDetection:
@@ -568,24 +570,14 @@ def charge_pressure_Pa(damper: Damper, cases: Sequence[CasePlan]) -> float:
 
 def physical_effects(damper: Damper, magnitudes: Mapping[str, float], signs: Mapping[str, float],
                      charge_Pa: float = 5.0e6) -> rr.TrueEffects:
-    """The reference rig's physical effects whose catalogue equivalents are ``magnitudes``."""
+    """The reference rig's physical effects whose catalogue equivalents are ``magnitudes``: each effect's model
+    value (:func:`effect_fields`) in its record's rig field (RigMapping), through the rig's conversion where it
+    names one (:data:`RIG_CONVERSIONS`)."""
     kw: dict[str, float] = {"charge_pressure_Pa": charge_Pa}
     for e, m in magnitudes.items():
-        s = signs.get(e, 1.0)
-        if e == "friction":
-            kw["coulomb_force_N"] = m
-        elif e == "leakage":
-            kw["leakage_gap_m"] = rrc.leakage_gap_from_conductance(m, damper)
-        elif e == "asymmetry":
-            kw["asymmetry"] = s * m
-        elif e == "discharge":
-            kw["discharge_coefficient"] = damper.discharge_coefficient * (1.0 + s * m)
-        elif e == "viscosity":
-            kw["viscosity_Pa_s"] = damper.viscosity_Pa_s * (1.0 + s * m)
-        elif e == "air":
-            kw["air_fraction_at_charge"] = rrc.air_fraction_from_catalogue(m, charge_Pa)
-        else:
-            raise KeyError(f"unknown effect {e!r}; known: {EFFECTS}")
+        (value,) = effect_fields(e, m, signs.get(e, 1.0), damper).values()
+        rig = DRAWN[e].rig
+        kw[rig.field] = RIG_CONVERSIONS[rig.conversion](value, damper, charge_Pa) if rig.conversion else value
     return rr.TrueEffects(**kw)
 
 
