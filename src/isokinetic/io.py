@@ -24,8 +24,10 @@ report's sources) gets the hash already made, unless the file's size, mtime or i
 from __future__ import annotations
 
 import contextvars
+import datetime as dt
 import hashlib
 import json
+import math
 import os
 import re
 import tempfile
@@ -282,3 +284,18 @@ def read_lineage(path: str | os.PathLike) -> dict | None:
         return None if text is None else json.loads(text)
     raw = (pq.read_schema(path).metadata or {}).get(LINEAGE_KEY.encode("utf-8"))
     return None if raw is None else json.loads(raw.decode("utf-8"))
+
+
+def jsonable(value):
+    """Metadata from YAML made JSON-safe: dates as ISO text, keys as text, non-finite floats as text."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (dt.date, dt.datetime)):
+        return value.isoformat()
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if value is None or isinstance(value, (str, int, float, bool)):
+        return value
+    return str(value)

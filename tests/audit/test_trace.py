@@ -23,6 +23,7 @@ import yaml
 from isokinetic.audit import lineage, trace_core
 from isokinetic.audit import trace as tr
 from isokinetic.contracts.outputs import rule_of
+from isokinetic.contracts.settings import SCHEMA_FILE, Settings, with_defaults
 from isokinetic.io import lineage_context, write_json, write_parquet
 from isokinetic.measurement.model_fit import fit_models
 from isokinetic.measurement.windows import WindowSpec
@@ -48,6 +49,7 @@ SPEC = {"description": "trace test campaign", "seed": 7, "temperature_C": 40.0, 
         "plan": {"triangle": {"velocities_mm_s": [0.02, 0.1, 0.4, 1.0], "periods_s": [40, 20, 20, 20],
                               "sample_rate_Hz": 20.0},
                  "sine": {"frequency_Hz": 1.75, "amplitudes_mm": [0.3], "periods": 4, "sample_rate_Hz": 200.0}}}
+ROOT = Path(__file__).resolve().parents[2]
 CONFIG = {"raw_dir": "data/raw", "windows": {"start_fraction": 0.45, "end_fraction": 0.95},
           "repeatability": {"tolerance": 0.05},
           "design": {"convergence_fraction": 0.999, "max_amplitude_mm": 10.0, "min_amplitude_mm": 0.1},
@@ -92,6 +94,8 @@ def project(tmp_path_factory) -> Path:
     base = tmp_path_factory.mktemp("trace") / "project"
     (base / "config").mkdir(parents=True)
     (base / "config" / "config.yaml").write_text(yaml.safe_dump(CONFIG, sort_keys=False), encoding="utf-8")
+    (base / SCHEMA_FILE).parent.mkdir(parents=True)   # its defaults fill what the config leaves out, as a build's
+    shutil.copy(ROOT / SCHEMA_FILE, base / SCHEMA_FILE)
     vc = VirtualCampaign.from_config("mini", SPEC)
     with cwd(base):  # relative paths, as the pipeline records them
         write_campaign(vc, Path("results/mini"))
@@ -107,7 +111,9 @@ def project(tmp_path_factory) -> Path:
         export_raw_campaign(vc, b / "raw" / "blind-000")
         write_json({"scenario": "blind-000", "truth": ["friction", "leakage"], "magnitude_x_detection": 3.0},
                    b / "truth" / "blind-000.json")
-        blind_diagnose.diagnose_suite(b / "raw", ["blind-000"], b / "diagnosis" / "chunk0", SPEC_W)
+        blind_diagnose.diagnose_suite(b / "raw", ["blind-000"], b / "diagnosis" / "chunk0",
+                                      Settings.from_config(with_defaults(CONFIG, yaml.safe_load(
+                                          (ROOT / SCHEMA_FILE).read_text(encoding="utf-8")))))
         blind_score.write_scores(b / "truth", [b / "diagnosis" / "chunk0"], b / "scores.parquet",
                                  b / "summary.json", b / "fig17_blind_confusion.png")
     return base
@@ -125,8 +131,9 @@ def restamp(record: dict, *paths: Path) -> None:
 
 
 def copy_project(project: Path, dst: Path, *parts: str) -> Path:
-    """A copy of the config and the named folders (e.g. 'results/mini', 'data/raw/mini-raw')."""
+    """A copy of the config, its schema and the named folders (e.g. 'results/mini', 'data/raw/mini-raw')."""
     shutil.copytree(project / "config", dst / "config")
+    shutil.copytree(project / "workflow", dst / "workflow")
     for part in parts:
         shutil.copytree(project / part, dst / part)
     return dst
@@ -213,7 +220,8 @@ def test_lineage_records_supply_the_spec_and_parameters_without_a_config(project
     with cwd(dst):
         root = Path("results/mini")
         restamp(lineage.stage_lineage("virtual_rig", {"spec": SPEC}, [], "mini"), root / "ingest")
-        restamp(lineage.stage_lineage("validate", {"sample_rate_tolerance": 0.05}, [root / "ingest"], "mini"),
+        restamp(lineage.stage_lineage("validate", {"sample_rate_tolerance": 0.05, "max_missing_fraction": 0.05,
+                                                   "max_gap_s": 0.1}, [root / "ingest"], "mini"),
                 root / "cases.parquet")
         restamp(lineage.stage_lineage("windows", {"start_fraction": 0.45, "end_fraction": 0.95},
                                       [root / "cases.parquet", root / "ingest"], "mini"), root / "windows.parquet")

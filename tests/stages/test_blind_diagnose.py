@@ -85,3 +85,28 @@ def test_workflow_runs_one_generate_then_diagnose_chain_per_chunk(tmp_path):
     feeding = {b: [a for a, b2 in edges if b2 == b and rule[a] == "blind_generate"] for b in rule
                if rule[b] == "blind_diagnose"}
     assert sorted(len(v) for v in feeding.values()) == [1, 1] and len({v[0] for v in feeding.values()}) == 2
+
+
+# --------------------------------------------------------------------------------------------
+# one chain, one record of settings (issue 36)
+# --------------------------------------------------------------------------------------------
+
+def test_the_blind_chain_applies_the_builds_settings_to_every_stage(tmp_path):
+    # the blind suite used to run ingest and validate with their own defaults, whatever the config said: a
+    # file-size limit below every case file now sets every case aside, as the build's ingest would
+    import dataclasses
+
+    import pandas as pd
+
+    from isokinetic.contracts.settings import load_settings
+    from isokinetic.stages.blind_diagnose import process_raw_campaign
+
+    scenarios = generate_scenarios(5, 0, 0, 1, **SMALL, sensor_chain=False)
+    write_suite(scenarios, tmp_path / "raw", tmp_path / "truth")
+    raw = tmp_path / "raw" / scenarios[0].name
+    settings = load_settings(ROOT)
+    root = process_raw_campaign(raw, tmp_path / "as-built", settings)
+    assert (pd.read_parquet(root / "ingest" / "cases.parquet")["status"] == "ok").all()
+    tight = dataclasses.replace(settings, max_case_file_MB=1e-6)
+    root = process_raw_campaign(raw, tmp_path / "tight", tight)
+    assert (pd.read_parquet(root / "ingest" / "cases.parquet")["status"] != "ok").all()

@@ -21,11 +21,7 @@ rule analysis:
         **rule_resources("analysis"),
     params:
         code=code_version("analysis.py"),
-        phi=config["design"]["convergence_fraction"],
-        max_amplitude_m=config["design"]["max_amplitude_mm"] * 1e-3,
-        min_amplitude_m=config["design"]["min_amplitude_mm"] * 1e-3,
-        start_fraction=config["windows"]["start_fraction"],
-        end_fraction=config["windows"]["end_fraction"],
+        **rule_settings(SETTINGS, "analysis"),
         vector_format=VECTOR_FORMAT,
     script:
         "../scripts/analysis.py"

@@ -28,8 +28,7 @@ rule blind_generate:
         n_out=BLIND.get("n_out_of_catalogue", 0),
         n_sine=BLIND.get("n_sine", 0),
         names=blind_chunk,
-        start_fraction=config["windows"]["start_fraction"],
-        end_fraction=config["windows"]["end_fraction"],
+        **rule_settings(SETTINGS, "blind_generate"),
     script:
         "../scripts/blind_generate.py"
 
@@ -52,10 +51,7 @@ rule blind_diagnose:
     params:
         code=code_version("blind_diagnose.py"),
         names=blind_chunk,
-        start_fraction=config["windows"]["start_fraction"],
-        end_fraction=config["windows"]["end_fraction"],
-        repeatability_tolerance=config["repeatability"]["tolerance"],
-        sample_rate_tolerance=config["validation"]["sample_rate_tolerance"],
+        **rule_settings(SETTINGS, "blind_diagnose"),
     script:
         "../scripts/blind_diagnose.py"
 

@@ -17,11 +17,6 @@ rule characteristic:
         **rule_resources("characteristic"),
     params:
         code=code_version("characteristic.py"),
-        sample_rate_tolerance=config["validation"]["sample_rate_tolerance"],
-        max_missing_fraction=config["validation"]["max_missing_fraction"],
-        max_gap_s=config["validation"]["max_gap_s"],
-        start_fraction=config["windows"]["start_fraction"],
-        end_fraction=config["windows"]["end_fraction"],
-        repeatability_tolerance=config["repeatability"]["tolerance"],
+        **rule_settings(SETTINGS, "characteristic"),
     script:
         "../scripts/characteristic.py"

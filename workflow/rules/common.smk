@@ -9,6 +9,7 @@ import subprocess
 from pathlib import Path
 
 from snakemake.exceptions import WorkflowError
+import yaml
 from snakemake.utils import validate
 
 import isokinetic
@@ -30,6 +31,7 @@ from isokinetic.contracts.outputs import (
     rule_outputs_of,
 )
 from isokinetic.contracts.scenarios import balanced_chunks, scenario_names, suite_composition
+from isokinetic.contracts.settings import Settings, rule_settings, with_defaults
 from isokinetic.scheduling import coalesce_reevaluations
 
 # Snakemake 9 arms a new 1 s scheduler wake-up after every scheduling pass, so wake-ups pile up with
@@ -39,11 +41,16 @@ from isokinetic.scheduling import coalesce_reevaluations
 coalesce_reevaluations()
 
 validate(config, schema="../schemas/config.schema.yaml")
+# every default of the schema filled (objects the config omits too), so that the scripts' snakemake.config and
+# SETTINGS, the one record of the method's settings (isokinetic.contracts.settings), agree
+CONFIG_SCHEMA = Path(workflow.current_basedir).parent / "schemas" / "config.schema.yaml"
+config.update(with_defaults(config, yaml.safe_load(CONFIG_SCHEMA.read_text(encoding="utf-8"))))
 if config["windows"]["start_fraction"] >= config["windows"]["end_fraction"]:
     raise WorkflowError(
         "config key 'windows': start_fraction must be below end_fraction, got "
         f"{config['windows']['start_fraction']} >= {config['windows']['end_fraction']}"
     )
+SETTINGS = Settings.from_config(config)
 
 
 def export_git_state():

@@ -15,8 +15,7 @@ rule diagnosis:
         **rule_resources("diagnosis"),
     params:
         code=code_version("diagnosis.py"),
-        start_fraction=config["windows"]["start_fraction"],
-        end_fraction=config["windows"]["end_fraction"],
+        **rule_settings(SETTINGS, "diagnosis"),
         vector_format=VECTOR_FORMAT,
     script:
         "../scripts/diagnosis.py"

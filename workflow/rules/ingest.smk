@@ -16,7 +16,7 @@ rule ingest:
     params:
         code=code_version("ingest.py"),
         campaign_dir=lambda wildcards: str(RAW_DIR / wildcards.campaign),
-        max_case_file_MB=config.get("ingest", {}).get("max_case_file_MB", 256),
+        **rule_settings(SETTINGS, "ingest"),
         raw_dir=str(RAW_DIR),
         # files named with pattern characters, which Snakemake cannot take as inputs: size and mtime
         untracked=raw_fingerprints,

@@ -2,8 +2,8 @@
 import time
 from pathlib import Path
 
+from isokinetic.contracts.settings import Settings
 from isokinetic.job import job
-from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.blind_diagnose import diagnose_suite
 
 with job(snakemake) as j:
@@ -11,9 +11,7 @@ with job(snakemake) as j:
     start = time.perf_counter()
     out = Path(snakemake.output[0])
     out.mkdir(parents=True, exist_ok=True)
-    results = diagnose_suite(snakemake.input[0], p.names, out, WindowSpec(p.start_fraction, p.end_fraction),
-                             repeatability_tolerance=p.repeatability_tolerance,
-                             sample_rate_tolerance=p.sample_rate_tolerance)
+    results = diagnose_suite(snakemake.input[0], p.names, out, Settings.from_config(snakemake.config))
     failed = sorted(n for n, d in results.items() if d is None)
     j.log.info("%d scenarios diagnosed in %.1f s%s", len(results), time.perf_counter() - start,
                f"; failed: {', '.join(failed)}" if failed else "")

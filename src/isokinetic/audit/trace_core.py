@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from isokinetic.contracts.settings import SCHEMA_FILE, with_defaults
 from isokinetic.io import read_lineage as read_record
 from isokinetic.measurement.windows import WindowSpec
 
@@ -175,8 +176,13 @@ class Context:
     _n_scratch: int = 0
 
     def config(self) -> dict | None:
+        """The traced project's config, the defaults of its schema (``workflow/schemas/``) filled as a build fills
+        them; None without a config."""
         if self._config is None and self.config_path is not None and self.config_path.is_file():
             self._config = yaml.safe_load(self.config_path.read_text(encoding="utf-8")) or {}
+            schema = self.root / SCHEMA_FILE
+            if schema.is_file():
+                self._config = with_defaults(self._config, yaml.safe_load(schema.read_text(encoding="utf-8")))
         return self._config
 
     def rel(self, path) -> str:

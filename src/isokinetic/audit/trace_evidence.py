@@ -24,6 +24,7 @@ from isokinetic.audit.provenance import VIRTUAL_PREFIX
 from isokinetic.audit.trace_core import Context, MissingFile, RawFileChanged, TraceStop, read_lineage, sha_text
 from isokinetic.contracts.campaign import write_ingested
 from isokinetic.contracts.manifest import MANIFEST_NAME, load_manifest, si_conversion
+from isokinetic.contracts.settings import GapTolerance
 from isokinetic.io import sha256_file
 from isokinetic.stages.ingest import CANONICAL, campaign_meta, ingest_case
 from isokinetic.stages.validate import quarantine_frame, quarantine_rows, write_validated
@@ -151,9 +152,11 @@ def describe_source(ctx: Context, src: RawSource) -> None:
 
 def rebuild(ctx: Context, src: RawSource, cases: Sequence[str] | None = None,
             expected: Mapping[str, str] | None = None, validate: bool = True,
-            sample_rate_tolerance: float | None = None) -> Path:
+            validation: tuple[float, GapTolerance] | None = None) -> Path:
     """Re-process ``cases`` (default: every recorded case) from the raw evidence into a scratch
-    campaign folder (ingest/ and, with ``validate``, cases.parquet); raw hashes checked first."""
+    campaign folder (ingest/ and, with ``validate``, cases.parquet with what validate accepted when the traced
+    files were made: ``validation``, the sample rate's tolerance and the dropped samples'); raw hashes checked
+    first."""
     wanted = list(cases) if cases is not None else src.case_ids()
     scratch = ctx.new_scratch(src.name)
     if src.kind == "virtual":
@@ -184,8 +187,9 @@ def rebuild(ctx: Context, src: RawSource, cases: Sequence[str] | None = None,
                        quarantine_frame(quarantined), series)
     check_hashes(ctx, src, pd.read_parquet(scratch / "ingest" / "cases.parquet"), expected or {})
     if validate:
-        tol = 0.05 if sample_rate_tolerance is None else sample_rate_tolerance
-        write_validated(scratch, sample_rate_tolerance=tol)
+        if validation is None:
+            raise ValueError("rebuild: validate needs the tolerances the traced files were made with")
+        write_validated(scratch, sample_rate_tolerance=validation[0], gap_tolerance=validation[1])
     return scratch
 
 

@@ -48,6 +48,7 @@ from isokinetic.audit.trace_evidence import (
     rebuild,
 )
 from isokinetic.contracts.campaign import case_plan, timeseries_relpath
+from isokinetic.contracts.settings import GapTolerance
 from isokinetic.io import sha256_file, write_parquet
 from isokinetic.measurement.model_fit import fit_models
 from isokinetic.measurement.repeatability import relative_difference, repeatability
@@ -72,10 +73,14 @@ def _rep_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> tuple[flo
     return float(tol), where
 
 
-def _rate_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> float:
-    tol, _ = param(ctx, ["sample_rate_tolerance"], [root / "cases.parquet", *files],
-                   ["validation", "sample_rate_tolerance"])
-    return float(tol)
+def _rate_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> tuple[float, GapTolerance]:
+    """What validate accepted when the traced files were made (lineage params, else the config): the sample
+    rate's tolerance and the dropped samples' (:class:`isokinetic.contracts.settings.GapTolerance`)."""
+    where = [root / "cases.parquet", *files]
+    tol, _ = param(ctx, ["sample_rate_tolerance"], where, ["validation", "sample_rate_tolerance"])
+    missing, _ = param(ctx, ["max_missing_fraction"], where, ["validation", "max_missing_fraction"])
+    gap, _ = param(ctx, ["max_gap_s"], where, ["validation", "max_gap_s"])
+    return float(tol), GapTolerance(float(missing), float(gap))
 
 
 def _series_step(ctx: Context, src: RawSource, scratch: Path, case: str) -> pd.DataFrame:
@@ -179,7 +184,7 @@ def _characteristic_chain(ctx: Context, src: RawSource, root: Path, files: Seque
     spec, spec_where = window_spec(ctx, [*files, root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, root, files)
     srt = _rate_tolerance(ctx, root, files)
-    scratch = rebuild(ctx, src, sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, validation=srt)
     cases = pd.read_parquet(scratch / "cases.parquet")
     win = windows_stage(scratch, spec)
     records, _energy = records_stage(scratch)          # the sine and free cases' points
@@ -219,7 +224,7 @@ def rederive_cases(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """The cases table (validated, or the ingest's own) of the row's case, re-read or re-simulated."""
     case = str(t.row["case"])
     srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])}, sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])}, validation=srt)
     new = match_row(pd.read_parquet(scratch / t.kind.path), t, "cases table")
     if new["status"] == "ok":
         _series_step(ctx, src, scratch, case)
@@ -233,7 +238,7 @@ def rederive_timeseries(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """One row of a case's canonical SI series, next to its raw CSV line."""
     case = t.path.stem
     srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], validate=False, sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, [case], validate=False, validation=srt)
     new_path = scratch / timeseries_relpath(case)
     if not new_path.is_file():
         raise TraceStop(f"case {case} no longer ingests (quarantined now): no time series to compare")
@@ -262,7 +267,7 @@ def _case_windows(ctx: Context, t: Traced, src: RawSource) -> tuple[pd.DataFrame
     spec, spec_where = window_spec(ctx, [t.path, t.root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
     srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])}, sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])}, validation=srt)
     series = _series_step(ctx, src, scratch, case)
     _window_steps(ctx, src, scratch, t.row, spec, spec_where, series)
     win = windows_stage(scratch, spec)
@@ -283,7 +288,7 @@ def _rederive_record_point(ctx: Context, t: Traced, src: RawSource) -> pd.Series
     spec, _spec_where = window_spec(ctx, [t.path, t.root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
     scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])},
-                      sample_rate_tolerance=_rate_tolerance(ctx, t.root, [t.path]))
+                      validation=_rate_tolerance(ctx, t.root, [t.path]))
     _series_step(ctx, src, scratch, case)
     win = windows_stage(scratch, spec)
     records, _energy = records_stage(scratch)
@@ -321,7 +326,7 @@ def rederive_repeatability(ctx: Context, t: Traced, src: RawSource) -> pd.Series
     spec, spec_where = window_spec(ctx, [t.root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
     srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, [case], validation=srt)
     series = _series_step(ctx, src, scratch, case)
     win = windows_stage(scratch, spec)
     mine = win[win["direction"] == direction].sort_values("period")
@@ -350,7 +355,7 @@ def rederive_nominal(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     case = str(t.row["case"])
     spec, spec_where = window_spec(ctx, [t.path])
     srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, [case], validation=srt)
     c = pd.read_parquet(scratch / "cases.parquet").set_index("case").loc[case]
     ctx.report.step(f"Case plan of {case} (from the raw manifest / spec; status after validation {c['status']})",
                     plan_text(c),
@@ -392,7 +397,7 @@ def rederive_plan_check(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     min_a, _ = param(ctx, ["min_amplitude_m"], files, ["design", "min_amplitude_mm"], scale=1e-3)
     start, start_where = param(ctx, ["start_fraction"], files, ["windows", "start_fraction"])
     srt = _rate_tolerance(ctx, t.root, files)
-    scratch = rebuild(ctx, src, [case], sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, [case], validation=srt)
     cases = pd.read_parquet(scratch / "cases.parquet")
     c = cases.set_index("case").loc[case]
     ctx.report.step(f"Planned case {case} from the raw manifest / spec (status after validation {c['status']})",
@@ -428,7 +433,7 @@ def rederive_harmonic(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """One point of a sine or free record: its settled loop's extremes per direction."""
     case = str(t.row["case"])
     srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], sample_rate_tolerance=srt)
+    scratch = rebuild(ctx, src, [case], validation=srt)
     _series_step(ctx, src, scratch, case)
     table, loops = harmonic_stage(scratch)
     new = match_row(table, t, "harmonic table of the case")

@@ -24,13 +24,13 @@ spread and its sample count, as dropped samples are (the mean is then the line a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan
+from isokinetic.contracts.settings import WindowSpec  # noqa: F401 - the window's spec, imported from here too
 from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
 from isokinetic.measurement.spikes import spike_mask, too_many, too_many_note
 from isokinetic.physics.plan import CasePlan, half_periods
@@ -44,19 +44,6 @@ MIN_WINDOW_SAMPLES = 3
 MIN_WINDOWS = 1
 #: The plan's windows of a triangle record: two periods, both directions (Sec. 4.3).
 PLAN_WINDOWS = 4
-
-
-@dataclass(frozen=True)
-class WindowSpec:
-    """Window as fractions of the half-period T/2 (paper: [0.45, 0.95])."""
-
-    start_fraction: float = 0.45
-    end_fraction: float = 0.95
-
-    def __post_init__(self):
-        if not 0.0 <= self.start_fraction < self.end_fraction <= 1.0:
-            raise ValueError(f"window fractions must satisfy 0 <= start < end <= 1, got "
-                             f"[{self.start_fraction}, {self.end_fraction}]")
 
 
 def line_slope(t, y) -> float:

@@ -17,10 +17,10 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import dataclass
 from pathlib import Path
 
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
+from isokinetic.contracts.settings import DesignLimits, Settings
 from isokinetic.io import write_parquet
 from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.design import plan_warnings, write_design
@@ -32,15 +32,6 @@ from isokinetic.stages.nominal import nominal_stage
 from isokinetic.stages.static_force import write_static_force
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class DesignLimits:
-    """Test-design limits of the plan check (config ``design``), SI."""
-
-    convergence_fraction: float = 0.999
-    max_amplitude_m: float = 10.0e-3
-    min_amplitude_m: float = 0.1e-3
 
 
 def _folder(stage: str, name: str) -> str:
@@ -68,3 +59,9 @@ def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSp
     log.info("%d cases checked (%d flagged), %d nominal-model windows, %d files written", len(plan_check),
              int(plan_check["flagged"].sum()), len(nominal), len(written))
     return written
+
+
+def run_analysis(campaign_root: str | os.PathLike, settings: Settings) -> list[Path]:
+    """The chain's analysis step (:mod:`isokinetic.stages.chain`): :func:`write_analysis` with the settings'
+    window and design limits."""
+    return write_analysis(campaign_root, settings.window, settings.design)

@@ -14,58 +14,47 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-from isokinetic.contracts.outputs import STAGE_OUTPUTS
-from isokinetic.measurement.windows import WindowSpec
+from isokinetic.contracts.settings import Settings, load_settings
 from isokinetic.stages.blind_generate import effect_text
-from isokinetic.stages.characteristic import write_characteristic
-from isokinetic.stages.diagnosis import write_diagnosis
-from isokinetic.stages.ingest import ingest_campaign
+from isokinetic.stages.chain import run_chain, run_step
 
 log = logging.getLogger(__name__)
 
-#: Where the diagnosis goes in a scenario's work folder, as rule diagnosis names it.
-DIAGNOSIS_FILE = STAGE_OUTPUTS["diagnosis"]["json"]
-
-
 def diagnose_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLike,
-                          spec: WindowSpec = WindowSpec(), *, repeatability_tolerance: float = 0.05,
-                          sample_rate_tolerance: float = 0.05) -> dict:
+                          settings: Settings | None = None) -> dict:
     """The per-campaign chain of a real raw campaign, into ``work_root/<campaign>/``; the diagnosis.
 
-    ingest -> :func:`isokinetic.stages.characteristic.write_characteristic` (validate, windows,
-    repeatability, characteristic: the job of rule characteristic) ->
-    :func:`isokinetic.stages.diagnosis.write_diagnosis` (diagnosis.json as rule diagnosis writes it;
-    no gap figure, which nothing scores). Reads only ``raw_dir``. An existing
+    The chain's steps ingest, characteristic (validate, windows, repeatability, characteristic) and diagnosis
+    (diagnosis.json as rule diagnosis writes it; no gap figure, which nothing scores), run as the workflow's
+    rules run them (:func:`isokinetic.stages.chain.run_chain`) with ``settings`` (None: the project's at the
+    working directory, :func:`isokinetic.stages.settings.load_settings`). Reads only ``raw_dir``. An existing
     ``work_root/<campaign>/`` is replaced.
     """
-    root = process_raw_campaign(raw_dir, work_root, spec, repeatability_tolerance=repeatability_tolerance,
-                                sample_rate_tolerance=sample_rate_tolerance)
-    return write_diagnosis(root, root / DIAGNOSIS_FILE, None, spec)
+    settings = settings or load_settings()
+    root = process_raw_campaign(raw_dir, work_root, settings)
+    return run_step("diagnosis", root, settings, figures=False)
 
 
 def process_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLike,
-                         spec: WindowSpec = WindowSpec(), *, repeatability_tolerance: float = 0.05,
-                         sample_rate_tolerance: float = 0.05) -> Path:
-    """ingest -> validate -> windows -> repeatability -> characteristic of a raw campaign into
-    ``work_root/<campaign>/`` (replaced if it exists); returns that folder. Reads only ``raw_dir``."""
+                         settings: Settings | None = None) -> Path:
+    """ingest -> characteristic of a raw campaign into ``work_root/<campaign>/`` (replaced if it exists) with
+    ``settings`` (None: the project's at the working directory); returns that folder. Reads only ``raw_dir``."""
     raw_dir = Path(raw_dir)
     root = Path(work_root) / raw_dir.name
     if root.exists():
         shutil.rmtree(root)
-    ingest_campaign(raw_dir, root)
-    write_characteristic(root, spec, repeatability_tolerance=repeatability_tolerance,
-                         sample_rate_tolerance=sample_rate_tolerance)
-    return root
+    return run_chain(raw_dir, root, settings or load_settings(), until="characteristic")
 
 
 def diagnose_suite(raw_root: str | os.PathLike, names: Sequence[str], work_root: str | os.PathLike,
-                   spec: WindowSpec = WindowSpec(), **kwargs) -> dict[str, dict | None]:
+                   settings: Settings | None = None) -> dict[str, dict | None]:
     """:func:`diagnose_raw_campaign` of each named scenario; a failure is logged, written to
     ``work_root/<name>/error.txt`` and returned as None (scored as a wrong verdict)."""
+    settings = settings or load_settings()
     out: dict[str, dict | None] = {}
     for name in names:
         try:
-            out[name] = diagnose_raw_campaign(Path(raw_root) / name, work_root, spec, **kwargs)
+            out[name] = diagnose_raw_campaign(Path(raw_root) / name, work_root, settings)
             log.info("%s: verdict %s", name, effect_text(out[name].get("verdict") or []) or "none")
         except Exception as exc:  # noqa: BLE001 - one scenario fails alone, scoring counts it
             log.exception("%s: diagnosis failed", name)

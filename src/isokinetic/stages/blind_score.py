@@ -23,6 +23,7 @@ from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.contracts.scenarios import EFFECTS
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.io import write_json, write_parquet
+from isokinetic.physics.effects import BY_NAME
 from isokinetic.plots.blind_score import confusion_figure
 from isokinetic.plots.style import save_figure
 from isokinetic.stages.blind_generate import MAGNITUDE_BINS, PARAM_KEYS, effect_text, magnitude_bin
@@ -89,13 +90,14 @@ def _up_to_confounding(truth: set[str], verdict: set[str], groups: list[list[str
 def effect_sizes(truth: Mapping, diagnosis: Mapping) -> list[tuple[str, float, float]]:
     """(parameter key, true size, fitted size) of every effect of the truth; an effect's size is its parameter
     minus the nominal value (the manifest's C_D or viscosity for discharge and viscosity, zero otherwise); a
-    fitted size is NaN where the verdict has no value."""
+    fitted size is NaN where the verdict has no value. An effect drawn relative to the damper's value (its
+    registry record's blind draw) is sized from it."""
     fitted = diagnosis.get("params") or {}
     nominal = truth.get("damper") or {}
     out = []
     for e in truth.get("truth") or []:
         key = PARAM_KEYS[e]
-        base = float(nominal.get(key, 0.0)) if e in ("discharge", "viscosity") else 0.0
+        base = float(nominal.get(key, 0.0)) if BY_NAME[e].blind.form == "relative" else 0.0
         out.append((key, float(truth["params"][key]) - base, _float(fitted.get(key)) - base))
     return out
 

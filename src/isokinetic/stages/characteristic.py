@@ -48,6 +48,7 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
+from isokinetic.contracts.settings import Settings
 from isokinetic.io import write_parquet
 from isokinetic.measurement.loops import binned_characteristic, dominant_period_s, free_loop
 from isokinetic.measurement.peak_velocity import (
@@ -416,3 +417,11 @@ def write_characteristic(campaign_root: str | os.PathLike, spec: WindowSpec = Wi
     log.info("%d windows from %d cases, %d sine/free points, %d characteristic points", len(windows),
              windows["case"].nunique() if len(windows) else 0, len(records), len(char))
     return char
+
+
+def run_characteristic(campaign_root: str | os.PathLike, settings: Settings) -> pd.DataFrame:
+    """The chain's characteristic step (:mod:`isokinetic.stages.chain`): :func:`write_characteristic` with the
+    settings' window, tolerances and gap tolerance."""
+    return write_characteristic(campaign_root, settings.window,
+                                repeatability_tolerance=settings.repeatability_tolerance,
+                                sample_rate_tolerance=settings.sample_rate_tolerance, gap_tolerance=settings.gap)

@@ -23,6 +23,8 @@ import pandas as pd
 
 from isokinetic.contracts.campaign import case_plan, viscosity_scales
 from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, rule_figures
+from isokinetic.contracts.settings import Settings
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import (
     INSTRUMENT,
@@ -394,3 +396,12 @@ def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | No
 
         save_figure(gap_figure(result, obs, predictions), figure_path)
     return result
+
+
+def run_diagnosis(campaign_root: str | Path, settings: Settings, figures: bool = True) -> dict:
+    """The chain's diagnosis step (:mod:`isokinetic.stages.chain`): :func:`write_diagnosis` into the campaign
+    folder's diagnosis.json and, with ``figures``, Fig. 16, at the places the output registry names."""
+    root = Path(campaign_root)
+    figure = next(iter(rule_figures("diagnosis"))).path
+    return write_diagnosis(root, root / STAGE_OUTPUTS["diagnosis"]["json"], root / figure if figures else None,
+                           settings.window)

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import datetime as dt
 import logging
 import math
 import re
@@ -65,7 +64,8 @@ from isokinetic.contracts.manifest import (
     si_conversion,
 )
 from isokinetic.contracts.problem import Problem
-from isokinetic.io import sha256_file
+from isokinetic.contracts.settings import Settings
+from isokinetic.io import jsonable, sha256_file
 from isokinetic.rawfile import FOREIGN_BOMS as FOREIGN_BOMS  # re-exported for init_campaign
 from isokinetic.rawfile import FileFormat, RawFileError, RawTable, read_raw_table
 from isokinetic.stages.validate import quarantine_frame, quarantine_rows, timeseries_problems
@@ -689,21 +689,6 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec, campaign_temp
     return row, problems, (None if problems else df)
 
 
-def jsonable(value):
-    """Metadata from YAML made JSON-safe: dates as ISO text, keys as text, non-finite floats as text."""
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, (dt.date, dt.datetime)):
-        return value.isoformat()
-    if isinstance(value, float) and not math.isfinite(value):
-        return str(value)
-    if value is None or isinstance(value, (str, int, float, bool)):
-        return value
-    return str(value)
-
-
 def campaign_meta(manifest: Manifest, manifest_file: str) -> dict:
     """The ``campaign.json`` record (campaign.CAMPAIGN_KEYS) of a manifest."""
     return {"format_version": manifest.format_version, "campaign": manifest.campaign,
@@ -796,3 +781,9 @@ def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path,
     own = [c.id for c in manifest.cases if c.case_gas_force_N is not None]
     if own:
         log.info("campaign %s: cases %s subtract their own gas_force_N", manifest.campaign, ", ".join(own))
+
+
+def run_ingest(campaign_root: str | Path, settings: Settings, raw_dir: str | Path) -> None:
+    """The chain's ingest step (:mod:`isokinetic.stages.chain`): :func:`ingest_campaign` of ``raw_dir`` into
+    ``campaign_root`` with the settings' file-size limit."""
+    ingest_campaign(raw_dir, campaign_root, max_case_file_MB=settings.max_case_file_MB)

@@ -52,6 +52,7 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan, read_ingested
 from isokinetic.contracts.problem import Problem
+from isokinetic.contracts.settings import GapTolerance
 from isokinetic.io import write_parquet
 from isokinetic.measurement import plausibility as pl
 from isokinetic.measurement.motion import Motion, ends_early, estimate_motion, line_spans_s
@@ -100,37 +101,6 @@ REVERSED_HINT = ("time reversed (rows in reverse order, the time column left asc
 MOTION_COLUMNS = ("motion_start_s", "delay_s", "velocity_ratio", "motion_rms_m")
 #: cases.parquet columns of the dropped samples (NA unless the case reached the gap check).
 SAMPLING_COLUMNS = ("missing_samples", "missing_fraction", "longest_gap_s")
-
-
-@dataclass(frozen=True)
-class GapTolerance:
-    """How many dropped samples a case may miss (config ``validation``).
-
-    In any analysed span (:func:`gap_spans`) at most ``max_missing_fraction`` of the samples (5 %:
-    the window mean then rests on 95 % of its samples, its standard error up by under 3 %), and no
-    single gap longer than :meth:`limit_s`: the larger of ``max_gap_s`` (0.1 s) and
-    ``max_gap_half_period_fraction`` (2 %) of the half-period. The fraction guards short windows, the
-    duration long ones (2 % of T/2 is 4 % of a [0.45, 0.95] window): a longer hole in a steady
-    window could hide a transient the window mean would not show.
-    """
-
-    max_missing_fraction: float = 0.05
-    max_gap_s: float = 0.1
-    max_gap_half_period_fraction: float = 0.02
-
-    def __post_init__(self):
-        if not 0.0 <= self.max_missing_fraction < 1.0:
-            raise ValueError(f"max_missing_fraction must lie in [0, 1), got {self.max_missing_fraction}")
-        if not self.max_gap_s > 0.0 or not self.max_gap_half_period_fraction >= 0.0:
-            raise ValueError(f"max_gap_s must be > 0 and max_gap_half_period_fraction >= 0, got "
-                             f"{self.max_gap_s}, {self.max_gap_half_period_fraction}")
-
-    def limit_s(self, plan: CasePlan) -> float:
-        """The longest gap tolerated in an analysed span of this case [s]: max(max_gap_s, fraction·T/2);
-        a free record (no period) max_gap_s."""
-        half = {"triangle": plan.period_s / 2.0, "sine": 0.5 / plan.frequency_Hz}.get(plan.waveform, math.nan)
-        return max(self.max_gap_s, self.max_gap_half_period_fraction * half) if np.isfinite(half) else \
-            self.max_gap_s
 
 
 def reason(campaign: str, case: str, problem: Problem) -> str:

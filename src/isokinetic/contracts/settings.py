@@ -1,0 +1,188 @@
+"""The method's settings as one frozen record, built from the validated config (issue 36, part 1).
+
+One source: the config (``config/config.yaml``) validated against its schema
+(``workflow/schemas/config.schema.yaml``), whose ``default:`` values fill what the config leaves out. The
+workflow builds :data:`Settings` once (``workflow/rules/common.smk``) and every rule's script, the blind suite
+and ``trace`` read the same record (:func:`load_settings` outside Snakemake), so that no stage applies its own
+literal default. Each rule takes as a param the part of the record its stages read (:func:`rule_settings`):
+a change reruns that rule's jobs and no other.
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:   # annotations only: the settings import nothing heavy (common.smk reads them)
+    from isokinetic.physics.plan import CasePlan
+
+#: The config and its schema, relative to a project's root.
+CONFIG_FILE = Path("config") / "config.yaml"
+SCHEMA_FILE = Path("workflow") / "schemas" / "config.schema.yaml"
+
+
+@dataclass(frozen=True)
+class WindowSpec:
+    """Window as fractions of the half-period T/2 (paper: [0.45, 0.95]; config ``windows``)."""
+
+    start_fraction: float = 0.45
+    end_fraction: float = 0.95
+
+    def __post_init__(self):
+        if not 0.0 <= self.start_fraction < self.end_fraction <= 1.0:
+            raise ValueError(f"window fractions must satisfy 0 <= start < end <= 1, got "
+                             f"[{self.start_fraction}, {self.end_fraction}]")
+
+
+@dataclass(frozen=True)
+class GapTolerance:
+    """How many dropped samples a case may miss (config ``validation``).
+
+    In any analysed span (:func:`isokinetic.stages.validate.gap_spans`) at most ``max_missing_fraction`` of the
+    samples (5 %: the window mean then rests on 95 % of its samples, its standard error up by under 3 %), and no
+    single gap longer than :meth:`limit_s`: the larger of ``max_gap_s`` (0.1 s) and
+    ``max_gap_half_period_fraction`` (2 %) of the half-period. The fraction guards short windows, the
+    duration long ones (2 % of T/2 is 4 % of a [0.45, 0.95] window): a longer hole in a steady
+    window could hide a transient the window mean would not show.
+    """
+
+    max_missing_fraction: float = 0.05
+    max_gap_s: float = 0.1
+    max_gap_half_period_fraction: float = 0.02
+
+    def __post_init__(self):
+        if not 0.0 <= self.max_missing_fraction < 1.0:
+            raise ValueError(f"max_missing_fraction must lie in [0, 1), got {self.max_missing_fraction}")
+        if not self.max_gap_s > 0.0 or not self.max_gap_half_period_fraction >= 0.0:
+            raise ValueError(f"max_gap_s must be > 0 and max_gap_half_period_fraction >= 0, got "
+                             f"{self.max_gap_s}, {self.max_gap_half_period_fraction}")
+
+    def limit_s(self, plan: CasePlan) -> float:
+        """The longest gap tolerated in an analysed span of this case [s]: max(max_gap_s, fraction·T/2);
+        a free record (no period) max_gap_s."""
+        half = {"triangle": plan.period_s / 2.0, "sine": 0.5 / plan.frequency_Hz}.get(plan.waveform, math.nan)
+        return max(self.max_gap_s, self.max_gap_half_period_fraction * half) if math.isfinite(half) else \
+            self.max_gap_s
+
+
+@dataclass(frozen=True)
+class DesignLimits:
+    """Test-design limits of the plan check (config ``design``), SI."""
+
+    convergence_fraction: float = 0.999
+    max_amplitude_m: float = 10.0e-3
+    min_amplitude_m: float = 0.1e-3
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Every setting a campaign's chain reads (config keys in brackets).
+
+    window: the steady window as fractions of T/2 [windows]; repeatability_tolerance: period 1 against period 2
+    [repeatability.tolerance]; sample_rate_tolerance, gap: what validate accepts [validation]; max_case_file_MB:
+    the largest raw case file read [ingest.max_case_file_MB]; design: the plan check's limits, SI [design]."""
+
+    window: WindowSpec
+    repeatability_tolerance: float
+    sample_rate_tolerance: float
+    gap: GapTolerance
+    max_case_file_MB: float
+    design: DesignLimits
+
+    @classmethod
+    def from_config(cls, config: Mapping) -> Settings:
+        """The settings of a config already validated with its defaults filled (:func:`with_defaults`;
+        Snakemake's ``validate`` fills them too)."""
+        windows, validation, design = config["windows"], config["validation"], config["design"]
+        return cls(window=WindowSpec(float(windows["start_fraction"]), float(windows["end_fraction"])),
+                   repeatability_tolerance=float(config["repeatability"]["tolerance"]),
+                   sample_rate_tolerance=float(validation["sample_rate_tolerance"]),
+                   gap=GapTolerance(float(validation["max_missing_fraction"]), float(validation["max_gap_s"])),
+                   max_case_file_MB=float(config["ingest"]["max_case_file_MB"]),
+                   design=DesignLimits(float(design["convergence_fraction"]), float(design["max_amplitude_mm"]) * 1e-3,
+                                       float(design["min_amplitude_mm"]) * 1e-3))
+
+
+#: The settings each rule's stages read (its params: a change reruns its jobs).
+RULE_SETTINGS = {"ingest": ("max_case_file_MB",),
+                 "characteristic": ("window", "repeatability_tolerance", "sample_rate_tolerance", "gap"),
+                 "analysis": ("window", "design"),
+                 "diagnosis": ("window",),
+                 "blind_generate": ("window",),
+                 "blind_diagnose": ("window", "repeatability_tolerance", "sample_rate_tolerance", "gap",
+                                    "max_case_file_MB")}
+
+
+def flat_settings(settings: Settings) -> dict[str, float]:
+    """Every setting as one flat name -> value, the names a job's lineage record keeps (``trace`` reads them):
+    start_fraction, end_fraction, repeatability_tolerance, sample_rate_tolerance, max_missing_fraction,
+    max_gap_s, max_case_file_MB, phi (the design's convergence fraction), max_amplitude_m, min_amplitude_m."""
+    return {"start_fraction": settings.window.start_fraction, "end_fraction": settings.window.end_fraction,
+            "repeatability_tolerance": settings.repeatability_tolerance,
+            "sample_rate_tolerance": settings.sample_rate_tolerance,
+            "max_missing_fraction": settings.gap.max_missing_fraction, "max_gap_s": settings.gap.max_gap_s,
+            "max_case_file_MB": settings.max_case_file_MB, "phi": settings.design.convergence_fraction,
+            "max_amplitude_m": settings.design.max_amplitude_m, "min_amplitude_m": settings.design.min_amplitude_m}
+
+
+#: The flat names of each field of :class:`Settings`.
+FLAT_NAMES = {"window": ("start_fraction", "end_fraction"), "repeatability_tolerance": ("repeatability_tolerance",),
+              "sample_rate_tolerance": ("sample_rate_tolerance",), "gap": ("max_missing_fraction", "max_gap_s"),
+              "max_case_file_MB": ("max_case_file_MB",), "design": ("phi", "max_amplitude_m", "min_amplitude_m")}
+
+
+def rule_settings(settings: Settings, rule: str) -> dict[str, float]:
+    """The flat settings a rule's stages read (RULE_SETTINGS, :func:`flat_settings`), for its params."""
+    flat = flat_settings(settings)
+    return {name: flat[name] for field in RULE_SETTINGS[rule] for name in FLAT_NAMES[field]}
+
+
+def with_defaults(config: Mapping, schema: Mapping) -> dict:
+    """A copy of ``config`` with every ``default`` of ``schema`` filled where the config leaves it out, as
+    Snakemake's ``validate`` fills them; an object the config omits is created where a property below it has a
+    default and it requires none (``ingest``: its file-size limit), never where it requires keys (``blind``:
+    the block's presence asks for the blind suite)."""
+    out = copy.deepcopy(dict(config))
+    _fill(out, schema)
+    return out
+
+
+def _fill(node: dict, schema: Mapping) -> None:
+    for key, sub in (schema.get("properties") or {}).items():
+        if key not in node and "default" in sub:
+            node[key] = copy.deepcopy(sub["default"])
+        elif sub.get("type") == "object" and (key in node or (_has_defaults(sub) and not sub.get("required"))):
+            node.setdefault(key, {})
+            if isinstance(node[key], dict):
+                _fill(node[key], sub)
+
+
+def _has_defaults(schema: Mapping) -> bool:
+    return any("default" in s or _has_defaults(s) for s in (schema.get("properties") or {}).values())
+
+
+def load_settings(root: str | Path = ".", config: str | Path | None = None) -> Settings:
+    """The settings of the project at ``root``: its config (default ``config/config.yaml``) validated against
+    ``workflow/schemas/config.schema.yaml``, defaults filled (what a build of it applies). Read once per
+    process and config file version."""
+    root = Path(root).resolve()
+    path = Path(config).resolve() if config is not None else root / CONFIG_FILE
+    stat = path.stat()
+    return _load(str(root / SCHEMA_FILE), str(path), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=8)
+def _load(schema_file: str, config_file: str, _mtime_ns: int, _size: int) -> Settings:
+    import jsonschema
+    import yaml
+
+    schema = yaml.safe_load(Path(schema_file).read_text(encoding="utf-8"))
+    raw = yaml.safe_load(Path(config_file).read_text(encoding="utf-8")) or {}
+    filled = with_defaults(raw, schema)
+    jsonschema.validate(filled, schema)
+    return Settings.from_config(filled)
