@@ -93,3 +93,15 @@ def test_an_optional_block_that_asks_for_something_is_never_created_by_its_defau
     del config["blind"]
     schema = yaml.safe_load((ROOT / SCHEMA_FILE).read_text(encoding="utf-8"))
     assert "blind" not in with_defaults(config, schema)
+
+
+def test_the_records_own_defaults_are_the_schemas():
+    # where no config schema is at hand (a traced project without workflow/), trace falls back on them
+    from isokinetic.contracts.settings import GapTolerance, WindowSpec
+
+    schema = yaml.safe_load((ROOT / SCHEMA_FILE).read_text(encoding="utf-8"))["properties"]
+    gap = GapTolerance()
+    assert gap.max_missing_fraction == schema["validation"]["properties"]["max_missing_fraction"]["default"]
+    assert gap.max_gap_s == schema["validation"]["properties"]["max_gap_s"]["default"]
+    config = base_config()["windows"]
+    assert WindowSpec() == WindowSpec(config["start_fraction"], config["end_fraction"])

@@ -78,8 +78,12 @@ def _rate_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> tuple[fl
     rate's tolerance and the dropped samples' (:class:`isokinetic.contracts.settings.GapTolerance`)."""
     where = [root / "cases.parquet", *files]
     tol, _ = param(ctx, ["sample_rate_tolerance"], where, ["validation", "sample_rate_tolerance"])
-    missing, _ = param(ctx, ["max_missing_fraction"], where, ["validation", "max_missing_fraction"])
-    gap, _ = param(ctx, ["max_gap_s"], where, ["validation", "max_gap_s"])
+    default = GapTolerance()   # the schema's defaults (tests/contracts/test_settings.py keeps them equal)
+    try:
+        missing, _ = param(ctx, ["max_missing_fraction"], where, ["validation", "max_missing_fraction"])
+        gap, _ = param(ctx, ["max_gap_s"], where, ["validation", "max_gap_s"])
+    except TraceStop:   # a project without the config schema beside its config, whose config leaves them out
+        missing, gap = default.max_missing_fraction, default.max_gap_s
     return float(tol), GapTolerance(float(missing), float(gap))
 
 
