@@ -20,8 +20,8 @@ rule analysis:
     resources:
         **rule_resources("analysis"),
     params:
-        code=code_version("analysis.py"),
         **rule_settings(SETTINGS, "analysis"),
+        code=code_version("analysis.py"),
         vector_format=VECTOR_FORMAT,
     script:
         "../scripts/analysis.py"

@@ -20,6 +20,7 @@ rule blind_generate:
     resources:
         **rule_resources("blind_generate"),
     params:
+        **rule_settings(SETTINGS, "blind_generate"),
         code=code_version("blind_generate.py"),
         seed=BLIND.get("seed", 0),
         n_per_effect=BLIND.get("n_per_effect", 0),
@@ -28,7 +29,6 @@ rule blind_generate:
         n_out=BLIND.get("n_out_of_catalogue", 0),
         n_sine=BLIND.get("n_sine", 0),
         names=blind_chunk,
-        **rule_settings(SETTINGS, "blind_generate"),
     script:
         "../scripts/blind_generate.py"
 
@@ -49,9 +49,9 @@ rule blind_diagnose:
     resources:
         **rule_resources("blind_diagnose"),
     params:
+        **rule_settings(SETTINGS, "blind_diagnose"),
         code=code_version("blind_diagnose.py"),
         names=blind_chunk,
-        **rule_settings(SETTINGS, "blind_diagnose"),
     script:
         "../scripts/blind_diagnose.py"
 

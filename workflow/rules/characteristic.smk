@@ -16,7 +16,7 @@ rule characteristic:
     resources:
         **rule_resources("characteristic"),
     params:
-        code=code_version("characteristic.py"),
         **rule_settings(SETTINGS, "characteristic"),
+        code=code_version("characteristic.py"),
     script:
         "../scripts/characteristic.py"

@@ -14,8 +14,8 @@ rule diagnosis:
     resources:
         **rule_resources("diagnosis"),
     params:
-        code=code_version("diagnosis.py"),
         **rule_settings(SETTINGS, "diagnosis"),
+        code=code_version("diagnosis.py"),
         vector_format=VECTOR_FORMAT,
     script:
         "../scripts/diagnosis.py"

@@ -14,9 +14,9 @@ rule ingest:
     resources:
         **rule_resources("ingest"),
     params:
+        **rule_settings(SETTINGS, "ingest"),
         code=code_version("ingest.py"),
         campaign_dir=lambda wildcards: str(RAW_DIR / wildcards.campaign),
-        **rule_settings(SETTINGS, "ingest"),
         raw_dir=str(RAW_DIR),
         # files named with pattern characters, which Snakemake cannot take as inputs: size and mtime
         untracked=raw_fingerprints,
