@@ -20,3 +20,13 @@ def test_campaign_without_damper_data_is_reported_not_diagnosed():
 
 def test_schema_is_package_data():
     assert diagnosis_schema()["type"] == "object"
+
+
+def test_the_schema_is_a_valid_json_schema():
+    # validate_diagnosis builds its validator once and no longer checks the schema itself at every call
+    import jsonschema
+
+    from isokinetic.diagnosis.result import diagnosis_schema
+
+    schema = diagnosis_schema()
+    jsonschema.validators.validator_for(schema).check_schema(schema)
