@@ -13,7 +13,7 @@ from __future__ import annotations
 import copy
 import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -118,28 +118,29 @@ RULE_SETTINGS = {"ingest": ("max_case_file_MB",),
                                     "max_case_file_MB")}
 
 
+#: Every setting by the flat name a job's params and lineage record keep (``trace`` reads them): (its field of
+#: :class:`Settings`, its value).
+FLAT: dict[str, tuple[str, Callable[[Settings], float]]] = {
+    "start_fraction": ("window", lambda s: s.window.start_fraction),
+    "end_fraction": ("window", lambda s: s.window.end_fraction),
+    "repeatability_tolerance": ("repeatability_tolerance", lambda s: s.repeatability_tolerance),
+    "sample_rate_tolerance": ("sample_rate_tolerance", lambda s: s.sample_rate_tolerance),
+    "max_missing_fraction": ("gap", lambda s: s.gap.max_missing_fraction),
+    "max_gap_s": ("gap", lambda s: s.gap.max_gap_s),
+    "max_case_file_MB": ("max_case_file_MB", lambda s: s.max_case_file_MB),
+    "phi": ("design", lambda s: s.design.convergence_fraction),
+    "max_amplitude_m": ("design", lambda s: s.design.max_amplitude_m),
+    "min_amplitude_m": ("design", lambda s: s.design.min_amplitude_m)}
+
+
 def flat_settings(settings: Settings) -> dict[str, float]:
-    """Every setting as one flat name -> value, the names a job's lineage record keeps (``trace`` reads them):
-    start_fraction, end_fraction, repeatability_tolerance, sample_rate_tolerance, max_missing_fraction,
-    max_gap_s, max_case_file_MB, phi (the design's convergence fraction), max_amplitude_m, min_amplitude_m."""
-    return {"start_fraction": settings.window.start_fraction, "end_fraction": settings.window.end_fraction,
-            "repeatability_tolerance": settings.repeatability_tolerance,
-            "sample_rate_tolerance": settings.sample_rate_tolerance,
-            "max_missing_fraction": settings.gap.max_missing_fraction, "max_gap_s": settings.gap.max_gap_s,
-            "max_case_file_MB": settings.max_case_file_MB, "phi": settings.design.convergence_fraction,
-            "max_amplitude_m": settings.design.max_amplitude_m, "min_amplitude_m": settings.design.min_amplitude_m}
-
-
-#: The flat names of each field of :class:`Settings`.
-FLAT_NAMES = {"window": ("start_fraction", "end_fraction"), "repeatability_tolerance": ("repeatability_tolerance",),
-              "sample_rate_tolerance": ("sample_rate_tolerance",), "gap": ("max_missing_fraction", "max_gap_s"),
-              "max_case_file_MB": ("max_case_file_MB",), "design": ("phi", "max_amplitude_m", "min_amplitude_m")}
+    """Every setting as one flat name -> value (FLAT)."""
+    return {name: value(settings) for name, (_field, value) in FLAT.items()}
 
 
 def rule_settings(settings: Settings, rule: str) -> dict[str, float]:
-    """The flat settings a rule's stages read (RULE_SETTINGS, :func:`flat_settings`), for its params."""
-    flat = flat_settings(settings)
-    return {name: flat[name] for field in RULE_SETTINGS[rule] for name in FLAT_NAMES[field]}
+    """The flat settings a rule's stages read (RULE_SETTINGS, FLAT), for its params."""
+    return {name: value(settings) for name, (field, value) in FLAT.items() if field in RULE_SETTINGS[rule]}
 
 
 def with_defaults(config: Mapping, schema: Mapping) -> dict:
