@@ -372,3 +372,27 @@ def test_a_spike_in_a_window_is_left_out_of_its_mean_of_the_models_and_of_the_no
     np.testing.assert_allclose(Evaluator(dirty, damper).predict(NOMINAL), Evaluator(obs, damper).predict(NOMINAL),
                                rtol=1e-4, atol=1e-3)
     np.testing.assert_allclose(dirty.sigma_N, obs.sigma_N, rtol=0.05)
+
+
+def test_a_windows_parts_leave_out_the_samples_their_window_leaves_out(mixed):
+    # a spike found on the whole window is left out of the part that holds it, and only of that one
+    obs, damper, root = mixed
+    row, series = series_of(root, "T01")
+    tau = series["time_s"].to_numpy() - float(row["motion_start_s"])
+    half = CASES[0].period_s / 2
+    inside = np.flatnonzero((tau >= 1.45 * half) & (tau < 1.95 * half + 0.5 / 50.0))      # window 2
+    spike = int(inside[inside.size // 2])
+    spiked = series.copy()
+    spiked.loc[spike, "force_N"] += 10_000.0
+    campaign, _damper, cases, char, _scales = load_campaign(root)
+
+    def load(r):
+        return spiked if r["case"] == "T01" else pd.read_parquet(root / r["timeseries_file"])
+
+    parts = build_observations(campaign, cases, char, load, WindowSpec()).subwindows
+    rows = np.flatnonzero((parts.case == "T01") & (parts.segment == 2))
+    holed = [i for i in rows if (parts.holes[:, 0] == i).any()]
+    assert len(holed) == 1
+    clean = build_observations(campaign, cases, char, lambda r: pd.read_parquet(root / r["timeseries_file"]),
+                               WindowSpec()).subwindows
+    np.testing.assert_allclose(parts.force_N[rows], clean.force_N[rows], rtol=0.02)   # the spike gone from its part

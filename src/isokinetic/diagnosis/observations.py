@@ -168,6 +168,7 @@ class _Collector:
     holes: list = field(default_factory=list)            # (observation, model sample) without a measured sample
     parts: _Collector | None = None                      # the windows' WINDOW_PARTS parts (same plans)
     spikes: dict = field(default_factory=dict)           # (case, first, end sample) -> its spike mask
+    enclosing: tuple | None = None                       # a parts collector: (case, first, end) of their window
 
     def add(self, rec: CaseRecord, kind: str, k: int, sign: float, a: float, b: float, period: int | None = None,
             speed_m_s: float | None = None, slot: int | None = None, cycle: int = -1) -> int:
@@ -213,11 +214,16 @@ class _Collector:
 
     def _without_spikes(self, rec: CaseRecord, m0: int, m1: int, j0: int, j1: int, row: int) -> np.ndarray:
         """The force of the measured samples [m0, m1) less the spikes the characteristic leaves out of the window
-        (:func:`isokinetic.measurement.spikes.spike_mask`, the same samples), each spike's model sample made a hole
-        of observation ``row`` so that the model's mean leaves it out too."""
+        (:func:`isokinetic.measurement.spikes.spike_mask`, the same samples; a window's part: those its window
+        leaves out there), each spike's model sample made a hole of observation ``row`` so that the model's mean
+        leaves it out too."""
         fw = rec.force_N[m0:m1]
         key = (rec.plan.case, int(m0), int(m1))
         spikes = self.spikes.get(key)
+        window = self.enclosing
+        if spikes is None and window is not None and window[0] == key[0] and window[1] <= m0 and m1 <= window[2] \
+                and window in self.spikes:   # a window's part: the samples its window leaves out
+            spikes = self.spikes[window][m0 - window[1]:m1 - window[1]]
         if spikes is None:
             spikes = self.spikes[key] = spike_mask(rec.force_N, int(m0), int(m1))
         if not spikes.any():
@@ -240,6 +246,8 @@ class _Collector:
             before = len(self.cols["case"])
             last = max(last, self.add(rec, "window", k, sign, a, b))
             if self.parts is not None:
+                m0, m1 = np.searchsorted(rec.tau_s, [a, b], side="left")
+                self.parts.enclosing = (plan.case, int(m0), int(m1))
                 self.parts.add_parts(rec, k, sign, a, b)
             rel_se = speed_relative_se(rec.tau_s, rec.displacement_m, a, b)
             edges = t0 + np.linspace(0.0, spec.start_fraction * half, n_bins + 1)
@@ -338,7 +346,7 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
                        viscosity_scales: Mapping[str, float] | None = None, sine_bins: int = N_SINE_BINS,
                        displacement_scale: float = 1.0,
                        sine_model_means: Mapping[tuple[str, int], float] | None = None,
-                       spike_masks: dict | None = None) -> Observations:
+                       spike_masks: dict | None = None, parts: bool = True) -> Observations:
     """Windows and transient bins of every triangle case, in plan time, with honest standard errors, and
     the phase bins of every status-ok sine case (:func:`sine_case_record`, :mod:`sine_observations`; its
     drive's amplitude divided by ``displacement_scale``; ``sine_model_means``: (case, model start sample) -> a
@@ -354,14 +362,14 @@ def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
     propagates into the model (:func:`isokinetic.diagnosis.model.drive_input_variance`).
     ``viscosity_scales`` (case -> μ(T_case)/μ_nominal) models each case at its own temperature's viscosity.
     ``spike_masks``: a dict that remembers each window's spike mask across builds of the same records (a mask
-    depends on the samples alone).
+    depends on the samples alone). ``parts`` off: no ``subwindows`` (a build whose parts nothing reads).
     """
     by_case = {c: g.set_index("segment") for c, g in char.groupby("case")}
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle") & cases["case"].isin(by_case)]
     masks = {} if spike_masks is None else spike_masks
     collector = _Collector(force_offset_N, unsteady, sine_model_means=sine_model_means or {}, spikes=masks)
     collector.parts = _Collector(force_offset_N, unsteady, plans=collector.plans, drives=collector.drives,
-                                 scales=collector.scales, spikes=masks)
+                                 scales=collector.scales, spikes=masks) if parts else None
     for _, row in ok.iterrows():
         series = load_series(row)
         rec = case_record(row, series, by_case[case_plan(row).case])

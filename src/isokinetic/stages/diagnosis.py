@@ -216,7 +216,7 @@ def two_pass_observations(campaign: str, damper: Damper, modelled: pd.DataFrame,
     nominal model's bin means (its cycle-to-cycle convergence is no noise); ``scaled`` applies the LVDT scale."""
     masks: dict = {}   # each window's spike mask, for both builds
     obs = scaled(build_observations(campaign, modelled, char, load, spec, n_bins, viscosity_scales=scales,
-                                    displacement_scale=lvdt, spike_masks=masks))
+                                    displacement_scale=lvdt, spike_masks=masks, parts=False))
     if not len(obs):
         return obs
     dg0 = Diagnoser(obs, damper, alpha)
