@@ -105,3 +105,13 @@ def test_the_records_own_defaults_are_the_schemas():
     assert gap.max_gap_s == schema["validation"]["properties"]["max_gap_s"]["default"]
     config = base_config()["windows"]
     assert WindowSpec() == WindowSpec(config["start_fraction"], config["end_fraction"])
+
+
+def test_the_project_is_found_from_a_folder_below_it(tmp_path, monkeypatch):
+    root = project(tmp_path / "p", base_config())
+    (root / "benchmark").mkdir()
+    monkeypatch.chdir(root / "benchmark")
+    assert load_settings() == load_settings(root)
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(FileNotFoundError, match="no project"):
+        load_settings()

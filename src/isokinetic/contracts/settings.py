@@ -167,14 +167,26 @@ def _has_defaults(schema: Mapping) -> bool:
     return any("default" in s or _has_defaults(s) for s in (schema.get("properties") or {}).values())
 
 
-def load_settings(root: str | Path = ".", config: str | Path | None = None) -> Settings:
-    """The settings of the project at ``root``: its config (default ``config/config.yaml``) validated against
-    ``workflow/schemas/config.schema.yaml``, defaults filled (what a build of it applies). Read once per
-    process and config file version."""
-    root = Path(root).resolve()
+def load_settings(root: str | Path | None = None, config: str | Path | None = None) -> Settings:
+    """The settings of the project at ``root`` (None: the working directory or the nearest folder above it that
+    holds ``config/config.yaml`` and ``workflow/schemas/config.schema.yaml``): its config (default
+    ``config/config.yaml``) validated against the schema, defaults filled (what a build of it applies). Read
+    once per process and config file version."""
+    root = Path(root).resolve() if root is not None else project_root()
     path = Path(config).resolve() if config is not None else root / CONFIG_FILE
     stat = path.stat()
     return _load(str(root / SCHEMA_FILE), str(path), stat.st_mtime_ns, stat.st_size)
+
+
+def project_root(start: str | Path = ".") -> Path:
+    """The nearest folder from ``start`` up that holds a project's config and its schema; FileNotFoundError
+    naming what is missing where there is none."""
+    here = Path(start).resolve()
+    for folder in (here, *here.parents):
+        if (folder / CONFIG_FILE).is_file() and (folder / SCHEMA_FILE).is_file():
+            return folder
+    raise FileNotFoundError(f"no project (a folder with {CONFIG_FILE} and {SCHEMA_FILE}) at {here} or above it: "
+                            "pass the settings, or run from the project")
 
 
 @functools.lru_cache(maxsize=8)

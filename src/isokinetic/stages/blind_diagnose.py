@@ -26,8 +26,8 @@ def diagnose_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLi
 
     The chain's steps ingest, characteristic (validate, windows, repeatability, characteristic) and diagnosis
     (diagnosis.json as rule diagnosis writes it; no gap figure, which nothing scores), run as the workflow's
-    rules run them (:func:`isokinetic.stages.chain.run_chain`) with ``settings`` (None: the project's at the
-    working directory, :func:`isokinetic.stages.settings.load_settings`). Reads only ``raw_dir``. An existing
+    rules run them (:func:`isokinetic.stages.chain.run_chain`) with ``settings`` (None: the project's around the
+    working directory, :func:`isokinetic.contracts.settings.load_settings`). Reads only ``raw_dir``. An existing
     ``work_root/<campaign>/`` is replaced.
     """
     settings = settings or load_settings()
@@ -38,7 +38,7 @@ def diagnose_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLi
 def process_raw_campaign(raw_dir: str | os.PathLike, work_root: str | os.PathLike,
                          settings: Settings | None = None) -> Path:
     """ingest -> characteristic of a raw campaign into ``work_root/<campaign>/`` (replaced if it exists) with
-    ``settings`` (None: the project's at the working directory); returns that folder. Reads only ``raw_dir``."""
+    ``settings`` (None: the project's around the working directory); returns that folder. Reads only ``raw_dir``."""
     raw_dir = Path(raw_dir)
     root = Path(work_root) / raw_dir.name
     if root.exists():
