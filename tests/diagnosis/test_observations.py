@@ -350,8 +350,9 @@ def test_a_lagging_channels_model_means_leave_out_the_dropped_samples_at_their_p
         assert lagged[i] == pytest.approx(expected, rel=1e-9, abs=1e-9 * np.abs(force).max())
 
 
-def test_a_spike_in_a_window_is_left_out_of_its_mean_of_the_models_and_of_the_noise_model(mixed):
-    obs, damper, root = mixed
+def spiked_window(root):
+    """(T01's series, the samples of its window 2, the one spiked there (+10 kN), a loader giving the spiked
+    series for T01, the campaign's (name, cases, characteristic))."""
     row, series = series_of(root, "T01")
     tau = series["time_s"].to_numpy() - float(row["motion_start_s"])
     half = CASES[0].period_s / 2
@@ -364,6 +365,12 @@ def test_a_spike_in_a_window_is_left_out_of_its_mean_of_the_models_and_of_the_no
     def load(r):
         return spiked if r["case"] == "T01" else pd.read_parquet(root / r["timeseries_file"])
 
+    return series, inside, spike, load, (campaign, cases, char)
+
+
+def test_a_spike_in_a_window_is_left_out_of_its_mean_of_the_models_and_of_the_noise_model(mixed):
+    obs, damper, root = mixed
+    series, inside, spike, load, (campaign, cases, char) = spiked_window(root)
     dirty = build_observations(campaign, cases, char, load, WindowSpec())
     i = int(np.flatnonzero((dirty.case == "T01") & dirty.is_window & (dirty.segment == 2))[0])
     kept = np.setdiff1d(inside, [spike])
@@ -376,19 +383,8 @@ def test_a_spike_in_a_window_is_left_out_of_its_mean_of_the_models_and_of_the_no
 
 def test_a_windows_parts_leave_out_the_samples_their_window_leaves_out(mixed):
     # a spike found on the whole window is left out of the part that holds it, and only of that one
-    obs, damper, root = mixed
-    row, series = series_of(root, "T01")
-    tau = series["time_s"].to_numpy() - float(row["motion_start_s"])
-    half = CASES[0].period_s / 2
-    inside = np.flatnonzero((tau >= 1.45 * half) & (tau < 1.95 * half + 0.5 / 50.0))      # window 2
-    spike = int(inside[inside.size // 2])
-    spiked = series.copy()
-    spiked.loc[spike, "force_N"] += 10_000.0
-    campaign, _damper, cases, char, _scales = load_campaign(root)
-
-    def load(r):
-        return spiked if r["case"] == "T01" else pd.read_parquet(root / r["timeseries_file"])
-
+    _obs, _damper, root = mixed
+    _series, _inside, _spike, load, (campaign, cases, char) = spiked_window(root)
     parts = build_observations(campaign, cases, char, load, WindowSpec()).subwindows
     rows = np.flatnonzero((parts.case == "T01") & (parts.segment == 2))
     holed = [i for i in rows if (parts.holes[:, 0] == i).any()]
