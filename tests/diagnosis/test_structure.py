@@ -13,6 +13,7 @@ from isokinetic.diagnosis.sine_observations import phase_bins
 from isokinetic.diagnosis.structure import (
     AXES,
     QUANTITIES,
+    axis_data,
     between_unit_variance,
     binned_test,
     drift_test,
@@ -427,6 +428,11 @@ def drift_case_sensitivity(obs: Observations, seed: int = 21) -> np.ndarray:
     return obs.sign * per_case[obs.case_index] * obs.sigma_N
 
 
+def time_units(obs: Observations):
+    """The campaign-time axis' units of ``obs`` (cases back to back, 100 s each)."""
+    return next(d for d in axis_data(obs, case_times_s(obs)) if d.axis == "time")
+
+
 def test_the_drift_test_keeps_its_level_with_each_cases_own_error():
     obs = triangle_campaign()
     sens = drift_case_sensitivity(obs)
@@ -434,7 +440,7 @@ def test_the_drift_test_keeps_its_level_with_each_cases_own_error():
     for k in range(n):
         case_error = np.random.default_rng([78, k]).normal(0.0, 3.0, len(obs.plans))[obs.case_index]
         z = noise(obs, 4000 + k) + case_error
-        alarms += drift_test(obs, z, case_times_s(obs), sens, "discharge_coefficient")["p"] < 0.05
+        alarms += drift_test(obs, z, time_units(obs), sens, "discharge_coefficient")["p"] < 0.05
     assert alarms / n <= 0.05 + 3.0 * math.sqrt(0.05 * 0.95 / n)
 
 
@@ -443,7 +449,7 @@ def test_a_parameter_drifting_in_time_is_found_through_its_own_sensitivity():
     obs = triangle_campaign()
     sens = drift_case_sensitivity(obs)
     z = noise(obs, 41) + 0.02 * (obs.case_index - obs.case_index.mean()) * obs.sign * sens / obs.sigma_N * 15
-    found = drift_test(obs, z, case_times_s(obs), sens, "discharge_coefficient")
+    found = drift_test(obs, z, time_units(obs), sens, "discharge_coefficient")
     assert found["p"] < ALPHA and found["trend_t"] > 0 and found["change_rel"] > 0
     trend = next(t for t in structure_of(obs, z)["tests"] if t["axis"] == "time")
     assert found["p"] < trend["trend_p"]   # the trend of U weighs every case alike

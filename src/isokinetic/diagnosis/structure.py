@@ -514,7 +514,7 @@ def least_squares_residual(design: np.ndarray, z: np.ndarray) -> tuple[np.ndarra
     return z - design @ beta, int(rank)
 
 
-def drift_test(obs: Observations, z: np.ndarray, time_s: np.ndarray, sensitivity_N: np.ndarray,
+def drift_test(obs: Observations, z: np.ndarray, data: AxisData | None, sensitivity_N: np.ndarray,
                parameter: str) -> dict | None:
     """The score test of a damper parameter θ that drifts over the campaign's time, against the verdict's
     residuals: with s_i = sign(v)·∂F_i/∂ln θ / σ_i (``sensitivity_N`` the derivative [N], :func:`drift_sensitivities`)
@@ -522,10 +522,10 @@ def drift_test(obs: Observations, z: np.ndarray, time_s: np.ndarray, sensitivity
     time: b1 is θ's relative change per case of the run order (b0 a constant change the verdict missed). The t
     of b1 with the residual mean square floored at 1 (normal where the floor binds, else Student's t (N - 2), as
     :func:`trend_test`). A drift's signature follows the parameter's own sensitivity, large in some cases and
-    nil in others, which a trend of U alone weighs alike. None with fewer than four cases."""
+    nil in others, which a trend of U alone weighs alike. ``data``: the time axis' units (:func:`axis_data`). None
+    without them or with fewer than four cases."""
     from scipy import special
 
-    data = next((d for d in axis_data(obs, time_s) if d.axis == "time"), None)
     if data is None or np.unique(data.unit).size < 4:
         return None
     u, x, _n = unit_sums(data.unit, z[data.rows], data.x)
@@ -606,9 +606,8 @@ def residual_structure(obs: Observations, prediction: np.ndarray, alpha: float, 
         obs.subwindows, parts_prediction, (obs.noise or {}).get("objects"), parts_drift_N)
     if within is not None:
         tests.append(within_window_entry(within))
-    if time_s is not None and len(time_s) == len(obs):
-        tests += [t for key, sens in (drift_sensitivity_N or {}).items()
-                  if (t := drift_test(obs, z, time_s, sens, key)) is not None]
+    tests += [t for key, sens in (drift_sensitivity_N or {}).items()
+              if (t := drift_test(obs, z, datas.get("time"), sens, key)) is not None]
     for test, p_adj in zip(tests, holm([t["p"] for t in tests]), strict=True):
         test["p_adjusted"] = float(p_adj)
         test["significant"] = bool(p_adj < alpha)
