@@ -102,8 +102,8 @@ def savgol_derivative_coeffs(n: int, polyorder: int, delta: float) -> np.ndarray
 
 
 def savgol_derivative(x: np.ndarray, n: int, polyorder: int, delta: float) -> np.ndarray:
-    """First derivative of ``x`` by a Savitzky-Golay filter of n (odd, <= len(x)) samples; the
-    first and last n//2 samples use the polynomial fitted to the first and last n samples
+    """The first derivative of ``x`` (x's unit per delta's) by a Savitzky-Golay filter of n (odd, <= len(x))
+    samples; the first and last n//2 samples use the polynomial fitted to the first and last n samples
     (``scipy.signal.savgol_filter(x, n, polyorder, deriv=1, delta=delta, mode='interp')``, which the
     tests compare it with; here in numpy because importing scipy.signal costs a job about 0.45 s)."""
     x = np.asarray(x, dtype=float)
@@ -135,7 +135,7 @@ def _uniform(time_s: np.ndarray) -> tuple[np.ndarray, float, bool]:
 
 
 def dominant_period_s(time_s, displacement_m) -> float:
-    """Period of the largest spectral peak of the (linearly detrended, Hann-windowed) displacement.
+    """The period [s] of the largest spectral peak of the (linearly detrended, Hann-windowed) displacement.
 
     The record length when no peak other than DC exists.
     """
@@ -162,8 +162,8 @@ def dominant_period_s(time_s, displacement_m) -> float:
 
 
 def noise_sigma(x: np.ndarray) -> float:
-    """1-sigma of white noise on x from its third differences (variance 20 sigma^2 for white noise;
-    the signal's share is ~ (omega dt)^3 of its amplitude). RMS of the differences without their
+    """The 1-sigma of white noise on x (in x's unit) from its third differences (variance 20 sigma^2 for white
+    noise; the signal's share is ~ (omega dt)^3 of its amplitude). RMS of the differences without their
     largest 1 % (kinks, spikes), so that coarse quantisation (mostly zero differences) still counts."""
     if x.size < 8:
         return 0.0
@@ -206,9 +206,9 @@ def default_window_s(time_s, displacement_m, polyorder: int = 3, period_s: float
 
 
 def velocity_noise_m_s(time_s, displacement_m, window_s: float, polyorder: int = 3) -> float:
-    """1-sigma of the noise of :func:`smooth_velocity` with this window, measured on the record: the displacement's
-    white noise (:func:`noise_sigma`, on the even grid the derivative uses, so rounded time stamps count) times the
-    Savitzky-Golay derivative's noise gain sqrt(sum c_i^2)."""
+    """The 1-sigma [m/s] of the noise of :func:`smooth_velocity` with this window, measured on the record: the
+    displacement's white noise (:func:`noise_sigma`, on the even grid the derivative uses, so rounded time stamps
+    count) times the Savitzky-Golay derivative's noise gain sqrt(sum c_i^2)."""
     t = np.asarray(time_s, dtype=float)
     x = np.asarray(displacement_m, dtype=float)
     grid, dt, same = _uniform(t)
@@ -356,7 +356,7 @@ def free_loop(series: pd.DataFrame, window_s: float | None = None, polyorder: in
 
 
 def signed_area(x, y) -> float:
-    """Shoelace signed area of the closed curve (x, y): > 0 counter-clockwise, < 0 clockwise."""
+    """The shoelace signed area of the closed curve (x, y), x's unit times y's: > 0 counter-clockwise, < 0 clockwise."""
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
@@ -367,7 +367,7 @@ def signed_area(x, y) -> float:
 # ----------------------------------------------------------------------------------------------
 
 def half_cycles(velocity_m_s, hysteresis: float = HYSTERESIS) -> list[tuple[int, int, float]]:
-    """Runs of one velocity sign: (start, stop, sign), stop exclusive, in order.
+    """The runs of one velocity sign: (start, stop, sign), stop exclusive, in order.
 
     A run changes sign when v crosses the opposite threshold ±h, h = ``hysteresis`` x the 99th
     percentile of |v| (noise and spikes near v = 0 do not split a half-cycle); the boundary is put
@@ -478,7 +478,7 @@ def peak_to_peak(lp: pd.DataFrame, frequency_Hz: float | None = None) -> pd.Data
 
 
 def peak_velocity_characteristic(lp: pd.DataFrame) -> pd.DataFrame:
-    """Force at each velocity peak: one point per complete half-cycle (free records).
+    """The force at each velocity peak: one point per complete half-cycle (free records).
 
     Half-cycles from the sign changes of the velocity (:func:`half_cycles`, with hysteresis); the
     first and last runs, cut by the record, are dropped. The peak is refined by a parabola over
@@ -506,7 +506,7 @@ def peak_velocity_characteristic(lp: pd.DataFrame) -> pd.DataFrame:
 
 def binned_characteristic(lp: pd.DataFrame, n_bins: int = N_BINS, min_samples: int | None = None,
                           min_speed_m_s: float | None = None) -> pd.DataFrame:
-    """Mean force in velocity bins, per direction (free records).
+    """The mean force in velocity bins, per direction (free records).
 
     Per direction s, the samples with s v at least ``min_speed_m_s`` (default ``RESOLVE_SIGMA`` times the
     velocity estimate's noise, ``lp.attrs['velocity_noise_m_s']``, 0 when absent: below it the sign of v is not

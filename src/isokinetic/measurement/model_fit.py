@@ -108,13 +108,13 @@ def nominal_families(damper: Damper, velocities_m_s, discharge_coefficients: Seq
 
 
 def design_matrix(velocity_m_s) -> np.ndarray:
-    """Columns sign(v), v, v|v| (F_C, D_L, D_Q); the same form serves each Surace direction."""
+    """The design matrix (n, 3): columns sign(v), v, v|v| (F_C, D_L, D_Q), the same for each Surace direction."""
     v = np.asarray(velocity_m_s, dtype=float)
     return np.column_stack([np.sign(v), v, v * np.abs(v)])
 
 
 def standard_errors(force_std_N, n_samples, force_N, weighting: str = "standard_error") -> np.ndarray:
-    """σ_i of each window for the weights 1/σ_i² (see module doc).
+    """σ_i [N] of each window for the weights 1/σ_i² (see module doc).
 
     A zero spread (noise-free or quantised data) is floored at 1e-6 |F| + 1e-9 N so no window gets
     an infinite weight.
@@ -185,7 +185,7 @@ def _transform_interval(est, lo, hi, g, increasing: bool, positive_only: bool):
 
 
 def physical_readings(parameter: str, estimate: float, ci_low: float, ci_high: float, damper: Damper) -> list[dict]:
-    """Derived rows (parameter, estimate, ci_low, ci_high, unit, description, assumption) of D_L or D_Q."""
+    """The derived rows (parameter, estimate, ci_low, ci_high, unit, description, assumption) of D_L or D_Q."""
     ap = damper.piston_area_m2
     rows = []
     if parameter == "D_L":
@@ -231,16 +231,16 @@ class PhysicalRange:
     why: str = ""
 
     def text(self) -> str:
-        """Interval notation: '[0, inf)', '(0, 1]'."""
+        """The range in interval notation: '[0, inf)', '(0, 1]'."""
         right = ")" if self.high_open or math.isinf(self.high) else "]"
         return f"{'(' if self.low_open else '['}{_num(self.low)}, {_num(self.high)}{right}"
 
     def below(self, x: float) -> bool:
-        """x lies below the range."""
+        """Whether x lies below the range."""
         return x < self.low or (self.low_open and x == self.low)
 
     def above(self, x: float) -> bool:
-        """x lies above the range."""
+        """Whether x lies above the range."""
         return x > self.high or (self.high_open and x == self.high)
 
 
@@ -336,7 +336,7 @@ def fit_points(char: pd.DataFrame | None) -> pd.DataFrame | None:
 def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str = "standard_error",
                confidence: float = CONFIDENCE, source_file: str = "characteristic.parquet"
                ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Wallaschek and Surace fits of a CHARACTERISTIC (or WINDOWS) table: (models_df, residuals_df).
+    """The Wallaschek and Surace fits of a CHARACTERISTIC (or WINDOWS) table: (models_df, residuals_df).
 
     models_df follows tables.MODELS plus kind ('fitted' | 'derived'), derived_from, std_error, unit,
     description, assumption, n_points, dof, rms_residual_N, residual_scale, weighting, confidence,
@@ -421,7 +421,7 @@ def model_parameters(models_df: pd.DataFrame, model: str) -> dict[str, dict[str,
 
 
 def model_force(models_df: pd.DataFrame, model: str, velocity_m_s) -> np.ndarray:
-    """Force of a fitted model at the given velocities (NaN where the model/direction is missing)."""
+    """The force [N] of a fitted model at the given velocities [m/s] (NaN where the model/direction is missing)."""
     v = np.asarray(velocity_m_s, dtype=float)
     params = model_parameters(models_df, model)
     out = np.full(v.shape, np.nan)
@@ -475,7 +475,7 @@ def comparison_table(char: pd.DataFrame, nominal_windows: pd.DataFrame | None, m
 
 
 def family_velocities(char: pd.DataFrame | None, harmonic: pd.DataFrame | None = None, n: int = 121) -> np.ndarray:
-    """Symmetric velocity grid for the families: geometric over the data's |v| range, both signs."""
+    """A symmetric velocity grid [m/s] for the families: geometric over the data's |v| range, both signs."""
     vals = []
     for df in (char, harmonic):
         if df is not None and len(df) and "velocity_m_s" in df:

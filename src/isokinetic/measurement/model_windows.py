@@ -54,7 +54,7 @@ def effects_label(effects: Effects) -> str:
 
 
 def record_duration_s(row: Mapping, durations: Mapping[str, float] | None = None) -> float:
-    """Measured record length of a case row: durations[case], duration_s, (n - 1)/fs, else 2T."""
+    """The measured record length [s] of a case row: durations[case], duration_s, (n - 1)/fs, else 2T."""
     case = str(row["case"])
     if durations is not None and case in durations and durations[case] is not None \
             and math.isfinite(float(durations[case])):
@@ -99,7 +99,7 @@ class ModelPlan:
                    durations: Mapping[str, float] | None = None,
                    drives: Mapping[str, Drive] | None = None,
                    viscosity_scales: Mapping[str, float] | None = None) -> ModelPlan:
-        """Status-ok triangle cases of a cases table (tables.CASES).
+        """The plan of the status-ok triangle cases of a cases table (tables.CASES).
 
         ``drives`` (case -> :class:`isokinetic.physics.responses.Drive`,
         :func:`isokinetic.measurement.drive.case_drives`) runs a case with its measured half-period speeds
@@ -207,7 +207,7 @@ def model_windows(campaign: str, cases: pd.DataFrame, damper: Damper, effects: E
                   label: str | None = None, validate: bool = True,
                   drives: Mapping[str, Drive] | None = None,
                   viscosity_scales: Mapping[str, float] | None = None) -> pd.DataFrame:
-    """Noise-free model windows of every status-ok triangle case of ``cases`` (tables.WINDOWS).
+    """The noise-free model windows of every status-ok triangle case of ``cases`` (tables.WINDOWS).
 
     One-shot form of ``ModelPlan.from_cases(...).windows(...)``; inside a fit prepare the
     ModelPlan once and call :meth:`ModelPlan.forces` (or ``windows(validate=False)``).

@@ -76,7 +76,7 @@ class Motion:
 
     @property
     def velocity_ratios(self) -> np.ndarray:
-        """Signed measured / planned velocity of each half-period (negative: against the plan)."""
+        """The signed measured / planned velocity of each half-period [-] (negative: against the plan)."""
         return np.asarray(self.velocities_m_s) / np.asarray(self.planned_velocities_m_s)
 
     @property
@@ -88,12 +88,12 @@ class Motion:
 
     @property
     def excess_rms_m(self) -> float:
-        """rms departure from the plan beyond the LVDT noise: sqrt(rms² - noise²)."""
+        """The rms departure from the plan beyond the LVDT noise: sqrt(rms² - noise²) [m]."""
         return math.sqrt(max(self.rms_m ** 2 - self.noise_m ** 2, 0.0))
 
 
 def triangle_shape(tau_s, period_s: float, phase_rad: float):
-    """tri(2πτ/T + φ) for τ >= 0, held at tri(φ) before (Eq. 26, amplitude 1)."""
+    """tri(2πτ/T + φ) [-] for τ >= 0 [s], held at tri(φ) before (Eq. 26, amplitude 1)."""
     tau = np.maximum(np.asarray(tau_s, dtype=float), 0.0)
     u = np.mod(tau / period_s + phase_rad / (2.0 * np.pi) + 0.75, 1.0)
     return 4.0 * np.abs(u - 0.5) - 1.0
@@ -107,7 +107,7 @@ def block_means(t, y, points: int = COARSE_POINTS):
 
 
 def shift_misfit(t, y, shifts_s, period_s: float, phase_rad: float) -> np.ndarray:
-    """Residual sum of squares of y ≈ c + g·tri(t - shift) (c, g free) for each candidate shift."""
+    """The residual sum of squares [y²] of y ≈ c + g·tri(t - shift) (c, g free) for each candidate shift."""
     u = triangle_shape(t[None, :] - np.asarray(shifts_s)[:, None], period_s, phase_rad)
     uc = u - u.mean(axis=1, keepdims=True)
     yc = y - y.mean()
@@ -131,7 +131,7 @@ def coarse_shift(t, y, period_s: float, phase_rad: float, n: int = 101) -> float
 
 
 def line_fit(t, y) -> tuple[float, float, float, float, float]:
-    """Least-squares line through (t, y): (slope, value at the mean time, mean time, standard error of that
+    """The least-squares line through (t, y): (slope, value at the mean time, mean time, standard error of that
     value, standard error of the slope), the residual scatter taken as the noise."""
     tm, ym = t.mean(), y.mean()
     tc = t - tm
@@ -143,7 +143,7 @@ def line_fit(t, y) -> tuple[float, float, float, float, float]:
 
 
 def line_fits(t, y, starts_s, half_s: float, cut: bool = False):
-    """Least-squares lines over [0.1, 0.9]·T/2 after each start: (slope, value at mean time,
+    """The least-squares lines over [0.1, 0.9]·T/2 after each start: (slope, value at mean time,
     mean time, crossing-time standard error per unit slope, samples), NaN for too few samples, and with
     ``cut`` (a record that ends early) for a half-period whose middle lies after the record's last sample."""
     lo, hi = LINE_FRACTIONS
@@ -212,7 +212,7 @@ def ends_early(t_s, plan: CasePlan) -> bool:
 
 
 def estimate_motion(t_s, y_m, plan: CasePlan, iterations: int = 3) -> Motion:
-    """Measured kinematics of a triangle case from its time stamps and displacement (Eq. 26).
+    """The measured kinematics of a triangle case from its time stamps and displacement (Eq. 26).
 
     A record that ends early (:func:`ends_early`) fits only the half-periods it holds up to their middle
     (module doc). Raises ValueError for a case that is not a triangle or a record of fewer than 10 samples.

@@ -120,7 +120,7 @@ class NoiseModel:
             raise ValueError(f"param_cov must be 5 x 5, got shape {np.shape(self.param_cov)}")
 
     def to_dict(self) -> dict:
-        """Plain (JSON-ready) form: the fields, ``corner_Hz``, and ``param_cov`` as nested lists."""
+        """The plain (JSON-ready) form: the fields, ``corner_Hz``, and ``param_cov`` as nested lists."""
         out = {name: float(getattr(self, name)) for name in ("white_var_N2", "white_rel_var", "coloured_var_N2",
                                                              "coloured_rel_var", "tau_c_s", "fs_Hz")}
         out["corner_Hz"] = self.corner_Hz
@@ -134,7 +134,7 @@ class NoiseModel:
 
     @property
     def rho(self) -> float:
-        """Correlation of the coloured part between neighbouring samples, exp(-1 / (fs tau_c))."""
+        """The correlation of the coloured part between neighbouring samples, exp(-1 / (fs tau_c)) [-]."""
         return math.exp(-1.0 / (self.fs_Hz * self.tau_c_s))
 
     def white_variance_N2(self, mean_square_force_N2):
@@ -653,7 +653,7 @@ def fit_noise_model(windows: Sequence, fs_Hz: float, *, detrend: bool = True,
 
 
 def scaled_chi2_isf(alpha: float, dof: int, scale_rel_sd: float) -> float:
-    """Upper ``alpha`` quantile of c X, X ~ chi-square(``dof``), ln c ~ N(0, ``scale_rel_sd``^2).
+    """The upper ``alpha`` quantile of c X, X ~ chi-square(``dof``), ln c ~ N(0, ``scale_rel_sd``^2).
 
     The threshold for a sum of ``dof`` squared z whose common variance scale is known only to a
     relative standard deviation ``scale_rel_sd`` (e.g. the mean of
@@ -681,7 +681,7 @@ def scaled_chi2_isf(alpha: float, dof: int, scale_rel_sd: float) -> float:
 
 
 def scaled_chi2_sf(x: float, dof: int, scale_rel_sd: float) -> float:
-    """P(c X > x), X ~ chi-square(``dof``), ln c ~ N(0, ``scale_rel_sd``^2): the p-value that goes with
+    """The p-value P(c X > x), X ~ chi-square(``dof``), ln c ~ N(0, ``scale_rel_sd``^2): the p-value that goes with
     :func:`scaled_chi2_isf` (equals ``chi2.sf(x, dof)`` for 0). Gauss-Hermite quadrature over ln c."""
     eps = float(scale_rel_sd)
     if dof < 1 or not (math.isfinite(eps) and eps >= 0.0):

@@ -378,7 +378,7 @@ def settled(points: pd.DataFrame, spec: PeakSpec = PeakSpec()) -> pd.DataFrame:
 
 
 def summarise(points: pd.DataFrame) -> pd.DataFrame:
-    """Per direction ('+' then '-'): the mean of the cycles' peak velocity and force, their cycle-to-cycle
+    """One row per direction ('+' then '-'): the mean of the cycles' peak velocity and force, their cycle-to-cycle
     standard deviations (ddof 1; NaN for one cycle), n_cycles, force_se_N = force_std_N / sqrt(n) (NaN for one
     cycle: nothing says how the cycle repeats), the mean force noise of the fits, force_spread_N the root mean
     square of the cycles' in-window spread (0 when every cycle's force is steady) and n_unsteady the cycles
@@ -405,7 +405,7 @@ def summarise(points: pd.DataFrame) -> pd.DataFrame:
 
 
 def loop_energy(t: np.ndarray, x: np.ndarray, f: np.ndarray, t_a: float, t_b: float) -> float:
-    """Integral of F dx from t_a to t_b: trapezoids over the samples between, the ends linearly
+    """The integral of F dx from t_a to t_b [J]: trapezoids over the samples between, the ends linearly
     interpolated on the time axis."""
     i0 = int(np.searchsorted(t, t_a, side="right"))
     i1 = int(np.searchsorted(t, t_b, side="left"))

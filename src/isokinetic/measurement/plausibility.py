@@ -73,8 +73,8 @@ FOLLOW_CORRELATION = 0.9
 
 
 def smoothing_samples(n: int) -> int:
-    """Half-width of the velocity's central difference: about 1/2000 of the record (noise averaged, symmetric
-    in time, so no crossing moves)."""
+    """The half-width [samples] of the velocity's central difference: about 1/2000 of the record (noise averaged,
+    symmetric in time, so no crossing moves)."""
     return max(1, n // 2000)
 
 
@@ -211,12 +211,13 @@ class Causality:
 
     @property
     def leads_everywhere(self) -> bool:
-        """At least one pair of reversals, and in every pair the force leads by more than the bound plus
-        LEAD_SIGMAS standard errors."""
+        """Whether there is at least one pair of reversals and in every pair the force leads by more than the bound
+        plus LEAD_SIGMAS standard errors."""
         means, errors = self.pair_lags_s
         return means.size >= 1 and bool(np.all(means < -(self.bound_s + LEAD_SIGMAS * errors)))
 
     def said(self) -> str:
+        """The sentence a refusal gives: the force leads the motion, by how much and beyond what bound."""
         lead = -self.pair_lags_s[0] * 1e3
         return (f"the force leads the motion at all {self.lags_s.size} reversals of the velocity, by "
                 f"{np.median(lead):.3g} ms (median over {lead.size} up-and-down pair(s); {lead.min():.3g} to "
@@ -245,7 +246,7 @@ def cycle_energies(t: np.ndarray, displacement_m: np.ndarray, force_N: np.ndarra
 
 
 def gives_energy_back(net_J: np.ndarray, absolute_J: np.ndarray) -> bool:
-    """At least one complete cycle, and over all of them more than ENERGY_FRACTION of the absolute work
+    """Whether there is at least one complete cycle, and over all of them more than ENERGY_FRACTION of the absolute work
     returned (summed: one cycle cut by a spurious reversal does not decide)."""
     return net_J.size >= 1 and float(net_J.sum()) < -ENERGY_FRACTION * float(absolute_J.sum())
 
@@ -286,7 +287,7 @@ def peak_magnitude(x: np.ndarray) -> float:
 
 
 def force_score(peak_N: float) -> float:
-    """init-campaign's score of a force reading: decades between its 99th percentile |F| and TYPICAL_FORCE_N,
+    """The init-campaign score of a force reading: decades between its 99th percentile |F| and TYPICAL_FORCE_N,
     infinite outside FORCE_BOUNDS_N (:func:`isokinetic.init_campaign.channels.force_scores`)."""
     if not FORCE_BOUNDS_N[0] <= peak_N <= FORCE_BOUNDS_N[1]:
         return math.inf
@@ -342,13 +343,13 @@ def implied_damping_N_s_m(t: np.ndarray, displacement_m: np.ndarray, force_N: np
 
 
 def plausible_damping(damping_N_s_m: float) -> bool:
-    """|force over velocity| inside DAMPING_RANGE_N_S_M (NaN: nothing to judge, plausible)."""
+    """Whether |force over velocity| lies inside DAMPING_RANGE_N_S_M (NaN: nothing to judge, plausible)."""
     return not math.isfinite(damping_N_s_m) or \
         DAMPING_RANGE_N_S_M[0] <= abs(damping_N_s_m) <= DAMPING_RANGE_N_S_M[1]
 
 
 def follows(signal: np.ndarray, reference: np.ndarray) -> float:
-    """|correlation| of a channel with another (0 when either is constant)."""
+    """The |correlation| [-] of a channel with another (0 when either is constant)."""
     if signal.size < 3 or np.std(signal) == 0 or np.std(reference) == 0:
         return 0.0
     return abs(float(np.corrcoef(signal, reference)[0, 1]))

@@ -82,7 +82,7 @@ def _slope(v: np.ndarray, f: np.ndarray) -> np.ndarray:
 
 
 def branch_bins(lp: pd.DataFrame, n_bins: int = N_BINS) -> pd.DataFrame:
-    """Per direction and velocity bin: the mean speed and force of all its samples and of each branch, the
+    """One row per direction and velocity bin: the mean speed and force of all its samples and of each branch, the
     branch difference at equal speed and its standard error (module doc). ``lp``: a loop (time_s,
     velocity_m_s, force_N; ``attrs['window_s']`` the smoothing window; loops.free_loop)."""
     t = lp["time_s"].to_numpy(float)

@@ -84,6 +84,7 @@ class Gaps:
 
     @property
     def total_missing(self) -> int:
+        """The number of samples missing in all gaps."""
         return int(self.missing.sum())
 
     @property
@@ -93,7 +94,7 @@ class Gaps:
 
 
 def find_gaps(t_s, dt_s: float, factor: float = GAP_FACTOR) -> Gaps:
-    """Intervals above ``factor``·dt_s, each missing round(interval/dt_s) - 1 samples (at least 1)."""
+    """The intervals above ``factor``·dt_s, each missing round(interval/dt_s) - 1 samples (at least 1)."""
     t = np.asarray(t_s, dtype=float)
     intervals = np.diff(t)
     before = np.flatnonzero(intervals > factor * dt_s)
@@ -116,15 +117,17 @@ class SpanSampling:
 
     @property
     def expected(self) -> int:
+        """The number of samples the span holds on the record's grid, present or missing."""
         return self.present + self.missing
 
     @property
     def missing_fraction(self) -> float:
+        """The fraction of the expected samples that are missing (0 for an empty span)."""
         return self.missing / self.expected if self.expected else 0.0
 
 
 def span_sampling(t_s, start_s: float, end_s: float, dt_s: float, gaps: Gaps | None = None) -> SpanSampling:
-    """Present and missing samples of [start_s, end_s] on the record's grid (:func:`find_gaps`).
+    """The present and missing samples of [start_s, end_s] on the record's grid (:func:`find_gaps`).
 
     A gap's missing samples lie at t_before + k·dt_s (k = 1 .. missing); those within the span count,
     so a burst across a span edge counts only its part inside. Nothing is counted before the first

@@ -381,7 +381,7 @@ def block_mean(force_N, n_blocks: int = STANDSTILL_BLOCKS) -> tuple[float, float
 
 def standstill_estimate(campaign: str, points: pd.DataFrame, gas_force_N: float | None,
                         confidence: float = CONFIDENCE) -> StaticForce:
-    """F_static as the inverse-variance weighted mean of the standstill cases' means (module doc); the
+    """The static force F_static as the inverse-variance weighted mean of the standstill cases' means (module doc); the
     standard error the larger of the weighted mean's and the cases' scatter about it."""
     f = points["force_N"].to_numpy(float)
     se = np.maximum(points["std_error_N"].to_numpy(float), 1e-9)
@@ -458,7 +458,7 @@ def _finite(value) -> float | None:
 
 
 def offset_standard_error(diagnosis: Mapping) -> float:
-    """Approximate standard error of the diagnosis' offset from its profile test: fixing the offset at 0
+    """The approximate standard error [N] of the diagnosis' offset from its profile test: fixing the offset at 0
     raises χ² by Δχ² ≈ (F_0/σ)², so σ ≈ |F_0| / sqrt(Δχ²) (instrument_tests.force_offset); 0 when
     the test is not there."""
     test = ((diagnosis.get("instrument_tests") or {}).get("force_offset") or {})
@@ -475,7 +475,7 @@ def diagnosis_alpha(diagnosis: Mapping | None) -> float:
 
 
 def offset_check(static: Mapping, diagnosis: Mapping | None, alpha: float | None = None) -> OffsetCheck:
-    """Compare a static force (a row of static_force.parquet as a dict, or ``asdict(StaticForce)``)
+    """The comparison of a static force (a row of static_force.parquet as a dict, or ``asdict(StaticForce)``)
     with diagnosis.json's ``instrument.force_offset_N``.
 
     Both estimate the constant in both branches (module doc), after the same gas-force correction.
