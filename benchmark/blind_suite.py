@@ -3,7 +3,7 @@
     .venv/bin/python benchmark/blind_suite.py [--seed 777] [--per-effect 6] [--pairs 9] [--none 9]
                                               [--out 16] [--sine 14] [--jobs 2] [--no-sensor-chain] [--keep DIR]
 
-Generates the suite exactly as the pipeline's blind_generate does (isokinetic.stages.blind_generate,
+Generates the suite exactly as the pipeline's blind_generate does (isokinetic.blind.generate,
 reference rig, nuisances and the sensor chain's in every scenario), diagnoses every scenario through
 the raw-campaign chain in ``--jobs`` processes, scores it and prints the same summary table as the
 pipeline's blind_score, plus the wall time and the CPU-seconds per scenario kind, and a table of the hidden
@@ -28,10 +28,10 @@ from pathlib import Path
 
 import pandas as pd
 
+from isokinetic.blind.generate import generate_scenarios, write_suite
+from isokinetic.blind.score import read_truths, score, summarize, summary_text
 from isokinetic.contracts.scenarios import balanced_chunks, kind_name, suite_composition
 from isokinetic.stages.blind_diagnose import diagnose_suite
-from isokinetic.stages.blind_generate import generate_scenarios, write_suite
-from isokinetic.stages.blind_score import read_truths, score, summarize, summary_text
 
 
 def diagnose_chunk(args: tuple[str, list[str], str]) -> tuple[dict, dict]:

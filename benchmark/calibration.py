@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from isokinetic.blind.generate import export_scenario, make_scenario
 from isokinetic.stages.blind_diagnose import process_raw_campaign
-from isokinetic.stages.blind_generate import export_scenario, make_scenario
 from isokinetic.stages.diagnosis import diagnose
 
 ALPHAS = (0.05, 0.01, 0.001)

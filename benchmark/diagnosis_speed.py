@@ -68,8 +68,8 @@ def crank_sweep(raw: Path) -> str:
 
 def blind_sines(raw: Path, truth: Path, n_sine: int) -> list[str]:
     """The blind benchmark's sine-only scenarios (benchmark/blind_suite.py's defaults), written to ``raw``."""
+    from isokinetic.blind.generate import generate_scenarios, scenario_names, write_suite
     from isokinetic.contracts.scenarios import suite_composition
-    from isokinetic.stages.blind_generate import generate_scenarios, scenario_names, write_suite
 
     suite = (777, 6, 9, 9, 16, n_sine)   # benchmark/blind_suite.py's defaults
     composition = suite_composition(*suite)

@@ -11,6 +11,7 @@ import pytest
 
 import isokinetic.io
 from isokinetic.audit import lineage, provenance
+from isokinetic.blind.score import SCORE_COLUMNS, SOURCE_COLUMNS
 from isokinetic.contracts.row_keys import parse_row_keys
 from isokinetic.io import canonical_json, hash_once, lineage_context, write_json
 from isokinetic.stages import blind_score
@@ -259,7 +260,7 @@ def test_blind_scores_name_raw_folder_truth_and_diagnosis(tmp_path):
     scores, _ = blind_score.write_scores(truth_root, [work], tmp_path / "scores.parquet",
                                          tmp_path / "summary.json", tmp_path / "fig.png")
     got = pd.read_parquet(tmp_path / "scores.parquet").set_index("scenario")
-    assert list(got.reset_index().columns) == [*blind_score.SCORE_COLUMNS, *blind_score.SOURCE_COLUMNS]
+    assert list(got.reset_index().columns) == [*SCORE_COLUMNS, *SOURCE_COLUMNS]
     assert got.loc["blind-000", "raw_dir"] == "results/blind/raw/blind-000"          # as ingest recorded it
     assert got.loc["blind-001", "raw_dir"] == (tmp_path / "blind" / "raw" / "blind-001").as_posix()
     assert got.loc["blind-000", "truth_file"] == (truth_root / "blind-000.json").as_posix()

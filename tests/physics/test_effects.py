@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import yaml
 
+from isokinetic.blind import generate as gen
 from isokinetic.contracts import scenarios
 from isokinetic.diagnosis import joint, search, verdict
 from isokinetic.diagnosis.parametrisation import TRANSFORMS, Parametrisation
@@ -22,7 +23,6 @@ from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
 from isokinetic.report import diagnosis_section
 from isokinetic.report.sources import Source
-from isokinetic.stages import blind_generate as gen
 
 ROOT = Path(__file__).resolve().parents[2]
 FITTED = [e for e in REGISTRY if e.fit is not None]

@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 import yaml
 
+from isokinetic.blind.generate import generate_scenarios, write_suite
+from isokinetic.blind.score import read_truths, score, summarize, summary_text
 from isokinetic.contracts.scenarios import EFFECTS
 from isokinetic.stages.blind_diagnose import diagnose_suite
-from isokinetic.stages.blind_generate import generate_scenarios, write_suite
-from isokinetic.stages.blind_score import read_truths, score, summarize, summary_text
 
 ROOT = Path(__file__).resolve().parents[2]
 # small plans (8 speeds, no 240 s periods) keep the end-to-end suite fast

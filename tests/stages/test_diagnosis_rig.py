@@ -14,13 +14,13 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from isokinetic.blind.generate import out_of_catalogue_true_effects
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.physics.plan import CasePlan
 from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
 from isokinetic.stages.blind_diagnose import diagnose_raw_campaign
-from isokinetic.stages.blind_generate import out_of_catalogue_true_effects
 
 # speeds [mm/s] and periods [s]: across the laminar-turbulent transition
 PLAN = [(0.01, 80.0), (0.04, 80.0), (0.15, 20.0), (0.5, 20.0), (1.2, 20.0)]

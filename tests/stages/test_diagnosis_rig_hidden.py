@@ -5,9 +5,9 @@ effect lies on. The rig (isokinetic.reference.rig) shares no code with the diagn
 import numpy as np
 import pytest
 
+from isokinetic.blind.hidden import hidden_fields
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.reference import rig as rr
-from isokinetic.stages.blind_hidden import hidden_fields
 from stages.test_diagnosis_rig import diagnose_rig
 
 #: Triangle cases (speed [mm/s], period [s]): strokes of 0.2-6 mm, so that a groove of ±1 mm at mid-stroke is

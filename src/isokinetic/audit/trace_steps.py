@@ -47,13 +47,13 @@ from isokinetic.audit.trace_evidence import (
     raw_source,
     rebuild,
 )
+from isokinetic.blind.score import score
 from isokinetic.contracts.campaign import case_plan, timeseries_relpath
 from isokinetic.contracts.settings import GapTolerance
 from isokinetic.io import sha256_file, write_parquet
 from isokinetic.measurement.model_fit import fit_models
 from isokinetic.measurement.repeatability import relative_difference, repeatability
 from isokinetic.measurement.windows import WindowSpec, motion_start, windowed_half_periods
-from isokinetic.stages.blind_score import score
 from isokinetic.stages.characteristic import assemble, paired_repeatability, records_stage, windows_stage
 from isokinetic.stages.design import plan_check
 from isokinetic.stages.diagnosis import diagnose

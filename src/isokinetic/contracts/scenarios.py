@@ -17,11 +17,11 @@ EFFECTS = registry.BLIND_EFFECTS
 #: the suite does not draw yet (path_asymmetry: a one-sided resistance of the whole flow path, issue 21).
 CATALOGUE = registry.CATALOGUE
 #: Out-of-catalogue effects of the suite that hide from the steady characteristic (issue 35), each with the
-#: ``where`` axis it shows on (isokinetic.stages.blind_hidden): a groove open near mid-stroke, a bore worn there,
+#: ``where`` axis it shows on (isokinetic.blind.hidden): a groove open near mid-stroke, a bore worn there,
 #: a rod's gas spring; an orifice wearing and the oil warming (unlogged) over the campaign.
 HIDDEN_AXES = {"bypass": "position", "worn_bore": "position", "gas_spring": "position", "wear": "time",
                "warmup": "time"}
-#: Out-of-catalogue effects of the suite (isokinetic.stages.blind_generate.out_of_catalogue_true_effects), in
+#: Out-of-catalogue effects of the suite (isokinetic.blind.generate.out_of_catalogue_true_effects), in
 #: the order ``n_out`` cycles through them: the steady characteristic's (Stribeck friction, backlash, a relief
 #: valve) and the hidden ones (HIDDEN_AXES) interleaved, so that a small suite holds both.
 OUT_OF_CATALOGUE = ("stribeck", "bypass", "backlash", "wear", "relief", "worn_bore", "warmup", "gas_spring")

@@ -4,7 +4,7 @@ described (issue 36).
 Every consumer iterates :data:`REGISTRY` instead of a table of its own: the model's config groups and
 :meth:`isokinetic.physics.damper.Effects.active`, the diagnosis' catalogue and its optimiser units
 (:mod:`isokinetic.diagnosis.parametrisation`), the report's units (:mod:`isokinetic.report.diagnosis_section`),
-the blind suite's draws (:mod:`isokinetic.stages.blind_generate`, :mod:`isokinetic.contracts.scenarios`) and its
+the blind suite's draws (:mod:`isokinetic.blind.generate`, :mod:`isokinetic.contracts.scenarios`) and its
 mapping onto the independent reference rig, which imports nothing of isokinetic and so is named here as data (the
 field names of its ``TrueEffects``). ``tests/physics/test_effects.py`` walks every record through all of them.
 Adding an effect: docs/architecture.md, "How to add an effect".
@@ -38,7 +38,7 @@ class Fit:
 
 @dataclass(frozen=True)
 class BlindDraw:
-    """How the blind suite draws the effect (:mod:`isokinetic.stages.blind_generate`).
+    """How the blind suite draws the effect (:mod:`isokinetic.blind.generate`).
 
     ``form`` of the magnitude m (in ``unit``, the truth files' ``magnitude_unit``): 'absolute' the field is m;
     'signed' ±m (random sign); 'relative' the damper's nominal value times (1 ± m). ``bound``: the largest

@@ -1,6 +1,6 @@
 """Fig. 17 of rule blind_score: the blind suite's confusion matrix, truth effect set against verdict.
 
-The counts and the title come from :mod:`isokinetic.stages.blind_score` (``confusion_counts``,
+The counts and the title come from :mod:`isokinetic.blind.score` (``confusion_counts``,
 ``confusion_title``); this module only draws them.
 """
 

@@ -1,6 +1,6 @@
 """Rule blind_diagnose: one chunk of blind scenarios, each taken from its raw campaign to its diagnosis.
 
-Every scenario exported by :mod:`isokinetic.stages.blind_generate` is an ordinary raw campaign; it
+Every scenario exported by :mod:`isokinetic.blind.generate` is an ordinary raw campaign; it
 goes through exactly the chain a real raw campaign gets (ingest -> validate -> windows ->
 repeatability -> characteristic -> diagnosis, :func:`diagnose_raw_campaign`) and never sees its
 truth. A scenario whose chain fails is recorded and scored as a wrong verdict.
@@ -14,8 +14,8 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
+from isokinetic.blind.generate import effect_text
 from isokinetic.contracts.settings import Settings, load_settings
-from isokinetic.stages.blind_generate import effect_text
 from isokinetic.stages.chain import run_chain, run_step
 
 log = logging.getLogger(__name__)

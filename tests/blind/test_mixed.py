@@ -3,9 +3,9 @@
 import pytest
 import yaml
 
+from isokinetic.blind import mixed as bm
+from isokinetic.blind.mixed import write_mixed_campaign
 from isokinetic.physics.damper import TABLE_1
-from isokinetic.stages import blind_mixed as bm
-from isokinetic.stages.blind_mixed import write_mixed_campaign
 
 
 def test_mixed_campaign_has_slow_triangles_and_a_sine_matrix_with_friction_and_air(tmp_path):

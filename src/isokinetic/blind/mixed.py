@@ -4,8 +4,8 @@ loses the air the sines show far beyond their noise).
 
 :func:`write_mixed_campaign` writes the raw campaign folder and returns its truth; the magnitudes are set in
 detection levels on the triangles' windows, the blind suite's rms_z = 3 rule
-(:class:`~isokinetic.stages.blind_generate.DetectionProblem`), and the air's rms_z on the sines' phase bins
-(:class:`~isokinetic.stages.blind_generate.SineDetectionProblem`) is reported beside it.
+(:class:`~isokinetic.blind.generate.DetectionProblem`), and the air's rms_z on the sines' phase bins
+(:class:`~isokinetic.blind.generate.SineDetectionProblem`) is reported beside it.
 """
 
 from __future__ import annotations
@@ -13,11 +13,7 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-from isokinetic.physics.damper import TABLE_1
-from isokinetic.physics.plan import CasePlan
-from isokinetic.reference import campaign as rrc
-from isokinetic.reference import rig as rr
-from isokinetic.stages.blind_generate import (
+from isokinetic.blind.generate import (
     SAMPLE_RATE_HZ,
     SINE_SAMPLE_RATE_HZ,
     DetectionProblem,
@@ -26,9 +22,13 @@ from isokinetic.stages.blind_generate import (
     period_for,
     physical_effects,
 )
-from isokinetic.stages.blind_hidden import rig_cases
+from isokinetic.blind.hidden import rig_cases
+from isokinetic.physics.damper import TABLE_1
+from isokinetic.physics.plan import CasePlan
+from isokinetic.reference import campaign as rrc
+from isokinetic.reference import rig as rr
 
-#: The mixed campaign's slow triangles [mm/s] (periods: blind_generate.period_for), 50 Hz.
+#: The mixed campaign's slow triangles [mm/s] (periods: blind.generate.period_for), 50 Hz.
 MIXED_TRIANGLE_SPEEDS_MM_S = (0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
 #: Its sine matrix: every frequency [Hz] at every amplitude [mm], MIXED_SINE_CYCLES cycles at 1 kHz.
 MIXED_SINE_FREQUENCIES_HZ = (0.5, 2.0, 8.0)
@@ -61,10 +61,10 @@ def write_mixed_campaign(folder: str | Path, seed: int = 0, friction_multiple: f
 
     The friction is ``friction_multiple`` times its detection level on the triangles' windows, the air
     ``air_multiple`` times its detection level there (1: just at the edge of what the triangles show): the same
-    rms_z = 3 rule as the blind suite's (:class:`~isokinetic.stages.blind_generate.DetectionProblem`). The air's
-    rms_z on the sines' phase bins (:class:`~isokinetic.stages.blind_generate.SineDetectionProblem`) is
+    rms_z = 3 rule as the blind suite's (:class:`~isokinetic.blind.generate.DetectionProblem`). The air's
+    rms_z on the sines' phase bins (:class:`~isokinetic.blind.generate.SineDetectionProblem`) is
     reported beside it: far beyond 3, what a diagnosis that weighs the sines must not lose. ``folder`` must be
-    absent or empty, its name a campaign id; the export as :func:`isokinetic.stages.blind_generate.export_scenario`
+    absent or empty, its name a campaign id; the export as :func:`isokinetic.blind.generate.export_scenario`
     writes it (nominal damper and charge pressure only). Returns the truth: ``truth`` ['friction', 'air'],
     ``params`` (coulomb_force_N, air_volume_fraction), ``detection_level``, ``multiple``, the air's and
     friction's rms_z on the triangles and on the sines, the cases, the rig and the seed.

@@ -1,4 +1,5 @@
-"""Rule blind_generate: scenario generation on the reference rig, detection levels, truth-free export."""
+"""The blind suite drawn (isokinetic.blind.generate): scenario generation on the reference rig, detection levels,
+truth-free export."""
 
 import dataclasses
 import hashlib
@@ -10,14 +11,14 @@ import numpy as np
 import pytest
 import yaml
 
+from isokinetic.blind import generate as gen
+from isokinetic.blind.generate import BOUNDS, effect_fields, generate_scenarios, magnitude_bin, write_suite
 from isokinetic.contracts.scenarios import EFFECTS, EXPECTED_COST_S, balanced_chunks, kind_name
 from isokinetic.measurement.windows import case_windows
 from isokinetic.physics.damper import TABLE_1, Effects
 from isokinetic.physics.virtual_rig import Measurement, simulate_cases
 from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
-from isokinetic.stages import blind_generate as gen
-from isokinetic.stages.blind_generate import BOUNDS, effect_fields, generate_scenarios, magnitude_bin, write_suite
 
 SEED = 11
 SUITE = {"n_per_effect": 1, "n_pairs": 2, "n_none": 1, "n_out": 3}

@@ -1,13 +1,11 @@
-"""Rule blind_score: verdicts against the withheld truth, the targets, and Fig. 17's counts."""
+"""The blind suite scored (isokinetic.blind.score): verdicts against the withheld truth, the targets, Fig. 17's
+counts."""
 
 import json
 
 import numpy as np
 
-from isokinetic.io import write_json
-from isokinetic.plots.blind_score import confusion_figure
-from isokinetic.plots.style import save_figure
-from isokinetic.stages.blind_score import (
+from isokinetic.blind.score import (
     SCORE_COLUMNS,
     confusion_counts,
     confusion_title,
@@ -18,6 +16,9 @@ from isokinetic.stages.blind_score import (
     summarize,
     summary_text,
 )
+from isokinetic.io import write_json
+from isokinetic.plots.blind_score import confusion_figure
+from isokinetic.plots.style import save_figure
 
 
 def _truth(name, effects, multiple, out=""):

@@ -6,11 +6,11 @@ import math
 import numpy as np
 import pytest
 
+from isokinetic.blind import hidden as bh
+from isokinetic.blind.generate import generate_scenarios, make_scenario
 from isokinetic.contracts.scenarios import HIDDEN_AXES, OUT_OF_CATALOGUE, suite_composition
 from isokinetic.physics.plan import CasePlan
 from isokinetic.reference import rig as rr
-from isokinetic.stages import blind_hidden as bh
-from isokinetic.stages.blind_generate import generate_scenarios, make_scenario
 
 WHITE = rr.RigImperfections(force_noise_N=2.0)          # white noise only: SE of a mean of n = 2 / sqrt(n)
 
