@@ -49,7 +49,7 @@ class Damper:
 
     @classmethod
     def from_mapping(cls, values: Mapping[str, float]) -> Damper:
-        """Build from a mapping of the field names (the optional ones may be absent or None); raises
+        """The damper of a mapping of the field names (the optional ones may be absent or None); raises
         KeyError naming a missing key, ValueError naming one that is not a positive number."""
         names = [f.name for f in dataclasses.fields(cls)]
         missing = [n for n in cls.required() if n not in values]
@@ -114,7 +114,7 @@ class Effects:
 
     @classmethod
     def from_config(cls, groups: Mapping[str, Mapping[str, float]] | None) -> Effects:
-        """Build from the grouped config form ``{friction: {coulomb_force_N: 90}, ...}``."""
+        """The effects of the grouped config form ``{friction: {coulomb_force_N: 90}, ...}``."""
         kwargs: dict[str, float] = {}
         for group, values in (groups or {}).items():
             if group not in cls.CONFIG_KEYS:
@@ -126,7 +126,7 @@ class Effects:
         return cls(**kwargs)
 
     def active(self) -> list[str]:
-        """Names of the effect groups that differ from the nominal model (registry order: a field of the record's
+        """The names of the effect groups that differ from the nominal model (registry order: a field of the record's
         ``active_fields`` away from its default)."""
         return [e.name for e in REGISTRY if any(getattr(self, f) != _FIELD_DEFAULTS[f] for f in e.active_fields)]
 

@@ -33,7 +33,7 @@ def sample_times(case: CasePlan) -> np.ndarray:
 
 
 def record_end(case: CasePlan) -> float:
-    """End of the simulated interval: the duration, or the last sample if rounding puts it later."""
+    """The end of the simulated interval [s]: the duration, or the last sample if rounding puts it later."""
     return max(case.duration_s, round(case.duration_s * case.sample_rate_Hz) / case.sample_rate_Hz)
 
 
@@ -61,7 +61,7 @@ def _snap(t: float, case: CasePlan) -> float:
 
 
 def turning_times(case: CasePlan) -> list[float]:
-    """Actuator turning points in (0, record end): argument π/2 + kπ (triangle or sine)."""
+    """The actuator's turning points in (0, record end) [s]: argument π/2 + kπ (triangle or sine)."""
     omega, phase = angular_motion(case)
     k = math.floor((phase - math.pi / 2) / math.pi)
     end = record_end(case)
@@ -77,7 +77,7 @@ def turning_times(case: CasePlan) -> list[float]:
 
 
 def direction_between(omega: float, phase: float, ta: float, tb: float) -> float:
-    """Command direction (+1 / -1) between two consecutive turning points: sign of cos at the middle."""
+    """The command direction (+1 / -1) between turning points ta, tb [s]: the sign of cos at the middle."""
     return 1.0 if math.cos(omega * 0.5 * (ta + tb) + phase) > 0 else -1.0
 
 
@@ -154,7 +154,7 @@ def check_stroke(case: CasePlan, hyd: Hydraulics) -> None:
 
 
 def segment_index(t: np.ndarray, segs: Sequence[Segment]) -> list[slice]:
-    """Sample indices of each segment: [t_start, t_end), the last one closed."""
+    """The sample indices of each segment: [t_start, t_end), the last one closed."""
     starts = np.array([s.t_start_s for s in segs])
     i0 = np.searchsorted(t, starts, side="left")
     i1 = np.append(i0[1:], t.size)

@@ -95,7 +95,7 @@ class Hydraulics:
 
     @classmethod
     def from_damper(cls, damper: Damper, effects: Effects = NOMINAL) -> Hydraulics:
-        """Truth coefficients: Table 1 data with the effects (Eq. 3, 7, leakage, asymmetry); air follows the
+        """The truth coefficients: Table 1 data with the effects (Eq. 3, 7, leakage, asymmetry); air follows the
         gas law where the damper declares its charge pressure."""
         gas_law = damper.charge_pressure_Pa is not None and effects.air_volume_fraction > 0
         return cls(piston_area_m2=damper.piston_area_m2,
@@ -146,14 +146,14 @@ class Hydraulics:
                                      y_m, self.piston_area_m2, stored_m3)
 
     def c1(self, sign):
-        """c1 of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
+        """c1 [Pa s/m³] of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
         neg = self.laminar_coefficient if self.laminar_coefficient_neg is None else self.laminar_coefficient_neg
         if isinstance(sign, (float, int)):
             return self.laminar_coefficient if sign >= 0 else neg
         return np.where(np.asarray(sign) >= 0, self.laminar_coefficient, neg)
 
     def c2(self, sign):
-        """c2 of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
+        """c2 [Pa s²/m⁶] of the flow direction ``sign`` (>= 0: positive side); a float for a scalar sign."""
         if isinstance(sign, (float, int)):
             return self.turbulent_coefficient_pos if sign >= 0 else self.turbulent_coefficient_neg
         return np.where(np.asarray(sign) >= 0, self.turbulent_coefficient_pos, self.turbulent_coefficient_neg)
@@ -296,7 +296,7 @@ class Relaxation:
 
     @classmethod
     def from_nodes(cls, tau, delta, slope, curvature, steady_Pa: float) -> Relaxation:
-        """Panel polynomials from node values δ, dδ/dτ and d²δ/dτ² (inf: unknown)."""
+        """The table of panel polynomials from node values δ, dδ/dτ and d²δ/dτ² (inf: unknown)."""
         tau = np.asarray(tau, dtype=float)
         coef = _panel_coefficients(np.diff(tau), delta[:-1], delta[1:], slope[:-1], slope[1:],
                                    curvature[:-1], curvature[1:]).T
@@ -304,7 +304,7 @@ class Relaxation:
 
     @classmethod
     def constant(cls, dp_Pa: float) -> Relaxation:
-        """Δp stays at its start value (the start is already the steady state)."""
+        """A table whose Δp stays at its start value [Pa] (the start is already the steady state)."""
         return cls(np.zeros(1), np.zeros((0, 6)), float(dp_Pa))
 
     def pressure(self, tau) -> np.ndarray:
@@ -564,7 +564,7 @@ class RelaxationBatch:
         return self.sizes.size
 
     def relaxation(self, k: int) -> Relaxation:
-        """Table k alone."""
+        """The table k alone."""
         a, n = int(self.first[k]), int(self.sizes[k])
         if n < 2:
             return Relaxation.constant(float(self.steady_Pa[k]))
@@ -579,7 +579,7 @@ class RelaxationBatch:
                    np.concatenate([p.sizes for p in parts]), np.concatenate([p.steady_Pa for p in parts]))
 
     def pressure(self, table: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """Δp of table ``table[i]`` at τ ``tau[i]`` for every i, each exactly as :meth:`Relaxation.pressure`.
+        """Δp [Pa] of table ``table[i]`` at τ ``tau[i]`` for every i, each exactly as :meth:`Relaxation.pressure`.
 
         For samples of one table in ascending τ (as there), the ones before the table's end are
         interpolated, the others are Δp* (the per-sample test τ < τ_end is the same split).
@@ -721,7 +721,7 @@ def relaxation_batch(dp0_Pa, piston_flows_m3_s, hyd: Hydraulics, step: float = D
 
 def relaxations(dp0_Pa: Sequence[float], piston_flows_m3_s: Sequence[float], hyd: Hydraulics,
                 step: float = DEFAULT_STEP) -> list[Relaxation]:
-    """Tabulate many segment solutions at once (one vectorised pass), Eq. (13)-(14).
+    """The tables of many segment solutions, built at once (one vectorised pass), Eq. (13)-(14).
 
     Problem k starts at Δp(0) = ``dp0_Pa[k]`` under piston flow ``piston_flows_m3_s[k]`` = A_p W.
     τ(u) = ∫ (dΔp/dq) e^u / |A_p W - Q_N| du with u = ln|q* - q|, 3-point Gauss-Legendre per panel.

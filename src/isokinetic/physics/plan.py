@@ -39,7 +39,7 @@ class CasePlan:
 
     @property
     def required_duration_s(self) -> float:
-        """Record length the plan needs: two periods for a triangle (Sec. 4.3), one for a sine."""
+        """The record length [s] the plan needs: two periods for a triangle (Sec. 4.3), one for a sine."""
         if self.waveform == "triangle":
             return 2.0 * self.period_s
         if self.waveform == "sine":
@@ -48,7 +48,7 @@ class CasePlan:
 
 
 def triangle_wave(x):
-    """tri(x) with tri(0)=0, tri(π/2)=+1, tri(3π/2)=-1 (raw-campaign spec, Eq. 26)."""
+    """tri(x) [-] of x [rad], tri(0) = 0, tri(π/2) = +1, tri(3π/2) = -1 (raw-campaign spec, Eq. 26)."""
     return (2.0 / np.pi) * np.arcsin(np.sin(x))
 
 

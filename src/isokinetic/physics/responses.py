@@ -91,7 +91,7 @@ class Drive:
             raise ValueError(f"drive: grid offset must be >= 0, got {self.grid_offset_s}")
 
     def speed(self, j: int) -> float:
-        """Speed of half-period j (0-based); beyond the measured ones, the last of the same direction."""
+        """The speed [m/s] of half-period j (0-based); beyond the measured ones, the last of the same direction."""
         n = len(self.speeds_m_s)
         if j < n:
             return self.speeds_m_s[j]
@@ -108,7 +108,7 @@ def drive_times(case: CasePlan, drive: Drive | None = None) -> np.ndarray:
 
 
 def driven_segments(case: CasePlan, drive: Drive, times: np.ndarray | None = None) -> list[Segment]:
-    """Contact segments between the plan's turning points at the drive's measured speeds.
+    """The contact segments between the plan's turning points at the drive's measured speeds.
 
     The piston starts at the command's start -Y (Eq. 26) and its position is chained through the
     segments, so amplitude follows from the measured speeds. ``times``: the case's
@@ -619,7 +619,7 @@ def sine_response(case: CasePlan, hyd: Hydraulics, backlash_m: float = 0.0, rtol
 
 def true_response(case: CasePlan, damper: Damper, effects: Effects = NOMINAL,
                   hydraulics: Hydraulics | None = None, servo_stiffness_N_m: float = math.inf) -> pd.DataFrame:
-    """Noise-free record: time_s, command_m, actuator_m, piston_velocity_m_s, dp_Pa, force_N (Eq. 8).
+    """The noise-free record: time_s, command_m, actuator_m, piston_velocity_m_s, dp_Pa, force_N (Eq. 8).
 
     ``hydraulics`` overrides the coefficients derived from damper and effects (e.g. c2 = 0);
     friction and backlash always come from ``effects``. ``actuator_m`` is what the LVDT sees: the

@@ -181,7 +181,8 @@ class ServoRig:
         return Mode(SLIDE, side, side or 1.0)
 
     def gap(self, y: float, p: float) -> tuple[Mode, float]:
-        """Enter the gap at piston position y: Δp clipped to what the seals hold, |A_p Δp| <= F_C."""
+        """(mode, Δp [Pa]) on entering the gap at piston position y [m]: Δp clipped to what the seals hold,
+        |A_p Δp| <= F_C."""
         limit = self.coulomb_force_N / self.hyd.piston_area_m2
         return Mode(GAP, 0.0, 1.0, y), min(max(p, -limit), limit)
 
@@ -243,7 +244,7 @@ class ServoRig:
     # ---------------------------------------------------------------- ODE of each mode
 
     def system(self, m: Mode, d: float):
-        """rhs, jac and events of mode m on an interval of command direction d."""
+        """(rhs, jac, events) of mode m on an interval of command direction d."""
         return self._slide_system(m, d) if m.kind == SLIDE else self._rest_system(m)
 
     def _slide_system(self, m: Mode, d: float):
@@ -313,7 +314,7 @@ class ServoRig:
     # ---------------------------------------------------------------- the record
 
     def initial_mode(self, d0: float) -> Mode:
-        """At rest with the piston at the far side of the gap, as in :func:`excitation.piston_segments`."""
+        """The mode at rest, the piston at the far side of the gap, as in :func:`excitation.piston_segments`."""
         if self.backlash_m > 0:
             return Mode(GAP, 0.0, 1.0, self.command(0.0) + d0 * self.backlash_m / 2.0)
         return self.contact(0.0, self.command(0.0))
@@ -343,7 +344,7 @@ class ServoRig:
         return n_done
 
     def run(self):
-        """Integrate the record: (t_s, dp_Pa, piston_velocity_m_s, force_N, actuator_m, piston_m)."""
+        """The integrated record: (t_s, dp_Pa, piston_velocity_m_s, force_N, actuator_m, piston_m)."""
         t = sample_times(self.case)
         end = record_end(self.case)
         edges = [0.0, *turning_times(self.case), end]

@@ -101,8 +101,8 @@ class SineDrive:
 
 
 def merged_contacts(segs: list) -> list:
-    """Consecutive pushed pieces with the same offset (no gap crossed between them: always without backlash)
-    joined into one: the piston's sine motion is smooth across the actuator's turning points, and each restart
+    """The segments with consecutive pushed pieces of the same offset (no gap crossed between them: always without
+    backlash) joined into one: the piston's sine motion is smooth across the actuator's turning points, and each restart
     of the integrator costs its step-size ramp-up again."""
     out = []
     for seg in segs:
@@ -117,7 +117,7 @@ def merged_contacts(segs: list) -> list:
 
 def fused_segment_system(seg: Segment, hyd: Hydraulics, amp: float, omega: float,
                          harmonics: tuple[tuple[int, float, float], ...] = ()):
-    """rhs and Jacobian of Eq. (1) on one piece of a sine case (``seg``: a piece of
+    """(rhs, Jacobian) of Eq. (1) on one piece of a sine case (``seg``: a piece of
     :func:`isokinetic.physics.excitation.piston_segments`), pushed (y = Y sin ωt + offset, plus the
     ``harmonics`` of :class:`SineDrive` where given) or at rest: the
     arithmetic of :meth:`Hydraulics.composite_volume` (Eq. 2), :meth:`Hydraulics.flow` (Eq. 7 plus leakage) and

@@ -358,7 +358,7 @@ def grid_parameters(amplitude_m: float, frequency_Hz: float, hyd: Hydraulics, po
 
 def grid_response(amplitude_m: float, frequency_Hz: float, harmonics, hyd: Hydraulics, end_s: float,
                   points_per_cycle: int = POINTS_PER_CYCLE) -> GridResponse:
-    """Δp of the damper driven from rest by the periodic motion (module docstring) on the grid of
+    """The Δp of the damper driven from rest by the periodic motion (module docstring) on the grid of
     ``points_per_cycle`` points a cycle, up to ``end_s`` (or the cycle that repeats the one before)."""
     par = grid_parameters(amplitude_m, frequency_Hz, hyd, points_per_cycle)
     n_steps = max(int(math.ceil(end_s / par[2])) + 1, 2)

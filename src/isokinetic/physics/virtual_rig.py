@@ -46,12 +46,14 @@ def check_number(value, key: str, *, positive: bool = False, nonnegative: bool =
 
 
 def check_mapping(value, key: str) -> Mapping:
+    """The value if it is a mapping, else ValueError naming ``key``."""
     if not isinstance(value, Mapping):
         raise ValueError(f"{key}: must be a mapping, got {type(value).__name__}")
     return value
 
 
 def check_keys(values: Mapping, allowed: Iterable[str], required: Iterable[str], where: str) -> None:
+    """KeyError naming ``where`` and the key for a key of ``values`` not allowed or a required one absent."""
     allowed = set(allowed)
     for key in values:
         if key not in allowed:
@@ -91,12 +93,12 @@ class Measurement:
 
     @classmethod
     def ideal(cls) -> Measurement:
-        """Noise free and unquantised (for physics checks)."""
+        """The measurement without noise or quantisation (for physics checks)."""
         return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
     @classmethod
     def from_config(cls, values: Mapping | None, where: str = "measurement") -> Measurement:
-        """Build from the config block; unknown keys raise KeyError naming the key."""
+        """The measurement of the config block; unknown keys raise KeyError naming the key."""
         values = check_mapping(values or {}, where)
         names = [f.name for f in dataclasses.fields(cls)]
         check_keys(values, names, (), where)
@@ -110,7 +112,7 @@ class Measurement:
 # --------------------------------------------------------------------------------------------
 
 def quantise(x, resolution: float) -> np.ndarray:
-    """Nearest integer multiple of ``resolution`` (0: unchanged); never -0.0."""
+    """The nearest integer multiple of ``resolution`` (x's unit; 0: unchanged); never -0.0."""
     x = np.asarray(x, dtype=float)
     if resolution == 0.0:
         return x + 0.0
@@ -118,13 +120,13 @@ def quantise(x, resolution: float) -> np.ndarray:
 
 
 def case_rng(seed: int, case_id: str) -> np.random.Generator:
-    """Independent, reproducible noise stream of one case: SeedSequence([seed, crc32(case)])."""
+    """The independent, reproducible noise stream of one case: SeedSequence([seed, crc32(case)])."""
     return np.random.default_rng(np.random.SeedSequence([int(seed), zlib.crc32(case_id.encode("utf-8"))]))
 
 
 def simulate_case(case: CasePlan, damper: Damper, effects: Effects, measurement: Measurement,
                   seed: int) -> pd.DataFrame:
-    """Measured record of one case (tables.TIMESERIES): row, time_s, displacement_m, force_N, command_m.
+    """The measured record of one case (tables.TIMESERIES): row, time_s, displacement_m, force_N, command_m.
 
     displacement = LVDT on the actuator (the command for a rigid servo, command - F/k otherwise;
     plus noise), force = transmitted force (Eq. 8 in contact) + additive and |F|-proportional
@@ -135,7 +137,8 @@ def simulate_case(case: CasePlan, damper: Damper, effects: Effects, measurement:
 
 
 def measure(case: CasePlan, truth: pd.DataFrame, measurement: Measurement, seed: int) -> pd.DataFrame:
-    """Sensor model applied to a noise-free record (:func:`true_response`) of ``case``.
+    """The measured record (as :func:`simulate_case`): the sensor model applied to a noise-free record
+    (:func:`true_response`) of ``case``.
 
     Draws, in this order from ``case_rng(seed, case.case)``: LVDT noise, additive force noise,
     relative force noise (standard normals of the record length).

@@ -63,6 +63,7 @@ class ViscosityLaw:
                                  f"below {MIN_KINEMATIC_MM2_S} mm2/s, outside the Walther equation's range")
 
     def to_dict(self) -> dict:
+        """The manifest form ``{kind: walther, points: [[T_C, mu_Pa_s], ...]}`` (:func:`law_from_mapping`)."""
         return {"kind": self.kind, "points": [list(p) for p in self.points]}
 
     @property
@@ -129,7 +130,7 @@ def equivalent_temperature_offset_C(law: ViscosityLaw, temperature_C: float, vis
 
 
 def case_viscosity_scales(temperatures_C, law: ViscosityLaw | None, viscosity_Pa_s: float) -> np.ndarray:
-    """μ(T_case) / μ_nominal of each case: the factor on the laminar coefficient c1 (Sec. 2.2). 1 where
+    """μ(T_case) / μ_nominal [-] of each case: the factor on the laminar coefficient c1 (Sec. 2.2). 1 where
     the law or the case's temperature is unknown (NaN): the damper block's viscosity_Pa_s then holds."""
     t = np.asarray(temperatures_C, dtype=float)
     if law is None:
