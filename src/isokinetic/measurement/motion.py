@@ -100,7 +100,7 @@ def triangle_shape(tau_s, period_s: float, phase_rad: float):
 
 
 def block_means(t, y, points: int = COARSE_POINTS):
-    """(t, y) averaged over consecutive blocks, about ``points`` of them (noise down, cost down)."""
+    """(t, y) (time [s], displacement [m]) averaged over consecutive blocks, about ``points`` of them."""
     k = max(1, t.size // points)
     n = (t.size // k) * k
     return t[:n].reshape(-1, k).mean(axis=1), y[:n].reshape(-1, k).mean(axis=1)
@@ -181,7 +181,7 @@ def solve_shift(fits, mids_s, fallback_mid_m: float):
 
 
 def noise_level(y) -> float:
-    """LVDT noise, 1σ, from the median absolute second difference (zero on a ramp) [m]."""
+    """The LVDT noise of displacement y [m], 1σ, from the median absolute second difference (zero on a ramp) [m]."""
     if y.size < 5:
         return 0.0
     d2 = np.diff(y, 2)

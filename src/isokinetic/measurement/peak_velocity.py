@@ -209,9 +209,9 @@ def _refine(coef: np.ndarray, kept: list[int], omega: float, tau: float, step_ma
 
 
 def measured_period(t: np.ndarray, x: np.ndarray, period_s: float) -> float:
-    """The record's own period: the median interval between rising crossings of the displacement's mean (with
-    hysteresis a quarter of the amplitude, the instants interpolated between samples) when that lies within
-    20 % of ``period_s`` (the manifest's or the dominant one), else ``period_s``."""
+    """The record's own period [s] (time t [s], displacement x [m]): the median interval between rising crossings
+    of the displacement's mean (with hysteresis a quarter of the amplitude, the instants interpolated between
+    samples) when that lies within 20 % of ``period_s`` (the manifest's or the dominant one), else ``period_s``."""
     centre = float(np.mean(x))
     amplitude = 0.5 * float(np.percentile(x, 99.5) - np.percentile(x, 0.5))
     if amplitude <= 0.0:
@@ -243,7 +243,8 @@ def _window(t: np.ndarray, t_a: float, t_b: float, tv: float, min_side: int) -> 
 
 def window_force(t: np.ndarray, f: np.ndarray, lo: int, hi: int, tv: float, noise_N: float,
                  spec: PeakSpec = PeakSpec(), spikes: np.ndarray | None = None) -> dict:
-    """The force over the speed window [lo, hi) around t_v (module doc, step 3): a least-squares quadratic F(t)
+    """The force over the speed window [lo, hi) of a record (time t [s], force f [N]) around t_v = ``tv`` [s] (module
+    doc, step 3), a dict of force_N, force_noise_N, force_spread_N, steady: a least-squares quadratic F(t)
     through the window; when its residual spread is what the noise gives (chi-square at ``spec.alpha``) or within
     ``spec.steady_fraction`` of the force, the force is steady and the point is the quadratic at t_v (the window
     mean corrected for a smooth force's curvature); otherwise it is the window's mean force, not steady, and
@@ -280,7 +281,7 @@ def _near_spikes(f: np.ndarray, near: np.ndarray) -> np.ndarray:
 def peak_points(time_s, displacement_m, force_N, period_s: float, *, t_start: float | None = None,
                 t_stop: float | None = None, spec: PeakSpec = PeakSpec()) -> pd.DataFrame:
     """The force at each extremum of the measured velocity (module doc): one row per half-cycle whose peak
-    instant lies in [t_start, t_stop) (default: the whole record).
+    instant lies in [t_start, t_stop) [s] (default: the whole record).
 
     ``period_s`` sets the coarse velocity's smoothing (the manifest's period, or the record's dominant one).
     Columns :data:`POINT_COLUMNS`: direction '+'/'-', time_s (t_v), velocity_m_s (signed), force_N, force_noise_N
@@ -405,8 +406,8 @@ def summarise(points: pd.DataFrame) -> pd.DataFrame:
 
 
 def loop_energy(t: np.ndarray, x: np.ndarray, f: np.ndarray, t_a: float, t_b: float) -> float:
-    """The integral of F dx from t_a to t_b [J]: trapezoids over the samples between, the ends linearly
-    interpolated on the time axis."""
+    """The integral of F dx from t_a to t_b [J] (time t, t_a, t_b [s], displacement x [m], force f [N]): trapezoids
+    over the samples between, the ends linearly interpolated on the time axis."""
     i0 = int(np.searchsorted(t, t_a, side="right"))
     i1 = int(np.searchsorted(t, t_b, side="left"))
     xx = np.concatenate([[np.interp(t_a, t, x)], x[i0:i1], [np.interp(t_b, t, x)]])

@@ -79,12 +79,12 @@ def smoothing_samples(n: int) -> int:
 
 
 def central_velocity(t: np.ndarray, y: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """(time, dy/dt) by central differences over ±k samples, at samples k .. n-k-1."""
+    """(time [s], dy/dt [y's unit per s]) by central differences over ±k samples, at samples k .. n-k-1."""
     return t[k:-k], (y[2 * k:] - y[:-2 * k]) / (t[2 * k:] - t[:-2 * k])
 
 
 def line_zero(t: np.ndarray, x: np.ndarray) -> tuple[float, float]:
-    """(time, standard error) where a straight line fitted to (t, x) crosses zero (NaN when it cannot)."""
+    """(time, standard error) [s] where a straight line fitted to (t [s], x) crosses zero (NaN when it cannot)."""
     n = t.size
     if n < 2 or np.ptp(t) == 0:
         return math.nan, math.inf
@@ -100,7 +100,7 @@ def line_zero(t: np.ndarray, x: np.ndarray) -> tuple[float, float]:
 
 def crossing_times(t: np.ndarray, x: np.ndarray, hysteresis: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(time, sign, standard error) of each change of side of ``x`` (:func:`hysteresis_crossings`): where a
+    """(time [s], sign, standard error [s]) of each change of side of ``x`` (:func:`hysteresis_crossings`): where a
     straight line fitted to the transition (from the last sample beyond the old side's threshold to the first
     beyond the new side's, :func:`line_zero`) crosses zero; symmetric, so noise moves it neither way."""
     idx, signs = hysteresis_crossings(x, hysteresis)
@@ -117,7 +117,7 @@ def crossing_times(t: np.ndarray, x: np.ndarray, hysteresis: float
 
 
 def branch_level(force_N: np.ndarray, v: np.ndarray, hysteresis: float) -> tuple[float, float]:
-    """(mid-level, half gap) of a force's two branches: the medians of the force while v > h and v < -h."""
+    """(mid-level, half gap) [N] of a force's two branches: the medians of the force while v > h and v < -h [m/s]."""
     up, down = force_N[v > hysteresis], force_N[v < -hysteresis]
     if up.size == 0 or down.size == 0:
         return math.nan, math.nan

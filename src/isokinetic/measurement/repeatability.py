@@ -14,7 +14,7 @@ from isokinetic.contracts import tables
 
 
 def relative_difference(force_1, force_2):
-    """(F2 - F1) / mean(|F1|, |F2|): signed, symmetric in magnitude."""
+    """(F2 - F1) / mean(|F1|, |F2|) [-]: signed, symmetric in magnitude."""
     f1 = np.asarray(force_1, dtype=float)
     f2 = np.asarray(force_2, dtype=float)
     return (f2 - f1) / (0.5 * (np.abs(f1) + np.abs(f2)))

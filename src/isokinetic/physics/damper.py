@@ -165,7 +165,7 @@ def turbulent_coefficient(damper: Damper, effects: Effects = NOMINAL, direction:
 
 
 def orifice_flow(dp_Pa, c1: float, c2: float):
-    """Laminar-turbulent orifice flow Q(Δp), Eq. (7) [m³/s]; c1 = 0 or c2 = 0 are the limits."""
+    """Laminar-turbulent orifice flow Q(Δp), Eq. (7) [m³/s], c1 [Pa s/m³], c2 [Pa s²/m⁶]; c1 or c2 = 0: the limits."""
     dp = np.asarray(dp_Pa, dtype=float)
     if c2 == 0.0:
         return dp / c1
@@ -178,7 +178,7 @@ def orifice_flow(dp_Pa, c1: float, c2: float):
 
 
 def orifice_pressure(q_m3_s, c1: float, c2: float):
-    """Δp(Q) = c1 Q + c2 Q|Q|, Eq. (7) [Pa]."""
+    """Δp(Q) = c1 Q + c2 Q|Q|, Eq. (7) [Pa], c1 [Pa s/m³], c2 [Pa s²/m⁶]."""
     q = np.asarray(q_m3_s, dtype=float)
     return c1 * q + c2 * q * np.abs(q)
 

@@ -23,12 +23,12 @@ def gas_amounts(gas_1_Pa: float, charge_pressure_Pa: float, volume_1_m3: float, 
 
 
 def chamber_compliance(u, oil_volume_term, gas_amount: float, oil_1_Pa: float):
-    """𝒞_i = β_oil (V_i - G_i/p) + G_i/p² [m³/Pa] at u = 1/p, ``oil_volume_term`` = β_oil V_i."""
+    """𝒞_i = β_oil (V_i - G_i/p) + G_i/p² [m³/Pa] at u = 1/p [1/Pa], ``oil_volume_term`` = β_oil V_i [m³/Pa]."""
     return oil_volume_term + gas_amount * u * (u - oil_1_Pa)
 
 
 def chamber_compliance_slope(u, gas_amount: float, oil_1_Pa: float):
-    """d𝒞_i/dp = G_i u² (β_oil - 2u) at u = 1/p [m³/Pa²]."""
+    """d𝒞_i/dp = G_i u² (β_oil - 2u) at u = 1/p [1/Pa] [m³/Pa²]."""
     return gas_amount * u * u * (oil_1_Pa - 2.0 * u)
 
 

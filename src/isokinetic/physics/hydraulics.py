@@ -308,7 +308,7 @@ class Relaxation:
         return cls(np.zeros(1), np.zeros((0, 6)), float(dp_Pa))
 
     def pressure(self, tau) -> np.ndarray:
-        """Δp at compressibility times ``tau`` (>= 0, **ascending**); Δp* beyond the table [Pa]."""
+        """Δp [Pa] at compressibility times ``tau`` [Pa s/m³] (>= 0, **ascending**, Eq. 14); Δp* beyond the table."""
         tau = np.asarray(tau, dtype=float)
         out = np.full(tau.shape, self.steady_Pa)
         x = self.tau

@@ -92,7 +92,7 @@ class SineDrive:
         return omega * self.phase_velocity(omega * np.asarray(tau_s, dtype=float))
 
     def phase_velocity(self, u) -> np.ndarray:
-        """dy/du at the fundamental's phases u = ωτ [m/rad]: Y cos u + Σ k A_k cos(k u + θ_k)."""
+        """dy/du [m/rad] at the fundamental's phases u = ωτ [rad]: Y cos u + Σ k A_k cos(k u + θ_k)."""
         u = np.asarray(u, dtype=float)
         v = self.amplitude_m * np.cos(u)
         for k, a_k, theta in self.harmonics:
