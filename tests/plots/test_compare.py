@@ -1,6 +1,6 @@
 """Fig. 18-19 (isokinetic.plots.compare): what the overlay and difference figures draw and say.
 
-The data are the synthetic campaigns of tests/stages/test_compare.py (two plans without a common speed).
+The data are the synthetic campaigns of tests/measurement/test_comparison.py (two plans without a common speed).
 """
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from isokinetic.measurement.comparison import CompareSpec
 from isokinetic.plots.compare import difference_figure, overlay_figure
-from isokinetic.stages.compare import CompareSpec
 from isokinetic.stats import Z_95
-from stages.test_compare import SPEEDS_A, SPEEDS_B, characteristic, compare
+from measurement.test_comparison import SPEEDS_A, SPEEDS_B, characteristic, compare
 
 SPEC = CompareSpec("ab", ("a", "b"))
 

@@ -10,11 +10,12 @@ import pandas as pd
 import pytest
 
 from isokinetic.io import write_parquet
+from isokinetic.measurement.comparison import CompareSpec
 from isokinetic.measurement.model_fit import fit_models
 from isokinetic.report import browser
 from isokinetic.report.compare_report import write_compare_report
 from isokinetic.report.report_index import write_index
-from isokinetic.stages.compare import CompareSpec, write_compare
+from isokinetic.stages.compare import write_compare
 
 from .fixture_results import CAMPAIGN, build_campaign, parse, plain
 

@@ -331,7 +331,7 @@ if COMPARISONS and COMPARE_DIR in CAMPAIGNS:
 
 def comparison_settings(name):
     """The settings a comparison gives beyond its campaigns (description, alpha, model,
-    velocity_tolerance); the others take isokinetic.stages.compare.CompareSpec's defaults."""
+    velocity_tolerance); the others take isokinetic.measurement.comparison.CompareSpec's defaults."""
     return {key: value for key, value in COMPARISONS[name].items() if key != "campaigns"}
 
 

@@ -2,8 +2,9 @@
 from pathlib import Path
 
 from isokinetic.job import job
+from isokinetic.measurement.comparison import CompareSpec
 from isokinetic.report.compare_report import write_compare_report
-from isokinetic.stages.compare import CompareSpec, write_compare
+from isokinetic.stages.compare import write_compare
 
 with job(snakemake) as j:
     p = snakemake.params
