@@ -101,6 +101,7 @@ class CompareSpec:
 
     @property
     def reference(self) -> str:
+        """The reference campaign: the first of ``campaigns``."""
         return self.campaigns[0]
 
 
@@ -137,7 +138,7 @@ def campaign_points(char: pd.DataFrame) -> pd.DataFrame:
 
 
 def match_velocities(v_ref, v_other, tolerance: float) -> list[tuple[int, int]]:
-    """Pairs (i, j) of velocities agreeing within ``tolerance`` relative to the larger magnitude: the
+    """The index pairs (i, j) of velocities [m/s] agreeing within ``tolerance`` relative to the larger magnitude: the
     nearest pairs first, each velocity in one pair at most."""
     a, b = np.asarray(v_ref, dtype=float), np.asarray(v_other, dtype=float)
     if not a.size or not b.size:
@@ -159,7 +160,7 @@ def match_velocities(v_ref, v_other, tolerance: float) -> list[tuple[int, int]]:
 
 
 def local_slope(velocity_m_s, force_N) -> np.ndarray:
-    """dF/dv at each point of one direction: the derivative of the parabola through the point and its two
+    """dF/dv [N s/m] at each point of one direction: the derivative of the parabola through the point and its two
     nearest neighbours in log |v| (exact for F = a + b v + c v^2, one-sided at the ends); the line to the
     one other point when there are two; 0 for a single point."""
     v, f = np.asarray(velocity_m_s, dtype=float), np.asarray(force_N, dtype=float)
@@ -195,18 +196,20 @@ class ModelCurve:
 
     @property
     def speed_range(self) -> tuple[float, float]:
+        """(lowest, highest) measured speed [m/s] in this direction."""
         return float(self.speeds_m_s[0]), float(self.speeds_m_s[-1])
 
     @property
     def n_speeds(self) -> int:
-        """Distinct speeds (within 1e-6 relative) the model was fitted to in this direction."""
+        """The number of distinct speeds (within 1e-6 relative) the model was fitted to in this direction."""
         return int(np.unique(np.round(np.log(self.speeds_m_s), 6)).size)
 
     def force(self, velocity_m_s) -> np.ndarray:
+        """The model's force [N] at each velocity [m/s]."""
         return design_matrix(np.asarray(velocity_m_s, dtype=float)) @ self.estimate
 
     def se(self, velocity_m_s) -> np.ndarray:
-        """Prediction standard error at each velocity: parameter covariance and scatter about the model."""
+        """The prediction standard error [N] at each velocity [m/s]: parameter covariance and scatter about the fit."""
         v = np.asarray(velocity_m_s, dtype=float)
         x = design_matrix(v)
         curve_var = np.einsum("ij,jk,ik->i", x, self.cov, x)
