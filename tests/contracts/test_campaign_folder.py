@@ -25,10 +25,34 @@ def test_paths_come_from_the_output_registry(tmp_path):
 
 
 def test_meta_names_the_campaign_and_its_damper(ingested):
-    meta = ingested.meta()
-    assert ingested.campaign(meta) == CAMPAIGN == meta["campaign"]
-    assert ingested.damper().piston_area_m2 == MANIFEST["damper"]["piston_area_m2"]
-    assert ingested.damper({"campaign": CAMPAIGN, "damper": None}) is None
+    assert ingested.campaign == CAMPAIGN == ingested.meta.campaign
+    assert ingested.damper.piston_area_m2 == MANIFEST["damper"]["piston_area_m2"]
+
+
+def test_meta_is_read_once(ingested):
+    first = ingested.meta
+    ingested.ingest_path("meta").unlink()
+    assert ingested.meta is first and CampaignFolder.at(ingested.root).has_meta() is False
+
+
+def test_a_folder_without_campaign_json_is_named_after_itself_and_has_no_cases(tmp_path):
+    folder = CampaignFolder.at(tmp_path / "results" / "c")
+    assert folder.campaign == "c" and folder.cases_if_any() is None
+    with pytest.raises(FileNotFoundError):
+        _ = folder.meta
+
+
+def test_ingests_tables_and_a_cases_series_by_id(ingested):
+    assert sorted(ingested.ingested_cases()["case"]) == sorted(CASE_IDS)
+    assert ingested.ingested_quarantine().empty
+    row = ingested.ingested_cases().set_index("case", drop=False).loc["T01"]
+    pd.testing.assert_frame_equal(ingested.timeseries("T01"), ingested.timeseries(row))
+
+
+def test_documents_are_read_when_present(ingested):
+    assert ingested.document("diagnosis", "json") is None
+    ingested.path("diagnosis", "json").write_text('{"verdict": "x"}', encoding="utf-8")
+    assert ingested.document("diagnosis", "json") == {"verdict": "x"}
 
 
 def test_before_validation_the_cases_are_ingests_and_there_is_no_validated_table(ingested):

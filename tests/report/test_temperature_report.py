@@ -13,9 +13,7 @@ from isokinetic.report.campaign_report import temperature_summary
 from isokinetic.report.diagnosis_section import viscosity_as_temperature
 from isokinetic.report.numbers import fmt
 
-LAW_BLOCK = {"kind": "walther", "points": [[40.0, 0.030], [100.0, 0.006]]}
 LAW = ViscosityLaw("walther", ((40.0, 0.030), (100.0, 0.006)), 815.0)
-META = {"damper": {"density_kg_m3": 815.0, "viscosity_Pa_s": 0.030}, "viscosity_law": LAW_BLOCK}
 
 
 def _cases(temps, source="channel"):
@@ -24,16 +22,16 @@ def _cases(temps, source="channel"):
 
 
 def test_summary_states_the_range_and_the_viscosities_the_models_take():
-    text = temperature_summary(META, _cases([38.0, 52.0]))
+    text = temperature_summary(LAW, _cases([38.0, 52.0]))
     assert f"{fmt(38.0, 4)} to {fmt(52.0, 4)} &deg;C (from channel)" in text
     mu = 1e3 * LAW.viscosity_Pa_s([52.0, 38.0])
     assert f"{fmt(mu[0], 3)} to {fmt(mu[1], 3)} mPa s" in text
 
 
 def test_summary_without_a_law_says_the_damper_viscosity_holds_for_every_case():
-    text = temperature_summary({"damper": META["damper"]}, _cases([40.0], "campaign"))
+    text = temperature_summary(None, _cases([40.0], "campaign"))
     assert "gives no viscosity law" in text and "for every case" in text
-    assert "No temperature is known" in temperature_summary(META, _cases([math.nan], ""))
+    assert "No temperature is known" in temperature_summary(LAW, _cases([math.nan], ""))
 
 
 def test_a_fitted_viscosity_reads_as_the_temperature_offset_the_law_gives():

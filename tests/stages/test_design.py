@@ -4,12 +4,12 @@ warnings, and the files the rule writes."""
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 
 import pandas as pd
 import pytest
 
+from campaign_meta_fixture import write_campaign_meta
 from isokinetic.contracts import tables
 from isokinetic.contracts.outputs import figures_of
 from isokinetic.physics.damper import TABLE_1
@@ -135,9 +135,7 @@ def test_plan_warnings_name_campaign_and_case_one_line_per_flagged_case():
 
 def _campaign_root(tmp_path, damper):
     root = tmp_path / "results" / "camp-y"
-    (root / "ingest").mkdir(parents=True)
-    meta = {"campaign": "camp-y", "damper": None if damper is None else damper.to_dict()}
-    (root / "ingest" / "campaign.json").write_text(json.dumps(meta))
+    write_campaign_meta(root, "camp-y", damper=None if damper is None else damper.to_dict())
     cases = pd.DataFrame({"campaign": "camp-y", "case": ["T01", "T02"], "waveform": "triangle",
                           "sample_rate_Hz": 100.0, "amplitude_m": [2e-3, 7.5e-3], "period_s": [80.0, 20.0],
                           "frequency_Hz": math.nan, "phase_rad": -math.pi / 2, "duration_s": [160.0, 40.0],

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from conftest import CAMPAIGN, CASE_IDS, assert_quarantine, set_cell, tree_hashes
-from isokinetic.contracts.campaign import read_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.manifest import ManifestError
 from isokinetic.io import sha256_file
 from isokinetic.stages.characteristic import write_characteristic
@@ -23,13 +23,13 @@ from isokinetic.stages.static_force import static_force_stage
 def test_good_campaign(raw_campaign):
     cases, quarantine = raw_campaign.run()
     assert_quarantine(raw_campaign, cases, quarantine, [])
-    ingested = read_ingested(raw_campaign.root)
-    row = ingested.cases.set_index("case").loc["T01"]
+    ingested = CampaignFolder.at(raw_campaign.root)
+    row = ingested.ingested_cases().set_index("case").loc["T01"]
     assert row["raw_file"] == "data/raw/demo/T01.csv"
     assert row["raw_sha256"] == sha256_file("data/raw/demo/T01.csv")
-    assert ingested.meta["manifest_file"] == "data/raw/demo/campaign.yaml"
-    assert ingested.meta["damper"]["piston_area_m2"] == 4.0e-3
-    assert ingested.meta["metadata"]["operator"] == "fixture"
+    assert ingested.meta.manifest_file == "data/raw/demo/campaign.yaml"
+    assert ingested.meta.damper.piston_area_m2 == 4.0e-3
+    assert ingested.meta.metadata["operator"] == "fixture"
     for case in ("T01", "T02", "T03"):   # force resists velocity, T03 through its inverted column
         ts = ingested.timeseries(case)
         assert list(ts.columns) == ["row", "time_s", "displacement_m", "force_N", "command_m"]
@@ -158,8 +158,8 @@ def test_unit_conversions(tmp_path, monkeypatch):
                "command": {"name": "cmd_m", "unit": "m"}}
     raw_dir = _mini_campaign("units", columns, text)
     ingest_campaign(raw_dir, "results/units")
-    ingested = read_ingested("results/units")
-    assert ingested.meta["damper"] is None and ingested.quarantine.empty
+    ingested = CampaignFolder.at("results/units")
+    assert ingested.meta.damper is None and ingested.ingested_quarantine().empty
     ts = ingested.timeseries("C1")
     i = np.arange(n)
     np.testing.assert_array_equal(ts["row"], i)
@@ -180,7 +180,7 @@ def test_kilonewton_millimetre_and_datetime_time(tmp_path, monkeypatch):
                "displacement": {"name": "disp_mm", "unit": "mm"},
                "force": {"name": "force_kN", "unit": "kN", "invert": True}}
     ingest_campaign(_mini_campaign("stamps", columns, text), "results/stamps")
-    ts = read_ingested("results/stamps").timeseries("C1")
+    ts = CampaignFolder.at("results/stamps").timeseries("C1")
     k = np.arange(12)
     np.testing.assert_allclose(ts["time_s"], 0.01 * k, atol=1e-9)
     np.testing.assert_allclose(ts["displacement_m"], 1e-4 * k)
@@ -195,7 +195,7 @@ def test_bad_timestamp_names_row(tmp_path, monkeypatch):
     columns = {"time": {"name": "t", "unit": "datetime"}, "displacement": {"name": "y", "unit": "m"},
                "force": {"name": "f", "unit": "N"}}
     ingest_campaign(_mini_campaign("stamps", columns, text), "results/stamps")
-    q = read_ingested("results/stamps").quarantine
+    q = CampaignFolder.at("results/stamps").ingested_quarantine()
     assert q["reason"].tolist() == ["campaign stamps, case C1, column 't', row 7: "
                                     "invalid ISO 8601 timestamp '2025-03-01T11:00:07 tomorrow'"]
 
@@ -218,11 +218,11 @@ def test_gas_force_shifts_the_characteristic_and_is_recorded(raw_campaign):
     np.testing.assert_allclose(gas["force_N"] - plain["force_N"], -25.0, atol=1e-9)
     pd.testing.assert_frame_equal(gas.drop(columns="force_N"), plain.drop(columns="force_N"))
     # T03's force column is inverted: the gas force is taken off in the spec's sign convention, as declared
-    t03 = read_ingested("results/gas").timeseries("T03")["force_N"] - read_ingested("results/plain").timeseries(
+    t03 = CampaignFolder.at("results/gas").timeseries("T03")["force_N"] - CampaignFolder.at("results/plain").timeseries(
         "T03")["force_N"]
     np.testing.assert_allclose(t03, -25.0, atol=1e-9)
-    assert read_ingested("results/gas").meta["gas_force_N"] == 25.0
-    assert read_ingested("results/plain").meta["gas_force_N"] is None
+    assert CampaignFolder.at("results/gas").meta.gas_force_N == 25.0
+    assert CampaignFolder.at("results/plain").meta.gas_force_N is None
     # the static force carries the declared gas force and moves by it
     before, after = static_force_stage("results/plain"), static_force_stage("results/gas")
     assert after.static_force_N - before.static_force_N == pytest.approx(-25.0, abs=1e-6)

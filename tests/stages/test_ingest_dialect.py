@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from conftest import CAMPAIGN, CASE_IDS, assert_quarantine, assert_rest_unchanged, data_line
-from isokinetic.contracts.campaign import read_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.virtual_rig import VirtualCampaign, export_raw_campaign
 from testconfig import TEST_CONFIG as CONFIG
@@ -68,7 +68,7 @@ def exported(tmp_path_factory) -> Path:
 def exported_ingested(exported, tmp_path_factory):
     root = tmp_path_factory.mktemp("exported") / "lag"
     ingest_campaign(exported, root)
-    return read_ingested(root)
+    return CampaignFolder.at(root)
 
 
 @pytest.mark.parametrize("delimiter, decimal", [(";", ","), ("\t", "."), ("\t", ","), ("|", ",")],
@@ -82,15 +82,16 @@ def test_exported_campaign_in_another_dialect_gives_the_same_si_series(exported,
     assert first[0] == delimiter.join(["time_s", "disp_mm", "force_kN", "cmd_mm"])
     assert first[1].count(delimiter) == 3 and ("." in first[1]) == (decimal == ".")   # really respelled
     ingest_campaign(raw_dir, tmp_path / "results")
-    got = read_ingested(tmp_path / "results")
-    assert got.quarantine.empty and (got.cases["status"] == "ok").all()
+    got = CampaignFolder.at(tmp_path / "results")
+    assert got.ingested_quarantine().empty and (got.ingested_cases()["status"] == "ok").all()
     for case in EXPORTED_CASES:
         pd.testing.assert_frame_equal(got.timeseries(case), exported_ingested.timeseries(case), check_exact=True)
     raw = ["raw_file", "raw_sha256"]
-    pd.testing.assert_frame_equal(got.cases.drop(columns=raw), exported_ingested.cases.drop(columns=raw))
-    assert got.meta["csv"] == {"format": "delimited", "delimiter": delimiter, "decimal": decimal, "encoding": "utf-8",
+    pd.testing.assert_frame_equal(got.ingested_cases().drop(columns=raw),
+                                  exported_ingested.ingested_cases().drop(columns=raw))
+    assert got.meta.csv == {"format": "delimited", "delimiter": delimiter, "decimal": decimal, "encoding": "utf-8",
                                "units_row": False}
-    assert exported_ingested.meta["csv"] is None
+    assert exported_ingested.meta.csv is None
 
 
 # --- the fixture campaign as a ';' and ',' spreadsheet export ---------------------------------------
@@ -112,7 +113,7 @@ def test_semicolon_decimal_comma_campaign_matches_the_baseline(raw_campaign, bas
     cases, quarantine = raw_campaign.run()
     assert quarantine.empty
     assert_rest_unchanged(raw_campaign, cases, baseline, set())
-    assert read_ingested(raw_campaign.root).meta["csv"] == {"format": "delimited", "delimiter": ";", "decimal": ",",
+    assert CampaignFolder.at(raw_campaign.root).meta.csv == {"format": "delimited", "delimiter": ";", "decimal": ",",
                                                             "encoding": "utf-8", "units_row": False}
 
 
@@ -124,7 +125,7 @@ def test_spreadsheet_export_without_csv_block_keeps_the_format_message(raw_campa
     assert quarantine["reason"].iloc[0] == (
         f"{W} T01, key 'file': fields are separated by ';', not ',' (header {header}): the format needs ',' "
         "between fields and '.' as the decimal mark")
-    assert read_ingested(raw_campaign.root).meta["csv"] is None
+    assert CampaignFolder.at(raw_campaign.root).meta.csv is None
 
 
 def _edit_row(case: str, row: int, edit):
@@ -209,8 +210,8 @@ def test_time_stamps_with_decimal_comma_seconds(tmp_path, monkeypatch):
     spelled = respell(text, ";", ",")
     assert "10:59:59,960000Z;0,1;0,25" in spelled                 # ISO 8601's decimal comma in the seconds
     ingest_campaign(_stamp_campaign("commas", spelled, {"delimiter": ";", "decimal": ","}), "results/commas")
-    dots, commas = read_ingested("results/dots"), read_ingested("results/commas")
-    assert dots.quarantine.empty and commas.quarantine.empty
+    dots, commas = CampaignFolder.at("results/dots"), CampaignFolder.at("results/commas")
+    assert dots.ingested_quarantine().empty and commas.ingested_quarantine().empty
     pd.testing.assert_frame_equal(commas.timeseries("C1"), dots.timeseries("C1"), check_exact=True)
     assert commas.timeseries("C1")["time_s"].iloc[-1] == pytest.approx(0.11)
 

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 from conftest import CAMPAIGN, CASE_IDS, N_SAMPLES, assert_quarantine, set_cell
-from isokinetic.contracts.campaign import read_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.stages import ingest as ingest_module
 from isokinetic.stages.ingest import ingest_campaign
 from isokinetic.stages.validate import write_validated
@@ -46,7 +46,7 @@ def test_broken_last_time_stamp_is_trimmed_with_a_note(raw_campaign):
     t01 = cases.set_index("case").loc["T01"]
     assert t01["n_samples"] == n
     assert f"1 sample(s) from row {n} on dropped" in t01["quality"] and "1e+308" in t01["quality"]
-    ts = read_ingested(raw_campaign.root).timeseries("T01")
+    ts = CampaignFolder.at(raw_campaign.root).timeseries("T01")
     assert len(ts) == n and ts["row"].iloc[-1] == n - 1
 
 
@@ -60,8 +60,8 @@ def test_year_typo_in_the_last_iso_stamp_is_trimmed(tmp_path):
     folder = write_campaign(tmp_path / "raw", "typo", columns, [{"id": "F01", "waveform": "free", "file": "F.csv"}],
                             {"F.csv": table.to_csv(index=False).encode()})
     ingest_campaign(folder, tmp_path / "results")
-    ingested = read_ingested(tmp_path / "results")
-    row = ingested.cases.iloc[0]
+    ingested = CampaignFolder.at(tmp_path / "results")
+    row = ingested.ingested_cases().iloc[0]
     assert (row["status"], row["n_samples"]) == ("ok", 399)
     assert "from row 399 on dropped" in row["quality"]
     assert ingested.timeseries("F01")["time_s"].iloc[-1] == pytest.approx(3.98)
@@ -76,7 +76,7 @@ def test_case_file_above_the_size_limit_is_set_aside_unread(raw_campaign, monkey
     monkeypatch.setattr(ingest_module, "read_raw_table", lambda p, f=None, **kw: (read.append(p.name),
                                                                                    original(p, f, **kw))[1])
     ingest_campaign(raw_campaign.raw_dir, raw_campaign.root, max_case_file_MB=limit_MB)
-    q = read_ingested(raw_campaign.root).quarantine
+    q = CampaignFolder.at(raw_campaign.root).ingested_quarantine()
     assert sorted(q["case"]) == too_large and len(too_large) == 2
     assert all("MB a case file may have (config ingest.max_case_file_MB): not read" in r for r in q["reason"])
     assert sorted(read) == sorted(f"{c}.csv" for c in set(CASE_IDS) - set(too_large))
@@ -161,7 +161,7 @@ def test_cases_sharing_one_record_are_warned(tmp_path, caplog):
         ingest_campaign(folder, tmp_path / "results")
     warning = ("3 cases name the file 'F.csv' with the same or overlapping slices (F00, F03, F01): the same record "
                "counts more than once")
-    assert read_ingested(tmp_path / "results").meta["warnings"] == [warning]
+    assert CampaignFolder.at(tmp_path / "results").meta.warnings == (warning,)
     assert any(warning in r.getMessage() for r in caplog.records)
 
 
@@ -169,14 +169,14 @@ def test_different_slices_of_one_file_are_not_warned(tmp_path):
     """A stepped record (issue 19): one file, one case per step."""
     folder = _shared_file_campaign(tmp_path, [{"rows": [0, 100]}, {"rows": [100, 200]}, {"time_range_s": [2.0, 3.0]}])
     ingest_campaign(folder, tmp_path / "results")
-    assert read_ingested(tmp_path / "results").meta["warnings"] == []
+    assert CampaignFolder.at(tmp_path / "results").meta.warnings == ()
 
 
 @pytest.mark.slow
 def test_thousand_cases_naming_one_whole_file_are_warned(tmp_path):
     folder = _shared_file_campaign(tmp_path, [{}] * 1000)
     ingest_campaign(folder, tmp_path / "results")
-    warnings = read_ingested(tmp_path / "results").meta["warnings"]
+    warnings = CampaignFolder.at(tmp_path / "results").meta.warnings
     assert len(warnings) == 1 and warnings[0].startswith("1000 cases name the file 'F.csv'")
     assert "and 990 more" in warnings[0]
 
@@ -235,7 +235,8 @@ def test_bad_cell_far_into_a_large_decimal_comma_file_is_named_at_its_row(tmp_pa
     folder = write_campaign(tmp_path / "raw", "comma", MM_N, [{"id": "F01", "waveform": "free", "file": "F.csv"}],
                             {"F.csv": text.encode()}, csv={"delimiter": ";", "decimal": ","})
     ingest_campaign(folder, tmp_path / "results")
-    ingested = read_ingested(tmp_path / "results")
-    assert ingested.quarantine.empty
-    assert "1 row(s) with a blank or unreadable cell left out (data rows 290000)" in ingested.cases["quality"].iloc[0]
+    ingested = CampaignFolder.at(tmp_path / "results")
+    assert ingested.ingested_quarantine().empty
+    quality = ingested.ingested_cases()["quality"].iloc[0]
+    assert "1 row(s) with a blank or unreadable cell left out (data rows 290000)" in quality
     assert len(ingested.timeseries("F01")) == n - 1

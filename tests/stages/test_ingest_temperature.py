@@ -9,7 +9,8 @@ import pandas as pd
 import pytest
 
 from conftest import CAMPAIGN, assert_quarantine
-from isokinetic.contracts.campaign import read_ingested, viscosity_scales
+from isokinetic.contracts.campaign import viscosity_scales
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.manifest import ManifestError, load_manifest
 
 LAW = {"kind": "walther", "points": [[40.0, 0.030], [100.0, 0.006]]}
@@ -30,8 +31,8 @@ def _with_temperature_column(values_of_row, name="oil_K", unit="K", cases=("T01"
 
 
 def _read(campaign):
-    ingested = read_ingested(campaign.root)
-    return ingested.meta, ingested.cases.set_index("case"), ingested
+    ingested = CampaignFolder.at(campaign.root)
+    return ingested.meta, ingested.ingested_cases().set_index("case"), ingested
 
 
 def test_a_temperature_channel_in_kelvin_is_kept_in_celsius_and_summarised_per_case(raw_campaign):
@@ -92,7 +93,7 @@ def test_the_viscosity_law_is_recorded_and_gives_each_case_its_viscosity(raw_cam
     raw_campaign.edit_manifest(edit)
     raw_campaign.run()
     meta, cases, _ = _read(raw_campaign)
-    assert meta["viscosity_law"] == LAW and "viscosity_law" not in meta["metadata"].get("damper", {})
+    assert meta.viscosity_law_block == LAW and "viscosity_law" not in meta.metadata.get("damper", {})
     scales = viscosity_scales(meta, cases.reset_index())
     assert scales["T02"] == pytest.approx(0.006 / 0.030, rel=1e-12)
     assert scales["T01"] == pytest.approx(1.0, rel=1e-12)   # 40 C, the law's first point

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from isokinetic.contracts.campaign import read_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.stages.ingest import ingest_campaign
 
 RATE_HZ = 100.0
@@ -40,7 +40,7 @@ def _campaign(name: str, times: list[str], unit: str, csv_block: dict | None = N
 def _ingest(raw_dir: Path):
     root = Path("results", raw_dir.name)
     ingest_campaign(raw_dir, root)
-    return read_ingested(root)
+    return CampaignFolder.at(root)
 
 
 def test_clock_times_give_seconds_across_midnight(tmp_path, monkeypatch):
@@ -50,7 +50,7 @@ def test_clock_times_give_seconds_across_midnight(tmp_path, monkeypatch):
     times = [(start + pd.Timedelta(milliseconds=10 * k)).strftime("%H:%M:%S.%f")[:-3] for k in range(N)]
     assert "00:00:00.000" in times
     ingested = _ingest(_campaign("clock", times, "hms"))
-    assert ingested.quarantine.empty, ingested.quarantine["reason"].tolist()
+    assert ingested.ingested_quarantine().empty, ingested.ingested_quarantine()["reason"].tolist()
     np.testing.assert_allclose(ingested.timeseries("C1")["time_s"], np.arange(N) / RATE_HZ, rtol=0, atol=1e-9)
 
 
@@ -59,7 +59,7 @@ def test_excel_serial_dates_give_seconds(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     days = 45413.5 + np.arange(N) / RATE_HZ / 86400.0
     ingested = _ingest(_campaign("serial", [f"{d:.12f}" for d in days], "excel_serial"))
-    assert ingested.quarantine.empty, ingested.quarantine["reason"].tolist()
+    assert ingested.ingested_quarantine().empty, ingested.ingested_quarantine()["reason"].tolist()
     np.testing.assert_allclose(ingested.timeseries("C1")["time_s"], np.arange(N) / RATE_HZ, rtol=0, atol=2e-6)
 
 
@@ -75,7 +75,7 @@ def test_local_stamps_across_a_fall_back_are_refused_naming_the_jump(tmp_path, m
     monkeypatch.chdir(tmp_path)
     stamps = _fall_back_stamps()
     ingested = _ingest(_campaign("dst", stamps, "datetime"))
-    reason = ingested.quarantine["reason"].tolist()
+    reason = ingested.ingested_quarantine()["reason"].tolist()
     assert reason == [f"campaign dst, case C1, column 'time', row 100: local time stamps step back 1 h "
                       f"({stamps[99]} -> {stamps[100]}): a daylight-saving fall-back; declare the logger's zone in "
                       "the manifest's csv block (`timezone: Europe/Berlin`, say) or export UTC stamps"]
@@ -84,9 +84,9 @@ def test_local_stamps_across_a_fall_back_are_refused_naming_the_jump(tmp_path, m
 def test_local_stamps_in_a_declared_zone_are_converted(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     ingested = _ingest(_campaign("dst", _fall_back_stamps(), "datetime", {"timezone": "Europe/Berlin"}))
-    assert ingested.quarantine.empty, ingested.quarantine["reason"].tolist()
+    assert ingested.ingested_quarantine().empty, ingested.ingested_quarantine()["reason"].tolist()
     np.testing.assert_allclose(ingested.timeseries("C1")["time_s"], np.arange(N) / RATE_HZ, rtol=0, atol=1e-9)
-    assert ingested.meta["csv"]["timezone"] == "Europe/Berlin"
+    assert ingested.meta.csv["timezone"] == "Europe/Berlin"
 
 
 @pytest.mark.parametrize("unit", ["hms", "excel_serial"])
@@ -97,4 +97,4 @@ def test_a_time_unit_of_1_5_is_for_the_time_channel_only(tmp_path, monkeypatch, 
     manifest["columns"]["displacement"]["unit"] = unit
     (raw_dir / "campaign.yaml").write_text(yaml.safe_dump(manifest), encoding="utf-8")
     ingested = _ingest(raw_dir)
-    assert ingested.quarantine["column"].tolist() == ["disp_mm"]
+    assert ingested.ingested_quarantine()["column"].tolist() == ["disp_mm"]

@@ -8,7 +8,7 @@ import numpy as np
 import openpyxl
 import pandas as pd
 
-from isokinetic.contracts.campaign import read_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.stages.ingest import ingest_campaign
 from stages.test_ingest_vendor import sweep_si, write_campaign
 
@@ -25,7 +25,7 @@ def _text(si: pd.DataFrame, names=("t", "x", "f"), x_per_m=100.0, f_per_N=1 / KI
 def _ingest(tmp_path, columns, files, cases=FREE, **top):
     folder = write_campaign(tmp_path / "raw", "c", columns, cases, files, **top)
     ingest_campaign(folder, tmp_path / "results")
-    return read_ingested(tmp_path / "results")
+    return CampaignFolder.at(tmp_path / "results")
 
 
 def test_kip_and_cm_columns_are_written_in_si(tmp_path):
@@ -42,7 +42,7 @@ def test_a_unit_in_a_header_that_disagrees_with_the_manifest_sets_the_case_aside
     columns = {"time": {"name": "t", "unit": "s"}, "displacement": {"name": "x", "unit": "cm"},
                "force": {"name": "friction force (kip)", "unit": "kN"}}
     got = _ingest(tmp_path, columns, {"F01.csv": _text(sweep_si(300), names=("t", "x", "friction force (kip)"))})
-    assert got.quarantine["reason"].tolist() == [
+    assert got.ingested_quarantine()["reason"].tolist() == [
         "campaign c, case F01, column 'friction force (kip)': the file's header says 'kip' (means 'kip'), the "
         "manifest declares 'kN' for force: fix the manifest's unit"]
 
@@ -76,7 +76,7 @@ def test_marker_rows_and_a_preamble_are_skipped_and_noted_in_the_quality(tmp_pat
                "force": {"name": "f", "unit": "kip"}}
     got = _ingest(tmp_path, columns, {"F01.csv": ("Logger DL-7\nRate 100 Hz\n" + head + "\n"
                                                   + "\n".join(lines)).encode()})
-    quality = got.cases.set_index("case").loc["F01", "quality"]
+    quality = got.ingested_cases().set_index("case").loc["F01", "quality"]
     assert "skipped 2 preamble line(s)" in quality and "marker row(s)" in quality and "data rows 100" in quality
     series = got.timeseries("F01")
     assert len(series) == 300 and 100 not in series["row"].tolist()

@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from isokinetic.contracts.campaign import read_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.stages.ingest import ingest_campaign
 from test_rawfile import mts793_text
 
@@ -75,14 +75,14 @@ def test_mts793_export_ingests_to_the_same_si_series_as_a_plain_csv(tmp_path):
                            {"sweep.csv": csv_bytes(si)})
     ingest_campaign(mts, tmp_path / "results/mts")
     ingest_campaign(plain, tmp_path / "results/plain")
-    got, want = read_ingested(tmp_path / "results/mts"), read_ingested(tmp_path / "results/plain")
-    assert (got.cases["status"] == "ok").all() and got.quarantine.empty
+    got, want = CampaignFolder.at(tmp_path / "results/mts"), CampaignFolder.at(tmp_path / "results/plain")
+    assert (got.ingested_cases()["status"] == "ok").all() and got.ingested_quarantine().empty
     a, b = got.timeseries("S01"), want.timeseries("S01")
     assert a["row"].tolist() == list(range(len(si)))
     for column in ("time_s", "displacement_m", "force_N"):
         np.testing.assert_allclose(a[column], si[column], rtol=1e-12, atol=1e-15)
         np.testing.assert_allclose(a[column], b[column], rtol=1e-12, atol=1e-15)
-    assert got.meta["csv"]["format"] == "mts793"
+    assert got.meta.csv["format"] == "mts793"
 
 
 def test_cp1252_campaign_reads_with_its_encoding_like_its_utf8_twin(tmp_path):
@@ -94,8 +94,8 @@ def test_cp1252_campaign_reads_with_its_encoding_like_its_utf8_twin(tmp_path):
     utf = write_campaign(tmp_path / "raw", "utf", columns, case, {"F01.csv": csv_bytes(si, "utf-8", "oil [°C]")})
     ingest_campaign(win, tmp_path / "results/win")
     ingest_campaign(utf, tmp_path / "results/utf")
-    pd.testing.assert_frame_equal(read_ingested(tmp_path / "results/win").timeseries("F01"),
-                                  read_ingested(tmp_path / "results/utf").timeseries("F01"), check_exact=True)
+    pd.testing.assert_frame_equal(CampaignFolder.at(tmp_path / "results/win").timeseries("F01"),
+                                  CampaignFolder.at(tmp_path / "results/utf").timeseries("F01"), check_exact=True)
 
 
 def test_cp1252_file_without_encoding_is_set_aside_naming_the_key_to_set(tmp_path):
@@ -103,7 +103,7 @@ def test_cp1252_file_without_encoding_is_set_aside_naming_the_key_to_set(tmp_pat
     folder = write_campaign(tmp_path / "raw", "win", columns, [{"id": "F01", "waveform": "free", "file": "F01.csv"}],
                             {"F01.csv": csv_bytes(sweep_si(300), "cp1252", "oil [°C]")})
     ingest_campaign(folder, tmp_path / "results")
-    reason = read_ingested(tmp_path / "results").quarantine["reason"].tolist()
+    reason = CampaignFolder.at(tmp_path / "results").ingested_quarantine()["reason"].tolist()
     assert len(reason) == 1 and reason[0].startswith("campaign win, case F01, key 'file': not UTF-8: byte 0xb0")
     assert reason[0].endswith("set `encoding:` in the manifest's csv block (for example cp1252)")
 
@@ -116,9 +116,9 @@ def test_units_row_must_agree_with_the_manifest(tmp_path):
     cases = [{"id": "F01", "waveform": "free", "file": "F01.csv"}, {"id": "F02", "waveform": "free", "file": "F02.csv"}]
     folder = write_campaign(tmp_path / "raw", "u", MM_N, cases, files, csv={"units_row": True})
     ingest_campaign(folder, tmp_path / "results")
-    got = read_ingested(tmp_path / "results")
-    assert got.cases.set_index("case")["status"].to_dict() == {"F01": "quarantined", "F02": "ok"}
-    assert got.quarantine["reason"].tolist() == [
+    got = CampaignFolder.at(tmp_path / "results")
+    assert got.ingested_cases().set_index("case")["status"].to_dict() == {"F01": "quarantined", "F02": "ok"}
+    assert got.ingested_quarantine()["reason"].tolist() == [
         "campaign u, case F01, column 'disp_mm': the file's units row says 'in' (means 'in'), the manifest declares "
         "'mm' for displacement: fix the manifest's unit"]
     np.testing.assert_allclose(got.timeseries("F02")["displacement_m"], si["displacement_m"], rtol=1e-15)
@@ -134,10 +134,10 @@ def test_slices_give_their_rows_with_time_re_zeroed(tmp_path):
     folder = write_campaign(tmp_path / "raw", "steps", MTS_COLUMNS, cases, {"sweep.txt": mts_bytes(si)},
                             csv={"format": "mts793"})
     ingest_campaign(folder, tmp_path / "results")
-    got = read_ingested(tmp_path / "results")
-    assert (got.cases["status"] == "ok").all()
+    got = CampaignFolder.at(tmp_path / "results")
+    assert (got.ingested_cases()["status"] == "ok").all()
     expected = {"Z01": (50, 750), "S01": (1200, 2000), "S02": (2000, 2400)}     # 100 Hz: t = row / 100 s
-    table = got.cases.set_index("case")
+    table = got.ingested_cases().set_index("case")
     for case, (first, stop) in expected.items():
         series = got.timeseries(case)
         assert series["row"].tolist() == list(range(first, stop))
@@ -157,9 +157,9 @@ def test_slice_beyond_the_file_sets_the_case_aside(tmp_path, key, value, words):
              {"id": "S02", "waveform": "free", "file": "sweep.csv", "rows": [0, 100]}]
     folder = write_campaign(tmp_path / "raw", "c", MM_N, cases, {"sweep.csv": csv_bytes(sweep_si())})
     ingest_campaign(folder, tmp_path / "results")
-    got = read_ingested(tmp_path / "results")
-    assert got.quarantine["reason"].tolist() == [f"campaign c, case S01, key {key!r}: {words}"]
-    assert got.cases.set_index("case").loc["S02", "status"] == "ok"
+    got = CampaignFolder.at(tmp_path / "results")
+    assert got.ingested_quarantine()["reason"].tolist() == [f"campaign c, case S01, key {key!r}: {words}"]
+    assert got.ingested_cases().set_index("case").loc["S02", "status"] == "ok"
 
 
 def test_per_case_gas_force_is_subtracted_and_recorded(tmp_path):
@@ -168,9 +168,9 @@ def test_per_case_gas_force_is_subtracted_and_recorded(tmp_path):
              enumerate([{}, {"gas_force_N": 50.0}, {"gas_force_N": -20.0}], start=1)]
     folder = write_campaign(tmp_path / "raw", "g", MM_N, cases, {"F.csv": csv_bytes(si)}, gas_force_N=10.0)
     ingest_campaign(folder, tmp_path / "results")
-    got = read_ingested(tmp_path / "results")
+    got = CampaignFolder.at(tmp_path / "results")
     declared = {"F01": 10.0, "F02": 50.0, "F03": -20.0}
-    assert got.cases.set_index("case")["gas_force_N"].to_dict() == declared
+    assert got.ingested_cases().set_index("case")["gas_force_N"].to_dict() == declared
     for case, gas in declared.items():
         np.testing.assert_allclose(got.timeseries(case)["force_N"], si["force_N"] - gas, rtol=1e-12)
 
@@ -183,7 +183,7 @@ def test_near_miss_keys_are_warned_with_the_key_they_may_mean(tmp_path, caplog):
                             temprature_C=40.0)
     with caplog.at_level(logging.WARNING, logger="isokinetic"):
         ingest_campaign(folder, tmp_path / "results")
-    warnings = read_ingested(tmp_path / "results").meta["warnings"]
+    warnings = CampaignFolder.at(tmp_path / "results").meta.warnings
     where = (folder / "campaign.yaml").as_posix()
     assert sorted(warnings) == sorted([
         f"{where}: key 'temprature_C' is not a key of the format, kept as metadata; did you mean 'temperature_C'?",
@@ -195,7 +195,8 @@ def test_near_miss_keys_are_warned_with_the_key_they_may_mean(tmp_path, caplog):
         "than once"])
     assert all(any(w in r.getMessage() for r in caplog.records) for w in warnings)
     # the slip is not applied: F01's force keeps its gas force
-    assert math.isnan(read_ingested(tmp_path / "results").cases.set_index("case").loc["F01", "gas_force_N"])
+    cases = CampaignFolder.at(tmp_path / "results").ingested_cases().set_index("case")
+    assert math.isnan(cases.loc["F01", "gas_force_N"])
 
 
 def test_case_file_in_a_subfolder(tmp_path):
@@ -203,8 +204,8 @@ def test_case_file_in_a_subfolder(tmp_path):
     folder = write_campaign(tmp_path / "raw", "sub", MM_N, [{"id": "F01", "waveform": "free", "file": "run1/F.dat"}],
                             {"run1/F.dat": csv_bytes(si)})
     ingest_campaign(folder, tmp_path / "results")
-    got = read_ingested(tmp_path / "results")
-    assert got.cases["raw_file"].tolist() == [(folder / "run1/F.dat").as_posix()]
+    got = CampaignFolder.at(tmp_path / "results")
+    assert got.ingested_cases()["raw_file"].tolist() == [(folder / "run1/F.dat").as_posix()]
     np.testing.assert_allclose(got.timeseries("F01")["force_N"], si["force_N"], rtol=1e-12)
 
 
@@ -221,7 +222,7 @@ def test_a_file_shared_by_cases_is_hashed_and_read_once(tmp_path, monkeypatch):
     folder = write_campaign(tmp_path / "raw", "once", MM_N, cases, {"F.csv": csv_bytes(sweep_si(300))})
     ingest_campaign(folder, tmp_path / "results")
     assert calls == {"sha": 1, "read": 1}
-    assert len(set(read_ingested(tmp_path / "results").cases["raw_sha256"])) == 1
+    assert len(set(CampaignFolder.at(tmp_path / "results").ingested_cases()["raw_sha256"])) == 1
 
 
 def test_a_voltage_column_named_as_force_is_refused_by_its_units_row(tmp_path):
@@ -229,6 +230,6 @@ def test_a_voltage_column_named_as_force_is_refused_by_its_units_row(tmp_path):
     folder = write_campaign(tmp_path / "raw", "v", MM_N, [{"id": "F01", "waveform": "free", "file": "F01.csv"}],
                             {"F01.csv": (text[0] + "\ns,mm,V\n" + text[1]).encode()}, csv={"units_row": True})
     ingest_campaign(folder, tmp_path / "results")
-    assert read_ingested(tmp_path / "results").quarantine["reason"].tolist() == [
+    assert CampaignFolder.at(tmp_path / "results").ingested_quarantine()["reason"].tolist() == [
         "campaign v, case F01, column 'force_N': the file's units row says 'V' (is not a unit of force), the "
         "manifest declares 'N' for force: fix the manifest's unit"]

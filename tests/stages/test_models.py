@@ -9,13 +9,13 @@ out here; the data come from the virtual rig (compressible simulation, sensor no
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from campaign_meta_fixture import write_campaign_meta
 from isokinetic.contracts import tables
 from isokinetic.measurement.model_fit import PhysicalRange, comparison_table, fit_models, nominal_families, plausibility
 from isokinetic.measurement.repeatability import repeatability
@@ -302,8 +302,7 @@ def test_comparison_table_without_damper_or_nominal_windows():
 
 def test_write_models_without_damper_block(tmp_path):
     root = tmp_path / "results" / "nodamper"
-    (root / "ingest").mkdir(parents=True)
-    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "nodamper", "damper": None}))
+    write_campaign_meta(root, "nodamper", damper=None)
     char = nominal_characteristic().assign(campaign="nodamper", repeatability_flagged=False,
                                            window_start_s=1.0, window_end_s=2.0, row_start=10, row_stop=510,
                                            raw_file="x", raw_sha256="y")

@@ -3,7 +3,6 @@ agreement with the diagnosis' load-cell offset."""
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
@@ -13,6 +12,7 @@ import yaml
 
 import isokinetic.reference.campaign as rrc
 import isokinetic.reference.rig as rr
+from campaign_meta_fixture import write_campaign_meta
 from isokinetic.contracts import tables
 from isokinetic.measurement.loops import binned_characteristic, free_loop
 from isokinetic.measurement.static_force_fit import StaticForceSpec, estimate_static_force, intercept_fit, offset_check
@@ -204,8 +204,7 @@ def test_a_missing_static_force_is_reported_as_such():
 
 def test_written_table_meets_its_contract_and_carries_the_gas_force(tmp_path):
     root = tmp_path / "c"
-    (root / "ingest").mkdir(parents=True)
-    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "c", "gas_force_N": 25.0}))
+    write_campaign_meta(root, "c", gas_force_N=25.0)
     characteristic(f0=-3.0).to_parquet(root / "characteristic.parquet")
     (path,) = write_static_force(root)
     table = pd.read_parquet(path)
@@ -325,8 +324,7 @@ def test_moving_cases_are_checked_together_and_say_when_they_cannot_be(tmp_path)
 
 def test_without_declared_gas_forces_nothing_is_checked(tmp_path):
     root = tmp_path / "c"
-    (root / "ingest").mkdir(parents=True)
-    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "c", "gas_force_N": None}))
+    write_campaign_meta(root, "c", gas_force_N=None)
     characteristic(f0=-3.0).to_parquet(root / "characteristic.parquet")
     result = static_force_stage(root)
     assert (result.source, result.gas_force_check, result.gas_force_cases, result.n_standstill) == (

@@ -14,7 +14,7 @@ import yaml
 
 from isokinetic.__main__ import main
 from isokinetic.contracts import tables
-from isokinetic.contracts.campaign import read_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.physics import damper as dm
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.physics.plan import CasePlan
@@ -182,13 +182,13 @@ def test_export_refuses_non_empty_folder(paper, tmp_path):
 def test_write_campaign_ingest_has_nominal_damper_and_csv_hashes(paper, tmp_path):
     vc = small(paper)
     write_campaign(vc, tmp_path / "res")
-    ing = read_ingested(tmp_path / "res")
-    assert ing.meta["damper"] == paper.damper.to_dict() and ing.meta["source"] == "simulation"
+    ing = CampaignFolder.at(tmp_path / "res")
+    assert ing.meta.damper == paper.damper and ing.meta.source == "simulation"
     assert "coulomb" not in (tmp_path / "res" / "ingest" / "campaign.json").read_text()
-    assert list(ing.cases.case) == ["T22", "H01"] and (ing.cases.status == "ok").all()
-    assert ing.cases.raw_file.iloc[0] == "virtual_rig:paper-lag-damper/T22"
+    assert list(ing.ingested_cases().case) == ["T22", "H01"] and (ing.ingested_cases().status == "ok").all()
+    assert ing.ingested_cases().raw_file.iloc[0] == "virtual_rig:paper-lag-damper/T22"
     raw = export_raw_campaign(vc, tmp_path / "raw" / "paper-lag-damper")
-    for case, sha in zip(ing.cases.case, ing.cases.raw_sha256):
+    for case, sha in zip(ing.ingested_cases().case, ing.ingested_cases().raw_sha256):
         assert sha == hashlib.sha256((raw / f"{case}.csv").read_bytes()).hexdigest()
     ts = ing.timeseries("T22")
     pd.testing.assert_frame_equal(ts, simulate_case(vc.case("T22"), vc.damper, vc.effects, vc.measurement, vc.seed))

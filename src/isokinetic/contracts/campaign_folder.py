@@ -1,4 +1,8 @@
-"""One campaign's results folder ``results/<campaign>/``: every path from the registry, its tables read once.
+"""One campaign's results folder ``results/<campaign>/``: the one reader of it, every path from the registry.
+
+Paths come from :mod:`isokinetic.contracts.outputs` (:data:`~isokinetic.contracts.outputs.STAGE_OUTPUTS`,
+:data:`~isokinetic.contracts.outputs.INGEST_FILES`); the metadata record (``ingest/campaign.json``) is read once,
+typed and checked against its schema (:class:`isokinetic.contracts.campaign_meta.CampaignMeta`).
 
 Two tables share the file name ``cases.parquet``: ingest's (``ingest/cases.parquet``, every case as the
 manifest declared it, with ingest's status) and validate's (``cases.parquet``, the same cases after the
@@ -8,14 +12,15 @@ and :meth:`CampaignFolder.validated_cases`, so a reader says which it means.
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
 
-from isokinetic.contracts.campaign import CASES_FILE, META_FILE
-from isokinetic.contracts.outputs import STAGE_OUTPUTS
+from isokinetic.contracts.campaign_meta import CampaignMeta
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, ingest_path
 from isokinetic.physics.damper import Damper
 
 
@@ -37,22 +42,39 @@ class CampaignFolder:
     def ingest_dir(self) -> Path:
         return self.path("ingest", "ingest")
 
-    def meta(self) -> dict:
-        """``ingest/campaign.json``: the campaign's metadata, damper block, viscosity law, warnings."""
-        return json.loads((self.ingest_dir / META_FILE).read_text(encoding="utf-8"))
+    def ingest_path(self, name: str) -> Path:
+        """A file of the ingest folder by its registry name (``meta``, ``cases``, ``quarantine``)."""
+        return self.root / ingest_path(name)
 
-    def campaign(self, meta: dict | None = None) -> str:
-        """The campaign's name: campaign.json's ``campaign``, else the folder's name."""
-        return str((self.meta() if meta is None else meta).get("campaign") or self.root.name)
+    def has_meta(self) -> bool:
+        """Whether the folder holds ``ingest/campaign.json`` (a campaign ingested or simulated)."""
+        return self.ingest_path("meta").is_file()
 
-    def damper(self, meta: dict | None = None) -> Damper | None:
-        """The damper block of campaign.json, None without one."""
-        block = (self.meta() if meta is None else meta).get("damper")
-        return None if block is None else Damper.from_mapping(block)
+    @functools.cached_property
+    def meta(self) -> CampaignMeta:
+        """``ingest/campaign.json`` as its typed record, read once; FileNotFoundError without one,
+        :class:`~isokinetic.contracts.campaign_meta.CampaignMetaError` naming the file and key when it breaks
+        the schema."""
+        path = self.ingest_path("meta")
+        return CampaignMeta.from_mapping(json.loads(path.read_text(encoding="utf-8")), where=path.as_posix())
+
+    @property
+    def campaign(self) -> str:
+        """The campaign's name: campaign.json's ``campaign``, else (no campaign.json) the folder's name."""
+        return self.meta.campaign if self.has_meta() else self.root.name
+
+    @property
+    def damper(self) -> Damper | None:
+        """The nominal damper of campaign.json, None without one."""
+        return self.meta.damper
 
     def ingested_cases(self) -> pd.DataFrame:
         """Ingest's cases table (``ingest/cases.parquet``)."""
-        return pd.read_parquet(self.ingest_dir / CASES_FILE)
+        return pd.read_parquet(self.ingest_path("cases"))
+
+    def ingested_quarantine(self) -> pd.DataFrame:
+        """The cases ingest set aside (``ingest/quarantine.parquet``)."""
+        return pd.read_parquet(self.ingest_path("quarantine"))
 
     def validated_cases(self) -> pd.DataFrame:
         """Validate's cases table (``cases.parquet``): the cases after the per-case checks."""
@@ -62,6 +84,10 @@ class CampaignFolder:
         """Validate's cases table when the folder has one, else ingest's (a folder not yet validated)."""
         validated = self.path("validate", "cases")
         return pd.read_parquet(validated) if validated.is_file() else self.ingested_cases()
+
+    def cases_if_any(self) -> pd.DataFrame | None:
+        """:meth:`cases`, None when the folder holds neither cases table."""
+        return self.cases() if self.path("validate", "cases").is_file() or self.ingest_path("cases").is_file() else None
 
     def windows(self) -> pd.DataFrame:
         return pd.read_parquet(self.path("windows", "windows"))
@@ -74,6 +100,14 @@ class CampaignFolder:
         path = self.path(stage, name)
         return pd.read_parquet(path) if path.is_file() else None
 
-    def timeseries(self, case_row, columns: list[str] | None = None) -> pd.DataFrame:
-        """The canonical time series of one row of a cases table (its ``timeseries_file``)."""
-        return pd.read_parquet(self.root / case_row["timeseries_file"], columns=columns)
+    def document(self, stage: str, name: str) -> dict | None:
+        """A registered JSON document of a stage (``diagnosis.json``), None when the folder does not hold it."""
+        path = self.path(stage, name)
+        return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else None
+
+    def timeseries(self, case, columns: list[str] | None = None) -> pd.DataFrame:
+        """The canonical time series of a case: a row of a cases table (its ``timeseries_file``) or a case id
+        (looked up in ingest's cases table)."""
+        if isinstance(case, str):
+            case = self.ingested_cases().set_index("case").loc[case]
+        return pd.read_parquet(self.root / case["timeseries_file"], columns=columns)

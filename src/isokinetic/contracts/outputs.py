@@ -122,6 +122,27 @@ STAGE_OUTPUTS = {
     "compare_report": {"page": "report.html"},
 }
 
+#: The files of the ingest folder (STAGE_OUTPUTS' ``ingest/``), name -> path relative to it: what ingest and
+#: the virtual rig write (:mod:`isokinetic.contracts.campaign`), read through
+#: :class:`isokinetic.contracts.campaign_folder.CampaignFolder`.
+INGEST_FILES = {"meta": "campaign.json", "cases": "cases.parquet", "quarantine": "quarantine.parquet",
+                "timeseries": "timeseries/"}
+
+
+def ingest_path(name: str) -> str:
+    """A file of the ingest folder relative to the campaign's results folder (``ingest/campaign.json``)."""
+    return STAGE_OUTPUTS["ingest"]["ingest"] + INGEST_FILES[name].rstrip("/")
+
+
+def result_file_names() -> frozenset[str]:
+    """The name of every file the registry places (its last path part: ``windows.parquet``,
+    ``campaign.json``, ``fig09_characteristic.png``), folders apart: the names no module outside
+    :mod:`isokinetic.contracts` spells out (tests/contracts/test_outputs_literals.py)."""
+    paths = [p for outputs in STAGE_OUTPUTS.values() for p in outputs.values()]
+    paths += list(INGEST_FILES.values()) + [f.path for f in FIGURES]
+    return frozenset(p.rsplit("/", 1)[-1] for p in paths if not is_folder(p))
+
+
 #: The stages each per-campaign (or blind-suite) rule runs, in order, in one process. A rule's
 #: module (``stages/<rule>.py``, ``audit/<rule>.py`` or ``report/<rule>.py``) runs them.
 RULE_STAGES = {

@@ -23,17 +23,19 @@ import numpy as np
 import pandas as pd
 from markupsafe import Markup
 
-from isokinetic.contracts.campaign import viscosity_law
-from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in
+from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.campaign_meta import CampaignMeta
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in, ingest_path
 from isokinetic.io import write_text
 from isokinetic.measurement.static_force_fit import offset_check
+from isokinetic.physics.viscosity import ViscosityLaw
 from isokinetic.plots.figures import applies as figure_applies
 from isokinetic.report.cells import Col, Table, badge, kv_table, table_view
 from isokinetic.report.diagnosis_section import diagnosis_section, viscosity_as_temperature
 from isokinetic.report.embed import FigureView, LeftOut, figure_views, read_captions
 from isokinetic.report.layout import footer, render
 from isokinetic.report.numbers import esc, fmt, fmt_pct, fmt_text, formula, missing, short, text, yes_no
-from isokinetic.report.sources import Sources, lineage_of, lineage_rows, read_json, read_parquet, selector_of
+from isokinetic.report.sources import Source, Sources, lineage_of, lineage_rows, read_json, read_parquet, selector_of
 
 DAMPER_LABELS = {
     "piston_area_m2": ("piston area A_p", "m^2"), "chamber_volume_1_m3": ("chamber volume V_1", "m^3"),
@@ -55,11 +57,12 @@ COUNTED = ["counted by the report"]
 
 @dataclass
 class CampaignData:
-    """Everything a campaign page reads from ``results/<campaign>/`` (None: not produced)."""
+    """Everything a campaign page reads from ``results/<campaign>/`` (None: not produced), read once through
+    :class:`~isokinetic.contracts.campaign_folder.CampaignFolder` (paths from the registry, the typed meta)."""
 
-    root: Path
+    folder: CampaignFolder
     name: str
-    meta: dict | None
+    meta: CampaignMeta | None
     cases: pd.DataFrame | None
     quarantine: pd.DataFrame | None
     characteristic: pd.DataFrame | None
@@ -76,22 +79,35 @@ class CampaignData:
 
     @classmethod
     def read(cls, root: str | os.PathLike) -> CampaignData:
-        root = Path(root)
-        meta = read_json(root / "ingest" / "campaign.json")
-        provenance = read_json(root / "provenance.json")
-        return cls(root=root, name=(meta or {}).get("campaign") or root.name, meta=meta,
-                   cases=read_parquet(root / "cases.parquet"),
-                   quarantine=read_parquet(root / "quarantine.parquet"),
-                   characteristic=read_parquet(root / "characteristic.parquet"),
-                   repeatability=read_parquet(root / "repeatability.parquet"),
-                   plan_check=read_parquet(root / "design" / "plan_check.parquet"),
-                   models=read_parquet(root / "models" / "models.parquet"),
-                   comparison=read_parquet(root / "models" / "comparison.parquet"),
-                   harmonic=read_parquet(root / "harmonic" / "harmonic.parquet"),
-                   energy=read_parquet(root / "energy.parquet"),
-                   static_force=read_parquet(root / "static_force.parquet"),
-                   diagnosis=read_json(root / "diagnosis.json"), provenance=provenance,
-                   sources=Sources(root, provenance))
+        folder = CampaignFolder.at(root)
+        provenance = read_json(folder.path("provenance", "provenance"))
+
+        def table(stage: str, name: str) -> pd.DataFrame | None:
+            return read_parquet(folder.path(stage, name))
+        return cls(folder=folder, name=folder.campaign, meta=folder.meta if folder.has_meta() else None,
+                   cases=table("validate", "cases"), quarantine=table("validate", "quarantine"),
+                   characteristic=table("characteristic", "characteristic"),
+                   repeatability=table("repeatability", "repeatability"), plan_check=table("design", "plan_check"),
+                   models=table("models", "models"), comparison=table("models", "comparison"),
+                   harmonic=table("harmonic", "table"), energy=table("characteristic", "energy"),
+                   static_force=table("static_force", "static_force"),
+                   diagnosis=read_json(folder.path("diagnosis", "json")), provenance=provenance,
+                   sources=Sources(folder.root, provenance))
+
+    @property
+    def root(self) -> Path:
+        return self.folder.root
+
+    def source(self, stage: str, name: str) -> Source:
+        """The lineage of a registered output of a stage (``source("validate", "cases")``)."""
+        return self.sources(STAGE_OUTPUTS[stage][name])
+
+    def meta_source(self) -> Source:
+        """The lineage of ``ingest/campaign.json``."""
+        return self.sources(ingest_path("meta"))
+
+    def viscosity_law(self) -> ViscosityLaw | None:
+        return None if self.meta is None else self.meta.viscosity_law()
 
     def figures(self, section: str, captions: Mapping[str, str]) -> list[FigureView | LeftOut]:
         """The figures of a report section, embedded; one that does not apply to the campaign's cases
@@ -111,17 +127,17 @@ class CampaignData:
 # ----------------------------------------------------------------------------------------------
 
 def _campaign_items(d: CampaignData) -> list[tuple[str, str, str]]:
-    meta = d.meta or {}
-    src = d.sources("ingest/campaign.json")
+    meta = d.meta
+    src = d.meta_source()
     items = [("campaign", esc(d.name), src.title("campaign", "campaign")),
-             ("source", text(meta.get("source")), src.title("source", "source")),
-             ("description", text(meta.get("description")), src.title("description", "description")),
-             ("temperature", f"{fmt(meta.get('temperature_C'))} &deg;C", src.title("temperature_C", "temperature_C"))]
-    if meta.get("manifest_file"):
-        items.append(("manifest", f"<code>{esc(meta['manifest_file'])}</code> (sha256 "
-                                  f"<code>{esc(short(meta.get('manifest_sha256'), 16))}</code>)",
+             ("source", text(meta and meta.source), src.title("source", "source")),
+             ("description", text(meta and meta.description), src.title("description", "description")),
+             ("temperature", f"{fmt(meta and meta.temperature_C)} &deg;C", src.title("temperature_C", "temperature_C"))]
+    if meta is not None and meta.manifest_file:
+        items.append(("manifest", f"<code>{esc(meta.manifest_file)}</code> (sha256 "
+                                  f"<code>{esc(short(meta.manifest_sha256, 16))}</code>)",
                       src.title("manifest_file", "manifest_file")))
-    gen = (meta.get("metadata") or {}).get("generated_by")
+    gen = None if meta is None else meta.generated_by
     if isinstance(gen, Mapping):
         items.append(("generated by", esc(f"{gen.get('generator', '?')} (config campaign "
                                           f"{gen.get('config_campaign', '?')}, seed {gen.get('seed', '?')})"),
@@ -130,12 +146,11 @@ def _campaign_items(d: CampaignData) -> list[tuple[str, str, str]]:
 
 
 def _damper_table(d: CampaignData) -> Table | None:
-    damper = (d.meta or {}).get("damper")
-    if not isinstance(damper, Mapping) or not damper:
+    if d.meta is None or d.meta.damper is None:
         return None
-    src = d.sources("ingest/campaign.json")
+    src = d.meta_source()
     rows = []
-    for key, value in damper.items():
+    for key, value in sorted(d.meta.damper.to_dict().items()):     # the file's order (keys sorted)
         label, unit = DAMPER_LABELS.get(key, (key, ""))
         unit_html = "" if unit in ("", "-") else formula(unit)
         rows.append((formula(label), f"{fmt(value)} {unit_html}", src.title(f"damper.{key}", key)))
@@ -174,24 +189,24 @@ def _summary_cards(d: CampaignData) -> list[dict]:
 
     if d.cases is not None:
         card("cases ok / planned", f"{int((d.cases['status'] == 'ok').sum())} / {len(d.cases)}",
-             d.sources("cases.parquet").title("", "count of rows with status ok", COUNTED))
+             d.source("validate", "cases").title("", "count of rows with status ok", COUNTED))
     if d.characteristic is not None:
         card("characteristic points", str(len(d.characteristic)),
-             d.sources("characteristic.parquet").title("", "count of rows", COUNTED))
+             d.source("characteristic", "characteristic").title("", "count of rows", COUNTED))
     if d.plan_check is not None:
         card("plan cases flagged", str(int(d.plan_check["flagged"].sum())),
-             d.sources("design/plan_check.parquet").title("", "count of rows with flagged true", COUNTED))
+             d.source("design", "plan_check").title("", "count of rows with flagged true", COUNTED))
     if d.repeatability is not None:
         card("repeatability pairs flagged", f"{int(d.repeatability['flagged'].sum())} / {len(d.repeatability)}",
-             d.sources("repeatability.parquet").title("", "count of rows with flagged true", COUNTED))
+             d.source("repeatability", "repeatability").title("", "count of rows with flagged true", COUNTED))
     implausible = _implausible(d.models)
     if implausible is not None:
         card("readings outside their physical range", str(len(implausible)) + (
              " " + badge("implausible", "bad") if len(implausible) else ""),
-             d.sources("models/models.parquet").title("", "count of rows with plausible false", COUNTED))
+             d.source("models", "models").title("", "count of rows with plausible false", COUNTED))
     diag = d.diagnosis
     if diag and diag.get("status", "ok") == "ok":
-        src = d.sources("diagnosis.json")
+        src = d.source("diagnosis", "json")
         verdict = ", ".join(diag.get("verdict") or []) or "none (nominal model explains)"
         explained = diag.get("explained", True)
         card("diagnosis verdict", esc(verdict) + ("" if explained else " " + badge("not explained", "bad")),
@@ -202,14 +217,14 @@ def _summary_cards(d: CampaignData) -> list[dict]:
         card("shrink", fmt(diag.get("shrink"), 3), src.title("shrink", "shrink"))
     if d.quarantine is not None:
         card("quarantined cases", str(d.quarantine["case"].nunique() if len(d.quarantine) else 0),
-             d.sources("quarantine.parquet").title("", "count of distinct cases", COUNTED))
+             d.source("validate", "quarantine").title("", "count of distinct cases", COUNTED))
     return cards
 
 
 def _header_section(d: CampaignData) -> dict:
     campaign = kv_table(_campaign_items(d))
     damper = _damper_table(d)
-    return {"campaign": campaign, "damper": damper, "lineage": lineage_of(d.sources("ingest/campaign.json"), "damper"),
+    return {"campaign": campaign, "damper": damper, "lineage": lineage_of(d.meta_source(), "damper"),
             "provenance": _provenance(d.provenance), "cards": _summary_cards(d)}
 
 
@@ -242,7 +257,7 @@ GAP_COLS = [Col("missing_samples", "missing samples"), Col("missing_fraction", "
 
 def _plan_section(d: CampaignData) -> dict:
     pc = d.plan_check
-    src = d.sources("design/plan_check.parquet")
+    src = d.source("design", "plan_check")
     if pc is None:
         return {"table": None, "lineage": lineage_of(src)}
     flagged = [{"case": r["case"], "reasons": r["reasons"], "title": src.title(selector_of(r, ["case"]), "reasons")}
@@ -258,9 +273,9 @@ def _case_row_class(r: Mapping) -> str:
     return "warned" if isinstance(r.get("quality"), str) and r["quality"] != "ok" else ""
 
 
-def temperature_summary(meta: Mapping | None, cases: pd.DataFrame | None) -> str:
-    """What the report says about the cases' temperatures and their use by the models (format 1.1)."""
-    law = viscosity_law(meta or {})
+def temperature_summary(law: ViscosityLaw | None, cases: pd.DataFrame | None) -> str:
+    """What the report says about the cases' temperatures and their use by the models (format 1.1), with the
+    campaign's viscosity law (:meth:`CampaignMeta.viscosity_law`, None without one)."""
     known = pd.Series(dtype=float) if cases is None or "temperature_C" not in cases else \
         pd.to_numeric(cases["temperature_C"], errors="coerce").dropna()
     if known.empty:
@@ -279,7 +294,7 @@ def temperature_summary(meta: Mapping | None, cases: pd.DataFrame | None) -> str
 
 def _cases_section(d: CampaignData, captions: Mapping[str, str] | None = None) -> dict:
     """The cases table: status, quality, the measured motion (validate) and the temperature of each case."""
-    src = d.sources("cases.parquet")
+    src = d.source("validate", "cases")
     if d.cases is None:
         return {"table": None, "lineage": lineage_of(src)}
     cases = d.cases.copy()
@@ -291,7 +306,7 @@ def _cases_section(d: CampaignData, captions: Mapping[str, str] | None = None) -
         cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
     cols = CASE_COLS[:-1] + [c for c in GAP_COLS if c.key in cases] + CASE_COLS[-1:]
     return {"table": table_view(cases, cols, src, ["case"], row_class=_case_row_class, table_id="cases-table"),
-            "temperature": Markup(temperature_summary(d.meta, d.cases)),
+            "temperature": Markup(temperature_summary(d.viscosity_law(), d.cases)),
             "figures": d.figures("cases", captions or {})}
 
 
@@ -340,7 +355,7 @@ def _cases_without_points(cases: pd.DataFrame | None, char: pd.DataFrame) -> lis
 
 
 def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
-    src = d.sources("characteristic.parquet")
+    src = d.source("characteristic", "characteristic")
     figures = d.figures("characteristic", captions)
     char = d.characteristic
     if char is None:
@@ -359,7 +374,7 @@ def _characteristic_section(d: CampaignData, captions: Mapping[str, str]) -> dic
 
 def _repeatability_section(d: CampaignData) -> dict:
     rep = d.repeatability
-    src = d.sources("repeatability.parquet")
+    src = d.source("repeatability", "repeatability")
     if (rep is None or not len(rep)) and not d.has_ok("triangle"):
         return {"all": None, "left_out": "no status-ok triangle case: the check compares the two periods of a "
                                          "triangle case", "lineage": lineage_of(src)}
@@ -402,7 +417,7 @@ def _fit_rows(row: Mapping) -> list[str]:
     if not isinstance(rows, str) or not rows:
         return []
     shown = rows if len(rows) <= 400 else rows[:400] + "..."
-    table = row.get("source_file") or "characteristic.parquet"
+    table = row.get("source_file") or STAGE_OUTPUTS["characteristic"]["characteristic"]
     return [f"fitted on {row.get('n_points')} rows (case/segment) of {table}: {shown}"]
 
 
@@ -439,7 +454,7 @@ def _implausible(models: pd.DataFrame | None) -> pd.DataFrame | None:
 
 def _model_view(d: CampaignData, model: str, group: pd.DataFrame) -> dict:
     """One fitted model: its fit quality, fitted parameters and physical readings with their plausibility."""
-    src = d.sources("models/models.parquet")
+    src = d.source("models", "models")
     first = group.iloc[0]
     scale = first.get("residual_scale")
     fit_sel = selector_of(first, MODEL_KEYS)
@@ -472,7 +487,7 @@ def _implausible_note(models: pd.DataFrame | None) -> list[Markup] | None:
 def _comparison(d: CampaignData) -> dict | None:
     """rms relative error of each model against the measured characteristic (computed here)."""
     comp = d.comparison
-    csrc = d.sources("models/comparison.parquet")
+    csrc = d.source("models", "comparison")
     if comp is None or not len(comp):
         return None
     items = []
@@ -493,7 +508,7 @@ def _static_force(d: CampaignData) -> dict | None:
     if sf is None or sf.empty:
         return None
     row = sf.iloc[0].to_dict()
-    src = d.sources("static_force.parquet")
+    src = d.source("static_force", "static_force")
     sel = f"campaign={row['campaign']}"
     standstill = row.get("method") == "standstill_mean"
     if missing(row["static_force_N"]):
@@ -520,7 +535,7 @@ def _static_force(d: CampaignData) -> dict | None:
              ("declared gas forces against what is left", gas_check_text,
               src.title(sel, "gas_force_check,gas_force_cases")),
              ("against the diagnosis' load-cell offset", verdict,
-              d.sources("diagnosis.json").title("instrument.force_offset_N", "force_offset_N"))]
+              d.source("diagnosis", "json").title("instrument.force_offset_N", "force_offset_N"))]
     if row["note"] and not missing(row["static_force_N"]):
         items.append(("note", esc(row["note"]), src.title(sel, "note")))
     return {"table": kv_table(items), "lineage": lineage_of(src), "disagree": check.status == "disagree"}
@@ -529,7 +544,7 @@ def _static_force(d: CampaignData) -> dict | None:
 def _models_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
     figures = d.figures("models", captions)
     models = d.models
-    src = d.sources("models/models.parquet")
+    src = d.source("models", "models")
     if models is None or not len(models):
         return {"figures": figures, "models": None, "produced": models is not None, "lineage": lineage_of(src),
                 "static_force": _static_force(d), "csv": _export_link(d, "models_csv")}
@@ -557,14 +572,14 @@ def _energy_table(d: CampaignData) -> Table | None:
     e = d.energy
     if e is None or not len(e):
         return None
-    return table_view(e.reset_index(drop=True), ENERGY_COLS, d.sources("energy.parquet"), ["case"],
+    return table_view(e.reset_index(drop=True), ENERGY_COLS, d.source("characteristic", "energy"), ["case"],
                       table_id="energy-per-cycle")
 
 
 def _harmonic_section(d: CampaignData, captions: Mapping[str, str]) -> dict:
     figures = d.figures("harmonic", captions)
     h = d.harmonic
-    src = d.sources("harmonic/harmonic.parquet")
+    src = d.source("harmonic", "table")
     energy = _energy_table(d)
     if h is None or not len(h):
         return {"figures": figures, "table": None, "empty": h is not None, "lineage": lineage_of(src),
@@ -588,7 +603,7 @@ QUARANTINE_COLS = [Col("case", "case", text, False), Col("stage", "stage", text,
 
 def _quarantine_section(d: CampaignData) -> dict:
     q = d.quarantine
-    src = d.sources("quarantine.parquet")
+    src = d.source("validate", "quarantine")
     if q is None or not len(q):
         return {"table": None, "empty": q is not None, "lineage": lineage_of(src)}
     return {"n": q["case"].nunique(),
@@ -598,12 +613,12 @@ def _quarantine_section(d: CampaignData) -> dict:
 
 def _viscosity_note(d: CampaignData) -> str | None:
     """The diagnosis' viscosity deviation as a temperature offset at the cases' median temperature."""
-    meta = d.meta or {}
+    meta = d.meta
     temps = None if d.cases is None or "temperature_C" not in d.cases else \
         pd.to_numeric(d.cases.loc[d.cases["status"] == "ok", "temperature_C"], errors="coerce").dropna()
-    reference = float(temps.median()) if temps is not None and len(temps) else meta.get("temperature_C")
-    nominal = (meta.get("damper") or {}).get("viscosity_Pa_s")
-    return viscosity_as_temperature(d.diagnosis or {}, viscosity_law(meta), reference, nominal)
+    reference = float(temps.median()) if temps is not None and len(temps) else meta and meta.temperature_C
+    nominal = None if meta is None or meta.damper is None else meta.damper.viscosity_Pa_s
+    return viscosity_as_temperature(d.diagnosis or {}, d.viscosity_law(), reference, nominal)
 
 
 def render_campaign_report(campaign_root: str | os.PathLike, *, captions_dir: str | os.PathLike | None = None,
@@ -611,16 +626,16 @@ def render_campaign_report(campaign_root: str | os.PathLike, *, captions_dir: st
     """The HTML page of one campaign, read from ``results/<campaign>/`` (missing parts are said)."""
     d = CampaignData.read(campaign_root)
     captions = read_captions(captions_dir)
-    meta = d.meta or {}
-    diagnosis = diagnosis_section(d.diagnosis, d.sources("diagnosis.json"), d.figures("diagnosis", captions),
+    meta = d.meta
+    diagnosis = diagnosis_section(d.diagnosis, d.source("diagnosis", "json"), d.figures("diagnosis", captions),
                                   _viscosity_note(d))
     sections = {"head": _header_section(d), "plan": _plan_section(d), "cases": _cases_section(d, captions),
                 "characteristic": _characteristic_section(d, captions), "repeatability": _repeatability_section(d),
                 "models": _models_section(d, captions), "harmonic": _harmonic_section(d, captions),
                 "design": d.figures("design", captions), "diagnosis": diagnosis, "quarantine": _quarantine_section(d)}
     return render("campaign_report.html.j2", title=f"isokinetic - {d.name}", nav=CAMPAIGN_NAV,
-                  lineage_record=lineage_record, name=d.name, description=meta.get("description") or "",
-                  source=meta.get("source") or "-", index_href=index_href, **sections,
+                  lineage_record=lineage_record, name=d.name, description=(meta and meta.description) or "",
+                  source=(meta and meta.source) or "-", index_href=index_href, **sections,
                   lineage_files=lineage_rows(d.sources.all()), footer=footer(lineage_record, d.sources.all()))
 
 

@@ -48,7 +48,7 @@ import pandas as pd
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
-from isokinetic.contracts.settings import Settings
+from isokinetic.contracts.settings import DEFAULTS, Settings
 from isokinetic.io import write_parquet
 from isokinetic.measurement.loops import binned_characteristic, dominant_period_s, free_loop
 from isokinetic.measurement.peak_velocity import (
@@ -87,7 +87,7 @@ UNSTEADY_NOTE = ("force not steady while the speed is at its peak (spread beyond
 ENERGY_COLUMNS = list(tables.ENERGY.columns) + ["window_start_s", "window_end_s", "raw_file", "raw_sha256"]
 
 
-def windows_stage(campaign_root, spec: WindowSpec = WindowSpec(), notes: dict[str, str] | None = None
+def windows_stage(campaign_root, spec: WindowSpec = DEFAULTS.window, notes: dict[str, str] | None = None
                   ) -> pd.DataFrame:
     """Windows of a validated campaign folder ``results/<campaign>/`` (reads cases.parquet); ``notes`` receives
     what spikes did to a case's windows (:func:`isokinetic.measurement.windows.extract_windows`)."""
@@ -365,7 +365,7 @@ def note_cases(campaign_root, notes: dict[str, str]) -> None:
     shows it): 'characteristic: <note>', after the case's own warnings."""
     if not notes:
         return
-    path = Path(campaign_root) / "cases.parquet"
+    path = CampaignFolder.at(campaign_root).path("validate", "cases")
     cases = pd.read_parquet(path)
     if "quality" not in cases:
         cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
@@ -389,9 +389,10 @@ def paired_repeatability(windows: pd.DataFrame, records: pd.DataFrame | None, to
 # the rule
 # ----------------------------------------------------------------------------------------------
 
-def write_characteristic(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSpec(), *,
-                         repeatability_tolerance: float = 0.05, sample_rate_tolerance: float = 0.05,
-                         gap_tolerance: GapTolerance = GapTolerance()) -> pd.DataFrame:
+def write_characteristic(campaign_root: str | os.PathLike, spec: WindowSpec = DEFAULTS.window, *,
+                         repeatability_tolerance: float = DEFAULTS.repeatability_tolerance,
+                         sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance,
+                         gap_tolerance: GapTolerance = DEFAULTS.gap) -> pd.DataFrame:
     """validate -> windows -> repeatability -> characteristic of an ingested campaign folder
     (``results/<campaign>/`` holding ``ingest/``): writes cases, quarantine, windows, repeatability,
     characteristic and energy tables there; returns the characteristic. Flagged repeatability is logged."""

@@ -236,19 +236,11 @@ def write_design(campaign_root: str | os.PathLike, out_dir: str | os.PathLike, *
     are still written and say so. Returns (plan check, [paths]).
     """
     folder, out = CampaignFolder.at(campaign_root), Path(out_dir)
-    meta = folder.meta()
-    name = folder.campaign(meta)
+    name, dmp = folder.campaign, folder.damper
     cases = folder.cases()
-    note = ""
-    try:
-        dmp = _as_damper(meta.get("damper"))
-    except (KeyError, ValueError) as exc:
-        dmp, note = None, f"damper block unusable ({exc}): treated as missing"
     df = plan_check(name, cases, dmp, phi=phi, max_amplitude_m=max_amplitude_m, min_amplitude_m=min_amplitude_m,
                     start_fraction=start_fraction, effects=effects)
-    if note:
-        df["reasons"] = [f"{r}; {note}" if r else note for r in df["reasons"]]
     paths = [write_parquet(df, out / PLAN_CHECK_FILE)]
-    paths += write_design_figures(out, name, df, dmp, note, phi=phi, max_amplitude_m=max_amplitude_m,
+    paths += write_design_figures(out, name, df, dmp, "", phi=phi, max_amplitude_m=max_amplitude_m,
                                   min_amplitude_m=min_amplitude_m, start_fraction=start_fraction, effects=effects)
     return df, paths

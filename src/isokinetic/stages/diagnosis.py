@@ -24,7 +24,7 @@ import pandas as pd
 from isokinetic.contracts.campaign import case_plan, viscosity_scales
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, rule_figures
-from isokinetic.contracts.settings import Settings
+from isokinetic.contracts.settings import DEFAULTS, Settings
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import (
     INSTRUMENT,
@@ -84,23 +84,23 @@ def load_campaign(campaign_root: Path) -> tuple[str, Damper | None, pd.DataFrame
     campaign folder; the scales put each case at its temperature's viscosity (format 1.1 viscosity law,
     :func:`isokinetic.contracts.campaign.viscosity_scales`; empty without one)."""
     folder = CampaignFolder.at(campaign_root)
-    meta = folder.meta()
-    damper = folder.damper(meta)
+    meta = folder.meta
+    damper = meta.damper
     cases = folder.validated_cases()
     char = folder.characteristic()
     if "method" in char:  # the triangle windows only: a sine is diagnosed from its record (phase bins)
         char = char[char["method"] == "triangle_window"].reset_index(drop=True)
-    return meta["campaign"], damper, cases, char, viscosity_scales(meta, cases)
+    return meta.campaign, damper, cases, char, viscosity_scales(meta, cases)
 
 
-def prepare(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
+def prepare(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bins: int = 4,
             alpha: float = ALPHA) -> tuple[str, Damper | None, pd.DataFrame, Observations | None, str]:
     """(campaign, damper, cases, observations, reason) of a processed campaign folder (:func:`prepare_sensor`
     without the sensor chain's measurements)."""
     return prepare_sensor(campaign_root, spec, n_bins, alpha)[:5]
 
 
-def prepare_sensor(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4, alpha: float = ALPHA
+def prepare_sensor(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bins: int = 4, alpha: float = ALPHA
                    ) -> tuple[str, Damper | None, pd.DataFrame, Observations | None, str, dict]:
     """(campaign, damper, cases, observations, reason, sensor) of a processed campaign folder.
 
@@ -292,7 +292,7 @@ def campaign_times(obs: Observations, cases: pd.DataFrame, spans: dict[str, tupl
     return np.array([begin[c] for c in obs.case]) + 0.5 * (obs.start + obs.stop) / fs
 
 
-def diagnose(campaign_root: Path, spec: WindowSpec = WindowSpec(), n_bins: int = 4,
+def diagnose(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bins: int = 4,
              alpha: float = ALPHA) -> tuple[dict, Observations | None, dict]:
     """Diagnose a processed campaign folder ``results/<campaign>/``.
 
@@ -376,7 +376,7 @@ def not_used(cases: pd.DataFrame, obs: Observations) -> dict[str, str]:
     return {}
 
 
-def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | None, spec: WindowSpec = WindowSpec(),
+def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | None, spec: WindowSpec = DEFAULTS.window,
                     n_bins: int = 4) -> dict:
     """Diagnose, validate against the schema, write diagnosis.json and the gap figure (none without
     ``figure_path``: the blind suite draws none, and then needs no plotting library)."""

@@ -11,7 +11,6 @@ PNGs named by :data:`isokinetic.contracts.outputs.FIGURES`, and Fig. 20, the tem
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
@@ -19,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from isokinetic.contracts.campaign import viscosity_law
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import figure, figures_of
 from isokinetic.physics.viscosity import ViscosityLaw
 from isokinetic.plots.figures import (
@@ -107,19 +106,8 @@ def _fig8_case(picked: list[str], series: dict[str, pd.DataFrame], windows: pd.D
 # tables
 # ----------------------------------------------------------------------------------------------
 
-def _find_table(root: Path, name: str) -> Path | None:
-    """``root/name``, else ``root/ingest/name`` (no wider search: other stages, e.g. a nominal-model
-    run, may keep tables of the same name in sub-folders)."""
-    for p in (root / name, root / "ingest" / name):
-        if p.is_file():
-            return p
-    return None
-
-
-def _read(root: Path, name: str) -> pd.DataFrame | None:
+def _rows(df: pd.DataFrame | None) -> pd.DataFrame | None:
     """The table, or None when it is missing or has no rows (an empty file may lack columns)."""
-    p = _find_table(root, name)
-    df = None if p is None else pd.read_parquet(p)
     return None if df is None or df.empty or "case" not in df else df
 
 
@@ -129,9 +117,10 @@ def _read_tables(root: Path) -> tuple[pd.DataFrame | None, pd.DataFrame, pd.Data
     The characteristic falls back to the windows without repeatability flags (said in the note),
     the windows to the characteristic; both are empty tables when neither exists.
     """
-    cases = _read(root, "cases.parquet")
-    windows = _read(root, "windows.parquet")
-    char = _read(root, "characteristic.parquet")
+    folder = CampaignFolder.at(root)
+    cases = _rows(folder.cases_if_any())
+    windows = _rows(folder.table("windows", "windows"))
+    char = _rows(folder.table("characteristic", "characteristic"))
     char_note = ""
     if char is None and windows is not None:
         char = windows.assign(repeatability_flagged=False)
@@ -189,8 +178,8 @@ def _fig7_note(picked: list[str], series: dict[str, pd.DataFrame], note: str) ->
 
 def _viscosity_law(root: Path) -> ViscosityLaw | None:
     """The campaign's viscosity law (ingest/campaign.json, format 1.1), None without one."""
-    path = root / "ingest" / "campaign.json"
-    return viscosity_law(json.loads(path.read_text(encoding="utf-8"))) if path.is_file() else None
+    folder = CampaignFolder.at(root)
+    return folder.meta.viscosity_law() if folder.has_meta() else None
 
 
 def write_campaign_figures(campaign_root: str | os.PathLike, out_dir: str | os.PathLike,

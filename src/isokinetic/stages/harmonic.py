@@ -49,10 +49,7 @@ COLUMNS = ["campaign", "case", "waveform", "kind", "direction", "velocity_m_s", 
 
 def _read_cases(root: Path) -> pd.DataFrame | None:
     """Validate's cases table, else ingest's (:meth:`CampaignFolder.cases`); None when the folder has neither."""
-    try:
-        return CampaignFolder.at(root).cases()
-    except FileNotFoundError:
-        return None
+    return CampaignFolder.at(root).cases_if_any()
 
 
 def _empty_table() -> pd.DataFrame:

@@ -105,7 +105,7 @@ def write_models(campaign_root, out_dir, spec: WindowSpec, figures_dir=None,
 
     Reads ``characteristic.parquet``, ``nominal_windows.parquet`` (computed with ``spec`` by
     :func:`isokinetic.stages.nominal.nominal_stage` when absent), ``ingest/campaign.json`` and, when present,
-    ``harmonic/harmonic.parquet`` (or ``harmonic.parquet``) and the sine cases' time series (loops).
+    ``harmonic/harmonic.parquet`` and the sine cases' time series (loops).
     Tables go to ``out_dir``, figures to ``figures_dir`` (default ``out_dir``). Without a damper
     block: no nominal curves or physical readings, said on the figures.
     """
@@ -113,18 +113,13 @@ def write_models(campaign_root, out_dir, spec: WindowSpec, figures_dir=None,
     out = Path(out_dir)
     fig_dir = out if figures_dir is None else Path(figures_dir)
     folder = CampaignFolder(root)
-    meta = folder.meta()
-    campaign = folder.campaign(meta)
-    damper = folder.damper(meta)
+    campaign, damper = folder.meta.campaign, folder.damper
     char = folder.characteristic()
     nominal_windows = folder.table("nominal", "nominal")
     if nominal_windows is None:
         nominal_windows = nominal_stage(root, spec) if damper is not None else tables.empty(tables.WINDOWS)
-    harmonic = None
-    for path in (folder.path("harmonic", "table"), root / "harmonic.parquet"):
-        if path.exists():
-            harmonic = tables.validate_table(pd.read_parquet(path), tables.HARMONIC)
-            break
+    harmonic = folder.table("harmonic", "table")
+    harmonic = None if harmonic is None else tables.validate_table(harmonic, tables.HARMONIC)
     loop_data = sine_loops(root) if loops else {}
 
     models_df, residuals = fit_models(char, damper)

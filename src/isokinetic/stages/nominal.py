@@ -31,9 +31,8 @@ def nominal_stage(campaign_root, spec: WindowSpec) -> pd.DataFrame:
     stamp of their measured series as the record length.
     """
     folder = CampaignFolder.at(campaign_root)
-    meta = folder.meta()
-    campaign = folder.campaign(meta)
-    damper = folder.damper(meta)
+    meta = folder.meta
+    campaign, damper = meta.campaign, meta.damper
     if damper is None:
         log.info("campaign %s: no damper block in campaign.json; no nominal model windows", campaign)
         return tables.empty(tables.WINDOWS)

@@ -12,7 +12,6 @@ from pathlib import Path
 import pandas as pd
 
 from isokinetic.contracts import tables
-from isokinetic.contracts.campaign import CASES_FILE, META_FILE
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.io import write_parquet
@@ -63,18 +62,16 @@ def static_force_stage(campaign_root, spec: StaticForceSpec = StaticForceSpec())
     ingest/campaign.json and the check of every declared gas force (:func:`gas_force_check`). Cases: the
     validated cases.parquet, else ingest's."""
     folder = CampaignFolder.at(campaign_root)
-    meta = folder.meta() if (folder.ingest_dir / META_FILE).is_file() else {}
+    gas_force_N = folder.meta.gas_force_N if folder.has_meta() else None
     harmonic_file = STAGE_OUTPUTS["harmonic"]["table"]
-    campaign = meta.get("campaign") or folder.root.name
+    campaign = folder.campaign
     fitted = estimate_static_force(campaign, folder.table("characteristic", "characteristic"),
-                                   folder.table("harmonic", "table"), meta.get("gas_force_N"), spec,
+                                   folder.table("harmonic", "table"), gas_force_N, spec,
                                    harmonic_file=harmonic_file)
-    cases = folder.table("validate", "cases")
-    if cases is None and (folder.ingest_dir / CASES_FILE).is_file():
-        cases = folder.ingested_cases()
+    cases = folder.cases_if_any()
     standstill = standstill_points(cases, folder.root)
     check, lines = gas_force_check(cases, standstill, fitted, spec.confidence)
-    result = fitted if standstill.empty else standstill_estimate(campaign, standstill, meta.get("gas_force_N"),
+    result = fitted if standstill.empty else standstill_estimate(campaign, standstill, gas_force_N,
                                                                  spec.confidence)
     return replace(result, n_standstill=len(standstill), gas_force_check=check, gas_force_cases=lines)
 

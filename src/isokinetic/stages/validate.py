@@ -50,9 +50,11 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts import tables
-from isokinetic.contracts.campaign import case_plan, read_ingested
+from isokinetic.contracts.campaign import case_plan
+from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.campaign_meta import CampaignMeta
 from isokinetic.contracts.problem import Problem
-from isokinetic.contracts.settings import GapTolerance
+from isokinetic.contracts.settings import DEFAULTS, GapTolerance
 from isokinetic.io import write_parquet
 from isokinetic.measurement import plausibility as pl
 from isokinetic.measurement.motion import Motion, ends_early, estimate_motion, line_spans_s
@@ -161,7 +163,7 @@ def timeseries_problems(df: pd.DataFrame) -> list[Problem]:
     return list(found.values())
 
 
-def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+def record_problems(time_s: np.ndarray, plan: CasePlan, sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance,
                     min_samples: int = MIN_SAMPLES) -> list[Problem]:
     """Too few samples, a sine or free record shorter than the plan needs (one sample interval of slack,
     :func:`motion.ends_early`), or a sample interval (:func:`isokinetic.measurement.sampling.sample_interval_s`)
@@ -221,7 +223,7 @@ def _pct(x: float) -> str:
     return f"{x:+.1%}"
 
 
-def gap_problems(df: pd.DataFrame, plan: CasePlan, spans, tolerance: GapTolerance = GapTolerance()
+def gap_problems(df: pd.DataFrame, plan: CasePlan, spans, tolerance: GapTolerance = DEFAULTS.gap
                  ) -> tuple[list[Problem], list[str], dict[str, float]]:
     """Dropped samples (:func:`sampling.find_gaps` on the median interval): (problems, warnings, the
     SAMPLING_COLUMNS values).
@@ -588,9 +590,9 @@ class CaseCheck:
     sampling: dict[str, float] | None = None
 
 
-def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance,
                min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
-               window_spec: WindowSpec = WindowSpec(), gap_tolerance: GapTolerance = GapTolerance(),
+               window_spec: WindowSpec = DEFAULTS.window, gap_tolerance: GapTolerance = DEFAULTS.gap,
                full_scale_N: float | None = None, campaign_peaks_N=None) -> CaseCheck:
     """All checks of one canonical time series.
 
@@ -634,18 +636,18 @@ def check_case(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 
     return CaseCheck(list(found.values()), warnings + flat_warnings + motion_warnings + energy, motion, sampling)
 
 
-def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+def case_checks(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance,
                 min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
-                window_spec: WindowSpec = WindowSpec(), gap_tolerance: GapTolerance = GapTolerance()
+                window_spec: WindowSpec = DEFAULTS.window, gap_tolerance: GapTolerance = DEFAULTS.gap
                 ) -> tuple[list[Problem], list[str]]:
     """(problems, flagged-but-usable warnings) of :func:`check_case`."""
     found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, gap_tolerance)
     return found.problems, found.warnings
 
 
-def case_problems(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = 0.05,
+def case_problems(df: pd.DataFrame, plan: CasePlan, sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance,
                   min_samples: int = MIN_SAMPLES, damper: Damper | None = None,
-                  window_spec: WindowSpec = WindowSpec()) -> list[Problem]:
+                  window_spec: WindowSpec = DEFAULTS.window) -> list[Problem]:
     """The problems of :func:`check_case` (warnings dropped)."""
     return check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec).problems
 
@@ -661,11 +663,11 @@ def motion_columns(motion: Motion | None, plan: CasePlan) -> dict[str, float]:
             "velocity_ratio": motion.velocity_ratio, "motion_rms_m": motion.rms_m}
 
 
-def force_columns(meta: dict) -> dict[str, tuple[tuple[str, str, float], float | None]]:
+def force_columns(meta: CampaignMeta) -> dict[str, tuple[tuple[str, str, float], float | None]]:
     """case -> ((name, unit, scale) of its force column, its declared ``full_scale`` in N or None), from the
     campaign's manifest (campaign.json ``manifest_file``); empty for a simulated campaign or a manifest that no
     longer reads (every case then shares one column, without a full scale)."""
-    path = meta.get("manifest_file")
+    path = meta.manifest_file
     if not path or not Path(path).is_file():
         return {}
     from isokinetic.contracts.manifest import ManifestError, channel_unit, load_manifest  # pint: lazy
@@ -687,18 +689,17 @@ def force_columns(meta: dict) -> dict[str, tuple[tuple[str, str, float], float |
     return out
 
 
-def peaks_by_column(ingested, moving: pd.DataFrame, columns: dict) -> dict[str, list[float]]:
+def peaks_by_column(ingested: CampaignFolder, moving: pd.DataFrame, columns: dict) -> dict[str, list[float]]:
     """case -> the 99th percentile |F| of every moving case that shares its force column (pl.peak_magnitude)."""
-    peaks = {row["case"]: pl.peak_magnitude(pd.read_parquet(ingested.root / row["timeseries_file"],
-                                                            columns=["force_N"])["force_N"].to_numpy())
+    peaks = {row["case"]: pl.peak_magnitude(ingested.timeseries(row, ["force_N"])["force_N"].to_numpy())
              for _, row in moving.iterrows()}
     key = {case: columns.get(case, (None, None))[0] for case in peaks}
     return {case: [p for other, p in peaks.items() if key[other] == key[case]] for case in peaks}
 
 
-def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
-                      min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
-                      gap_tolerance: GapTolerance = GapTolerance()) -> tuple[pd.DataFrame, pd.DataFrame]:
+def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance,
+                      min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = DEFAULTS.window,
+                      gap_tolerance: GapTolerance = DEFAULTS.gap) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Check every ``ok`` case of ``<campaign_root>/ingest``.
 
     Returns (cases, quarantine): all cases with their final status and ``quality`` (the ingest's
@@ -707,10 +708,10 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
     checked case (SAMPLING_COLUMNS, :func:`gap_problems`), and the ingest's quarantine rows followed
     by this stage's (``stage="validate"``). Each warning is logged.
     """
-    ingested = read_ingested(campaign_root)
-    campaign = ingested.meta["campaign"]
+    ingested = CampaignFolder.at(campaign_root)
+    campaign = ingested.meta.campaign
     damper = ingested.damper
-    cases = ingested.cases.copy()
+    cases = ingested.ingested_cases()
     if "quality" not in cases:
         cases["quality"] = np.where(cases["status"] == "ok", "ok", "quarantined")
     cases["quality"] = cases["quality"].fillna("ok").astype(str)
@@ -724,7 +725,7 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
     ok = cases[cases["status"] == "ok"]
     peaks = peaks_by_column(ingested, ok[ok["waveform"] != "standstill"], columns)
     for i, row in ok.iterrows():
-        df = pd.read_parquet(ingested.root / row["timeseries_file"])
+        df = ingested.timeseries(row)
         plan = case_plan(row)
         found = check_case(df, plan, sample_rate_tolerance, min_samples, damper, window_spec, gap_tolerance,
                            columns.get(plan.case, (None, None))[1], peaks.get(plan.case))
@@ -743,19 +744,19 @@ def validate_campaign(campaign_root: str | Path, sample_rate_tolerance: float = 
             # usable: no action needed, so not a WARNING (the cases table and the report show it)
             log.info("flagged (usable) at validate: campaign %s, case %s: %s", campaign, row["case"],
                      cases.loc[i, "quality"])
-    quarantine = ingested.quarantine
+    quarantine = ingested.ingested_quarantine()
     if rows:
         new = quarantine_frame(rows)
         quarantine = new if quarantine.empty else pd.concat([quarantine, new], ignore_index=True)
     return cases, quarantine
 
 
-def write_validated(campaign_root: str | Path, sample_rate_tolerance: float = 0.05,
-                    min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = WindowSpec(),
-                    gap_tolerance: GapTolerance = GapTolerance()) -> tuple[pd.DataFrame, pd.DataFrame]:
+def write_validated(campaign_root: str | Path, sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance,
+                    min_samples: int = MIN_SAMPLES, window_spec: WindowSpec = DEFAULTS.window,
+                    gap_tolerance: GapTolerance = DEFAULTS.gap) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Validate and write ``<campaign_root>/cases.parquet`` and ``quarantine.parquet``."""
-    root = Path(campaign_root)
-    cases, quarantine = validate_campaign(root, sample_rate_tolerance, min_samples, window_spec, gap_tolerance)
-    write_parquet(tables.validate_table(quarantine, tables.QUARANTINE), root / "quarantine.parquet")
-    write_parquet(tables.validate_table(cases, tables.CASES), root / "cases.parquet")
+    folder = CampaignFolder.at(campaign_root)
+    cases, quarantine = validate_campaign(folder.root, sample_rate_tolerance, min_samples, window_spec, gap_tolerance)
+    write_parquet(tables.validate_table(quarantine, tables.QUARANTINE), folder.path("validate", "quarantine"))
+    write_parquet(tables.validate_table(cases, tables.CASES), folder.path("validate", "cases"))
     return cases, quarantine
