@@ -81,7 +81,7 @@ class Motion:
 
     @property
     def velocity_ratio(self) -> float:
-        """Mean measured |v| of the half-periods over the planned W = 4Y/T (Eq. 26)."""
+        """The mean measured |v| of the half-periods over the planned W = 4Y/T (Eq. 26) [-]."""
         ratios = np.abs(self.velocity_ratios)
         ratios = ratios[np.isfinite(ratios)]
         return float(ratios.mean()) if ratios.size else math.nan
@@ -160,7 +160,7 @@ def line_fits(t, y, starts_s, half_s: float, cut: bool = False):
 
 
 def solve_shift(fits, mids_s, fallback_mid_m: float):
-    """Shift s and mid-stroke c from lines that each cross c at s + their half-period's middle.
+    """The shift s [s] and mid-stroke c [m] from lines that each cross c at s + their half-period's middle.
 
     Each line y = a + b (t - tm) gives b·s - c = -a - b (mid - tm); rising and falling lines
     separate s from c. Lines of one direction only keep c = ``fallback_mid_m``. Returns

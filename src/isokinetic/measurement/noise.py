@@ -208,7 +208,7 @@ class NoiseModel:
 
 
 def ar1_mean_factor(n_samples, a):
-    """g(n) = (1/n^2) sum_{i,j<n} exp(-a |i - j|): variance of a mean of n unit-variance AR(1) samples.
+    """g(n) = (1/n^2) sum_{i,j<n} exp(-a |i - j|) [-]: variance of a mean of n unit-variance AR(1) samples.
 
     ``a`` = 1 / (fs tau_c) > 0 (samples^-1); vectorised over ``n_samples`` (>= 1). Uses a series in
     a n where the closed form would cancel.

@@ -367,7 +367,7 @@ def estimate_static_force(campaign: str, char: pd.DataFrame | None, harmonic: pd
 
 
 def block_mean(force_N, n_blocks: int = STANDSTILL_BLOCKS) -> tuple[float, float]:
-    """(mean, standard error) of a force record: the SE from the scatter of the means of ``n_blocks``
+    """(mean, standard error) [N] of a force record [N]: the SE from the scatter of the means of ``n_blocks``
     consecutive blocks, std(block means)/sqrt(blocks), which holds for correlated noise too; fewer than
     2 samples per block: std/sqrt(n)."""
     f = np.asarray(force_N, dtype=float)

@@ -224,7 +224,7 @@ def nominal_force(velocity_m_s, damper: Damper, discharge_coefficient: float | N
 
 
 def stroke_ratio(d, damper: Damper):
-    """R(d) = (1 - d) / (1 + (V0,1/V0,2) d), Eq. (15)."""
+    """R(d) = (1 - d) / (1 + (V0,1/V0,2) d) [-] of the normalised stroke d [-], Eq. (15)."""
     d = np.asarray(d, dtype=float)
     return (1.0 - d) / (1.0 + damper.chamber_volume_1_m3 / damper.chamber_volume_2_m3 * d)
 

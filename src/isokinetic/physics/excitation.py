@@ -47,7 +47,7 @@ def command_displacement(case: CasePlan, t_s) -> np.ndarray:
 
 
 def angular_motion(case: CasePlan) -> tuple[float, float]:
-    """(ω, phase) of the command's argument ω t + phase: 2π/T and the plan phase, or 2πf and 0."""
+    """(ω [rad/s], phase [rad]) of the command's argument ω t + phase: 2π/T and the plan phase, or 2πf and 0."""
     if case.waveform == "triangle":
         return 2.0 * math.pi / case.period_s, case.phase_rad
     return 2.0 * math.pi * case.frequency_Hz, 0.0

@@ -164,7 +164,7 @@ class ServoRig:
         return np.full(ts.shape, d * self.speed) if self.triangle else self.speed * np.cos(self.omega * ts)
 
     def slide_state(self, tt: float, p: float, m: Mode, r: float):
-        """(F, y, dΔp/dt, ẏ) of a sliding contact at Δp = p, command rate r."""
+        """(F [N], y [m], dΔp/dt [Pa/s], ẏ [m/s]) of a sliding contact at Δp = p [Pa], command rate r [m/s]."""
         a, k = self.hyd.piston_area_m2, self.stiffness_N_m
         f = a * p + m.sense * self.coulomb_force_N
         y = self.command(tt) - f / k - m.side * self.backlash_m / 2.0
@@ -295,7 +295,7 @@ class ServoRig:
         return rhs, jac, events
 
     def outputs(self, ts: np.ndarray, ps: np.ndarray, m: Mode, d: float):
-        """(F, x, y, ẏ) at times ts with Δp = ps in mode m."""
+        """(F [N], x [m], y [m], ẏ [m/s]) at times ts [s] with Δp = ps [Pa] in mode m."""
         a, k, b = self.hyd.piston_area_m2, self.stiffness_N_m, self.backlash_m
         c = command_displacement(self.case, ts)
         if m.kind == SLIDE:

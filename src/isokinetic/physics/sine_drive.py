@@ -254,8 +254,8 @@ def state_pressure(rows: np.ndarray, hyd: Hydraulics) -> np.ndarray:
 
 def sine_drive_response(drive: SineDrive, sample_rate_Hz: float, hyd: Hydraulics, backlash_m: float = 0.0,
                         rtol: float = SINE_RTOL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(τ, Δp, piston velocity) of the model driven by ``drive`` at its sample times (Eq. 1, 2, 7; Δp = 0 and
-    at rest for τ <= 0); atol = rtol × the steady Δp at peak velocity (Eq. 24)."""
+    """(τ [s], Δp [Pa], piston velocity [m/s]) of the model driven by ``drive`` at its sample times (Eq. 1, 2, 7;
+    Δp = 0 and at rest for τ <= 0); atol = rtol × the steady Δp at peak velocity (Eq. 24)."""
     from scipy.integrate import odeint  # ~0.4 s of imports: only where sine cases are modelled
 
     tau = drive.times(sample_rate_Hz)

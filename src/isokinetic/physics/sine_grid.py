@@ -66,9 +66,9 @@ class GridResponse:
     periodic_from: int
 
     def unfolded(self, end_s: float) -> tuple[np.ndarray, np.ndarray]:
-        """(Δp, dΔp/dτ) on the grid from τ = 0 to at least ``end_s``: after the integrated cycles, the last one plus
-        m times its change from the one before, m = 1, 2, ... (the change is none, or the drift of the chambers' mean
-        pressure that the gas law's oil term makes each cycle: constant)."""
+        """(Δp [Pa], dΔp/dτ [Pa/s]) on the grid from τ = 0 to at least ``end_s``: after the integrated cycles, the
+        last one plus m times its change from the one before, m = 1, 2, ... (the change is none, or the drift of the
+        chambers' mean pressure that the gas law's oil term makes each cycle: constant)."""
         need = int(math.ceil(end_s / self.step_s)) + 2
         p, f = self.dp_Pa, self.slope_Pa_s
         if self.periodic_from < 0 or need <= p.size:
@@ -329,7 +329,7 @@ def mode_sweep(jumps, signs, lam, queries, w_out, big_w_out):   # pragma: no cov
 @lru_cache(maxsize=256)
 def stage_motion(amplitude_m: float, frequency_Hz: float, harmonics: tuple, points_per_cycle: int
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """(y, dy/dτ) of the drive at τ = (j + c_i) h, j = 0 .. points - 1, i the Radau stages, and (column 3) at
+    """(y [m], dy/dτ [m/s]) of the drive at τ = (j + c_i) h, j = 0 .. points - 1, i the Radau stages, and (column 3) at
     τ = j h (h = 1/(f points)): the same every cycle, computed once per drive."""
     drive = SineDrive(amplitude_m, frequency_Hz, 0.0, 1, harmonics)
     u = 2.0 * math.pi * (np.arange(points_per_cycle)[:, None] + np.append(RADAU_C, 0.0)[None, :]) / points_per_cycle
