@@ -1,6 +1,7 @@
 """Scaling benchmark: the workflow on N small raw campaigns, N = 1, 10, 100, 500.
 
     .venv/bin/python benchmark/scaling.py [--sizes 1 10 100 500] [--cores 2] [--keep DIR]
+        [--as-shipped] [--no-gc-freeze] [--scheduling-only RATE]
 
 For each N a scratch project is made (this repository's Snakefile, workflow/, profiles/ and
 config/resources.yaml, a config with no virtual campaigns and no blind suite, and data/raw/ holding N
@@ -17,6 +18,13 @@ would run are checked: only the new campaign's jobs and the global jobs (the job
 campaign in the first dry run, such as the index) may run. Targets are compared in the printout
 (MISSED when one is missed); nothing is asserted, and the exit status is 0 unless the benchmark
 itself fails. Wall times depend on other load on the machine: the load average is printed with them.
+
+The start-up tricks can be switched off to weigh them: ``--as-shipped`` runs Snakemake's scheduler as it ships
+(``ISOKINETIC_COALESCE_REEVALUATIONS=0``: no :mod:`isokinetic.scheduling` patch), ``--no-gc-freeze`` runs every job
+without ``gc.freeze`` (``ISOKINETIC_GC_FREEZE=0``, :mod:`isokinetic.job`). ``--scheduling-only RATE`` measures
+Snakemake's own scheduling of the same DAG without running a job: ``--touch`` (each job only marked done) with
+jobs released at RATE a second (``--max-jobs-per-timespan RATE/1s``, about what two cores finish in a real build
+is 2 a second); then the build's CPU is Snakemake's own, and its wall time is the jobs over RATE plus that CPU.
 
 Peak memory is the largest resident set of the Snakemake main process alone, polled every 0.1 s
 (psutil RSS, and on Linux the kernel's high-water mark VmHWM of that process, which also catches peaks
@@ -459,6 +467,21 @@ def load_average() -> str:
     return f"{os.getloadavg()[0]:.1f}"
 
 
+#: The environment variables of the start-up tricks' switches (isokinetic.scheduling, isokinetic.job).
+AS_SHIPPED = {"ISOKINETIC_COALESCE_REEVALUATIONS": "0"}
+NO_GC_FREEZE = {"ISOKINETIC_GC_FREEZE": "0"}
+
+
+def switches(args: argparse.Namespace) -> dict[str, str]:
+    """The environment every Snakemake run of this benchmark gets beyond this process's own."""
+    return {**(AS_SHIPPED if args.as_shipped else {}), **(NO_GC_FREEZE if args.no_gc_freeze else {})}
+
+
+def scheduling_only_args(rate: int | None) -> list[str]:
+    """Snakemake's arguments that mark every job done without running it, ``rate`` jobs a second (None: none)."""
+    return [] if rate is None else ["--touch", "--max-jobs-per-timespan", f"{rate}/1s"]
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=list(DEFAULT_SIZES), help="numbers of campaigns")
@@ -471,6 +494,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="only the dry runs (job count, DAG time): no build, no incremental check")
     parser.add_argument("--source", type=Path, default=ROOT,
                         help="project whose Snakefile, workflow/ and profiles/ are copied (default: this one)")
+    parser.add_argument("--as-shipped", action="store_true",
+                        help="Snakemake's scheduler as it ships: no isokinetic.scheduling patch")
+    parser.add_argument("--no-gc-freeze", action="store_true", help="every job without gc.freeze (isokinetic.job)")
+    parser.add_argument("--scheduling-only", type=int, metavar="RATE",
+                        help="no job runs (--touch), RATE jobs released a second: Snakemake's own scheduling cost")
     parser.add_argument("--snakemake-args", nargs=argparse.REMAINDER, default=[],
                         help="further snakemake arguments for every run, e.g. --scheduler greedy (put last)")
     return parser.parse_args(argv)
@@ -485,7 +513,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     signal.signal(signal.SIGTERM, exit_on_sigterm)
     sizes = sorted(set(args.sizes))
-    incremental = args.incremental_on
+    incremental = 0 if args.scheduling_only is not None else args.incremental_on
     if incremental is None:
         incremental = INCREMENTAL_SIZE if INCREMENTAL_SIZE in sizes else sizes[-1]
     if args.keep:
@@ -493,9 +521,11 @@ def main(argv: list[str] | None = None) -> None:
         scratch = Path(tempfile.mkdtemp(prefix="scaling-", dir=args.keep))
     else:
         scratch = Path(tempfile.mkdtemp(prefix="isokinetic-scaling-"))
-    extra = args.snakemake_args
+    extra = [*scheduling_only_args(args.scheduling_only), *args.snakemake_args]
+    os.environ.update(switches(args))
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}; snakemake --cores {args.cores} {' '.join(extra)}".rstrip())
+    print("switches: " + (" ".join(f"{k}={v}" for k, v in switches(args).items()) or "none (the build as committed)"))
     print(describe_seed())
     print(f"workflow from {args.source}; scratch projects in {scratch}; load average {load_average()}")
     sys.stdout.flush()
@@ -509,7 +539,7 @@ def main(argv: list[str] | None = None) -> None:
             row, jobs = measure(project, n, args.cores, extra, build=not args.dry_run_only)
             rows.append(row)
             print(f"{row.summary()}; load average {load_average()}")
-            if row.built:
+            if row.built and args.scheduling_only is None:
                 imports = imports or rule_imports(args.source)
                 print(where_it_goes(project, row, jobs, imports))
             sys.stdout.flush()

@@ -10,7 +10,7 @@ from matplotlib.figure import Figure
 
 import isokinetic.io
 from isokinetic.io import canonical_json, current_lineage, read_lineage, sha256_file, write_json, write_parquet
-from isokinetic.job import job
+from isokinetic.job import GC_FREEZE_SWITCH, job
 from isokinetic.plots.style import save_figure
 
 
@@ -125,6 +125,14 @@ def test_a_job_in_its_own_process_freezes_what_it_keeps_after_collecting_its_gar
         assert done == [True]                     # collected, finalizer run, before the freeze
     finally:
         gc.unfreeze()                             # this test's process goes on
+
+
+def test_the_switch_at_zero_runs_a_job_in_its_own_process_without_the_freeze(tmp_path, monkeypatch):
+    monkeypatch.setenv(GC_FREEZE_SWITCH, "0")
+    frozen_before = gc.get_freeze_count()
+    with job(snakemake_job(tmp_path)):
+        assert gc.get_freeze_count() == frozen_before
+    assert gc.get_freeze_count() == frozen_before
 
 
 def test_a_job_run_in_a_tests_process_leaves_the_collector_alone(tmp_path):

@@ -24,14 +24,17 @@ interpreter's exit most of its work (issue 23): entering it freezes every object
 collects the job's own cyclic garbage (their finalizers run while the interpreter is whole) and freezes
 what is left. Objects are still freed as their references go. The exit of a process holding pandas,
 matplotlib or scipy otherwise walks them all once more: 0.05-0.2 CPU-s of every job.
+``ISOKINETIC_GC_FREEZE=0`` in the environment leaves the collector as Python ships it (benchmark/scaling.py
+``--no-gc-freeze`` weighs it).
 """
 
 from __future__ import annotations
 
 import gc
 import logging
+import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -40,6 +43,8 @@ from isokinetic.io import hash_once, lineage_context, vector_figures
 
 LOGGER_NAME = "isokinetic"
 LOG_FORMAT = "%(asctime)s %(levelname)s %(message)s"
+#: The environment variable that, set to 0, runs the jobs without gc.freeze.
+GC_FREEZE_SWITCH = "ISOKINETIC_GC_FREEZE"
 
 
 @dataclass(frozen=True)
@@ -80,11 +85,17 @@ def in_job_process(smk) -> bool:
     return containers is not None and isinstance(smk, containers.Snakemake)
 
 
+def freezes_collector(smk, environ: Mapping[str, str] = os.environ) -> bool:
+    """Whether the job ``smk`` freezes the cyclic collector's objects: in a job's own process
+    (:func:`in_job_process`), unless ``environ`` sets GC_FREEZE_SWITCH to 0."""
+    return in_job_process(smk) and environ.get(GC_FREEZE_SWITCH, "1") != "0"
+
+
 @contextmanager
 def job(smk) -> Iterator[Job]:
     """The Snakemake job ``smk`` (a script's ``snakemake`` object) as a :class:`Job`; see the module docstring."""
     log = log_to_file(str(smk.log[0]))
-    own_process = in_job_process(smk)
+    own_process = freezes_collector(smk)
     if own_process:
         gc.freeze()
     try:
