@@ -58,12 +58,14 @@ def _init_campaign(args: argparse.Namespace) -> int:
     frequency, amplitude, phase, sample rate, units, the column choice and the roles' physics). Exit status:
     0 all agree, 1 otherwise.
     """
+    from isokinetic.contracts.settings import project_settings
     from isokinetic.init_campaign.check import print_check
     from isokinetic.init_campaign.draft import write_draft
 
+    settings = project_settings(args.folder)   # the project's config, as ingest and validate apply it
     if args.check:
-        return print_check(args.folder)
-    path, survey = write_draft(args.folder, force=args.force)
+        return print_check(args.folder, settings=settings)
+    path, survey = write_draft(args.folder, force=args.force, settings=settings)
     kinds = survey.case_kinds()
     counts = ", ".join(f"{kinds.count(k)} {k}" for k in ("triangle", "sine", "free", "standstill") if k in kinds)
     print(f"wrote {path}: {len(kinds)} cases ({counts})")

@@ -10,6 +10,8 @@ import yaml
 
 from isokinetic.contracts.settings import (
     CONFIG_FILE,
+    CONFIG_KEYS,
+    DEFAULTS,
     RULE_SETTINGS,
     SCHEMA_FILE,
     Settings,
@@ -95,16 +97,17 @@ def test_an_optional_block_that_asks_for_something_is_never_created_by_its_defau
     assert "blind" not in with_defaults(config, schema)
 
 
-def test_the_records_own_defaults_are_the_schemas():
-    # where no config schema is at hand (a traced project without workflow/), trace falls back on them
-    from isokinetic.contracts.settings import GapTolerance, WindowSpec
-
+def test_every_settings_default_is_the_schemas_key_by_key():
+    # one source: the schema's default of every config key a setting reads is the record's own (DEFAULTS)
     schema = yaml.safe_load((ROOT / SCHEMA_FILE).read_text(encoding="utf-8"))["properties"]
-    gap = GapTolerance()
-    assert gap.max_missing_fraction == schema["validation"]["properties"]["max_missing_fraction"]["default"]
-    assert gap.max_gap_s == schema["validation"]["properties"]["max_gap_s"]["default"]
-    config = base_config()["windows"]
-    assert WindowSpec() == WindowSpec(config["start_fraction"], config["end_fraction"])
+    defaults = flat_settings(DEFAULTS)
+    assert set(CONFIG_KEYS) == set(defaults)
+    for name, ((block, key), factor) in CONFIG_KEYS.items():
+        assert schema[block]["properties"][key]["default"] * factor == pytest.approx(defaults[name], rel=1e-15), name
+
+
+def test_a_config_with_only_its_raw_folder_gets_the_defaults(tmp_path):
+    assert load_settings(project(tmp_path, {"raw_dir": "data/raw"})) == DEFAULTS
 
 
 def test_the_project_is_found_from_a_folder_below_it(tmp_path, monkeypatch):
@@ -115,3 +118,29 @@ def test_the_project_is_found_from_a_folder_below_it(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     with pytest.raises(FileNotFoundError, match="no project"):
         load_settings()
+
+
+@pytest.mark.parametrize(("keys", "value", "flat", "expected"), CHANGES)
+def test_each_config_key_reaches_trace_and_init_campaign(tmp_path, keys, value, flat, expected):
+    # the build's rules: test_each_config_key_reaches_its_setting_and_the_rules_that_read_it_only; the blind
+    # suite's chain: tests/blind; here trace's rebuild (a file without a lineage record of the setting) and
+    # init-campaign (a raw folder inside the project, run from elsewhere)
+    from isokinetic.audit.trace_core import Context, recorded_settings
+    from isokinetic.contracts.settings import project_settings
+
+    config = copy.deepcopy(base_config())
+    config.setdefault(keys[0], {})[keys[1]] = value
+    root = project(tmp_path, config)
+    raw = root / "data" / "raw" / "c1"
+    raw.mkdir(parents=True)
+    ctx = Context(table=root / "results" / "c1" / "windows.parquet", root=root, config_path=root / CONFIG_FILE,
+                  report=None, scratch=tmp_path / "scratch")
+    assert flat_settings(recorded_settings(ctx, [ctx.table]))[flat] == pytest.approx(expected)
+    assert flat_settings(project_settings(raw))[flat] == pytest.approx(expected)
+
+
+def test_init_campaign_outside_any_project_applies_the_defaults(tmp_path, monkeypatch):
+    from isokinetic.contracts.settings import project_settings
+
+    monkeypatch.chdir(tmp_path)
+    assert project_settings(tmp_path) == DEFAULTS

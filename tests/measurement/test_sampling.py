@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from isokinetic.contracts.settings import DEFAULTS
 from isokinetic.measurement.sampling import (
-    SAMPLE_RATE_TOLERANCE,
     find_gaps,
     rate_offset,
     sample_interval_error_s,
@@ -95,7 +95,7 @@ def test_rounded_time_stamps_give_the_interval_as_the_mean_step_not_the_median()
     t = rounded(300.0)
     assert np.median(np.diff(t)) == pytest.approx(3e-3)
     assert sample_interval_s(t) == pytest.approx(1.0 / 300.0, rel=1e-3)
-    assert abs(rate_offset(t, 300.0)) < 1e-3 and abs(rate_offset(t, 330.0)) > SAMPLE_RATE_TOLERANCE
+    assert abs(rate_offset(t, 300.0)) < 1e-3 and abs(rate_offset(t, 330.0)) > DEFAULTS.sample_rate_tolerance
     assert find_gaps(t, sample_interval_s(t)).total_missing == 0
 
 

@@ -48,7 +48,7 @@ def test_fig5_has_labelled_axes_curves_band_and_planned_strokes(default_plan):
     # more air, longer stroke (Eq. 3): compare at 0.1 mm/s
     at = lambda gid: np.interp(0.1, *_lines(ax, gid)[0].get_data())  # noqa: E731
     assert at("mixed") < at("mixed-air-0.001") < at("mixed-air-0.005") < at("mixed-air-0.01")
-    assert at("mixed") == pytest.approx(float(stroke_to_converge(1e-4, TABLE_1)) * MM, rel=0.02)
+    assert at("mixed") == pytest.approx(float(stroke_to_converge(1e-4, TABLE_1, phi=PHI)) * MM, rel=0.02)
 
 
 def test_fig6_has_log_axes_iso_velocity_points_and_constraint_boundaries(default_plan):

@@ -19,7 +19,15 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from isokinetic.contracts.settings import SCHEMA_FILE, with_defaults
+from isokinetic.contracts.settings import (
+    CONFIG_KEYS,
+    DEFAULTS,
+    SCHEMA_FILE,
+    Settings,
+    flat_settings,
+    settings_from_flat,
+    with_defaults,
+)
 from isokinetic.io import read_lineage as read_record
 from isokinetic.measurement.windows import WindowSpec
 
@@ -235,6 +243,19 @@ def param(ctx: Context, keys: Sequence[str], files: Sequence[Path], config_keys:
         raise TraceStop(f"stage parameter {keys[0]!r}: no lineage record of it and no "
                         f"{'.'.join(config_keys)} in {where}; pass --config")
     return float(value) * scale if scale != 1.0 else value, f"{ctx.rel(ctx.config_path)} {'.'.join(config_keys)}"
+
+
+def recorded_settings(ctx: Context, files: Sequence[Path]) -> Settings:
+    """The settings the traced files were made with: each setting from the lineage params of the first of
+    ``files`` that records it, else the config (its schema's defaults filled), else :data:`DEFAULTS` (a project
+    without the config schema, whose config leaves it out: the schema's defaults all the same)."""
+    values = {}
+    for name, ((block, key), factor) in CONFIG_KEYS.items():
+        try:
+            values[name] = float(param(ctx, [name], files, [block, key], factor)[0])
+        except TraceStop:
+            values[name] = flat_settings(DEFAULTS)[name]
+    return settings_from_flat(values)
 
 
 def window_spec(ctx: Context, files: Sequence[Path]) -> tuple[WindowSpec, str]:

@@ -13,7 +13,6 @@ A hash that differs from the recorded one stops the trace (:class:`RawFileChange
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,9 +21,11 @@ import pandas as pd
 
 from isokinetic.audit.provenance import VIRTUAL_PREFIX
 from isokinetic.audit.trace_core import Context, MissingFile, RawFileChanged, TraceStop, read_lineage, sha_text
-from isokinetic.contracts.campaign import write_ingested
+from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.manifest import MANIFEST_NAME, load_manifest, si_conversion
-from isokinetic.contracts.settings import GapTolerance
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, ingest_path
+from isokinetic.contracts.settings import Settings
 from isokinetic.io import sha256_file
 from isokinetic.stages.ingest import CANONICAL, campaign_meta, ingest_case
 from isokinetic.stages.validate import quarantine_frame, quarantine_rows, write_validated
@@ -66,10 +67,13 @@ class RawSource:
 
 
 def _recorded_cases(root: Path) -> tuple[pd.DataFrame, Path]:
-    for p in (root / "cases.parquet", root / "ingest" / "cases.parquet"):
+    folder = CampaignFolder.at(root)
+    paths = (folder.path("validate", "cases"), folder.ingest_path("cases"))
+    for p in paths:
         if p.is_file():
             return pd.read_parquet(p), p
-    raise MissingFile(f"{root}: no cases.parquet or ingest/cases.parquet to take the recorded raw files from")
+    names = f"{STAGE_OUTPUTS['validate']['cases']} or {ingest_path('cases')}"
+    raise MissingFile(f"{root}: no {names} to take the recorded raw files from")
 
 
 def open_source(ctx: Context, root: Path) -> RawSource:
@@ -79,11 +83,11 @@ def open_source(ctx: Context, root: Path) -> RawSource:
     if len(recorded) and raw_files.str.startswith(VIRTUAL_PREFIX).all():
         name = raw_files.iloc[0][len(VIRTUAL_PREFIX):].split("/")[0]
         return _virtual_source(ctx, root, name, recorded, recorded_path)
-    meta_path = root / "ingest" / "campaign.json"
-    meta = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.is_file() else {}
-    manifest_file = meta.get("manifest_file") or ""
+    results = CampaignFolder.at(root)
+    meta = results.meta if results.has_meta() else None
+    manifest_file = (meta and meta.manifest_file) or ""
     if not manifest_file:
-        ing = read_lineage(root / "ingest" / "cases.parquet") or {}
+        ing = read_lineage(results.ingest_path("cases")) or {}
         folder = (ing.get("params") or {}).get("campaign_dir")
         if folder:
             manifest_file = f"{folder}/{MANIFEST_NAME}"
@@ -92,12 +96,12 @@ def open_source(ctx: Context, root: Path) -> RawSource:
             if not with_file:
                 raise TraceStop(f"{ctx.rel(root)}: no raw file recorded for any case")
             manifest_file = (Path(with_file[0]).parent / MANIFEST_NAME).as_posix()
-    return raw_source(ctx, ctx.resolve(manifest_file), manifest_file, meta.get("manifest_sha256") or "",
-                       recorded, recorded_path, where=ctx.rel(meta_path) if meta else "")
+    return raw_source(ctx, ctx.resolve(manifest_file), manifest_file, (meta and meta.manifest_sha256) or "",
+                       recorded, recorded_path, where=ctx.rel(results.ingest_path("meta")) if meta else "")
 
 
 def _virtual_source(ctx: Context, root: Path, name: str, recorded, recorded_path) -> RawSource:
-    ing = root / "ingest" / "cases.parquet"
+    ing = CampaignFolder.at(root).ingest_path("cases")
     rec = read_lineage(ing) if ing.is_file() else None
     spec = ((rec or {}).get("params") or {}).get("spec")
     if isinstance(spec, Mapping):
@@ -122,7 +126,7 @@ def raw_source(ctx: Context, manifest_path: Path, manifest_recorded: str, manife
     sha = sha256_file(manifest_path)
     if manifest_sha and sha != manifest_sha:
         raise RawFileChanged(f"manifest {ctx.rel(manifest_path)}: sha256 is now {sha_text(sha)}, recorded "
-                             f"{sha_text(manifest_sha)} in {where or 'campaign.json'}: it changed after processing")
+                             f"{sha_text(manifest_sha)} in {where or ingest_path('meta')}: it changed after processing")
     manifest = load_manifest(manifest_path)
     src = RawSource(name=manifest.campaign, kind="raw", recorded=recorded, recorded_path=recorded_path,
                     manifest=manifest, manifest_path=manifest_path, manifest_recorded=manifest_recorded or
@@ -152,11 +156,13 @@ def describe_source(ctx: Context, src: RawSource) -> None:
 
 def rebuild(ctx: Context, src: RawSource, cases: Sequence[str] | None = None,
             expected: Mapping[str, str] | None = None, validate: bool = True,
-            validation: tuple[float, GapTolerance] | None = None) -> Path:
+            settings: Settings | None = None) -> Path:
     """Re-process ``cases`` (default: every recorded case) from the raw evidence into a scratch
-    campaign folder (ingest/ and, with ``validate``, cases.parquet with what validate accepted when the traced
-    files were made: ``validation``, the sample rate's tolerance and the dropped samples'); raw hashes checked
-    first."""
+    campaign folder (ingest/ and, with ``validate``, cases.parquet) with the ``settings`` the traced files were
+    made with (ingest's file-size limit; what validate accepted: the sample rate's tolerance and the dropped
+    samples'; :func:`isokinetic.audit.trace_core.recorded_settings`); raw hashes checked first."""
+    if settings is None:
+        raise ValueError("rebuild: needs the settings the traced files were made with")
     wanted = list(cases) if cases is not None else src.case_ids()
     scratch = ctx.new_scratch(src.name)
     if src.kind == "virtual":
@@ -174,7 +180,7 @@ def rebuild(ctx: Context, src: RawSource, cases: Sequence[str] | None = None,
             if spec is None:
                 raise RawFileChanged(f"case {case} is no longer in {ctx.rel(src.manifest_path)}")
             row, problems, df = ingest_case(src.campaign_dir, src.manifest.campaign, spec,
-                                            src.manifest.temperature_C)
+                                            src.manifest.temperature_C, max_file_MB=settings.max_case_file_MB)
             rec = src.recorded_row(case)
             if rec is not None and rec["raw_file"] and row["raw_file"] and \
                     ctx.resolve(str(rec["raw_file"])).resolve() == Path(row["raw_file"]).resolve():
@@ -185,11 +191,9 @@ def rebuild(ctx: Context, src: RawSource, cases: Sequence[str] | None = None,
                 series[case] = df
         write_ingested(scratch / "ingest", campaign_meta(src.manifest, src.manifest_recorded), pd.DataFrame(rows),
                        quarantine_frame(quarantined), series)
-    check_hashes(ctx, src, pd.read_parquet(scratch / "ingest" / "cases.parquet"), expected or {})
+    check_hashes(ctx, src, CampaignFolder.at(scratch).ingested_cases(), expected or {})
     if validate:
-        if validation is None:
-            raise ValueError("rebuild: validate needs the tolerances the traced files were made with")
-        write_validated(scratch, sample_rate_tolerance=validation[0], gap_tolerance=validation[1])
+        write_validated(scratch, sample_rate_tolerance=settings.sample_rate_tolerance, gap_tolerance=settings.gap)
     return scratch
 
 
@@ -241,11 +245,11 @@ class RawText:
 
     def __init__(self, ctx: Context, src: RawSource, scratch: Path, case: str):
         if src.kind == "virtual":
-            series = pd.read_parquet(scratch / "ingest" / "timeseries" / f"{case}.parquet")
+            series = pd.read_parquet(scratch / timeseries_relpath(case))
             self.lines = case_csv(series, src.vc.measurement).splitlines()
             self.label = f"exported CSV of {VIRTUAL_PREFIX}{src.name}/{case}"
         else:
-            cases = pd.read_parquet(scratch / "ingest" / "cases.parquet").set_index("case")
+            cases = CampaignFolder.at(scratch).ingested_cases().set_index("case")
             path = ctx.resolve(str(cases.loc[case, "raw_file"]))
             self.lines = path.read_text(encoding="utf-8-sig").splitlines()
             self.label = ctx.rel(path)

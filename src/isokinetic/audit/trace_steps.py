@@ -34,6 +34,7 @@ from isokinetic.audit.trace_core import (
     json_get,
     match_row,
     param,
+    recorded_settings,
     sha_text,
     value_text,
     window_spec,
@@ -49,7 +50,7 @@ from isokinetic.audit.trace_evidence import (
 )
 from isokinetic.blind.score import score
 from isokinetic.contracts.campaign import case_plan, timeseries_relpath
-from isokinetic.contracts.settings import GapTolerance
+from isokinetic.contracts.settings import Settings
 from isokinetic.io import sha256_file, write_parquet
 from isokinetic.measurement.model_fit import fit_models
 from isokinetic.measurement.repeatability import relative_difference, repeatability
@@ -73,18 +74,10 @@ def _rep_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> tuple[flo
     return float(tol), where
 
 
-def _rate_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> tuple[float, GapTolerance]:
-    """What validate accepted when the traced files were made (lineage params, else the config): the sample
-    rate's tolerance and the dropped samples' (:class:`isokinetic.contracts.settings.GapTolerance`)."""
-    where = [root / "cases.parquet", *files]
-    tol, _ = param(ctx, ["sample_rate_tolerance"], where, ["validation", "sample_rate_tolerance"])
-    default = GapTolerance()   # the schema's defaults (tests/contracts/test_settings.py keeps them equal)
-    try:
-        missing, _ = param(ctx, ["max_missing_fraction"], where, ["validation", "max_missing_fraction"])
-        gap, _ = param(ctx, ["max_gap_s"], where, ["validation", "max_gap_s"])
-    except TraceStop:   # a project without the config schema beside its config, whose config leaves them out
-        missing, gap = default.max_missing_fraction, default.max_gap_s
-    return float(tol), GapTolerance(float(missing), float(gap))
+def _chain_settings(ctx: Context, root: Path, files: Sequence[Path]) -> Settings:
+    """What ingest and validate applied when the traced files were made (:func:`recorded_settings`: their
+    lineage params, else the config): the file-size limit, the sample rate's and the dropped samples' tolerances."""
+    return recorded_settings(ctx, [root / "cases.parquet", root / "ingest" / "cases.parquet", *files])
 
 
 def _series_step(ctx: Context, src: RawSource, scratch: Path, case: str) -> pd.DataFrame:
@@ -187,8 +180,7 @@ def _characteristic_chain(ctx: Context, src: RawSource, root: Path, files: Seque
     """Every case re-derived, windows -> repeatability -> characteristic written in the scratch folder."""
     spec, spec_where = window_spec(ctx, [*files, root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, root, files)
-    srt = _rate_tolerance(ctx, root, files)
-    scratch = rebuild(ctx, src, validation=srt)
+    scratch = rebuild(ctx, src, settings=_chain_settings(ctx, root, files))
     cases = pd.read_parquet(scratch / "cases.parquet")
     win = windows_stage(scratch, spec)
     records, _energy = records_stage(scratch)          # the sine and free cases' points
@@ -227,8 +219,8 @@ def intro_cases(ctx: Context, t: Traced) -> str:
 def rederive_cases(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """The cases table (validated, or the ingest's own) of the row's case, re-read or re-simulated."""
     case = str(t.row["case"])
-    srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])}, validation=srt)
+    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])},
+                      settings=_chain_settings(ctx, t.root, [t.path]))
     new = match_row(pd.read_parquet(scratch / t.kind.path), t, "cases table")
     if new["status"] == "ok":
         _series_step(ctx, src, scratch, case)
@@ -241,8 +233,7 @@ def rederive_cases(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
 def rederive_timeseries(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """One row of a case's canonical SI series, next to its raw CSV line."""
     case = t.path.stem
-    srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], validate=False, validation=srt)
+    scratch = rebuild(ctx, src, [case], validate=False, settings=_chain_settings(ctx, t.root, [t.path]))
     new_path = scratch / timeseries_relpath(case)
     if not new_path.is_file():
         raise TraceStop(f"case {case} no longer ingests (quarantined now): no time series to compare")
@@ -270,8 +261,8 @@ def _case_windows(ctx: Context, t: Traced, src: RawSource) -> tuple[pd.DataFrame
     case = str(t.row["case"])
     spec, spec_where = window_spec(ctx, [t.path, t.root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
-    srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])}, validation=srt)
+    scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])},
+                      settings=_chain_settings(ctx, t.root, [t.path]))
     series = _series_step(ctx, src, scratch, case)
     _window_steps(ctx, src, scratch, t.row, spec, spec_where, series)
     win = windows_stage(scratch, spec)
@@ -292,7 +283,7 @@ def _rederive_record_point(ctx: Context, t: Traced, src: RawSource) -> pd.Series
     spec, _spec_where = window_spec(ctx, [t.path, t.root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
     scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])},
-                      validation=_rate_tolerance(ctx, t.root, [t.path]))
+                      settings=_chain_settings(ctx, t.root, [t.path]))
     _series_step(ctx, src, scratch, case)
     win = windows_stage(scratch, spec)
     records, _energy = records_stage(scratch)
@@ -329,8 +320,7 @@ def rederive_repeatability(ctx: Context, t: Traced, src: RawSource) -> pd.Series
     case, direction = str(t.row["case"]), str(t.row["direction"])
     spec, spec_where = window_spec(ctx, [t.root / "windows.parquet"])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
-    srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], validation=srt)
+    scratch = rebuild(ctx, src, [case], settings=_chain_settings(ctx, t.root, [t.path]))
     series = _series_step(ctx, src, scratch, case)
     win = windows_stage(scratch, spec)
     mine = win[win["direction"] == direction].sort_values("period")
@@ -358,8 +348,7 @@ def rederive_nominal(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """One window of the nominal model run at the case's measured speeds."""
     case = str(t.row["case"])
     spec, spec_where = window_spec(ctx, [t.path])
-    srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], validation=srt)
+    scratch = rebuild(ctx, src, [case], settings=_chain_settings(ctx, t.root, [t.path]))
     c = pd.read_parquet(scratch / "cases.parquet").set_index("case").loc[case]
     ctx.report.step(f"Case plan of {case} (from the raw manifest / spec; status after validation {c['status']})",
                     plan_text(c),
@@ -400,8 +389,7 @@ def rederive_plan_check(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     max_a, _ = param(ctx, ["max_amplitude_m"], files, ["design", "max_amplitude_mm"], scale=1e-3)
     min_a, _ = param(ctx, ["min_amplitude_m"], files, ["design", "min_amplitude_mm"], scale=1e-3)
     start, start_where = param(ctx, ["start_fraction"], files, ["windows", "start_fraction"])
-    srt = _rate_tolerance(ctx, t.root, files)
-    scratch = rebuild(ctx, src, [case], validation=srt)
+    scratch = rebuild(ctx, src, [case], settings=_chain_settings(ctx, t.root, files))
     cases = pd.read_parquet(scratch / "cases.parquet")
     c = cases.set_index("case").loc[case]
     ctx.report.step(f"Planned case {case} from the raw manifest / spec (status after validation {c['status']})",
@@ -436,8 +424,7 @@ def intro_harmonic(ctx: Context, t: Traced) -> str:
 def rederive_harmonic(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """One point of a sine or free record: its settled loop's extremes per direction."""
     case = str(t.row["case"])
-    srt = _rate_tolerance(ctx, t.root, [t.path])
-    scratch = rebuild(ctx, src, [case], validation=srt)
+    scratch = rebuild(ctx, src, [case], settings=_chain_settings(ctx, t.root, [t.path]))
     _series_step(ctx, src, scratch, case)
     table, loops = harmonic_stage(scratch)
     new = match_row(table, t, "harmonic table of the case")

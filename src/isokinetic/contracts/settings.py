@@ -1,11 +1,15 @@
 """The method's settings as one frozen record, built from the validated config (issue 36, part 1).
 
 One source: the config (``config/config.yaml``) validated against its schema
-(``workflow/schemas/config.schema.yaml``), whose ``default:`` values fill what the config leaves out. The
-workflow builds :data:`Settings` once (``workflow/rules/common.smk``) and every rule's script, the blind suite
-and ``trace`` read the same record (:func:`load_settings` outside Snakemake), so that no stage applies its own
-literal default. Each rule takes as a param the part of the record its stages read (:func:`rule_settings`):
-a change reruns that rule's jobs and no other.
+(``workflow/schemas/config.schema.yaml``), whose ``default:`` values fill what the config leaves out. Those
+defaults are this module's (:data:`DEFAULTS`, the record's own field defaults: what a stage applies when it is
+called outside a build; ``tests/contracts/test_settings.py`` checks every one against the schema's, key by key,
+:data:`CONFIG_KEYS`). No stage or method signature holds a literal default of a setting: it takes
+:data:`DEFAULTS`' value or the setting itself (a test walks the signatures). The workflow builds
+:data:`Settings` once (``workflow/rules/common.smk``) and every rule's script, the blind suite, ``trace`` and
+``init-campaign`` read the same record (:func:`load_settings`, :func:`project_settings` outside Snakemake), so
+that no stage applies its own literal default. Each rule takes as a param the part of the record its stages
+read (:func:`rule_settings`): a change reruns that rule's jobs and no other.
 """
 
 from __future__ import annotations
@@ -87,12 +91,12 @@ class Settings:
     [repeatability.tolerance]; sample_rate_tolerance, gap: what validate accepts [validation]; max_case_file_MB:
     the largest raw case file read [ingest.max_case_file_MB]; design: the plan check's limits, SI [design]."""
 
-    window: WindowSpec
-    repeatability_tolerance: float
-    sample_rate_tolerance: float
-    gap: GapTolerance
-    max_case_file_MB: float
-    design: DesignLimits
+    window: WindowSpec = WindowSpec()
+    repeatability_tolerance: float = 0.05
+    sample_rate_tolerance: float = 0.05
+    gap: GapTolerance = GapTolerance()
+    max_case_file_MB: float = 256.0
+    design: DesignLimits = DesignLimits()
 
     @classmethod
     def from_config(cls, config: Mapping) -> Settings:
@@ -106,6 +110,21 @@ class Settings:
                    max_case_file_MB=float(config["ingest"]["max_case_file_MB"]),
                    design=DesignLimits(float(design["convergence_fraction"]), float(design["max_amplitude_mm"]) * 1e-3,
                                        float(design["min_amplitude_mm"]) * 1e-3))
+
+
+#: The settings' defaults: what every stage applies where it is called without settings (outside a build).
+DEFAULTS = Settings()
+
+
+def settings_from_flat(values: Mapping[str, float]) -> Settings:
+    """The settings of flat names and values (every name of FLAT; :func:`flat_settings` inverted): what a job's
+    params and lineage record keep, back as the record (``trace`` rebuilds with it)."""
+    v = {name: float(values[name]) for name in FLAT}
+    return Settings(window=WindowSpec(v["start_fraction"], v["end_fraction"]),
+                    repeatability_tolerance=v["repeatability_tolerance"],
+                    sample_rate_tolerance=v["sample_rate_tolerance"],
+                    gap=GapTolerance(v["max_missing_fraction"], v["max_gap_s"]), max_case_file_MB=v["max_case_file_MB"],
+                    design=DesignLimits(v["phi"], v["max_amplitude_m"], v["min_amplitude_m"]))
 
 
 #: The settings each rule's stages read (its params: a change reruns its jobs).
@@ -131,6 +150,18 @@ FLAT: dict[str, tuple[str, Callable[[Settings], float]]] = {
     "phi": ("design", lambda s: s.design.convergence_fraction),
     "max_amplitude_m": ("design", lambda s: s.design.max_amplitude_m),
     "min_amplitude_m": ("design", lambda s: s.design.min_amplitude_m)}
+
+
+#: Every flat setting's config keys (the path to it in ``config/config.yaml``) and the factor from the config's
+#: unit to the record's SI one.
+CONFIG_KEYS: dict[str, tuple[tuple[str, str], float]] = {
+    "start_fraction": (("windows", "start_fraction"), 1.0), "end_fraction": (("windows", "end_fraction"), 1.0),
+    "repeatability_tolerance": (("repeatability", "tolerance"), 1.0),
+    "sample_rate_tolerance": (("validation", "sample_rate_tolerance"), 1.0),
+    "max_missing_fraction": (("validation", "max_missing_fraction"), 1.0),
+    "max_gap_s": (("validation", "max_gap_s"), 1.0), "max_case_file_MB": (("ingest", "max_case_file_MB"), 1.0),
+    "phi": (("design", "convergence_fraction"), 1.0), "max_amplitude_m": (("design", "max_amplitude_mm"), 1e-3),
+    "min_amplitude_m": (("design", "min_amplitude_mm"), 1e-3)}
 
 
 def flat_settings(settings: Settings) -> dict[str, float]:
@@ -176,6 +207,18 @@ def load_settings(root: str | Path | None = None, config: str | Path | None = No
     path = Path(config).resolve() if config is not None else root / CONFIG_FILE
     stat = path.stat()
     return _load(str(root / SCHEMA_FILE), str(path), stat.st_mtime_ns, stat.st_size)
+
+
+def project_settings(*starts: str | Path) -> Settings:
+    """The settings of the project around the first of ``starts`` inside one (a raw campaign folder, say), else
+    around the working directory (:func:`load_settings`); :data:`DEFAULTS` outside any project (what
+    ``init-campaign`` applies to a folder checked on its own)."""
+    for start in (*starts, "."):
+        try:
+            return load_settings(project_root(start))
+        except FileNotFoundError:
+            continue
+    return DEFAULTS
 
 
 def project_root(start: str | Path = ".") -> Path:

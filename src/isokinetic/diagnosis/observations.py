@@ -42,6 +42,7 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts.campaign import case_plan
+from isokinetic.contracts.settings import DEFAULTS
 from isokinetic.diagnosis.sine_observations import (
     N_SINE_BINS,
     SKIPPED_CYCLES,
@@ -340,7 +341,7 @@ def sine_case_record(row: pd.Series, series: pd.DataFrame, displacement_scale: f
 
 
 def build_observations(campaign: str, cases: pd.DataFrame, char: pd.DataFrame,
-                       load_series: Callable[[pd.Series], pd.DataFrame], spec: WindowSpec = WindowSpec(),
+                       load_series: Callable[[pd.Series], pd.DataFrame], spec: WindowSpec = DEFAULTS.window,
                        n_bins: int = 4, force_offset_N: float = 0.0,
                        unsteady: frozenset = frozenset(), input_var_N2: np.ndarray | None = None,
                        viscosity_scales: Mapping[str, float] | None = None, sine_bins: int = N_SINE_BINS,

@@ -11,9 +11,11 @@ right sign after ``invert``; a plausible oil temperature; the displacement's ran
 amplitude). Only clear disagreements count: a unit only when the magnitudes make every other unit
 implausible or far less plausible (``sure``), a period or frequency beyond :data:`PERIOD_TOLERANCE` and
 four standard errors, an amplitude beyond :data:`AMPLITUDE_TOLERANCE`, a sample interval off the plan's
-by ingest's own rule (:func:`isokinetic.measurement.sampling.rate_offset` beyond its
-``SAMPLE_RATE_TOLERANCE``: a rate --check accepts is one ingest accepts). Exit status 0 when every case
-agrees, 1 otherwise.
+by ingest's own rule (:func:`isokinetic.measurement.sampling.rate_offset` beyond the project's
+``validation.sample_rate_tolerance``: a rate --check accepts is one validate accepts), a file above the project's
+``ingest.max_case_file_MB`` not read, as ingest does not read it. The settings are the project's
+(:func:`isokinetic.contracts.settings.project_settings`: the config of the project around the working directory
+or the folder, else the defaults). Exit status 0 when every case agrees, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -27,14 +29,15 @@ from typing import TextIO
 import numpy as np
 
 from isokinetic.contracts.manifest import MANIFEST_NAME, CaseSpec, load_manifest
+from isokinetic.contracts.settings import DEFAULTS, Settings, project_settings
 from isokinetic.init_campaign import channels as ch
 from isokinetic.init_campaign import survey as sv
 from isokinetic.init_campaign.sniff import parse_column
 from isokinetic.init_campaign.survey import case_files, relative_name, sample_rate
 from isokinetic.init_campaign.waveform import SNAP_FRACTION, Waveform, detect_waveform
 from isokinetic.measurement.motion import noise_level
-from isokinetic.measurement.sampling import SAMPLE_RATE_TOLERANCE, rate_offset
-from isokinetic.stages.ingest import CaseFileError, FileCache, case_series, slice_rows
+from isokinetic.measurement.sampling import rate_offset
+from isokinetic.stages.ingest import CaseFileError, FileCache, case_series, size_problem, slice_rows
 from isokinetic.timestamps import TIME_TEXT_UNITS
 
 #: A detected period or frequency further than this fraction (and four standard errors) from the plan disagrees:
@@ -158,14 +161,19 @@ def summary(w: Waveform, rate: float) -> str:
     return f"{said}, {_g(rate)} Hz"
 
 
-def read_record(folder: Path, spec: CaseSpec, cache: FileCache | None = None) -> tuple[Record | None, list[Finding]]:
-    """A case's file read as ingest reads it (its format, its slice), or what keeps it from being read."""
+def read_record(folder: Path, spec: CaseSpec, cache: FileCache | None = None,
+                max_file_MB: float = DEFAULTS.max_case_file_MB) -> tuple[Record | None, list[Finding]]:
+    """A case's file read as ingest reads it (its format, its slice; not above ``max_file_MB``), or what keeps it
+    from being read."""
     if spec.problems:
         return None, [Finding(p.column, "", f"manifest: {p.message}") for p in spec.problems]
     cache = cache or FileCache()
     path = folder / spec.file
     if not path.is_file():
         return None, [Finding("file", spec.file, "file not found")]
+    too_large = size_problem(path, max_file_MB)
+    if too_large is not None:
+        return None, [Finding("file", spec.file, f"ingest refuses it: {too_large.message}")]
     try:
         table = cache.table(path, spec.csv)
     except CaseFileError as exc:
@@ -285,16 +293,18 @@ def standstill_findings(record: Record, motion: str) -> list[Finding]:
     return []
 
 
-def check_case(record: Record, choices: dict[tuple[str, str, str], ch.UnitChoice]) -> CaseCheck:
-    """One case of the manifest against its file: sample rate, units, columns, waveform and its plan."""
+def check_case(record: Record, choices: dict[tuple[str, str, str], ch.UnitChoice],
+               sample_rate_tolerance: float = DEFAULTS.sample_rate_tolerance) -> CaseCheck:
+    """One case of the manifest against its file: sample rate (validate's ``sample_rate_tolerance``), units,
+    columns, waveform and its plan."""
     spec, t = record.spec, record.t_s
     out = CaseCheck(spec.id, str(spec.file))
     rate = sample_rate(t).value
     off = rate_offset(t, spec.plan.sample_rate_Hz)
-    if abs(off) > SAMPLE_RATE_TOLERANCE:
+    if abs(off) > sample_rate_tolerance:
         out.findings.append(Finding("sample_rate_Hz", _g(spec.plan.sample_rate_Hz),
                                     f"{_g(rate)} (time step {_g(1.0 / rate)} s, {off:+.1%} off the plan's: ingest "
-                                    f"allows {SAMPLE_RATE_TOLERANCE:.0%})"))
+                                    f"allows {sample_rate_tolerance:.0%})"))
     out.findings += unit_findings(record, choices)
     out.findings += column_findings(record)
     df = record.df
@@ -310,24 +320,26 @@ def check_case(record: Record, choices: dict[tuple[str, str, str], ch.UnitChoice
     return out
 
 
-def check_folder(folder: str | Path) -> tuple[list[CaseCheck], list[str]]:
-    """Every case of ``folder/campaign.yaml`` checked; and the case files the manifest does not name."""
+def check_folder(folder: str | Path, settings: Settings | None = None) -> tuple[list[CaseCheck], list[str]]:
+    """Every case of ``folder/campaign.yaml`` checked with ``settings`` (None: the project's,
+    :func:`isokinetic.contracts.settings.project_settings`); and the case files the manifest does not name."""
     folder = Path(folder)
+    settings = project_settings(folder) if settings is None else settings
     manifest = load_manifest(folder / MANIFEST_NAME)
     cache = FileCache()
-    read = [(spec, *read_record(folder, spec, cache)) for spec in manifest.cases]
+    read = [(spec, *read_record(folder, spec, cache, settings.max_case_file_MB)) for spec in manifest.cases]
     choices = unit_choices([record for _, record, _ in read if record is not None])
-    checks = [check_case(record, choices) if record is not None
+    checks = [check_case(record, choices, settings.sample_rate_tolerance) if record is not None
               else CaseCheck(spec.id, str(spec.file), findings) for spec, record, findings in read]
     named = {str(spec.file) for spec in manifest.cases}
     return checks, [relative_name(p, folder) for p in case_files(folder) if relative_name(p, folder) not in named]
 
 
-def print_check(folder: str | Path, out: TextIO | None = None) -> int:
-    """Print the check of a folder, case by case (to ``out``, default stdout); 0 when every case agrees with the
-    manifest, 1 otherwise."""
+def print_check(folder: str | Path, out: TextIO | None = None, settings: Settings | None = None) -> int:
+    """Print the check of a folder, case by case (to ``out``, default stdout; ``settings`` as
+    :func:`check_folder`); 0 when every case agrees with the manifest, 1 otherwise."""
     out = sys.stdout if out is None else out
-    checks, unnamed = check_folder(folder)
+    checks, unnamed = check_folder(folder, settings)
     for c in checks:
         if c.agrees:
             print(f"{c.case} ({c.file}): agrees: {c.detected}", file=out)

@@ -19,6 +19,7 @@ import numpy as np
 import yaml
 
 from isokinetic.contracts.manifest import DEFAULT_TRIANGLE_PHASE_RAD, MANIFEST_NAME, CsvDialect
+from isokinetic.contracts.settings import DEFAULTS, Settings
 from isokinetic.init_campaign import channels as ch
 from isokinetic.init_campaign.survey import RATE_FLOOR, FileSurvey, StepCase, Survey, column_how, survey_folder
 from isokinetic.init_campaign.waveform import Estimate, Waveform, round_to_uncertainty
@@ -256,15 +257,16 @@ def draft_text(survey: Survey) -> str:
     return "\n".join(out) + "\n"
 
 
-def write_draft(folder: str | Path, force: bool = False) -> tuple[Path, Survey]:
-    """Survey ``folder`` and write its draft ``campaign.yaml`` (an existing one only with ``force``)."""
+def write_draft(folder: str | Path, force: bool = False, settings: Settings = DEFAULTS) -> tuple[Path, Survey]:
+    """Survey ``folder`` and write its draft ``campaign.yaml`` (an existing one only with ``force``; ``settings``:
+    the project's, :func:`isokinetic.contracts.settings.project_settings`)."""
     folder = Path(folder)
     path = folder / MANIFEST_NAME
     if path.is_symlink():
         raise FileExistsError(f"{path} is a symlink: not written through (remove it first)")
     if path.exists() and not force:
         raise FileExistsError(f"{path} exists: not overwritten (--force replaces it)")
-    survey = survey_folder(folder)
+    survey = survey_folder(folder, settings)
     if not survey.usable:
         reasons = "; ".join(f"{f.file}: {f.problem}" for f in survey.files)
         raise ValueError(f"{folder}: no usable case file, nothing drafted ({comment(reasons)})")

@@ -35,6 +35,7 @@ from isokinetic.contracts.manifest import (
     CsvDialect,
     bare_file_name,
 )
+from isokinetic.contracts.settings import DEFAULTS, Settings
 from isokinetic.init_campaign import channels as ch
 from isokinetic.init_campaign import steps as st
 from isokinetic.init_campaign.sniff import ColumnData, parse_column, xlsx_format
@@ -51,8 +52,6 @@ CASE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat", ".xlsx")
 MAX_DEPTH = 3
 #: Files that are never case files and are passed over without a word.
 QUIET_FILES = ("campaign.yaml",)
-#: Larger files are not read (listed with the reason): 256 MB.
-MAX_FILE_BYTES = 256 * 1024 * 1024
 #: A sample rate is rounded to the fewest digits within this fraction (validation allows 5 %).
 RATE_FLOOR = 1e-4
 #: Channels every case needs.
@@ -223,8 +222,9 @@ def relative_name(path: Path, folder: Path) -> str:
     return path.relative_to(folder).as_posix()
 
 
-def file_problem(path: Path, folder: Path) -> str | None:
-    """Why a file cannot be a case before it is opened (None when it can be read)."""
+def file_problem(path: Path, folder: Path, max_file_MB: float = DEFAULTS.max_case_file_MB) -> str | None:
+    """Why a file cannot be a case before it is opened (None when it can be read): a file above ``max_file_MB``
+    (ingest's limit, the config's ``ingest.max_case_file_MB``) is not read."""
     rel = relative_name(path, folder)
     if not all(bare_file_name(part) for part in rel.split("/")):
         return f"file name {rel!r} is not one the manifest accepts (no ':', '..', '\\\\')"
@@ -236,15 +236,15 @@ def file_problem(path: Path, folder: Path) -> str | None:
     if not path.is_file():
         return "not a regular file"
     size = path.stat().st_size
-    if size > MAX_FILE_BYTES:
-        return f"{size / 2**20:.0f} MB, larger than the {MAX_FILE_BYTES / 2**20:.0f} MB this command reads"
+    if size > max_file_MB * 1e6:
+        return f"{size / 1e6:.4g} MB, larger than the {max_file_MB:g} MB ingest reads (config ingest.max_case_file_MB)"
     return None
 
 
-def read_file(survey: FileSurvey, path: Path, folder: Path) -> None:
+def read_file(survey: FileSurvey, path: Path, folder: Path, max_file_MB: float = DEFAULTS.max_case_file_MB) -> None:
     """Sniff the file's format (:func:`isokinetic.rawfile.sniff_format`) and read it with the format's reader
-    into ``survey`` (or set its problem)."""
-    survey.problem = file_problem(path, folder)
+    into ``survey`` (or set its problem; a file above ``max_file_MB`` is not read)."""
+    survey.problem = file_problem(path, folder, max_file_MB)
     if survey.problem:
         return
     notes: list[str] = []
@@ -449,9 +449,10 @@ def assign_command(survey: FileSurvey, free: dict[str, np.ndarray]) -> None:
         return
 
 
-def survey_files(folder: Path) -> tuple[list[FileSurvey], list[tuple[str, str]]]:
-    """Every case file of ``folder`` (and its subfolders) read, with roles, at most MAX_CASES of them; and the
-    files passed over, with why."""
+def survey_files(folder: Path, max_file_MB: float = DEFAULTS.max_case_file_MB
+                 ) -> tuple[list[FileSurvey], list[tuple[str, str]]]:
+    """Every case file of ``folder`` (and its subfolders) read, with roles, at most MAX_CASES of them (none above
+    ``max_file_MB``); and the files passed over, with why."""
     paths, skipped = walk_folder(folder)
     surveys = []
     for path, (case, note) in zip(paths, case_ids([p.stem for p in paths])):
@@ -459,7 +460,7 @@ def survey_files(folder: Path) -> tuple[list[FileSurvey], list[tuple[str, str]]]
         if sum(s.ok for s in surveys) >= MAX_CASES:
             survey.problem = f"more than the {MAX_CASES} cases a campaign may have"
         else:
-            read_file(survey, path, folder)
+            read_file(survey, path, folder, max_file_MB)
         if survey.ok:
             assign_by_name(survey)
             assign_by_magnitude(survey)
@@ -731,13 +732,14 @@ def step_cases(f: FileSurvey, found: list[st.Step], motion_m: np.ndarray) -> lis
     return out
 
 
-def survey_folder(folder: str | Path) -> Survey:
-    """Survey a folder of case files: everything the draft needs."""
+def survey_folder(folder: str | Path, settings: Settings = DEFAULTS) -> Survey:
+    """Survey a folder of case files: everything the draft needs (``settings``: the project's, for ingest's
+    file-size limit)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"{folder}: not a folder")
     campaign, note = campaign_id(folder)
-    files, skipped = survey_files(folder)
+    files, skipped = survey_files(folder, settings.max_case_file_MB)
     if not files:
         said = "; ".join(f"{name}: {why}" for name, why in skipped[:5])
         raise FileNotFoundError(f"{folder}: no case files ({', '.join('*' + s for s in CASE_SUFFIXES)}, up to "

@@ -10,8 +10,9 @@ k >= 2, and their mean is the interval. Where the stamps' resolution is as coars
 (k = 1: 900 Hz stamped to the millisecond, steps of 1 and 2 ms) the stamps cannot tell rounding from one
 dropped sample in nine; the steps of 2 ms are then read as gaps, and the record's missing fraction says so.
 An interval above ``GAP_FACTOR`` times the sample interval is a gap of round(interval / dt) - 1 missing
-samples, at the grid times t_before + k·dt, k = 1 .. missing. Ingest's rate check and ``init-campaign``
-(its draft and ``--check``) use this one estimator and :data:`SAMPLE_RATE_TOLERANCE`.
+samples, at the grid times t_before + k·dt, k = 1 .. missing. Validate's rate check and ``init-campaign``
+(its draft and ``--check``) use this one estimator and one tolerance, the settings' ``sample_rate_tolerance``
+(:class:`isokinetic.contracts.settings.Settings`).
 """
 
 from __future__ import annotations
@@ -28,9 +29,6 @@ GAP_FACTOR = 1.5
 SPAN_STEPS = 100
 #: A record is cut into at least this many spans (shorter spans for a short record, down to single steps).
 MIN_SPANS = 8
-#: The manifest's sample_rate_Hz may differ from the record's 1 / :func:`sample_interval_s` by this fraction:
-#: the default of ``validation.sample_rate_tolerance`` (ingest) and the tolerance of ``init-campaign --check``.
-SAMPLE_RATE_TOLERANCE = 0.05
 
 
 def span_intervals_s(t_s) -> np.ndarray:

@@ -30,7 +30,7 @@ import pandas as pd
 
 from isokinetic.contracts import tables
 from isokinetic.contracts.campaign import case_plan
-from isokinetic.contracts.settings import WindowSpec  # noqa: F401 - the window's spec, imported from here too
+from isokinetic.contracts.settings import DEFAULTS, WindowSpec  # noqa: F401 - the window's spec, imported from here too
 from isokinetic.measurement.sampling import find_gaps, sample_interval_s, span_sampling
 from isokinetic.measurement.spikes import spike_mask, too_many, too_many_note
 from isokinetic.physics.plan import CasePlan, half_periods
@@ -47,13 +47,13 @@ PLAN_WINDOWS = 4
 
 
 def line_slope(t, y) -> float:
-    """Least-squares slope of y against t (the window's piston velocity)."""
+    """The least-squares slope of y against t, in y's unit per t's (the window's piston velocity [m/s])."""
     tc = t - t.mean()
     return float(np.dot(tc, y - y.mean()) / np.dot(tc, tc))
 
 
 def window_mean_force(t, f, centre_s: float, complete: bool) -> float:
-    """The mean force of a window on its real time axis [N].
+    """The mean force of a window (time t [s], force f [N]) on its real time axis [N].
 
     A complete window (no sample missing): the plain mean over its samples (the paper's window mean).
     A window with gaps: the least-squares line through (t, f) evaluated at the window's time centre.
@@ -113,7 +113,7 @@ def time_tolerance_s(plan: CasePlan) -> float:
 
 def window_ranges(plan: CasePlan, t, spec: WindowSpec,
                   motion_start_s: float = 0.0) -> list[tuple[int, float, int, int]]:
-    """(segment 1-4, sign, i0, i1) of the four windows of a triangle record with sample times ``t``.
+    """(segment 1-4, sign, i0, i1) of the four windows of a triangle record with sample times ``t`` [s].
 
     The samples [i0, i1) lie in motion_start_s + [t0 + start_fraction·T/2, t0 + end_fraction·T/2]
     of each of the first four half-periods (t0 its start in plan time, Eq. 26;
@@ -148,7 +148,7 @@ def window_ranges(plan: CasePlan, t, spec: WindowSpec,
     return out
 
 
-def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = WindowSpec(),
+def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = DEFAULTS.window,
                  motion_start_s: float = 0.0) -> list[dict]:
     """The windows of one triangle case as rows (segment, direction, period, statistics): four, or those a record
     that ends early holds complete (:func:`window_ranges`).
@@ -190,7 +190,7 @@ def case_windows(plan: CasePlan, series: pd.DataFrame, spec: WindowSpec = Window
 
 
 def window_statistics(t, f, i0: int, i1: int, centre_s: float, missing: int = 0) -> dict:
-    """force_N, force_std_N, n_samples, spikes_excluded and set_aside ('' or the reason) of the window [i0, i1)
+    """The force_N, force_std_N, n_samples, spikes_excluded, set_aside ('' or the reason) of the window [i0, i1)
     of a record's force ``f`` (module doc): its spikes (:func:`isokinetic.measurement.spikes.spike_mask`) left out,
     the mean on the real time axis (:func:`window_mean_force`; complete when no sample is missing or excluded)."""
     spikes = spike_mask(f, i0, i1)

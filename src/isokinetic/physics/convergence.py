@@ -120,6 +120,7 @@ def phi_tilde(phi, velocity_m_s, damper: Damper, effects: Effects = NOMINAL):
 # ----------------------------------------------------------------------------------------------
 
 def check_phi(phi) -> np.ndarray:
+    """The fraction ϕ of Δp∞ (Eq. 25) as a float array [-]; ValueError unless every value lies in (0, 1)."""
     phi = np.asarray(phi, dtype=float)
     if not np.all((phi > 0) & (phi < 1)):
         raise ValueError(f"phi must lie in (0, 1), got {phi!r}")
@@ -170,7 +171,7 @@ def _log_x_mixed(phi, c1, c2, q, bulk):
 
 
 def normalised_stroke_mixed(phi, c1, c2, piston_flow_m3_s, bulk_modulus_Pa, volume_ratio=1.0):
-    """Normalised stroke d to reach ϕ Δp∞ from rest, mixed laminar-turbulent flow, Eq. (28).
+    """The normalised stroke d [-] to reach ϕ Δp∞ from rest, mixed laminar-turbulent flow, Eq. (28).
 
     d = (1 - X^(1/G3)) / (1 + (V1/V2) X^(1/G3)), X = ((c3 - φ̃)/(2 A_p W c2)) e^((φ̃ - c1)/c3),
     φ̃ from Eq. (25), G3 = B_eff/(A_p W c3) (Eq. 22). Coefficient-level (c1 or c2 may be 0).
@@ -180,7 +181,7 @@ def normalised_stroke_mixed(phi, c1, c2, piston_flow_m3_s, bulk_modulus_Pa, volu
 
 
 def normalised_stroke_reversal(phi, c1, c2, piston_flow_m3_s, bulk_modulus_Pa, volume_ratio=1.0):
-    """Normalised stroke to reach ϕ Δp∞ after a reversal from -Δp∞ (extension of Eq. 28).
+    """The normalised stroke d [-] to reach ϕ Δp∞ after a reversal from -Δp∞ (extension of Eq. 28).
 
     Integrating Eq. (15)-(16) from -Δp∞ adds Q_p (c1 ln 2 + 2 Q_p c2 (1 - ln 2)) / B_eff
     = ln 2/G1 + (1 - ln 2)/G2 to -ln R of Eq. (28) (symmetric damper, steady start).
@@ -209,10 +210,12 @@ def segment_volumes(damper: Damper, start_position_m=0.0, direction=1.0):
     return np.where(up, v1, v2), np.where(up, v2, v1)
 
 
-def stroke_to_converge(velocity_m_s, damper: Damper, *, phi=0.999, start_position_m=0.0,
+def stroke_to_converge(velocity_m_s, damper: Damper, *, phi: float, start_position_m=0.0,
                        effects: Effects = NOMINAL, flow: str = "mixed", reversal: bool = False):
     """Piston stroke s = d V1,s / A_p to reach ϕ of the incompressible Δp (Eq. 28-29, 24) [m].
 
+    ``phi``: the fraction ϕ of the steady Δp to reach (the paper's 0.999; a build's is the config's
+    ``design.convergence_fraction``, :class:`isokinetic.contracts.settings.DesignLimits`).
     ``flow``: 'mixed' (Eq. 28), 'laminar' or 'turbulent' (Eq. 29, the damper's c1 or c2 alone).
     The sign of ``velocity_m_s`` gives the direction (which chamber is compressed), with the
     volumes at ``start_position_m`` (:func:`segment_volumes`). ``reversal=True``: starting from the
@@ -250,7 +253,7 @@ def time_to_converge(velocity_m_s, damper: Damper, **kwargs):
 # A-T boundary of the quasi-steady constraint (Eq. 26-28)
 # ----------------------------------------------------------------------------------------------
 
-def quasi_steady_boundary(velocities_m_s, damper: Damper, *, phi: float = 0.999, start_fraction: float = 0.45,
+def quasi_steady_boundary(velocities_m_s, damper: Damper, *, phi: float, start_fraction: float,
                           effects: Effects = NOMINAL, iterations: int = 80):
     """(T, Y) on the minimum-time constraint of the A-T diagram, one point per velocity [s, m].
 
@@ -258,7 +261,8 @@ def quasi_steady_boundary(velocities_m_s, damper: Damper, *, phi: float = 0.999,
     on the boundary this equals the stroke to converge from -Y (Eq. 28, the start volumes depend
     on Y), solved for Y by bisection on [0, 0.95 V0/A_p]; T = 4Y/W (Eq. 26). NaN where G3 <= 1
     or no such amplitude fits in the cylinder. A case of velocity W with a longer period (larger
-    Y) than the boundary point starts its window after convergence.
+    Y) than the boundary point starts its window after convergence. ``phi`` as :func:`stroke_to_converge`;
+    ``start_fraction``: the window's start as a fraction of T/2 (the config's ``windows.start_fraction``).
     """
     w = np.abs(np.asarray(velocities_m_s, dtype=float))
     limit = 0.95 * min(damper.chamber_volume_1_m3, damper.chamber_volume_2_m3) / damper.piston_area_m2

@@ -20,7 +20,7 @@ import os
 from pathlib import Path
 
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_of
-from isokinetic.contracts.settings import DesignLimits, Settings
+from isokinetic.contracts.settings import DEFAULTS, DesignLimits, Settings
 from isokinetic.io import write_parquet
 from isokinetic.measurement.windows import WindowSpec
 from isokinetic.stages.design import plan_warnings, write_design
@@ -39,8 +39,8 @@ def _folder(stage: str, name: str) -> str:
     return str(Path(STAGE_OUTPUTS[stage][name]).parent)
 
 
-def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = WindowSpec(),
-                   limits: DesignLimits = DesignLimits()) -> list[Path]:
+def write_analysis(campaign_root: str | os.PathLike, spec: WindowSpec = DEFAULTS.window,
+                   limits: DesignLimits = DEFAULTS.design) -> list[Path]:
     """design -> nominal -> harmonic -> static_force -> models -> exports -> figures of a campaign folder with its
     characteristic; returns every file written. Flagged plan checks are logged as warnings."""
     root = Path(campaign_root)

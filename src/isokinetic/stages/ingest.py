@@ -64,7 +64,7 @@ from isokinetic.contracts.manifest import (
     si_conversion,
 )
 from isokinetic.contracts.problem import Problem
-from isokinetic.contracts.settings import Settings
+from isokinetic.contracts.settings import DEFAULTS, Settings
 from isokinetic.io import jsonable, sha256_file
 from isokinetic.rawfile import FOREIGN_BOMS as FOREIGN_BOMS  # re-exported for init_campaign
 from isokinetic.rawfile import FileFormat, RawFileError, RawTable, read_raw_table
@@ -77,9 +77,6 @@ log = logging.getLogger("isokinetic")
 #: Channel -> canonical column of the ingested time series.
 CANONICAL = {"time": "time_s", "displacement": "displacement_m", "force": "force_N", "command": "command_m",
              "temperature": "temperature_C"}
-#: Largest case file ingest reads, MB (10^6 bytes), unless the config says otherwise (``ingest.max_case_file_MB``);
-#: the same bound as init-campaign's. Checked before the file is opened: a larger file sets its case aside.
-MAX_CASE_FILE_MB = 256.0
 #: What no damper rig produces, whatever the manifest declares (SI): a sample beyond sets its case aside, naming
 #: the row. Force 10 MN; displacement and command 10 m; piston speed between two samples 100 m/s.
 PHYSICAL_LIMITS = {"force_N": 1.0e7, "displacement_m": 10.0, "command_m": 10.0}
@@ -624,7 +621,7 @@ def trimmed_record(df: pd.DataFrame, plan) -> tuple[pd.DataFrame, str | None]:
 
 def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec, campaign_temperature_C: float | None = None,
                 cache: FileCache | None = None,
-                max_file_MB: float = MAX_CASE_FILE_MB) -> tuple[dict, list[Problem], pd.DataFrame | None]:
+                max_file_MB: float = DEFAULTS.max_case_file_MB) -> tuple[dict, list[Problem], pd.DataFrame | None]:
     """One case: its CASES row, its problems, and its time series when it is ok (read in the manifest's
     format, ``spec.csv``; its units row checked against the manifest's units; its slice of the file (1.2,
     ``time_range_s`` / ``rows``) with time re-zeroed at the slice's first sample and ``row`` keeping the
@@ -741,7 +738,7 @@ def shared_file_warnings(manifest: Manifest, rows: list[dict]) -> list[str]:
 
 
 def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path,
-                    max_case_file_MB: float = MAX_CASE_FILE_MB) -> None:
+                    max_case_file_MB: float = DEFAULTS.max_case_file_MB) -> None:
     """Ingest ``campaign_dir`` (as given, e.g. ``data/raw/<c>``) into ``<campaign_root>/ingest``; case files
     above ``max_case_file_MB`` are not read (their cases are set aside). The outcome is logged only once the
     results are written."""
