@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from campaign_meta_fixture import write_campaign_meta
 from conftest import CAMPAIGN
 from fresh_imports import modules_loaded
 from isokinetic.__main__ import main
@@ -76,16 +77,14 @@ def test_after_validate_only_ingest(raw_campaign):
 
 def test_simulated_campaign_has_nothing_on_disk(tmp_path):
     root = tmp_path / "results" / "sim"
-    (root / "ingest").mkdir(parents=True)
-    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "sim", "lineage": {"rule": "virtual_rig"}}))
+    write_campaign_meta(root, "sim", lineage={"rule": "virtual_rig"})
     assert raw_changes(root) == []
     assert raw_changes(Path(tmp_path / "nothing")) == []
 
 
 def test_simulated_campaign_is_recorded_as_nothing_to_check(tmp_path):
     root = tmp_path / "results" / "sim"
-    (root / "ingest").mkdir(parents=True)
-    (root / "ingest" / "campaign.json").write_text(json.dumps({"campaign": "sim", "lineage": {"rule": "virtual_rig"}}))
+    write_campaign_meta(root, "sim", lineage={"rule": "virtual_rig"})
     assert check_raw(root, root / "raw_check.json") == []
     record = json.loads((root / "raw_check.json").read_text())
     assert (record["campaign"], record["kind"], record["ok"], record["changes"]) == ("sim", "simulation", True, [])

@@ -3,11 +3,11 @@ campaign whose input is gone are orphaned."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
 
+from campaign_meta_fixture import write_campaign_meta
 from isokinetic.audit.raw_inventory import orphaned_results, suggested_id, unusable_folders
 
 
@@ -21,8 +21,7 @@ def _folder(path: Path, manifest: bool) -> Path:
 
 def _results(root: Path, name: str, manifest_file: str) -> Path:
     folder = root / name
-    (folder / "ingest").mkdir(parents=True)
-    (folder / "ingest" / "campaign.json").write_text(json.dumps({"manifest_file": manifest_file}), encoding="utf-8")
+    write_campaign_meta(folder, name, manifest_file=manifest_file)
     (folder / "report.html").write_text("Provenance checks pass", encoding="utf-8")
     return folder
 

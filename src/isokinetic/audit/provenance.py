@@ -43,13 +43,14 @@ import pyarrow.parquet as pq
 from isokinetic import __version__
 from isokinetic.audit.lineage import git_state, path_sha256, sha256_text
 from isokinetic.audit.raw_folder import inside, unused_entries
-from isokinetic.contracts.outputs import RULE_STAGES
+from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.outputs import RULE_STAGES, STAGE_OUTPUTS
 from isokinetic.io import LINEAGE_SUFFIXES, canonical_json, read_lineage, sha256_file, write_json
 
 log = logging.getLogger("isokinetic.provenance")
 
 FORMAT_VERSION = 1
-FILE_NAME = "provenance.json"
+FILE_NAME = STAGE_OUTPUTS["provenance"]["provenance"]
 #: Packages whose versions are recorded (the scientific stack, the workflow engine, the plots).
 PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "pandera", "snakemake", "matplotlib")
 #: Pipeline order of the rules (contracts.outputs.RULE_STAGES); any other rule follows, sorted by name.
@@ -103,7 +104,8 @@ def check_file(path: str, recorded: str, base: Path, folder: Path | None = None)
 def _case_rows(root: Path) -> list[dict]:
     """The rows of the campaign's cases table (nulls as None; none without a table), read by pyarrow alone: the
     raw check's job needs no pandas (issue 23)."""
-    for p in (root / "cases.parquet", root / "ingest" / "cases.parquet"):
+    folder = CampaignFolder.at(root)
+    for p in (folder.path("validate", "cases"), folder.ingest_path("cases")):
         if p.is_file():
             return pq.ParquetFile(p).read().to_pylist()  # not read_table: its dataset layer loads pandas
     return []
@@ -111,19 +113,19 @@ def _case_rows(root: Path) -> list[dict]:
 
 def raw_sources(root: Path, base: Path = Path(".")) -> dict:
     """The ``raw`` section (module docstring) of the campaign folder ``root``; paths relative to ``base``."""
-    meta_path = root / "ingest" / "campaign.json"
-    meta = json.loads(meta_path.read_text(encoding="utf-8")) if meta_path.is_file() else {}
-    ingest_lineage = meta.get("lineage") or {}
+    campaign = CampaignFolder.at(root)
+    meta = campaign.meta if campaign.has_meta() else None
+    ingest_lineage = (meta and meta.lineage) or {}
     case_rows = _case_rows(root)
     simulated = ingest_lineage.get("rule") == "virtual_rig" or (
         bool(case_rows) and all(str(r.get("raw_file", "")).startswith(VIRTUAL_PREFIX) for r in case_rows))
-    out: dict = {"kind": "simulation" if simulated else "raw", "campaign_json": meta_path.as_posix(),
-                 "source": meta.get("source"), "files": []}
+    out: dict = {"kind": "simulation" if simulated else "raw", "campaign_json": campaign.ingest_path("meta").as_posix(),
+                 "source": meta and meta.source, "files": []}
     if simulated:
         spec = (ingest_lineage.get("params") or {}).get("spec")
-        out["virtual_rig"] = {"campaign": meta.get("campaign"), "seed": None if spec is None else spec.get("seed"),
+        out["virtual_rig"] = {"campaign": meta and meta.campaign, "seed": None if spec is None else spec.get("seed"),
                               "spec": spec, "spec_sha256": None if spec is None else sha256_text(canonical_json(spec)),
-                              "generated_by": (meta.get("metadata") or {}).get("generated_by")}
+                              "generated_by": meta and meta.generated_by}
         if spec is None:
             out["virtual_rig"]["note"] = "no virtual_rig lineage record on ingest/campaign.json: spec unknown"
         for r in case_rows:
@@ -133,11 +135,11 @@ def raw_sources(root: Path, base: Path = Path(".")) -> dict:
                                  "note": "sha256 of the case's canonical CSV (export-virtual writes these bytes)"})
         return out
     listed = set()
-    manifest = meta.get("manifest_file") or ""
+    manifest = (meta and meta.manifest_file) or ""
     folder = _resolve(manifest, base).parent if manifest else None
     if manifest:
         out["files"].append({"role": "manifest", "case": None, "status": None,
-                             **check_file(manifest, meta.get("manifest_sha256") or "", base, folder)})
+                             **check_file(manifest, meta.manifest_sha256 or "", base, folder)})
         listed.add(Path(manifest).as_posix())
     for r in case_rows:
         path = str(r.get("raw_file") or "")
@@ -246,10 +248,8 @@ def campaign_provenance(campaign_root: str | os.PathLike, *, base: str | os.Path
     missing = [f["path"] for f in raw["files"] if raw["kind"] == "raw" and f["sha256_recorded"] and not f["exists"]]
     stale = [s["rule"] for s in stage_list if not s["inputs_current"]]
     inconsistent = [s["rule"] for s in stage_list if not s["consistent"]]
-    meta_path = root / "ingest" / "campaign.json"
-    campaign = json.loads(meta_path.read_text(encoding="utf-8")).get("campaign") if meta_path.is_file() else None
     return {
-        "format_version": FORMAT_VERSION, "campaign": campaign or root.name, "created_utc": _now_utc(),
+        "format_version": FORMAT_VERSION, "campaign": CampaignFolder.at(root).campaign, "created_utc": _now_utc(),
         "git": {"commit": commit, "dirty": dirty}, "config_sha256": config_sha256,
         "environment": environment(), "raw": raw, "stages": stage_list, "outputs": index,
         "checks": {"raw_unchanged": not changed and not missing and not outside, "changed_raw_files": changed,

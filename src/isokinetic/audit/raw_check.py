@@ -21,9 +21,10 @@ import os
 from pathlib import Path
 
 from isokinetic.audit.provenance import raw_sources
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.io import write_json
 
-FILE_NAME = "raw_check.json"
+FILE_NAME = STAGE_OUTPUTS["raw_check"]["raw_check"]
 
 
 class RawDataChanged(RuntimeError):

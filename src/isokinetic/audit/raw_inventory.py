@@ -16,7 +16,6 @@ campaign's results under ``results/`` matched to an input of this build.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 import unicodedata
@@ -24,13 +23,15 @@ from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.manifest import MANIFEST_NAME
-from isokinetic.contracts.outputs import BLIND_DIR, CAMPAIGN_ID, COMPARE_DIR
+from isokinetic.contracts.outputs import BLIND_DIR, CAMPAIGN_ID, COMPARE_DIR, STAGE_OUTPUTS, ingest_path
 
 #: Folders of ``results/`` that are no campaign's (the blind suite, the comparisons, the design summary).
 RESERVED_RESULTS = frozenset({BLIND_DIR, COMPARE_DIR, "design"})
 #: Files of which any one makes ``results/<name>/`` a campaign's results.
-CAMPAIGN_RESULT_MARKERS = ("report.html", "provenance.json", "cases.parquet", "ingest/campaign.json")
+CAMPAIGN_RESULT_MARKERS = (STAGE_OUTPUTS["campaign_report"]["page"], STAGE_OUTPUTS["provenance"]["provenance"],
+                           STAGE_OUTPUTS["validate"]["cases"], ingest_path("meta"))
 
 
 @dataclass(frozen=True)
@@ -102,8 +103,8 @@ def orphan_reason(folder: Path, raw_dir: Path) -> str:
     campaign is not in the config (read from its ``ingest/campaign.json``), and what to do."""
     name = folder.name
     try:
-        manifest = json.loads((folder / "ingest" / "campaign.json").read_text(encoding="utf-8"))["manifest_file"]
-    except (OSError, ValueError, KeyError, TypeError):
+        manifest = CampaignFolder.at(folder).meta.manifest_file
+    except (OSError, ValueError):        # none, not JSON, or not a campaign.json (CampaignMetaError)
         manifest = None
     raw_folder = (raw_dir / name).as_posix()
     if manifest == "":
@@ -144,8 +145,8 @@ def orphaned_results(results_root: str | os.PathLike, campaigns: Collection[str]
     if comparisons is not None:
         out.update({f"{COMPARE_DIR}/{p.name}": _not_in_config(p, f"comparison {p.name!r}", "comparisons")
                     for p in _folders(root / COMPARE_DIR)
-                    if p.name not in comparisons and (p / "compare.json").is_file()})
-    if not blind and (root / BLIND_DIR / "summary.json").is_file():
+                    if p.name not in comparisons and (p / STAGE_OUTPUTS["compare"]["summary"]).is_file()})
+    if not blind and (root / BLIND_DIR / STAGE_OUTPUTS["blind_score"]["summary"]).is_file():
         out[BLIND_DIR] = _not_in_config(root / BLIND_DIR, "the blind suite", "blind")
     return out
 

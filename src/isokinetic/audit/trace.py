@@ -99,20 +99,19 @@ from isokinetic.audit.trace_core import (
 )
 from isokinetic.audit.trace_evidence import describe_source, open_source
 from isokinetic.contracts.campaign import timeseries_relpath
-from isokinetic.contracts.outputs import outputs_of, rule_of
+from isokinetic.contracts.outputs import ingest_path, outputs_of, rule_of
 from isokinetic.stages.exports import EXPORTS, csv_text
 
 __all__ = ["KINDS", "trace", "trace_row", "table_kind", "TraceResult", "TraceStop", "MATCH", "MISMATCH",
            "RAW_CHANGED", "MISSING", "CANNOT"]
 
-_INGEST = outputs_of("ingest")["ingest"]
 
 #: Every kind of table trace knows, by name.
 KINDS = {k.name: k for k in (
     Kind("cases", outputs_of("validate")["cases"], "validated cases (raw file, hash, status)",
          primary=("raw_sha256", "n_samples", "status", "motion_start_s", "delay_s"), keys=("case",),
          intro=steps.intro_cases, rederive=steps.rederive_cases),
-    Kind("ingest_cases", f"{_INGEST}cases.parquet", "ingested cases (raw file, hash)",
+    Kind("ingest_cases", ingest_path("cases"), "ingested cases (raw file, hash)",
          primary=("raw_sha256", "n_samples", "status"), keys=("case",),
          intro=steps.intro_cases, rederive=steps.rederive_cases),
     Kind("timeseries", timeseries_relpath("*"), "canonical SI time series of one case",

@@ -16,12 +16,21 @@ import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from isokinetic.contracts.campaign_meta import CampaignMeta
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, ingest_path
 from isokinetic.physics.damper import Damper
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+
+def read_parquet(path: Path, columns: list[str] | None = None) -> pd.DataFrame:
+    """A table (pandas imported here: the raw check's job reads the metadata without it)."""
+    import pandas as pd
+
+    return pd.read_parquet(path, columns=columns)
 
 
 @dataclass(frozen=True)
@@ -70,35 +79,35 @@ class CampaignFolder:
 
     def ingested_cases(self) -> pd.DataFrame:
         """Ingest's cases table (``ingest/cases.parquet``)."""
-        return pd.read_parquet(self.ingest_path("cases"))
+        return read_parquet(self.ingest_path("cases"))
 
     def ingested_quarantine(self) -> pd.DataFrame:
         """The cases ingest set aside (``ingest/quarantine.parquet``)."""
-        return pd.read_parquet(self.ingest_path("quarantine"))
+        return read_parquet(self.ingest_path("quarantine"))
 
     def validated_cases(self) -> pd.DataFrame:
         """Validate's cases table (``cases.parquet``): the cases after the per-case checks."""
-        return pd.read_parquet(self.path("validate", "cases"))
+        return read_parquet(self.path("validate", "cases"))
 
     def cases(self) -> pd.DataFrame:
         """Validate's cases table when the folder has one, else ingest's (a folder not yet validated)."""
         validated = self.path("validate", "cases")
-        return pd.read_parquet(validated) if validated.is_file() else self.ingested_cases()
+        return read_parquet(validated) if validated.is_file() else self.ingested_cases()
 
     def cases_if_any(self) -> pd.DataFrame | None:
         """:meth:`cases`, None when the folder holds neither cases table."""
         return self.cases() if self.path("validate", "cases").is_file() or self.ingest_path("cases").is_file() else None
 
     def windows(self) -> pd.DataFrame:
-        return pd.read_parquet(self.path("windows", "windows"))
+        return read_parquet(self.path("windows", "windows"))
 
     def characteristic(self) -> pd.DataFrame:
-        return pd.read_parquet(self.path("characteristic", "characteristic"))
+        return read_parquet(self.path("characteristic", "characteristic"))
 
     def table(self, stage: str, name: str) -> pd.DataFrame | None:
         """A registered table of a stage, None when the folder does not hold it."""
         path = self.path(stage, name)
-        return pd.read_parquet(path) if path.is_file() else None
+        return read_parquet(path) if path.is_file() else None
 
     def document(self, stage: str, name: str) -> dict | None:
         """A registered JSON document of a stage (``diagnosis.json``), None when the folder does not hold it."""
@@ -110,4 +119,4 @@ class CampaignFolder:
         (looked up in ingest's cases table)."""
         if isinstance(case, str):
             case = self.ingested_cases().set_index("case").loc[case]
-        return pd.read_parquet(self.root / case["timeseries_file"], columns=columns)
+        return read_parquet(self.root / case["timeseries_file"], columns=columns)

@@ -23,6 +23,10 @@ RESULTS_DIR = "results"
 BLIND_DIR = "blind"
 #: Comparisons of campaigns (config ``comparisons``) are written to ``results/compare/<name>/``.
 COMPARE_DIR = "compare"
+#: The build's design summary, every campaign's plan check in one table (stages/design_summary.py), below results/.
+DESIGN_SUMMARY = "design/plan_check.parquet"
+#: Snakemake's own report (``snakemake --report results/report.html``), which the index links when it exists.
+SNAKEMAKE_REPORT = "report.html"
 
 
 @dataclass(frozen=True)

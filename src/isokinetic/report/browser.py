@@ -21,7 +21,8 @@ from pathlib import Path
 
 import pandas as pd
 
-from isokinetic.contracts.outputs import COMPARE_DIR, FIGURES, figure, figures_in
+from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.outputs import FIGURES, STAGE_OUTPUTS, comparison_folder, figure, figures_in
 from isokinetic.report.embed import png_ok
 
 #: Report sections of a campaign page that show figures (the blind suite's are on the index).
@@ -53,7 +54,7 @@ def campaign_figure_files(cases: pd.DataFrame | None = None) -> list[str]:
 
 def _cases_of(campaign_root: Path) -> pd.DataFrame | None:
     try:
-        return pd.read_parquet(campaign_root / "cases.parquet")
+        return CampaignFolder.at(campaign_root).validated_cases()
     except (OSError, ValueError):
         return None
 
@@ -166,8 +167,10 @@ def check_pages(results_root: str | os.PathLike, campaigns: Sequence[str], *, in
     ``browser``, decoded by headless Chromium."""
     results_root = Path(results_root)
     problems = []
-    pages = [(results_root / c / "report.html", campaign_figure_files(_cases_of(results_root / c))) for c in campaigns]
-    pages += [(results_root / COMPARE_DIR / name / "report.html", [Path(f.path).name for f in figures_in("compare")])
+    pages = [(CampaignFolder.at(results_root / c).path("campaign_report", "page"),
+              campaign_figure_files(_cases_of(results_root / c))) for c in campaigns]
+    pages += [(results_root / comparison_folder(name) / STAGE_OUTPUTS["compare_report"]["page"],
+               [Path(f.path).name for f in figures_in("compare")])
               for name in comparisons]
     if index:
         pages.append((results_root / "index.html", [figure("fig17_blind_confusion").path] if blind else []))

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, figures_in
 from isokinetic.io import write_text
 from isokinetic.report.cells import Col, Table, badge, json_table_view, kv_table, table_view
@@ -45,14 +46,14 @@ EXCLUDED_COLS = [Col("direction", "dir", text, False), Col("velocity_m_s", "velo
 
 def campaign_href(campaign: str) -> str:
     """A campaign's page, relative to the comparison's page (``results/compare/<name>/``)."""
-    return f"../../{campaign}/report.html"
+    return f"../../{campaign}/{STAGE_OUTPUTS['campaign_report']['page']}"
 
 
 def _campaign_links(campaigns: list[str], results_root: Path) -> str:
     links = []
     for k, c in enumerate(campaigns):
         label = f"<strong>{esc(c)}</strong>" + (" (reference)" if k == 0 else "")
-        page = results_root / c / "report.html"
+        page = CampaignFolder.at(results_root / c).path("campaign_report", "page")
         links.append(f'<a href="{campaign_href(c)}">{label}</a>' if page.is_file() else f"{label} (no page)")
     return ", ".join(links)
 

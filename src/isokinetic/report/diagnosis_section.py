@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 import pandas as pd
 from markupsafe import Markup
 
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.physics.effects import REGISTRY
 from isokinetic.physics.viscosity import ViscosityLaw, equivalent_temperature_offset_C
 from isokinetic.report.cells import Cell, Col, Row, Table, json_table_view, kv_table, number_cell
@@ -227,7 +228,8 @@ def _observations(diag: Mapping) -> dict | None:
         return None
     series = sources.get("timeseries") or {}
     return {"windows": [k for k in str(sources.get("windows") or "").split(",") if k],
-            "characteristic_file": sources.get("characteristic_file", "characteristic.parquet"),
+            "characteristic_file": sources.get("characteristic_file",
+                                               STAGE_OUTPUTS["characteristic"]["characteristic"]),
             "n_series": len(series),
             "series": [{"case": c, "timeseries_file": v.get("timeseries_file", ""), "raw_file": v.get("raw_file", ""),
                         "raw_sha256": short(v.get("raw_sha256"))} for c, v in series.items() if isinstance(v, Mapping)]}

@@ -18,7 +18,8 @@ import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from isokinetic.contracts.outputs import STAGE_OUTPUTS, comparison_folder, figure
+from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.outputs import SNAKEMAKE_REPORT, STAGE_OUTPUTS, comparison_folder, figure
 from isokinetic.io import write_text
 from isokinetic.report.cells import Cell, Col, Row, Table, badge, number_cell, table_view
 from isokinetic.report.embed import figure_view, read_captions
@@ -44,29 +45,27 @@ SCORE_COLS = [Col("scenario", "scenario", text, False), Col("truth", "truth", la
 
 def _counts(root: Path, srcs: Sources) -> list[Cell]:
     """The counts of a campaign's row: cases, quarantined, points, flagged plan cases and pairs."""
-    cases = read_parquet(root / "cases.parquet")
-    q = read_parquet(root / "quarantine.parquet")
-    char = read_parquet(root / "characteristic.parquet")
-    pc = read_parquet(root / "design" / "plan_check.parquet")
-    rep = read_parquet(root / "repeatability.parquet")
+    cases_, q_, char_, pc_, rep_ = (STAGE_OUTPUTS["validate"]["cases"], STAGE_OUTPUTS["validate"]["quarantine"],
+                                    STAGE_OUTPUTS["characteristic"]["characteristic"],
+                                    STAGE_OUTPUTS["design"]["plan_check"],
+                                    STAGE_OUTPUTS["repeatability"]["repeatability"])
+    cases, q, char, pc, rep = (read_parquet(root / rel) for rel in (cases_, q_, char_, pc_, rep_))
 
     def cell(value: str, rel: str, column: str) -> Cell:
         return number_cell(value, srcs(rel).title("", column, COUNTED))
 
     return [cell(f"{int((cases['status'] == 'ok').sum())} / {len(cases)}" if cases is not None else "-",
-                 "cases.parquet", "count of rows with status ok / all rows"),
+                 cases_, "count of rows with status ok / all rows"),
             cell(str(q["case"].nunique() if q is not None and len(q) else 0) if q is not None else "-",
-                 "quarantine.parquet", "distinct cases"),
-            cell(str(len(char)) if char is not None else "-", "characteristic.parquet", "rows"),
-            cell(str(int(pc["flagged"].sum())) if pc is not None else "-", "design/plan_check.parquet",
-                 "count of flagged rows"),
-            cell(str(int(rep["flagged"].sum())) if rep is not None else "-", "repeatability.parquet",
-                 "count of flagged rows")]
+                 q_, "distinct cases"),
+            cell(str(len(char)) if char is not None else "-", char_, "rows"),
+            cell(str(int(pc["flagged"].sum())) if pc is not None else "-", pc_, "count of flagged rows"),
+            cell(str(int(rep["flagged"].sum())) if rep is not None else "-", rep_, "count of flagged rows")]
 
 
 def _residual_scale(root: Path, srcs: Sources) -> Cell:
-    models = read_parquet(root / "models" / "models.parquet")
-    src = srcs("models/models.parquet")
+    models = read_parquet(root / STAGE_OUTPUTS["models"]["models"])
+    src = srcs(STAGE_OUTPUTS["models"]["models"])
     scale = None
     if models is not None and len(models) and "wallaschek" in set(models["model"]):
         scale = models.loc[models["model"] == "wallaschek", "residual_scale"].iloc[0]
@@ -75,10 +74,11 @@ def _residual_scale(root: Path, srcs: Sources) -> Cell:
 
 def _verdict(root: Path, srcs: Sources) -> list[Cell]:
     """The diagnosis cells of a campaign's row: verdict, gaps and shrink, or why there are none."""
-    diag = read_json(root / "diagnosis.json")
-    src = srcs("diagnosis.json")
+    diag = read_json(root / STAGE_OUTPUTS["diagnosis"]["json"])
+    src = srcs(STAGE_OUTPUTS["diagnosis"]["json"])
     if not diag or diag.get("status", "ok") != "ok":
-        reason = (diag or {}).get("reason") or ("diagnosis.json missing" if diag is None else "not diagnosed")
+        missing = f"{STAGE_OUTPUTS['diagnosis']['json']} missing"
+        reason = (diag or {}).get("reason") or (missing if diag is None else "not diagnosed")
         return [Cell(esc(reason), src.title("status", "status"), colspan=5)]
     verdict = ", ".join(diag.get("verdict") or []) or "[] nominal"
     explained = diag.get("explained", True)
@@ -94,16 +94,17 @@ def _campaign_row(results_root: Path, campaign: str, failure: str | None = None)
     """A campaign's row of the index and the files it read; a failed campaign's row is its reason alone (its
     files, if any, are from an earlier run and are not shown as this run's results)."""
     root = results_root / campaign
-    srcs = Sources(root, read_json(root / "provenance.json"))
-    meta = read_json(root / "ingest" / "campaign.json") or {}
+    folder = CampaignFolder.at(root)
+    srcs = Sources(root, read_json(folder.path("provenance", "provenance")))
+    source = (folder.meta.source if folder.has_meta() else None) or "-"
     if failure is not None:
         state = "interrupted" if failure.startswith("interrupted") else "failed"
         cells = [Cell(f"{badge(state, 'bad')} {esc(failure)}", cls="reason", colspan=N_CAMPAIGN_CELLS)]
-        return {"name": campaign, "source": meta.get("source") or "-", "cells": cells, "report": False,
+        return {"name": campaign, "source": source, "cells": cells, "report": False,
                 "failed": True}, []
     cells = _counts(root, srcs) + [_residual_scale(root, srcs)] + _verdict(root, srcs)
-    row = {"name": campaign, "source": meta.get("source") or "-", "cells": cells,
-           "report": (root / "report.html").is_file(), "failed": False}
+    row = {"name": campaign, "source": source, "cells": cells,
+           "report": folder.path("campaign_report", "page").is_file(), "failed": False}
     return row, srcs.all()
 
 
@@ -218,12 +219,13 @@ def _bins(summary: Mapping, src: Source) -> Table | None:
 def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[dict, list[Source]]:
     """The blind suite's section and the files it read."""
     srcs = Sources(blind_dir)
-    summary = read_json(blind_dir / "summary.json")
-    scores = read_parquet(blind_dir / "scores.parquet")
-    ssrc = srcs("summary.json")
+    summary_file, scores_file = STAGE_OUTPUTS["blind_score"]["summary"], STAGE_OUTPUTS["blind_score"]["scores"]
+    summary = read_json(blind_dir / summary_file)
+    scores = read_parquet(blind_dir / scores_file)
+    ssrc = srcs(summary_file)
     if summary is None:
         return {"summary": None}, srcs.all()
-    scores_label = srcs("scores.parquet").label
+    scores_label = srcs(scores_file).label
     view = {"summary": {k: summary.get(k, "?") for k in ("n_scenarios", "n_single", "n_pairs", "n_none")},
             "n_errors": summary.get("n_errors", 0), "exact_rate": fmt_pct(summary.get("exact_rate")),
             "all_pass": bool(summary.get("all_pass")), "targets": _targets(summary, ssrc),
@@ -233,7 +235,7 @@ def _blind_section(blind_dir: Path, captions: Mapping[str, str]) -> tuple[dict, 
                                   href_prefix=f"{blind_dir.name}/"),
             "scores": None}
     if scores is not None:
-        view["scores"] = table_view(scores, [c for c in SCORE_COLS if c.key in scores], srcs("scores.parquet"),
+        view["scores"] = table_view(scores, [c for c in SCORE_COLS if c.key in scores], srcs(scores_file),
                                     ["scenario"], row_class=lambda r: "" if r.get("exact") else "flagged",
                                     table_id="blind-scores")
         view["n_scores"] = len(scores)
@@ -281,7 +283,7 @@ def render_index(results_root: str | os.PathLike, campaigns: Sequence[str], *,
     return render("report_index.html.j2", title="isokinetic - results", nav=nav, lineage_record=lineage_record,
                   campaigns=rows, n_failed=sum(r["failed"] for r in rows), unusable=_unusable_rows(unusable),
                   orphaned=_orphan_rows(results_root, dict(orphaned or {})),
-                  snakemake_report=(results_root / "report.html").is_file(), comparisons=compared, blind=blind,
+                  snakemake_report=(results_root / SNAKEMAKE_REPORT).is_file(), comparisons=compared, blind=blind,
                   lineage_files=lineage_rows(sources),
                   footer=footer(lineage_record, sources))
 

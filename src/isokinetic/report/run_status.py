@@ -23,9 +23,9 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import pandas as pd
-
 from isokinetic.audit.raw_inventory import UnusableFolder
+from isokinetic.contracts.campaign_folder import CampaignFolder, read_parquet
+from isokinetic.contracts.outputs import DESIGN_SUMMARY, RESULTS_DIR, STAGE_OUTPUTS
 
 #: Snakemake's block for a failed job: ``Error in rule <name>:`` then indented ``key: value`` lines.
 _ERROR_BLOCK = re.compile(r"^Error in rule (?P<rule>[\w.-]+):\s*$")
@@ -154,7 +154,8 @@ def raw_inputs(raw_dir: Path, campaign_root: Path) -> list[Path]:
     names (``raw_file``, relative to the project); a file in the folder that no case names is not one."""
     files = [raw_dir / "campaign.yaml"]
     try:
-        named = pd.read_parquet(campaign_root / "cases.parquet", columns=["raw_file"])["raw_file"]
+        cases_file = CampaignFolder.at(campaign_root).path("validate", "cases")
+        named = read_parquet(cases_file, columns=["raw_file"])["raw_file"]
     except (OSError, ValueError, KeyError):
         return files
     return files + [Path(str(f)) for f in named.dropna().unique() if not str(f).startswith("virtual_rig:")]
@@ -214,7 +215,7 @@ def campaign_failures(results_root: str | os.PathLike, logs_root: str | os.PathL
     for c in campaigns:
         if c in out:
             continue
-        page = results_root / c / "report.html"
+        page = CampaignFolder.at(results_root / c).path("campaign_report", "page")
         raw = Path((raw_dirs or {}).get(c, "")) if (raw_dirs or {}).get(c) else None
         if not page.is_file():
             problem = "not built"
@@ -259,7 +260,7 @@ def rebuild_after_failure(snakemake_log: str | os.PathLike | Sequence[str | os.P
                           blind_dir: str | os.PathLike | None = None, captions_dir: str | os.PathLike | None = None,
                           results_root: str | os.PathLike = "results", logs_root: str | os.PathLike = "logs",
                           index: str | os.PathLike = "results/index.html",
-                          design_summary: str | os.PathLike = "results/design/plan_check.parquet",
+                          design_summary: str | os.PathLike = f"{RESULTS_DIR}/{DESIGN_SUMMARY}",
                           older_than: Sequence[str | os.PathLike] = (),
                           unusable: Sequence[Mapping[str, str]] = (),
                           orphaned: Mapping[str, str] | None = None,
@@ -281,11 +282,13 @@ def rebuild_after_failure(snakemake_log: str | os.PathLike | Sequence[str | os.P
     failed = failed_jobs(snakemake_log)
     failures = campaign_failures(results_root, logs_root, campaigns, raw_dirs, failed, incomplete_dir)
     results_root = Path(results_root)
-    plan_checks = [results_root / c / "design" / "plan_check.parquet" for c in campaigns if c not in failures]
+    plan_checks = [CampaignFolder.at(results_root / c).path("design", "plan_check") for c in campaigns
+                   if c not in failures]
     plan_checks = [p for p in plan_checks if p.is_file()]
     record = stage_lineage("report_index", {"campaigns": list(campaigns), "built_by": "onerror handler",
                                             "failed": dict(failures)}, plan_checks)
-    blind = Path(blind_dir) if blind_dir is not None and (Path(blind_dir) / "summary.json").is_file() else None
+    summary = STAGE_OUTPUTS["blind_score"]["summary"]
+    blind = Path(blind_dir) if blind_dir is not None and (Path(blind_dir) / summary).is_file() else None
     with lineage_context(record):
         write_design_summary(plan_checks, design_summary)
         write_index(results_root, index, list(campaigns), blind_dir=blind, captions_dir=captions_dir,
