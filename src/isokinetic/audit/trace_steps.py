@@ -50,6 +50,7 @@ from isokinetic.audit.trace_evidence import (
 )
 from isokinetic.blind.score import score
 from isokinetic.contracts.campaign import case_plan, timeseries_relpath
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, ingest_path
 from isokinetic.contracts.settings import Settings
 from isokinetic.io import sha256_file, write_parquet
 from isokinetic.measurement.model_fit import fit_models
@@ -62,6 +63,11 @@ from isokinetic.stages.harmonic import harmonic_stage
 from isokinetic.stages.nominal import nominal_stage
 
 DIAGNOSIS_DEFAULT_KEYS = ("gap_before", "gap_after", "verdict")
+#: The files a trace reads and re-derives, relative to a campaign's folder (the registry's).
+CASES, QUARANTINE = STAGE_OUTPUTS["validate"]["cases"], STAGE_OUTPUTS["validate"]["quarantine"]
+WINDOWS, REPEATABILITY = STAGE_OUTPUTS["windows"]["windows"], STAGE_OUTPUTS["repeatability"]["repeatability"]
+CHARACTERISTIC, DIAGNOSIS = STAGE_OUTPUTS["characteristic"]["characteristic"], STAGE_OUTPUTS["diagnosis"]["json"]
+PLAN_CHECK = STAGE_OUTPUTS["design"]["plan_check"]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -69,7 +75,7 @@ DIAGNOSIS_DEFAULT_KEYS = ("gap_before", "gap_after", "verdict")
 # ----------------------------------------------------------------------------------------------
 
 def _rep_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> tuple[float, str]:
-    tol, where = param(ctx, ["tolerance", "repeatability_tolerance"], [*files, root / "repeatability.parquet"],
+    tol, where = param(ctx, ["tolerance", "repeatability_tolerance"], [*files, root / REPEATABILITY],
                        ["repeatability", "tolerance"])
     return float(tol), where
 
@@ -77,15 +83,15 @@ def _rep_tolerance(ctx: Context, root: Path, files: Sequence[Path]) -> tuple[flo
 def _chain_settings(ctx: Context, root: Path, files: Sequence[Path]) -> Settings:
     """What ingest and validate applied when the traced files were made (:func:`recorded_settings`: their
     lineage params, else the config): the file-size limit, the sample rate's and the dropped samples' tolerances."""
-    return recorded_settings(ctx, [root / "cases.parquet", root / "ingest" / "cases.parquet", *files])
+    return recorded_settings(ctx, [root / CASES, root / ingest_path("cases"), *files])
 
 
 def _series_step(ctx: Context, src: RawSource, scratch: Path, case: str) -> pd.DataFrame:
     series = pd.read_parquet(scratch / timeseries_relpath(case))
-    cases = pd.read_parquet(scratch / "cases.parquet").set_index("case")
+    cases = pd.read_parquet(scratch / CASES).set_index("case")
     status = cases.loc[case, "status"]
     if status != "ok":
-        q = pd.read_parquet(scratch / "quarantine.parquet")
+        q = pd.read_parquet(scratch / QUARANTINE)
         reasons = "; ".join(q[q["case"] == case]["reason"]) or "?"
         ctx.report.step(f"Validation (validate.case_problems): case {case} is quarantined now: {reasons}")
     raw = RawText(ctx, src, scratch, case)
@@ -99,7 +105,7 @@ def _series_step(ctx: Context, src: RawSource, scratch: Path, case: str) -> pd.D
 
 def _window_steps(ctx: Context, src: RawSource, scratch: Path, row: pd.Series, spec: WindowSpec, spec_where: str,
                   series: pd.DataFrame) -> None:
-    cases = pd.read_parquet(scratch / "cases.parquet").set_index("case", drop=False)
+    cases = pd.read_parquet(scratch / CASES).set_index("case", drop=False)
     case_row = cases.loc[str(row["case"])]
     plan = case_plan(case_row)
     start = motion_start(case_row)
@@ -178,17 +184,17 @@ def damper_step(ctx: Context, src: RawSource) -> None:
 
 def _characteristic_chain(ctx: Context, src: RawSource, root: Path, files: Sequence[Path]) -> tuple[Path, WindowSpec]:
     """Every case re-derived, windows -> repeatability -> characteristic written in the scratch folder."""
-    spec, spec_where = window_spec(ctx, [*files, root / "windows.parquet"])
+    spec, spec_where = window_spec(ctx, [*files, root / WINDOWS])
     tol, tol_where = _rep_tolerance(ctx, root, files)
     scratch = rebuild(ctx, src, settings=_chain_settings(ctx, root, files))
-    cases = pd.read_parquet(scratch / "cases.parquet")
+    cases = pd.read_parquet(scratch / CASES)
     win = windows_stage(scratch, spec)
     records, _energy = records_stage(scratch)          # the sine and free cases' points
     rep = paired_repeatability(win, records, tol)
     char = assemble(win, rep, records)
-    write_parquet(win, scratch / "windows.parquet")
-    write_parquet(rep, scratch / "repeatability.parquet")
-    write_parquet(char, scratch / "characteristic.parquet")
+    write_parquet(win, scratch / WINDOWS)
+    write_parquet(rep, scratch / REPEATABILITY)
+    write_parquet(char, scratch / CHARACTERISTIC)
     n_ok = int((cases["status"] == "ok").sum())
     ctx.report.step(f"Characteristic re-derived from the raw data: {n_ok} of {len(cases)} cases ok after validation, "
                     f"{len(win)} windows (fractions [{spec.start_fraction:g}, {spec.end_fraction:g}] from "
@@ -225,7 +231,7 @@ def rederive_cases(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     if new["status"] == "ok":
         _series_step(ctx, src, scratch, case)
     else:
-        q = pd.read_parquet(scratch / "quarantine.parquet")
+        q = pd.read_parquet(scratch / QUARANTINE)
         ctx.report.step(f"Case {case} is quarantined: " + ("; ".join(q[q["case"] == case]["reason"]) or "?"))
     return new
 
@@ -259,7 +265,7 @@ def intro_windows(ctx: Context, t: Traced) -> str:
 def _case_windows(ctx: Context, t: Traced, src: RawSource) -> tuple[pd.DataFrame, pd.Series, float, str]:
     """(windows of the row's case, the row's window, repeatability tolerance, where it came from)."""
     case = str(t.row["case"])
-    spec, spec_where = window_spec(ctx, [t.path, t.root / "windows.parquet"])
+    spec, spec_where = window_spec(ctx, [t.path, t.root / WINDOWS])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
     scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])},
                       settings=_chain_settings(ctx, t.root, [t.path]))
@@ -280,7 +286,7 @@ def _rederive_record_point(ctx: Context, t: Traced, src: RawSource) -> pd.Series
     """A sine case's peak-velocity point or a free record's velocity bin: the case re-derived, its points
     recomputed (stages.characteristic.records_stage) with the repeatability flag of its two periods."""
     case = str(t.row["case"])
-    spec, _spec_where = window_spec(ctx, [t.path, t.root / "windows.parquet"])
+    spec, _spec_where = window_spec(ctx, [t.path, t.root / WINDOWS])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
     scratch = rebuild(ctx, src, [case], expected={case: str(t.row["raw_sha256"])},
                       settings=_chain_settings(ctx, t.root, [t.path]))
@@ -312,13 +318,13 @@ def rederive_characteristic(ctx: Context, t: Traced, src: RawSource) -> pd.Serie
 
 def intro_repeatability(ctx: Context, t: Traced) -> str:
     return (f"Derivation: rel_diff = (F2 - F1) / mean(|F1|, |F2|) of the windows of case {t.row['case']}, direction "
-            f"{t.row['direction']}, period 1 (F1) and period 2 (F2), from {ctx.rel(t.root / 'windows.parquet')}")
+            f"{t.row['direction']}, period 1 (F1) and period 2 (F2), from {ctx.rel(t.root / WINDOWS)}")
 
 
 def rederive_repeatability(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """Period 2 against period 1 of one case and direction."""
     case, direction = str(t.row["case"]), str(t.row["direction"])
-    spec, spec_where = window_spec(ctx, [t.root / "windows.parquet"])
+    spec, spec_where = window_spec(ctx, [t.root / WINDOWS])
     tol, tol_where = _rep_tolerance(ctx, t.root, [t.path])
     scratch = rebuild(ctx, src, [case], settings=_chain_settings(ctx, t.root, [t.path]))
     series = _series_step(ctx, src, scratch, case)
@@ -349,12 +355,12 @@ def rederive_nominal(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     case = str(t.row["case"])
     spec, spec_where = window_spec(ctx, [t.path])
     scratch = rebuild(ctx, src, [case], settings=_chain_settings(ctx, t.root, [t.path]))
-    c = pd.read_parquet(scratch / "cases.parquet").set_index("case").loc[case]
+    c = pd.read_parquet(scratch / CASES).set_index("case").loc[case]
     ctx.report.step(f"Case plan of {case} (from the raw manifest / spec; status after validation {c['status']})",
                     plan_text(c),
                     f"window fractions [{spec.start_fraction:g}, {spec.end_fraction:g}] from {spec_where}")
     measured = windows_stage(scratch, spec)
-    write_parquet(measured, scratch / "windows.parquet")
+    write_parquet(measured, scratch / WINDOWS)
     speeds = ", ".join(f"{abs(v) * 1e3:.6g}" for v in measured.sort_values("segment")["velocity_m_s"])
     ctx.report.step(f"Measured kinematics that drive the model (windows of {case}, re-derived)",
                     f"half-period speeds [mm/s]: {speeds}; motion start {c.get('motion_start_s', 0.0):g} s "
@@ -373,7 +379,7 @@ def locate_plan_check(ctx: Context, path: Path, row: pd.Series) -> Path:
     root = path.parent.parent
     if not (root / "ingest").is_dir():  # the all-campaigns summary results/design/plan_check.parquet
         root = path.parent.parent / str(row["campaign"])
-        own = root / "design" / "plan_check.parquet"
+        own = root / PLAN_CHECK
         ctx.report.step(f"Summary row: copied by rule report_index (stage design_summary) from {ctx.rel(own)} "
                         f"(campaign {row['campaign']})")
         if not root.is_dir():
@@ -390,7 +396,7 @@ def rederive_plan_check(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     min_a, _ = param(ctx, ["min_amplitude_m"], files, ["design", "min_amplitude_mm"], scale=1e-3)
     start, start_where = param(ctx, ["start_fraction"], files, ["windows", "start_fraction"])
     scratch = rebuild(ctx, src, [case], settings=_chain_settings(ctx, t.root, files))
-    cases = pd.read_parquet(scratch / "cases.parquet")
+    cases = pd.read_parquet(scratch / CASES)
     c = cases.set_index("case").loc[case]
     ctx.report.step(f"Planned case {case} from the raw manifest / spec (status after validation {c['status']})",
                     plan_text(c),
@@ -447,7 +453,7 @@ def rederive_harmonic(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
 
 def _fit_intro(ctx: Context, t: Traced, what: str) -> str:
     return (f"Derivation: {what}: weighted least squares (weights 1/(window standard error)^2) over "
-            f"the whole characteristic {ctx.rel(t.root / 'characteristic.parquet')} (models.fit_models)")
+            f"the whole characteristic {ctx.rel(t.root / CHARACTERISTIC)} (models.fit_models)")
 
 
 def intro_models(ctx: Context, t: Traced) -> str:
@@ -465,7 +471,7 @@ def intro_residuals(ctx: Context, t: Traced) -> str:
 def _fits(ctx: Context, t: Traced, src: RawSource) -> tuple[int, pd.DataFrame, pd.DataFrame]:
     """(number of characteristic points, fitted parameters, residuals) of the re-derived campaign."""
     scratch, _spec = _characteristic_chain(ctx, src, t.root, [t.path])
-    char = pd.read_parquet(scratch / "characteristic.parquet")
+    char = pd.read_parquet(scratch / CHARACTERISTIC)
     models, residuals = fit_models(char, src.damper)
     return len(char), models, residuals
 
@@ -543,10 +549,10 @@ def locate_scores(ctx: Context, path: Path, row: pd.Series) -> Path:
                     f"{truth.get('truth') or '[]'}, magnitude {value_text(truth.get('magnitude_x_detection'))} x "
                     "detection level",
                     "the diagnosis never sees this file; blind.score compares its verdict with it")
-    processed = sorted(p for p in blind_root.glob(f"diagnosis/*/{name}") if (p / "cases.parquet").is_file())
+    processed = sorted(p for p in blind_root.glob(f"diagnosis/*/{name}") if (p / CASES).is_file())
     if row.get("diagnosis_file"):
         named = ctx.resolve(str(row["diagnosis_file"])).parent
-        processed = [named] if (named / "cases.parquet").is_file() else processed
+        processed = [named] if (named / CASES).is_file() else processed
     if processed:
         ctx.report.step(f"Diagnosed (rule blind_diagnose) in {ctx.rel(processed[0])} from the raw campaign "
                         f"{ctx.rel(raw_dir)}")
@@ -560,7 +566,7 @@ def locate_scores(ctx: Context, path: Path, row: pd.Series) -> Path:
 
 def source_scores(ctx: Context, root: Path) -> RawSource:
     """A processed scenario's recorded evidence, or (not processed) its raw campaign with nothing recorded."""
-    if (root / "cases.parquet").is_file():
+    if (root / CASES).is_file():
         return open_source(ctx, root)
     return raw_source(ctx, root / "campaign.yaml", "", "", None, None)
 
@@ -569,8 +575,8 @@ def rederive_scores(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
     """A blind score: a fresh diagnosis of the scenario, scored against its truth file."""
     name = str(t.row["scenario"])
     truth = json.loads(_truth_path(ctx, t.path, t.row).read_text(encoding="utf-8"))
-    processed = (t.root / "cases.parquet").is_file()
-    files = [t.root / "diagnosis.json", t.root / "cases.parquet"] if processed else []
+    processed = (t.root / CASES).is_file()
+    files = [t.root / DIAGNOSIS, t.root / CASES] if processed else []
     result = _diagnosis_run(ctx, src, t.root, files)
     ctx.report.step(f"Re-derived diagnosis: verdict {result.get('verdict')}, "
                     f"gap_before {value_text(result.get('gap_before'))} -> "

@@ -63,6 +63,7 @@ import pandas as pd
 from scipy import special
 
 from isokinetic.contracts import tables
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.contracts.row_keys import row_keys
 from isokinetic.physics.damper import Damper, nominal_force
 
@@ -334,7 +335,7 @@ def fit_points(char: pd.DataFrame | None) -> pd.DataFrame | None:
 
 
 def fit_models(char: pd.DataFrame, damper: Damper | None = None, weighting: str = "standard_error",
-               confidence: float = CONFIDENCE, source_file: str = "characteristic.parquet"
+               confidence: float = CONFIDENCE, source_file: str = STAGE_OUTPUTS["characteristic"]["characteristic"]
                ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The Wallaschek and Surace fits of a CHARACTERISTIC (or WINDOWS) table: (models_df, residuals_df).
 

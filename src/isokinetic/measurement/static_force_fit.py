@@ -91,6 +91,7 @@ from statistics import NormalDist
 import numpy as np
 import pandas as pd
 
+from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.stats import ALPHA, chi2_sf
 
 CONFIDENCE = 0.95
@@ -325,8 +326,8 @@ def _missing_reason(points: pd.DataFrame, what: str) -> str:
 
 def estimate_static_force(campaign: str, char: pd.DataFrame | None, harmonic: pd.DataFrame | None = None,
                           gas_force_N: float | None = None, spec: StaticForceSpec = StaticForceSpec(),
-                          char_file: str = "characteristic.parquet",
-                          harmonic_file: str = "harmonic/harmonic.parquet") -> StaticForce:
+                          char_file: str = STAGE_OUTPUTS["characteristic"]["characteristic"],
+                          harmonic_file: str = STAGE_OUTPUTS["harmonic"]["table"]) -> StaticForce:
     """The static force of a campaign from its characteristic, else its free records' binned points
     (module doc). ``gas_force_N`` is only carried along (ingest has subtracted it already)."""
     gas = math.nan if gas_force_N is None else float(gas_force_N)
@@ -393,8 +394,9 @@ def standstill_estimate(campaign: str, points: pd.DataFrame, gas_force_N: float 
         error = max(error, float(np.std(f, ddof=1) / math.sqrt(len(f))))
     half = _z(confidence) * error
     gas = math.nan if gas_force_N is None else float(gas_force_N)
+    cases_file = STAGE_OUTPUTS["validate"]["cases"]
     return StaticForce(campaign, mean, error, mean - half, mean + half, confidence, "standstill", "standstill_mean",
-                       0, 0, math.nan, math.nan, math.nan, error, math.nan, math.nan, math.nan, gas, "cases.parquet",
+                       0, 0, math.nan, math.nan, math.nan, error, math.nan, math.nan, math.nan, gas, cases_file,
                        ",".join(points["case"]), "from the standstill cases' mean force (at rest, friction may hold "
                        "the rod anywhere within ±F_C of it)", n_standstill=len(f))
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from isokinetic.contracts.outputs import rule_of, sibling_table
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, rule_of, sibling_table
 from isokinetic.io import read_lineage, sha256_file
 from isokinetic.report.numbers import missing, short
 
@@ -47,9 +47,11 @@ TRACE = "python -m isokinetic trace"
 
 #: Tables ``python -m isokinetic trace`` re-derives, by file name (the names of
 #: :data:`isokinetic.audit.trace.KINDS`, which a test compares; not imported: trace loads every stage).
-TRACEABLE = frozenset({"cases.parquet", "windows.parquet", "characteristic.parquet", "repeatability.parquet",
-                       "nominal_windows.parquet", "plan_check.parquet", "models.parquet", "model_residuals.parquet",
-                       "harmonic.parquet", "diagnosis.json", "scores.parquet"})
+TRACEABLE = frozenset(Path(STAGE_OUTPUTS[stage][name]).name for stage, name in (
+    ("validate", "cases"), ("windows", "windows"), ("characteristic", "characteristic"),
+    ("repeatability", "repeatability"), ("nominal", "nominal"), ("design", "plan_check"), ("models", "models"),
+    ("models", "residuals"), ("harmonic", "table"), ("diagnosis", "json"), ("blind_score", "scores")))
+_QUARANTINE, _CASES = (Path(STAGE_OUTPUTS["validate"][name]).name for name in ("quarantine", "cases"))
 
 
 def trace_command(table: str, selector: str) -> str:
@@ -60,9 +62,9 @@ def trace_command(table: str, selector: str) -> str:
 def audit_command(path: Path, label: str, selector: str) -> str | None:
     """The trace command auditing one row (or JSON key path) of a file, None where trace has none:
     a quarantined case is audited through cases.parquet; a Parquet table needs a one-row selector."""
-    if path.name == "quarantine.parquet":
+    if path.name == _QUARANTINE:
         case = dict(p.split("=", 1) for p in selector.split(",") if "=" in p).get("case")
-        return trace_command(str(Path(label).with_name("cases.parquet").as_posix()), f"case={case}") if case else None
+        return trace_command(str(Path(label).with_name(_CASES).as_posix()), f"case={case}") if case else None
     if path.name not in TRACEABLE or (path.suffix == ".parquet" and not selector):
         return None
     return trace_command(label, selector)
