@@ -50,6 +50,7 @@ from isokinetic.audit.trace_evidence import (
 )
 from isokinetic.blind.score import score
 from isokinetic.contracts.campaign import case_plan, timeseries_relpath
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, ingest_path
 from isokinetic.contracts.settings import Settings
 from isokinetic.io import sha256_file, write_parquet
@@ -377,7 +378,7 @@ def rederive_nominal(ctx: Context, t: Traced, src: RawSource) -> pd.Series:
 def locate_plan_check(ctx: Context, path: Path, row: pd.Series) -> Path:
     """The campaign folder of a plan-check row; a row of the all-campaigns summary names its campaign."""
     root = path.parent.parent
-    if not (root / "ingest").is_dir():  # the all-campaigns summary results/design/plan_check.parquet
+    if not CampaignFolder.at(root).ingest_dir.is_dir():  # the all-campaigns summary results/design/plan_check.parquet
         root = path.parent.parent / str(row["campaign"])
         own = root / PLAN_CHECK
         ctx.report.step(f"Summary row: copied by rule report_index (stage design_summary) from {ctx.rel(own)} "
