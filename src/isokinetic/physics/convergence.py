@@ -75,13 +75,13 @@ def _ratio(num, den):
 
 
 def g1(velocity_m_s, damper: Damper, effects: Effects = NOMINAL):
-    """Laminar convergence number G1 = B_eff / (A_p W c1), Eq. (19); converges iff G1 > 1."""
+    """Laminar convergence number G1 = B_eff / (A_p W c1) [-], Eq. (19); converges iff G1 > 1."""
     c1, _, bulk = _coefficients(damper, effects)
     return _ratio(bulk, piston_flow(velocity_m_s, damper) * c1)
 
 
 def g2(velocity_m_s, damper: Damper, effects: Effects = NOMINAL):
-    """Turbulent convergence number G2 = B_eff / (2 (A_p W)² c2), Eq. (21); converges iff G2 > 1."""
+    """Turbulent convergence number G2 = B_eff / (2 (A_p W)² c2) [-], Eq. (21); converges iff G2 > 1."""
     _, c2, bulk = _coefficients(damper, effects)
     return _ratio(bulk, 2.0 * piston_flow(velocity_m_s, damper) ** 2 * c2)
 
@@ -93,7 +93,7 @@ def c3(velocity_m_s, damper: Damper, effects: Effects = NOMINAL):
 
 
 def g3(velocity_m_s, damper: Damper, effects: Effects = NOMINAL):
-    """Laminar-turbulent convergence number G3 = B_eff / (A_p W c3), Eq. (22); converges iff G3 > 1."""
+    """Laminar-turbulent convergence number G3 = B_eff / (A_p W c3) [-], Eq. (22); converges iff G3 > 1."""
     _, _, bulk = _coefficients(damper, effects)
     return _ratio(bulk, piston_flow(velocity_m_s, damper) * c3(velocity_m_s, damper, effects))
 
@@ -134,14 +134,14 @@ def _stroke_from_log_r(log_r, volume_ratio):
 
 
 def normalised_stroke_laminar(phi, G1, volume_ratio=1.0):
-    """d|c2=0 = (1 - (1-ϕ)^(1/G1)) / (1 + (V1/V2)(1-ϕ)^(1/G1)), Eq. (29) left."""
+    """d|c2=0 = (1 - (1-ϕ)^(1/G1)) / (1 + (V1/V2)(1-ϕ)^(1/G1)) [-], Eq. (29) left; ϕ, G1, V1/V2 [-]."""
     phi = check_phi(phi)
     with np.errstate(divide="ignore"):
         return _stroke_from_log_r(np.log1p(-phi) / np.asarray(G1, dtype=float), volume_ratio)
 
 
 def normalised_stroke_turbulent(phi, G2, volume_ratio=1.0):
-    """d|c1=0 = (1 - X^(1/G2)) / (1 + (V1/V2) X^(1/G2)), X = (1 - √ϕ) e^√ϕ, Eq. (29) right.
+    """d|c1=0 = (1 - X^(1/G2)) / (1 + (V1/V2) X^(1/G2)) [-], X = (1 - √ϕ) e^√ϕ, Eq. (29) right; ϕ, G2, V1/V2 [-].
 
     The paper prints 1/G1 here; c1 = 0 in Eq. (28) gives G3 = G2 (see the module docstring).
     """
