@@ -123,7 +123,8 @@ def test_the_project_is_found_from_a_folder_below_it(tmp_path, monkeypatch):
 @pytest.mark.parametrize(("keys", "value", "flat", "expected"), CHANGES)
 def test_each_config_key_reaches_trace_and_init_campaign(tmp_path, keys, value, flat, expected):
     # the build's rules: test_each_config_key_reaches_its_setting_and_the_rules_that_read_it_only; the blind
-XX's rebuild (a file without a lineage record of the setting) and
+    # suite's chain: tests/stages/test_blind_diagnose.py; here trace's rebuild (a file without a lineage record of
+    # the setting) and
     # init-campaign (a raw folder inside the project, run from elsewhere)
     from isokinetic.audit.trace_core import Context, recorded_settings
     from isokinetic.contracts.settings import project_settings
