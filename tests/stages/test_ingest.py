@@ -73,6 +73,18 @@ def test_bad_column_quarantines_only_its_case(raw_campaign, case, edit, column, 
     assert not (raw_campaign.root / "ingest" / "timeseries" / f"{case}.parquet").exists()
 
 
+def test_a_subset_of_cases_is_ingested_as_the_whole_campaign_ingests_them(raw_campaign):
+    # trace re-derives only the cases it traces, through the build's own ingest step
+    ingest_campaign(raw_campaign.raw_dir, "results/all")
+    ingest_campaign(raw_campaign.raw_dir, "results/some", cases=["T02"])
+    all_cases = CampaignFolder.at("results/all").ingested_cases().set_index("case")
+    some = CampaignFolder.at("results/some").ingested_cases().set_index("case")
+    assert list(some.index) == ["T02"]
+    pd.testing.assert_series_equal(some.loc["T02"], all_cases.loc["T02"])
+    with pytest.raises(KeyError, match="no case T09"):
+        ingest_campaign(raw_campaign.raw_dir, "results/none", cases=["T02", "T09"])
+
+
 def test_file_missing(raw_campaign):
     (raw_campaign.raw_dir / "H01.csv").unlink()
     cases, quarantine = raw_campaign.run()

@@ -21,14 +21,16 @@ import pandas as pd
 
 from isokinetic.audit.provenance import VIRTUAL_PREFIX
 from isokinetic.audit.trace_core import Context, MissingFile, RawFileChanged, TraceStop, read_lineage, sha_text
-from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
+from isokinetic.contracts import tables
+from isokinetic.contracts.campaign import timeseries_relpath
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.manifest import MANIFEST_NAME, load_manifest, si_conversion
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, ingest_path
 from isokinetic.contracts.settings import Settings
-from isokinetic.io import sha256_file
-from isokinetic.stages.ingest import CANONICAL, campaign_meta, ingest_case
-from isokinetic.stages.validate import quarantine_frame, quarantine_rows, write_validated
+from isokinetic.io import sha256_file, write_parquet
+from isokinetic.stages.chain import run_step
+from isokinetic.stages.ingest import CANONICAL
+from isokinetic.stages.validate import write_validated
 from isokinetic.stages.virtual_rig import RAW_COLUMNS, VirtualCampaign, case_csv, write_campaign
 
 
@@ -173,28 +175,34 @@ def rebuild(ctx: Context, src: RawSource, cases: Sequence[str] | None = None,
                                  "the spec changed after processing")
         write_campaign(dataclasses.replace(src.vc, cases=tuple(known[c] for c in wanted)), scratch)
     else:
-        specs = {s.id: s for s in src.manifest.cases}
-        rows, quarantined, series = [], [], {}
+        known = {s.id for s in src.manifest.cases}
         for case in wanted:
-            spec = specs.get(case)
-            if spec is None:
+            if case not in known:
                 raise RawFileChanged(f"case {case} is no longer in {ctx.rel(src.manifest_path)}")
-            row, problems, df = ingest_case(src.campaign_dir, src.manifest.campaign, spec,
-                                            src.manifest.temperature_C, max_file_MB=settings.max_case_file_MB)
-            rec = src.recorded_row(case)
-            if rec is not None and rec["raw_file"] and row["raw_file"] and \
-                    ctx.resolve(str(rec["raw_file"])).resolve() == Path(row["raw_file"]).resolve():
-                row["raw_file"] = str(rec["raw_file"])  # the same file, named as the pipeline named it
-            rows.append(row)
-            quarantined += quarantine_rows(src.manifest.campaign, case, "ingest", problems)
-            if df is not None:
-                series[case] = df
-        write_ingested(scratch / "ingest", campaign_meta(src.manifest, src.manifest_recorded), pd.DataFrame(rows),
-                       quarantine_frame(quarantined), series)
+        run_step("ingest", scratch, settings, raw_dir=src.campaign_dir, cases=wanted)   # the build's own step
+        name_as_recorded(ctx, src, CampaignFolder.at(scratch))
     check_hashes(ctx, src, CampaignFolder.at(scratch).ingested_cases(), expected or {})
     if validate:
         write_validated(scratch, sample_rate_tolerance=settings.sample_rate_tolerance, gap_tolerance=settings.gap)
     return scratch
+
+
+def name_as_recorded(ctx: Context, src: RawSource, folder: CampaignFolder) -> None:
+    """Re-ingested cases' raw files named as the pipeline named them (:func:`recorded_name`), in the scratch
+    folder's ingest table: what the re-derived rows carry is then compared with the stored rows as it is."""
+    cases = folder.ingested_cases()
+    cases["raw_file"] = [recorded_name(ctx, str(f), src.recorded_row(str(c)))
+                         for c, f in zip(cases["case"], cases["raw_file"], strict=True)]
+    write_parquet(tables.validate_table(cases, tables.CASES), folder.ingest_path("cases"))
+
+
+def recorded_name(ctx: Context, raw_file: str, recorded_row) -> str:
+    """A re-ingested case's raw file named as the pipeline named it (the recorded row's ``raw_file``) where both
+    are the same file, else as re-ingest names it."""
+    recorded = "" if recorded_row is None else str(recorded_row["raw_file"] or "")
+    if recorded and raw_file and ctx.resolve(recorded).resolve() == Path(raw_file).resolve():
+        return recorded
+    return raw_file
 
 
 def check_hashes(ctx: Context, src: RawSource, new_cases: pd.DataFrame, expected: Mapping[str, str]) -> None:
@@ -202,9 +210,9 @@ def check_hashes(ctx: Context, src: RawSource, new_cases: pd.DataFrame, expected
     lines, changed, files = [], [], []
     for row in new_cases.itertuples(index=False):
         case, sha = str(row.case), str(row.raw_sha256)
+        rec = src.recorded_row(case)
         label = str(row.raw_file) if src.kind == "raw" else f"{VIRTUAL_PREFIX}{src.name}/{case} (re-simulated CSV)"
         records = []
-        rec = src.recorded_row(case)
         if rec is not None:
             records.append((str(rec["raw_sha256"]), ctx.rel(src.recorded_path)))
         if case in expected:

@@ -3,8 +3,9 @@ part 2).
 
 Each step is one function of its stage's module taking one :class:`Settings` record (``run_ingest``,
 ``run_characteristic``, ``run_diagnosis``, ``run_analysis``): the rules' scripts (``workflow/scripts/``) call
-their own step's, the blind suite (:mod:`isokinetic.stages.blind_diagnose`) runs them through :func:`run_chain`,
-so that none of them applies other settings than the build: ``ingest`` (a raw folder into
+their own step's, the blind suite (:mod:`isokinetic.stages.blind_diagnose`) runs them through :func:`run_chain`
+and ``trace``'s rebuild runs the ingest step (:func:`isokinetic.audit.trace_evidence.rebuild`), so that none of
+them applies other settings than the build: ``ingest`` (a raw folder into
 ``<root>/ingest``), ``characteristic`` (validate, windows, repeatability, characteristic), ``diagnosis``
 (diagnosis.json, and Fig. 16 unless ``figures`` is off) and ``analysis`` (design check, models, figures).
 :func:`run_chain` runs them in that order into one campaign folder.
@@ -13,7 +14,7 @@ so that none of them applies other settings than the build: ``ingest`` (a raw fo
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from isokinetic.contracts.settings import Settings
@@ -31,19 +32,20 @@ def _steps() -> dict[str, Callable]:
     from isokinetic.stages.diagnosis import run_diagnosis
     from isokinetic.stages.ingest import run_ingest
 
-    return {"ingest": lambda root, settings, raw_dir, figures: run_ingest(root, settings, raw_dir),
-            "characteristic": lambda root, settings, raw_dir, figures: run_characteristic(root, settings),
-            "diagnosis": lambda root, settings, raw_dir, figures: run_diagnosis(root, settings, figures),
-            "analysis": lambda root, settings, raw_dir, figures: run_analysis(root, settings)}
+    return {"ingest": lambda root, settings, raw_dir, figures, cases: run_ingest(root, settings, raw_dir, cases),
+            "characteristic": lambda root, settings, raw_dir, figures, cases: run_characteristic(root, settings),
+            "diagnosis": lambda root, settings, raw_dir, figures, cases: run_diagnosis(root, settings, figures),
+            "analysis": lambda root, settings, raw_dir, figures, cases: run_analysis(root, settings)}
 
 
 def run_step(step: str, campaign_root: str | os.PathLike, settings: Settings,
-             raw_dir: str | os.PathLike | None = None, figures: bool = True):
+             raw_dir: str | os.PathLike | None = None, figures: bool = True, cases: Sequence[str] | None = None):
     """Run one step of the chain (CHAIN) on the campaign folder ``campaign_root`` with ``settings``; ``raw_dir``
-    for ingest; ``figures`` off: the diagnosis draws no Fig. 16. Returns what the step's stage returns."""
+    for ingest, ``cases`` its cases (default all: ``trace`` re-derives only those it traces); ``figures`` off: the
+    diagnosis draws no Fig. 16. Returns what the step's stage returns."""
     if step == "ingest" and raw_dir is None:
         raise ValueError("the ingest step needs the raw campaign folder")
-    return _steps()[step](Path(campaign_root), settings, None if raw_dir is None else Path(raw_dir), figures)
+    return _steps()[step](Path(campaign_root), settings, None if raw_dir is None else Path(raw_dir), figures, cases)
 
 
 def run_chain(raw_dir: str | os.PathLike, campaign_root: str | os.PathLike, settings: Settings,

@@ -44,6 +44,7 @@ import dataclasses
 import logging
 import math
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -738,13 +739,19 @@ def shared_file_warnings(manifest: Manifest, rows: list[dict]) -> list[str]:
 
 
 def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path,
-                    max_case_file_MB: float = DEFAULTS.max_case_file_MB) -> None:
+                    max_case_file_MB: float = DEFAULTS.max_case_file_MB, cases: Sequence[str] | None = None) -> None:
     """Ingest ``campaign_dir`` (as given, e.g. ``data/raw/<c>``) into ``<campaign_root>/ingest``; case files
-    above ``max_case_file_MB`` are not read (their cases are set aside). The outcome is logged only once the
-    results are written."""
+    above ``max_case_file_MB`` are not read (their cases are set aside); ``cases``: only these of the manifest's
+    (in its order; ``trace`` re-derives the cases it traces), KeyError naming any it does not hold. The outcome is
+    logged only once the results are written."""
     campaign_dir = Path(campaign_dir)
     manifest_file = campaign_dir / MANIFEST_NAME
     manifest = load_manifest(manifest_file)
+    if cases is not None:
+        unknown = sorted(set(cases) - {spec.id for spec in manifest.cases})
+        if unknown:
+            raise KeyError(f"{manifest_file}: no case {', '.join(unknown)}")
+        manifest = dataclasses.replace(manifest, cases=tuple(s for s in manifest.cases if s.id in set(cases)))
     for warning in manifest.warnings:
         log.warning("campaign %s: %s", manifest.campaign, warning)
     rows, quarantined, series, cache = [], [], {}, FileCache()
@@ -780,7 +787,8 @@ def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path,
         log.info("campaign %s: cases %s subtract their own gas_force_N", manifest.campaign, ", ".join(own))
 
 
-def run_ingest(campaign_root: str | Path, settings: Settings, raw_dir: str | Path) -> None:
-    """The chain's ingest step (:mod:`isokinetic.stages.chain`): :func:`ingest_campaign` of ``raw_dir`` into
-    ``campaign_root`` with the settings' file-size limit."""
-    ingest_campaign(raw_dir, campaign_root, max_case_file_MB=settings.max_case_file_MB)
+def run_ingest(campaign_root: str | Path, settings: Settings, raw_dir: str | Path,
+               cases: Sequence[str] | None = None) -> None:
+    """The chain's ingest step (:mod:`isokinetic.stages.chain`): :func:`ingest_campaign` of ``raw_dir`` (its
+    ``cases``, default all) into ``campaign_root`` with the settings' file-size limit."""
+    ingest_campaign(raw_dir, campaign_root, max_case_file_MB=settings.max_case_file_MB, cases=cases)
