@@ -35,8 +35,9 @@ import pandas as pd
 import yaml
 
 from isokinetic.contracts import tables
-from isokinetic.contracts.campaign import CAMPAIGN_KEYS, timeseries_relpath, write_ingested
+from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
 from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.campaign_meta import CampaignMeta
 from isokinetic.contracts.outputs import CAMPAIGN_ID
 from isokinetic.physics.damper import Damper, Effects
 from isokinetic.physics.plan import CasePlan, paper_plan
@@ -230,10 +231,9 @@ def write_campaign(vc: VirtualCampaign, campaign_root: str | os.PathLike) -> Pat
     that :func:`export_raw_campaign` would write (same series, same bytes).
     """
     series = simulate_campaign(vc)
-    meta = {"format_version": 1, "campaign": vc.name, "source": "simulation", "description": vc.description,
-            "temperature_C": vc.temperature_C, "damper": vc.damper.to_dict(), "manifest_file": "",
-            "manifest_sha256": "", "metadata": _generated_by(vc, [c.case for c in vc.cases], None)}
-    assert set(meta) == set(CAMPAIGN_KEYS)
+    meta = CampaignMeta(format_version=1, campaign=vc.name, source="simulation", description=vc.description,
+                        temperature_C=vc.temperature_C, damper=vc.damper, manifest_file="", manifest_sha256="",
+                        metadata=_generated_by(vc, [c.case for c in vc.cases], None))
     ingest = CampaignFolder.at(campaign_root).ingest_dir
     write_ingested(ingest, meta, _cases_table(vc.name, vc.cases, series, vc.measurement, vc.temperature_C),
                    tables.empty(tables.QUARANTINE), series)
