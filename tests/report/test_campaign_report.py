@@ -7,8 +7,10 @@ import re
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from fresh_imports import modules_loaded
+from isokinetic.contracts.campaign_meta import CampaignMetaError
 from isokinetic.io import write_parquet
 from isokinetic.report import browser, numbers, sources
 from isokinetic.report.campaign_report import render_campaign_report
@@ -272,3 +274,10 @@ def test_the_report_jobs_modules_load_no_scipy():
     code = ("import isokinetic.report.campaign_report, isokinetic.audit.provenance, isokinetic.audit.raw_check, "
             "isokinetic.report.browser")
     assert modules_loaded(code, "scipy") == []
+
+
+def test_a_campaign_json_that_breaks_its_schema_stops_the_page_naming_file_and_key(results):
+    meta = results / CAMPAIGN / "ingest" / "campaign.json"
+    meta.write_text(meta.read_text(encoding="utf-8").replace('"source": "rig"', '"source": 7'), encoding="utf-8")
+    with pytest.raises(CampaignMetaError, match=r"ingest/campaign\.json: key 'source' must be"):
+        render_campaign_report(results / CAMPAIGN)

@@ -78,6 +78,17 @@ def test_a_failed_campaign_is_listed_with_its_reason_and_without_stale_numbers(b
     assert "2 of 2 campaign(s) failed in the last run" in plain(page)
 
 
+def test_a_failed_campaign_whose_campaign_json_does_not_read_is_still_listed(built):
+    from isokinetic.report.report_index import render_index
+
+    results = built
+    (results / "stale" / "ingest").mkdir(parents=True)
+    (results / "stale" / "ingest" / "campaign.json").write_text('{"campaign": "stale"}', encoding="utf-8")
+    page = render_index(results, [CAMPAIGN, "stale"], failures={"stale": "rule ingest failed: boom"})
+    row = page[page.index('id="campaign-stale"'):].split("</tr>")[0]
+    assert "rule ingest failed: boom" in row
+
+
 def test_unbuilt_raw_folders_are_listed_with_why_and_the_fix(built):
     from isokinetic.report.report_index import render_index
 

@@ -90,13 +90,22 @@ def _verdict(root: Path, srcs: Sources) -> list[Cell]:
             number_cell(fmt(diag.get("shrink"), 3), src.title("shrink", "shrink"))]
 
 
+def _source(folder: CampaignFolder) -> str:
+    """The campaign's source (campaign.json), '-' without a readable record: a failed campaign's folder may hold
+    one from an older writer, and the index lists it all the same."""
+    try:
+        return (folder.meta.source if folder.has_meta() else None) or "-"
+    except (OSError, ValueError):       # not JSON, or not a campaign.json (CampaignMetaError)
+        return "-"
+
+
 def _campaign_row(results_root: Path, campaign: str, failure: str | None = None) -> tuple[dict, list[Source]]:
     """A campaign's row of the index and the files it read; a failed campaign's row is its reason alone (its
     files, if any, are from an earlier run and are not shown as this run's results)."""
     root = results_root / campaign
     folder = CampaignFolder.at(root)
     srcs = Sources(root, read_json(folder.path("provenance", "provenance")))
-    source = (folder.meta.source if folder.has_meta() else None) or "-"
+    source = _source(folder)
     if failure is not None:
         state = "interrupted" if failure.startswith("interrupted") else "failed"
         cells = [Cell(f"{badge(state, 'bad')} {esc(failure)}", cls="reason", colspan=N_CAMPAIGN_CELLS)]
