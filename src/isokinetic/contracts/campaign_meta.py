@@ -25,8 +25,10 @@ from isokinetic.physics.damper import Damper
 from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
 
 SCHEMA_RESOURCE = "campaign.schema.json"
-#: Optional keys of the record (raw ingest writes them, the virtual rig does not; lineage is the writer's).
-OPTIONAL_KEYS = ("viscosity_law", "gas_force_N", "csv", "warnings", "lineage")
+#: The optional keys raw ingest writes (the virtual rig does not).
+RAW_INGEST_KEYS = ("viscosity_law", "gas_force_N", "csv", "warnings")
+#: Optional keys of the record: raw ingest's and the writing job's lineage record.
+OPTIONAL_KEYS = (*RAW_INGEST_KEYS, "lineage")
 #: JSON type name -> the Python types json.loads gives for it.
 JSON_TYPES = {"string": (str,), "integer": (int,), "number": (int, float), "object": (dict,),
               "array": (list, tuple), "null": (type(None),), "boolean": (bool,)}

@@ -51,6 +51,8 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts.campaign import timeseries_relpath, write_ingested
+from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.campaign_meta import RAW_INGEST_KEYS, CampaignMeta
 from isokinetic.contracts.manifest import (
     CHANNEL_DIMENSIONS,
     FULL_SCALE_FACTOR,
@@ -687,22 +689,20 @@ def ingest_case(campaign_dir: Path, campaign: str, spec: CaseSpec, campaign_temp
     return row, problems, (None if problems else df)
 
 
-def campaign_meta(manifest: Manifest, manifest_file: str) -> dict:
-    """The ``campaign.json`` record (campaign.CAMPAIGN_KEYS) of a manifest."""
-    return {"format_version": manifest.format_version, "campaign": manifest.campaign,
-            "source": manifest.source, "description": manifest.description,
-            "temperature_C": manifest.temperature_C,
-            # the oil's viscosity-temperature law (damper.viscosity_law, format 1.1), None when none was given
-            "viscosity_law": None if manifest.viscosity_law is None else manifest.viscosity_law.to_dict(),
-            # the static gas force subtracted from every force sample (N), None when none was declared
-            "gas_force_N": manifest.gas_force_N,
-            # the case files' dialect (manifest csv block, format 1.1), None when none was declared (',' and '.')
-            "csv": None if manifest.csv is None else manifest.csv.to_dict(),
-            "damper": None if manifest.damper is None else manifest.damper.to_dict(),
-            # keys that look like slips of known ones (1.2, manifest near misses), [] when none
-            "warnings": list(manifest.warnings),
-            "manifest_file": manifest_file, "manifest_sha256": manifest.sha256,
-            "metadata": jsonable(manifest.metadata)}
+def campaign_meta(manifest: Manifest, manifest_file: str) -> CampaignMeta:
+    """The ``campaign.json`` record of a manifest, with raw ingest's keys (RAW_INGEST_KEYS)."""
+    return CampaignMeta(
+        format_version=manifest.format_version, campaign=manifest.campaign, source=manifest.source,
+        description=manifest.description, temperature_C=manifest.temperature_C, damper=manifest.damper,
+        manifest_file=manifest_file, manifest_sha256=manifest.sha256, metadata=jsonable(manifest.metadata),
+        # the oil's viscosity-temperature law (damper.viscosity_law, format 1.1), None when none was given
+        viscosity_law_block=None if manifest.viscosity_law is None else manifest.viscosity_law.to_dict(),
+        # the static gas force subtracted from every force sample (N), None when none was declared
+        gas_force_N=manifest.gas_force_N,
+        # the case files' dialect (manifest csv block, format 1.1), None when none was declared (',' and '.')
+        csv=None if manifest.csv is None else manifest.csv.to_dict(),
+        # keys that look like slips of known ones (1.2, manifest near misses), () when none
+        warnings=tuple(manifest.warnings), present=frozenset(RAW_INGEST_KEYS))
 
 
 def shared_file_warnings(manifest: Manifest, rows: list[dict]) -> list[str]:
@@ -772,8 +772,9 @@ def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path,
     for warning in shared:
         log.warning("campaign %s: %s", manifest.campaign, warning)
     meta = campaign_meta(manifest, manifest_file.as_posix())
-    meta["warnings"] = list(meta["warnings"]) + shared
-    write_ingested(Path(campaign_root) / "ingest", meta, pd.DataFrame(rows), quarantine_frame(quarantined), series)
+    meta = dataclasses.replace(meta, warnings=meta.warnings + tuple(shared))
+    write_ingested(CampaignFolder.at(campaign_root).ingest_dir, meta, pd.DataFrame(rows), quarantine_frame(quarantined),
+                   series)
     log.info("campaign %s: %d of %d cases ingested, %d quarantined", manifest.campaign, len(series),
              len(rows), len(rows) - len(series))
     if manifest.csv is not None:
