@@ -68,4 +68,6 @@ def test_every_allowed_literal_is_still_there():
     names = result_file_names()
     for (rel, value), reason in ALLOWED.items():
         assert reason
-        assert value in {v for _, v in result_file_literals((PACKAGE / rel).read_text("utf-8"), names)}, rel
+        path = PACKAGE / rel
+        left = {v for _, v in result_file_literals(path.read_text("utf-8"), names)} if path.is_file() else set()
+        assert value in left, f"{rel} no longer spells out {value!r}: remove its ALLOWED entry"
