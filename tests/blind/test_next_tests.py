@@ -195,3 +195,12 @@ def test_a_confounded_kind_carries_its_rig_terms_and_expected_group():
     assert record["rig"]["displacement_gain"] == 1.012 and record["instrument"]["displacement_scale"] == 1.012
     assert record["confounding"] == {"kind": "scale_no_command", "expected": ["displacement_scale", "force_gain",
                                                                              "discharge"], "command_channel": False}
+
+
+def test_the_proofs_rates_count_a_confounded_scenario_without_a_plan_as_unresolved():
+    rows = [{"scenario": "a", "in_proof": True, "resolved": True, "uniform_resolved": False, "n_cases": 2},
+            {"scenario": "b", "in_proof": True, "resolved": False, "uniform_resolved": False, "n_cases": 0},
+            {"scenario": "c", "in_proof": False}]
+    summary = nt.proof_summary(rows)
+    assert (summary["n"], summary["with_plan"], summary["rate"], summary["uniform_rate"]) == (2, 1, 0.5, 0.0)
+    assert summary["pass"] is False and summary["not_in_proof"] == ["c"]

@@ -434,3 +434,86 @@ def prove_scenario(raw_dir: str | os.PathLike, truth: Mapping, before: Mapping, 
         uniform = {**judge(truth, before, None, math.nan), "error": str(exc), "rig_time_s": math.nan}
     return {**row, "proposed": proposed, "uniform": uniform, "resolved": proposed["resolved"],
             "uniform_resolved": uniform["resolved"]}
+
+
+# --------------------------------------------------------------------------------------------
+# The proof over scenarios
+# --------------------------------------------------------------------------------------------
+
+#: The proof's target: the share of confounded scenarios whose proposed plan resolves to the truth.
+TARGET_RESOLVED_RATE = 0.90
+
+
+def proof_row(raw_dir: str | os.PathLike, truth: Mapping, work_root: str | os.PathLike, diagnose: Diagnose) -> dict:
+    """A scenario's row of the proof: its campaign diagnosed (``work_root/before``); where the verdict has a
+    confounding or ``next_tests`` says a test is needed, the proposed plan (``next_tests.plan``: none where the
+    diagnosis proposes none) and the uniform one run and judged (:func:`prove_scenario`). ``in_proof`` False for
+    a scenario with nothing to resolve; ``expected``: the group a scenario built to be confounded was built for."""
+    work_root = Path(work_root)
+    base = {"scenario": str(truth["scenario"]), "truth": "+".join(truth.get("truth") or []),
+            "expected": group_text((truth.get("confounding") or {}).get("expected") or [])}
+    try:
+        before = diagnose(Path(raw_dir), work_root / "before")
+    except Exception as exc:  # noqa: BLE001 - the scenario is reported, the proof goes on
+        return {**base, "in_proof": False, "confounded": "", "note": f"diagnosis failed: {exc}"}
+    block = before.get("next_tests") or {}
+    needed = bool(before.get("confounded")) or bool(block.get("needed"))
+    if not needed:
+        return {**base, "in_proof": False, "confounded": "", "note": block.get("note", "not confounded"),
+                "verdict": "+".join(before.get("verdict") or []), "explained": bool(before.get("explained"))}
+    row = prove_scenario(raw_dir, truth, before, block.get("plan") or [], work_root, diagnose)
+    return {**base, **row, "in_proof": True, "note": str(block.get("note", "no next_tests block")),
+            "verdict_before": "+".join(before.get("verdict") or []), "explained_before": bool(before.get("explained"))}
+
+
+def proof_summary(rows: Sequence[Mapping]) -> dict:
+    """The two rates over the scenarios in the proof (every one with a confounding counts; one without a plan
+    counts as not resolved by either plan), the target TARGET_RESOLVED_RATE and whether the proposed plans beat
+    the uniform ones."""
+    proof = [r for r in rows if r.get("in_proof")]
+    n = len(proof)
+    resolved = sum(bool(r["resolved"]) for r in proof)
+    uniform = sum(bool(r["uniform_resolved"]) for r in proof)
+    rate = resolved / n if n else None
+    return {"n": n, "with_plan": sum(bool(r.get("n_cases")) for r in proof), "resolved": resolved,
+            "uniform_resolved": uniform, "rate": rate, "uniform_rate": uniform / n if n else None,
+            "target": TARGET_RESOLVED_RATE,
+            "pass": None if rate is None else bool(rate >= TARGET_RESOLVED_RATE and resolved > uniform),
+            "not_in_proof": [r["scenario"] for r in rows if not r.get("in_proof")]}
+
+
+def _yes(value: bool | None) -> str:
+    return "—" if value is None else ("yes" if value else "no")
+
+
+def proof_table(rows: Sequence[Mapping]) -> str:
+    """The proof as a Markdown table (scenario, confounding, plan size and rig time, resolved by the proposed
+    plan, by the uniform one, what kept either from it) and its two rates."""
+    lines = ["| scenario | truth | confounded | plan | rig time [min] | proposed | uniform | why not |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if not r.get("in_proof"):
+            continue
+        why = "; ".join(f"{k}: {v}" for k, v in (("proposed", _why(r.get("proposed"))),
+                                                 ("uniform", _why(r.get("uniform")))) if v)
+        lines.append(f"| {r['scenario']} | {r['truth'] or 'none'} | {r['confounded'] or '(rivals)'} | {r['n_cases']} "
+                     f"| {r['plan_rig_time_s'] / 60.0:.1f} | {_yes(r['resolved'])} | {_yes(r['uniform_resolved'])} "
+                     f"| {why or (r['note'] if not r['n_cases'] else '')} |")
+    s = proof_summary(rows)
+    if s["n"]:
+        lines.append("")
+        lines.append(f"resolved to the truth: proposed {s['resolved']}/{s['n']} = {100 * s['rate']:.0f} %, uniform "
+                     f"{s['uniform_resolved']}/{s['n']} = {100 * s['uniform_rate']:.0f} % (target >= "
+                     f"{100 * s['target']:.0f} % and proposed > uniform: {'PASS' if s['pass'] else 'FAIL'})")
+    return "\n".join(lines)
+
+
+def _why(result: Mapping | None) -> str:
+    """What kept a plan's run from resolving: its error, the groups left or new, the verdict's misses."""
+    if not result or result.get("resolved"):
+        return ""
+    if result.get("error"):
+        return result["error"][:80]
+    parts = [f"still {', '.join(result['remaining'])}" if result["remaining"] else "",
+             f"new {', '.join(result['new'])}" if result["new"] else "", ", ".join(result["misses"])]
+    return "; ".join(p for p in parts if p)
