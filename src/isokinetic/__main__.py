@@ -7,7 +7,9 @@
   its manifest (:mod:`isokinetic.init_campaign`);
 - ``trace``: audit one number of a results table, re-derived from the raw data (:mod:`isokinetic.audit.trace`);
 - ``raw-check``: every raw file a processed campaign read still has its recorded sha256
-  (:mod:`isokinetic.audit.raw_check`).
+  (:mod:`isokinetic.audit.raw_check`);
+- ``next-test``: the extra cases a campaign's diagnosis proposes (``next_tests`` of diagnosis.json,
+  :mod:`isokinetic.diagnosis.plan_text`).
 
 Commands are registered in :func:`build_parser`; each sets ``func(args) -> int``. A command imports
 its modules when it runs (function-local imports, on purpose): ``--help`` and each command load
@@ -104,12 +106,30 @@ def _raw_check(args: argparse.Namespace) -> int:
     return 1 if print_changes(args.campaign_roots, args.base) else 0
 
 
+def _next_test(args: argparse.Namespace) -> int:
+    """Print the next tests a campaign's diagnosis proposes: the extra cases that would separate what its verdict
+    cannot tell apart, with their rig time (results/<campaign>/diagnosis.json, key next_tests; the same cases as a
+    manifest fragment: results/<campaign>/next_tests.yaml). One line where no test is needed.
+    """
+    import json
+
+    from isokinetic.contracts.outputs import STAGE_OUTPUTS
+    from isokinetic.diagnosis.plan_text import plan_lines
+
+    path = Path(args.results) / args.campaign / STAGE_OUTPUTS["diagnosis"]["json"]
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no diagnosis of campaign {args.campaign!r} (run the workflow first)")
+    print("\n".join(plan_lines(json.loads(path.read_text(encoding="utf-8")).get("next_tests"))))
+    return 0
+
+
 #: One line of help per command (``--help`` lists them).
 COMMANDS = {
     "export-virtual": "write a simulated campaign in the raw campaign format",
     "init-campaign": "draft a folder's campaign.yaml from its CSV files; --check a folder against it",
     "trace": "audit one number: its derivation, re-derived from the raw data",
     "raw-check": "check that the raw files a processed campaign read are unchanged",
+    "next-test": "the extra cases that would separate what a campaign's diagnosis cannot tell apart",
 }
 
 
@@ -177,6 +197,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("campaign_roots", nargs="+", help="processed campaign folders, e.g. results/<campaign>")
     p.add_argument("--base", default=".", help="directory the recorded paths are relative to (default: .)")
     p.set_defaults(func=_raw_check)
+
+    p = sub.add_parser("next-test", help=COMMANDS["next-test"], description=inspect.cleandoc(_next_test.__doc__))
+    p.add_argument("campaign", help="campaign name (results/<campaign>/diagnosis.json)")
+    p.add_argument("--results", default="results", help="the results folder (default: results)")
+    p.set_defaults(func=_next_test)
     return parser
 
 

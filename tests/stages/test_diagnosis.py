@@ -5,6 +5,7 @@ import json
 import numpy as np
 import pytest
 
+from isokinetic.diagnosis.plan_text import plan_yaml
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.io import write_parquet
 from isokinetic.measurement.repeatability import repeatability
@@ -52,6 +53,13 @@ def test_leakage_is_attributed_and_its_conductance_recovered(tmp_path):
     assert result["shrink"] == pytest.approx(result["gap_before"] / result["gap_after"])
     # leakage weakens the damper everywhere: every significant band has a negative relative error
     assert result["where"] and all(b["mean_rel_error"] < 0 for b in result["where"])
+
+
+def test_the_next_tests_are_written_beside_the_diagnosis_as_a_manifest_fragment(tmp_path):
+    root = process(tmp_path, Effects())
+    out = dg.write_diagnosis(root, root / "diagnosis.json", None)
+    assert out["next_tests"] == {"needed": False, "note": "no confounding: no further test proposed", "plan": []}
+    assert (root / "next_tests.yaml").read_text(encoding="utf-8") == plan_yaml(out["next_tests"], "virt")
 
 
 @pytest.mark.slow

@@ -116,7 +116,7 @@ STAGE_OUTPUTS = {
     "models": {"models": "models/models.parquet", "residuals": "models/model_residuals.parquet",
                "comparison": "models/comparison.parquet"},
     "exports": {"characteristic_csv": "characteristic.csv", "models_csv": "models/models.csv"},
-    "diagnosis": {"json": "diagnosis.json"},
+    "diagnosis": {"json": "diagnosis.json", "next_tests": "next_tests.yaml"},
     "figures": {},
     "raw_check": {"raw_check": "raw_check.json"},
     "provenance": {"provenance": "provenance.json"},

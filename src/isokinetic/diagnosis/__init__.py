@@ -23,7 +23,9 @@ Modules, in the order the method uses them:
 - :mod:`~isokinetic.diagnosis.verdict`: the verdict, its instrument terms and confoundings, the
   diagnosis dict;
 - :mod:`~isokinetic.diagnosis.result`: the diagnosis.json document: versions, the not-diagnosed
-  document, JSON-safe values, schema validation, row-level sources.
+  document, JSON-safe values, schema validation, row-level sources;
+- :mod:`~isokinetic.diagnosis.next_tests`: the extra cases that would separate what the verdict cannot tell
+  apart, and their rig time (:mod:`~isokinetic.diagnosis.plan_text`: the plan as a manifest fragment and lines).
 
 The noise model the standard errors rest on is :mod:`isokinetic.measurement.noise`.
 """

@@ -1,8 +1,8 @@
 """The diagnosis.json document: its versions, the document of a campaign not diagnosed, JSON-safe
 values, validation against the schema shipped with the package, and its row-level sources.
 
-Contract ``docs/diagnosis-output.md``, version 1.4 (1.1 and 1.2 readers keep working: 1.2 and 1.3 only add keys,
-1.4 makes the within-window structure test decide);
+Contract ``docs/diagnosis-output.md``, version 1.5 (1.1 and 1.2 readers keep working: 1.2 and 1.3 only add keys,
+1.4 makes the within-window structure test decide, 1.5 adds ``next_tests``, the plan of extra cases);
 schema ``diagnosis.schema.json``, package data of :mod:`isokinetic.contracts`
 (read through ``importlib.resources``, so a regular, non-editable install validates too).
 """
@@ -24,7 +24,9 @@ from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.sine_drive import SineDrive
 
 FORMAT_VERSION = 1
-CONTRACT_VERSION = "1.4"
+CONTRACT_VERSION = "1.5"
+#: The ``next_tests`` note of a campaign that was not diagnosed (contract 1.5).
+NOT_DIAGNOSED_NOTE = "not diagnosed: no further test proposed"
 METRIC = "rms_z"
 #: The diagnosis.json schema, package data of isokinetic.contracts.
 SCHEMA_PACKAGE = "isokinetic.contracts"
@@ -62,7 +64,8 @@ def no_model(campaign: str, reason: str, status: str = "not_diagnosed") -> dict:
             "candidates": [], "verdict": [], "explained": False,
             "instrument": {"delay_s": None, "force_offset_N": None, "force_gain": None, "force_lag_s": None,
                            "displacement_scale": None, "force_drift_N_s": None},
-            "gap_after": None, "holdout_gap_after": None, "shrink": None}
+            "gap_after": None, "holdout_gap_after": None, "shrink": None,
+            "next_tests": {"needed": False, "note": NOT_DIAGNOSED_NOTE, "plan": []}}
 
 
 def diagnosis_schema() -> dict:

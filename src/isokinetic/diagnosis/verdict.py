@@ -230,12 +230,21 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
     residual_inputs = structure_keys(out, dg.obs, best, alpha, sensor, damper)
     if dg.failed or (bdg is not dg and bdg.failed):
         out["failed_fits"] = dg.failed + (bdg.failed if bdg is not dg else [])
-    out["nominal_explains"] = nominal_ok
-    out["model_evaluations"] = dg.calls   # every diagnoser here shares dg's evaluators (Diagnoser.with_channel)
-    out["seconds"] = round(time.perf_counter() - started, 3)
+    # every diagnoser here shares dg's evaluators (Diagnoser.with_channel): dg.calls counts all model runs
+    out.update(nominal_explains=nominal_ok, model_evaluations=dg.calls, seconds=round(time.perf_counter() - started, 3))
     predictions = {"nominal": dg.nominal, "structure": residual_inputs,
-                   "verdict": None if best is None or not verdict else best.measured_prediction}
+                   "verdict": None if best is None or not verdict else best.measured_prediction,
+                   "fits": fits_of(dg, bdg, best, candidates, hyp, verdict)}
     return json_safe(out), predictions
+
+
+def fits_of(dg: Diagnoser, bdg: Diagnoser, best: Candidate, candidates: Sequence[Candidate], hyp: dict | None,
+            verdict: Sequence[str]) -> dict:
+    """The fits a diagnosis made, from which the next test's rivals are built
+    (:func:`isokinetic.diagnosis.next_tests.group_readings`): the diagnoser without a force channel and the verdict's,
+    the verdict's candidate and effects, every candidate, the sensor hypothesis and the sensor margin."""
+    return {"dg": dg, "bdg": bdg, "best": best, "candidates": list(candidates), "hyp": hyp, "verdict": list(verdict),
+            "margin": SENSOR_MARGIN}
 
 
 def structure_keys(out: dict, obs: Observations, best: Candidate, alpha: float, sensor: Mapping,

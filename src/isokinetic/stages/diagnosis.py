@@ -24,7 +24,7 @@ import pandas as pd
 from isokinetic.contracts.campaign import case_plan, viscosity_scales
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS, rule_figures
-from isokinetic.contracts.settings import DEFAULTS, Settings
+from isokinetic.contracts.settings import DEFAULTS, DesignLimits, Settings
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import (
     INSTRUMENT,
@@ -37,7 +37,9 @@ from isokinetic.diagnosis.instrument import (
 )
 from isokinetic.diagnosis.joint import joint_search, judged_on_all_records
 from isokinetic.diagnosis.model import drive_input_variance, unsteady_windows
+from isokinetic.diagnosis.next_tests import next_tests
 from isokinetic.diagnosis.observations import Observations, build_observations, has_four_windows
+from isokinetic.diagnosis.plan_text import plan_yaml
 from isokinetic.diagnosis.result import (
     json_safe,
     no_model,
@@ -293,12 +295,14 @@ def campaign_times(obs: Observations, cases: pd.DataFrame, spans: dict[str, tupl
 
 
 def diagnose(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bins: int = 4,
-             alpha: float = ALPHA) -> tuple[dict, Observations | None, dict]:
+             alpha: float = ALPHA, design: DesignLimits = DEFAULTS.design) -> tuple[dict, Observations | None, dict]:
     """Diagnose a processed campaign folder ``results/<campaign>/``.
 
     Returns (diagnosis dict, observations, predictions); observations is None when the campaign
     cannot be diagnosed (no damper block, no triangle or sine case). The dict's ``sources`` key lists the
-    observations used (:func:`isokinetic.diagnosis.result.observation_sources`).
+    observations used (:func:`isokinetic.diagnosis.result.observation_sources`); ``next_tests`` the plan of
+    extra cases that would separate what the verdict cannot tell apart (:func:`planned_tests`, within the
+    ``design`` limits).
     """
     campaign, damper, cases, obs, reason, sensor = prepare_sensor(campaign_root, spec, n_bins, alpha)
     if obs is None:
@@ -316,7 +320,20 @@ def diagnose(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bins: in
         check_verdict_on_sines(result, sensor, damper, alpha)
         if (result.get("sine_check") or {}).get("consistent") is False:   # and where they fail it, judge on both
             result = judge_on_all_records(result, predictions, obs, sensor, damper, alpha)
+    result["next_tests"] = planned_tests(result, predictions, damper, spec, n_bins, design)
     return result, obs, predictions
+
+
+def planned_tests(result: dict, predictions: dict, damper: Damper, spec: WindowSpec, n_bins: int,
+                  design: DesignLimits) -> dict:
+    """The ``next_tests`` block (:func:`isokinetic.diagnosis.next_tests.next_tests`; computed only where the
+    verdict has a confounding or rival partial explanations). A plan that cannot be computed (a rival's model run
+    that fails) says so, with the reason, and proposes nothing."""
+    try:
+        return json_safe(next_tests(result, predictions.get("fits"), damper, spec, n_bins, design))
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+        log.warning("%s: the next-test plan failed: %s", result.get("campaign"), exc)
+        return {"needed": True, "note": f"the plan could not be computed: {type(exc).__name__}: {exc}", "plan": []}
 
 
 def judge_on_all_records(result: dict, predictions: dict, obs: Observations, sensor: dict, damper: Damper,
@@ -377,11 +394,12 @@ def not_used(cases: pd.DataFrame, obs: Observations) -> dict[str, str]:
 
 
 def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | None, spec: WindowSpec = DEFAULTS.window,
-                    n_bins: int = 4) -> dict:
-    """Diagnose, validate against the schema, write diagnosis.json and the gap figure (none without
+                    n_bins: int = 4, design: DesignLimits = DEFAULTS.design) -> dict:
+    """Diagnose, validate against the schema, write diagnosis.json, next_tests.yaml beside it (the plan as a
+    manifest fragment, :func:`isokinetic.diagnosis.plan_text.plan_yaml`) and the gap figure (none without
     ``figure_path``: the blind suite draws none, and then needs no plotting library)."""
     try:
-        result, obs, predictions = diagnose(Path(campaign_root), spec, n_bins)
+        result, obs, predictions = diagnose(Path(campaign_root), spec, n_bins, design=design)
     except Exception as exc:  # noqa: BLE001 - an accepted campaign always gets its diagnosis.json
         log.exception("diagnosis of %s failed", campaign_root)
         name = Path(campaign_root).name
@@ -390,6 +408,8 @@ def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | No
         result, obs, predictions = no_model(name, f"diagnosis failed: {type(exc).__name__}: {exc}", "failed"), None, {}
     validate_diagnosis(result)
     write_json(result, json_path)
+    (Path(json_path).parent / STAGE_OUTPUTS["diagnosis"]["next_tests"]).write_text(
+        plan_yaml(result.get("next_tests"), result["campaign"]), encoding="utf-8")
     if figure_path is not None:
         from isokinetic.plots.diagnosis import gap_figure  # matplotlib only where a figure is drawn
         from isokinetic.plots.style import save_figure
@@ -404,4 +424,4 @@ def run_diagnosis(campaign_root: str | Path, settings: Settings, figures: bool =
     root = Path(campaign_root)
     figure = next(iter(rule_figures("diagnosis"))).path
     return write_diagnosis(root, root / STAGE_OUTPUTS["diagnosis"]["json"], root / figure if figures else None,
-                           settings.window)
+                           settings.window, design=settings.design)

@@ -1,0 +1,784 @@
+"""The next test (issue 37): which extra cases would separate the readings a campaign cannot tell apart, and
+how much rig time they cost.
+
+Rivals. Each confounded group of the verdict (``confounded`` in diagnosis.json), and the partial explanations of
+an unexplained verdict whose overdispersed scores lie within CONFOUNDED_SCORE of each other, is turned into full
+hypotheses (:func:`readings`): damper effects with their fitted parameters and the instrument terms fitted with
+them (load-cell gain, offset and zero drift, force-channel lag), each predicting any new case. They are built
+from the diagnosis' own fits, refitted where a reading was not fitted (:meth:`Diagnoser.refit`): the verdict
+against the same-size candidates within the margin; a load-cell gain without discharge and viscosity against
+discharge + viscosity with no gain; the verdict's effects without a lag against the lag without the effects
+the lag is confounded with (or the rival candidate with the other channel); an effect without the zero drift
+against the drift without it. An LVDT scale without a command channel is the same model as a load-cell gain plus
+C_D·√k (:mod:`isokinetic.diagnosis.verdict`): no case of any waveform separates them, and the plan says so.
+
+Candidates (:func:`candidate_cases`). Triangle cases on a grid of speeds log-spaced from SPEED_BELOW times below
+the campaign's slowest to the rig's top speed, and of amplitudes log-spaced within the design limits
+(:class:`isokinetic.contracts.settings.DesignLimits`) and the piston's stroke; period 4Y/W (Eq. 26); only those
+whose windows start after the pressure has converged for every rival (Eq. 28 from rest, and from the opposite
+direction's steady pressure after each reversal: :func:`isokinetic.physics.convergence.stroke_to_converge`; a case
+to the right of the A-T diagram's boundary), whose peak force stays below the rig's, with enough samples per
+window, and no longer than MAX_CASE_S. Beside them a repeat of the campaign's first triangle case at the end (a
+drift of the zero or of a parameter moves it, a constant effect does not) and a standstill (the zero alone).
+
+Criterion (:func:`separation`). The expected χ² difference between rivals A and B when A is true, linearised with
+B refitted: Δχ²_A→B = ||(I − P_B)(μ_A − μ_B)/σ||² over the old observations and the candidates', P_B the
+weighted projection on B's Jacobian (its effects' parameters, its force-channel lag, its gain, friction, offset
+and drift columns). Of two non-nested rivals the smaller direction counts (the plan must separate whichever is
+true); of nested ones (one's terms a subset of the other's), the larger true and the smaller refitted (the
+likelihood-ratio test of the extra terms). A group's separation is its least separated pair. σ of a new mean is
+the campaign's own fitted noise model (white plus coloured, :class:`isokinetic.measurement.noise.NoiseModel`, for
+the mean of its samples) with the between-period scatter. A D-optimal design on the parameters would buy
+precision of every parameter, including those the rivals share; this criterion buys only the difference the
+rivals predict, in the units the verdict's tests use (χ²).
+
+Selection (:func:`greedy_plan`): greedy, the case that adds most to Σ_group min(Δχ²_group, TARGET_SE²) per minute
+of rig time, until every group reaches TARGET_SE standard errors, MAX_CASES cases or BUDGET_S of rig time. New
+cases run after the campaign's, in the plan's order (their campaign times enter the drift terms).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from isokinetic.contracts.settings import DEFAULTS, DesignLimits, WindowSpec
+from isokinetic.diagnosis.candidate import CONFOUNDED_SCORE, Candidate, overdispersed_score
+from isokinetic.diagnosis.instrument import DRIFT, LAG_FORM_NAMES
+from isokinetic.diagnosis.model import Evaluator
+from isokinetic.diagnosis.observations import Observations
+from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.measurement.windows import windowed_half_periods
+from isokinetic.physics.convergence import stroke_to_converge
+from isokinetic.physics.damper import Damper, Effects
+from isokinetic.physics.plan import CasePlan
+from isokinetic.physics.responses import Drive, drive_times
+
+CRITERION = ("expected chi-square difference between rivals A and B when A is true, B refitted (linearised: "
+             "||(I - P_B)(mu_A - mu_B)/sigma||^2 over the old and the new observations, P_B the weighted projection "
+             "on B's effects and instrument terms; the smaller direction of non-nested rivals, the larger true of "
+             "nested ones), sigma from the campaign's fitted noise model; greedy per minute of rig time")
+NO_PLAN_NOTE = "no confounding: no further test proposed"
+#: Separation a group should reach [standard errors, √Δχ²].
+TARGET_SE = 5.0
+#: Most cases a plan proposes, and its rig-time budget [s].
+MAX_CASES = 8
+BUDGET_S = 7200.0
+#: Rig time a case costs beside its record [s]: the stated default for setting a case up and starting it.
+SETUP_S = 30.0
+#: Longest record a candidate may need [s].
+MAX_CASE_S = 1200.0
+#: The speed grid: N_SPEEDS speeds from the campaign's slowest divided by SPEED_BELOW to the rig's top speed;
+#: where the rig's top speed is not known, SPEED_ABOVE times the campaign's fastest (a stated default).
+N_SPEEDS = 10
+SPEED_BELOW = 4.0
+SPEED_ABOVE = 2.0
+#: Amplitudes of the grid, log-spaced within the design limits and the stroke.
+N_AMPLITUDES = 4
+#: The rig's largest force where the load cell's full scale is not known: this times the largest window force.
+FORCE_ABOVE = 2.0
+#: Fewest samples in a window, and in a transient bin, of a candidate triangle.
+MIN_WINDOW_SAMPLES = 20
+MIN_BIN_SAMPLES = 2
+#: A standstill's record [s].
+STANDSTILL_S = 60.0
+#: A case "resolves" a group where it adds at least this to the group's Δχ².
+RESOLVES_MIN_CHI2 = 1.0
+#: Step of the finite-difference Jacobian: optimiser units (order one) and the force channel's lag [s].
+JAC_STEP = 1e-4
+LAG_STEP_S = 1e-4
+#: Partial explanations of an unexplained verdict taken as rivals (best overdispersed score first).
+MAX_PARTIAL_RIVALS = 3
+PHYSICS = ("discharge", "viscosity")
+SCALE_REASON = ("inside the model an LVDT scale k is a load-cell gain 1/k plus C_D·√k: no case of any waveform "
+                "separates them; record the command channel or calibrate the LVDT")
+
+
+@dataclass(frozen=True)
+class RigLimits:
+    """What the rig can run (SI): speeds, amplitudes (design limits and the stroke), force, sample rate; ``source``
+    says where each came from."""
+
+    max_speed_m_s: float
+    min_amplitude_m: float
+    max_amplitude_m: float
+    max_force_N: float
+    sample_rate_Hz: float
+    source: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One rival: a fitted candidate (effects, parameters, instrument terms, force channel) and its label.
+    ``scale``: an LVDT scale k read as its model equivalent, gain 1/k tied to C_D·√k (one parameter, ln k)."""
+
+    label: str
+    candidate: Candidate
+    scale: bool = False
+
+
+@dataclass(frozen=True)
+class Probe:
+    """A candidate case: its plan (None: a standstill), its label and its rig time [s]."""
+
+    case: str
+    plan: CasePlan | None
+    label: str
+    rig_time_s: float
+
+
+def rig_limits(obs: Observations, damper: Damper, design: DesignLimits = DEFAULTS.design,
+               declared: Mapping | None = None) -> RigLimits:
+    """The rig's limits: ``declared`` (max_speed_m_s, max_force_N, max_amplitude_m) where given, else the stated
+    defaults (SPEED_ABOVE times the campaign's fastest speed, FORCE_ABOVE times its largest window force); the
+    amplitude within ``design`` and 0.95 of the smaller chamber's stroke (Eq. 2); the campaign's triangle sample
+    rate (the most common)."""
+    declared = dict(declared or {})
+    tri = np.array([p.waveform == "triangle" for p in obs.plans])
+    rates = [p.sample_rate_Hz for p, t in zip(obs.plans, tri, strict=True) if t] \
+        or [p.sample_rate_Hz for p in obs.plans]
+    fs = max(set(rates), key=rates.count)
+    speed = float(np.max(obs.speed_m_s)) * SPEED_ABOVE
+    force = float(np.max(np.abs(obs.force_N[obs.is_window]))) * FORCE_ABOVE
+    stroke = 0.95 * min(damper.chamber_volume_1_m3, damper.chamber_volume_2_m3) / damper.piston_area_m2
+    source = {"max_speed_m_s": "declared" if "max_speed_m_s" in declared else f"{SPEED_ABOVE:g} x the campaign's",
+              "max_force_N": "declared" if "max_force_N" in declared else f"{FORCE_ABOVE:g} x the largest window force",
+              "amplitude": "design limits and 0.95 of the stroke", "sample_rate_Hz": "the campaign's"}
+    return RigLimits(max_speed_m_s=float(declared.get("max_speed_m_s", speed)),
+                     min_amplitude_m=design.min_amplitude_m,
+                     max_amplitude_m=min(design.max_amplitude_m, float(declared.get("max_amplitude_m", stroke)),
+                                         stroke),
+                     max_force_N=float(declared.get("max_force_N", force)), sample_rate_Hz=float(fs), source=source)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the rivals
+# ----------------------------------------------------------------------------------------------------------------
+
+def _label(c: Candidate, shown: Sequence[str] = ()) -> str:
+    """A reading's name: its effects, its force-channel lag, and the instrument terms ``shown`` it has free."""
+    parts = list(c.effects) + (["force_lag"] if c.channel is not None else [])
+    parts += [t for t in shown if t in c.instrument]
+    return "+".join(parts) or "nominal"
+
+
+def _without(names: Sequence[str], drop: Sequence[str]) -> tuple[str, ...]:
+    return tuple(n for n in names if n not in drop)
+
+
+def _lag_rival(best: Candidate, candidates: Sequence[Candidate], margin: float) -> Candidate | None:
+    """The candidate the verdict's lag confounding names (:func:`isokinetic.diagnosis.verdict.instrument_confounding`):
+    explaining, with the other force channel, other effects, within ``margin``, the best scoring."""
+    rivals = [c for c in candidates if c.explained and (c.channel is None) != (best.channel is None)
+              and c.effects != best.effects and abs(c.score - best.score) < margin]
+    return min(rivals, key=lambda c: c.score) if rivals else None
+
+
+def group_readings(group: Sequence[str], ctx: Mapping) -> list[Reading] | str:
+    """The rival readings of one confounded ``group`` (a list of at least two), or why none can be built.
+
+    ``ctx``: the diagnosis' fits (``dg`` the diagnoser without a force channel, ``bdg`` the verdict's, ``best``,
+    ``candidates``, ``hyp`` the sensor hypothesis, ``verdict``, ``margin`` the sensor margin)."""
+    dg, bdg, best = ctx["dg"], ctx["bdg"], ctx["best"]
+    verdict = tuple(ctx["verdict"])
+    if "displacement_scale" in group:
+        return scale_readings(group, ctx)
+    if "force_gain" in group:
+        physics = tuple(e for e in PHYSICS if e in group)
+        gain = bdg.refit(_without(verdict, physics), bdg.instrument, best)
+        alt = bdg.refit(tuple(sorted({*verdict, *physics}, key=_order)), _without(bdg.instrument, ["force_gain"]), best)
+        pair = [(gain, ("force_gain",)), (alt, ("force_gain",))]
+    elif DRIFT in group:
+        drifting = tuple(e for e in group if e != DRIFT)
+        drift = bdg.refit(_without(verdict, drifting), bdg.instrument, best)
+        alt = bdg.refit(verdict, _without(bdg.instrument, [DRIFT]), best)
+        pair = [(drift, (DRIFT,)), (alt, (DRIFT,))]
+    elif "force_lag" in group:
+        rival = _lag_rival(best, ctx["candidates"], ctx["margin"])
+        if rival is not None and list(group) == sorted({*verdict, *rival.effects}) + ["force_lag"]:
+            pair = [(best, ()), (rival, ())]
+        else:
+            lagged = tuple(e for e in group if e != "force_lag")
+            hyp = ctx.get("hyp")
+            channel = best.channel if best.channel is not None else (None if hyp is None else (hyp["form"],
+                                                                                                hyp["lag_s"]))
+            lag_dg = dg.with_channel(channel) if channel is not None else None
+            damper_reading = dg.refit(verdict, dg.instrument, best)
+            sensor_reading = None if lag_dg is None else lag_dg.refit(_without(verdict, lagged), dg.instrument, best)
+            pair = [(damper_reading, ()), (sensor_reading, ())]
+    else:
+        found = [c for c in ctx["candidates"] if c.explained and len(c.effects) == len(best.effects)
+                 and set(c.effects) <= set(group) and c.score - best.score < CONFOUNDED_SCORE]
+        pair = [(best, ())] + [(c, ()) for c in found if c.effects != best.effects]
+    out = [Reading(_label(c, shown), c) for c, shown in pair if c is not None]
+    return out if len(out) >= 2 else "a rival reading could not be fitted"
+
+
+def scale_readings(group: Sequence[str], ctx: Mapping) -> list[Reading] | str:
+    """The readings of an unmeasured LVDT scale's group: the verdict as fitted (its discharge, viscosity or
+    load-cell gain) against an LVDT scale k (the true speeds the measured ones over k: the model's gain 1/k with
+    C_D·√k, :func:`fit_scale`) with the verdict's other effects. Where the verdict's own terms are that family
+    (discharge and a free gain, no viscosity), the two are one model: no case separates them (SCALE_REASON)."""
+    best, bdg = ctx["best"], ctx["bdg"]
+    if "viscosity" not in group and "discharge" in best.effects:
+        return SCALE_REASON
+    scale = fit_scale(bdg, best)
+    if scale is None:
+        return "the LVDT-scale reading could not be fitted"
+    return [Reading(_label(best, ("force_gain",)), best), Reading("displacement_scale", scale, scale=True)]
+
+
+def fit_scale(dg: Diagnoser, best: Candidate) -> Candidate | None:
+    """The LVDT-scale reading fitted to the campaign: the verdict's effects other than discharge and viscosity
+    held, ln k within ±SCALE_BOUND, the model's gain 1/k and discharge coefficient C_D·√k, the load-cell offset
+    (and drift) profiled; a Candidate whose ``x`` holds the discharge's optimiser value (ln √k)."""
+    from scipy.optimize import minimize_scalar
+
+    from isokinetic.diagnosis.instrument import SCALE_BOUND
+
+    keep = tuple(e for e in best.effects if e not in PHYSICS and e != "friction")
+    names = (*keep, "discharge")
+    held = [best.x[best.effects.index(e)] for e in keep]
+    terms = dg.terms(_without(dg.instrument, ["force_gain"]))
+    obs = dg.obs
+    lag = None if best.channel is None else best.channel[1]
+    ch = dg if best.channel is None else dg.with_channel(best.channel)
+
+    def fitted(log_k: float):
+        model = ch.model(dg.param.effects(names, [*held, 0.5 * log_k]), lag=lag) / math.exp(log_k)
+        _g, _fc, o, r = terms.solve(obs.force_N, model, obs.sign, dg.weight, False, dg.time_s)
+        z = (obs.force_N - model - o - (0.0 if dg.time_s is None else r * dg.time_s)) / obs.sigma_N
+        return float(z @ z), o, r
+
+    bound = math.log1p(SCALE_BOUND)
+    res = minimize_scalar(lambda u: fitted(u)[0], bounds=(-bound, bound), method="bounded",
+                          options={"xatol": 1e-6})
+    if not np.isfinite(res.fun):
+        return None
+    _chi2, o, r = fitted(float(res.x))
+    x = np.array([*held, 0.5 * float(res.x)])
+    return replace(best, effects=names, x=x, params=dict(dg.param.si(n, v) for n, v in zip(names, x, strict=True)),
+                   gain=math.exp(-float(res.x)), offset_N=o, drift_N_s=r, instrument=dg.instrument)
+
+
+def _order(effect: str) -> int:
+    from isokinetic.contracts.scenarios import CATALOGUE
+
+    return CATALOGUE.index(effect) if effect in CATALOGUE else len(CATALOGUE)
+
+
+def partial_readings(best: Candidate, candidates: Sequence[Candidate]) -> list[Reading]:
+    """Of an unexplained verdict: the partial explanations whose overdispersed score lies within CONFOUNDED_SCORE of
+    the best (:func:`isokinetic.diagnosis.candidate.parsimonious`' choice among them), up to MAX_PARTIAL_RIVALS."""
+    if best.explained or len(candidates) < 2:
+        return []
+    scores = {id(c): overdispersed_score(c, candidates) for c in candidates}
+    close = sorted((c for c in candidates if scores[id(c)] <= min(scores.values()) + CONFOUNDED_SCORE),
+                   key=lambda c: scores[id(c)])
+    if best not in close:
+        close = [best, *close]
+    return [Reading(_label(c), c) for c in close[:MAX_PARTIAL_RIVALS]] if len(close) >= 2 else []
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# predictions of a reading, and its Jacobian
+# ----------------------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Channel:
+    """Where a reading's prediction is made: an evaluator, each observation's campaign time relative to the
+    reference (None: no drift term) and the diagnoser's parametrisation."""
+
+    evaluator: Evaluator
+    time_s: np.ndarray | None
+    dg: Diagnoser
+
+    def hydraulic(self, c: Candidate, x: np.ndarray | None = None, lag: float | None = None) -> np.ndarray:
+        """The damper model of ``c`` (its optimiser values ``x``, default its own) as its force channel reads it
+        (``lag`` default its own), friction excluded."""
+        names = tuple(n for n in c.effects if n != "friction")
+        x = np.array([c.x[c.effects.index(n)] for n in names]) if x is None else x
+        eff = self.dg.param.effects(names, x)
+        if c.channel is None:
+            return self.evaluator.predict(eff)
+        return self.evaluator.read(eff, c.channel[0], [c.channel[1] if lag is None else lag])[0]
+
+    def friction_column(self, c: Candidate, lag: float | None = None) -> np.ndarray:
+        if c.channel is None:
+            return self.evaluator.friction_ideal()
+        return self.evaluator.friction_read(c.channel[0], c.channel[1] if lag is None else lag)
+
+    def coulomb_N(self, c: Candidate) -> float:
+        return float(c.x[c.effects.index("friction")]) * self.dg.param.force_ref_N if "friction" in c.effects else 0.0
+
+    def prediction(self, c: Candidate) -> np.ndarray:
+        """What the load cell reads under ``c``: g (F_model + F_C col) + F_0 + r t."""
+        t = 0.0 if self.time_s is None else self.time_s
+        return c.gain * (self.hydraulic(c) + self.coulomb_N(c) * self.friction_column(c)) + c.offset_N \
+            + c.drift_N_s * t
+
+    def jacobian(self, c: Candidate) -> np.ndarray:
+        """Columns of the measured prediction's change per parameter of ``c``: each nonlinear effect (optimiser
+        units, forward differences), the lag, the gain, the Coulomb force, the offset and the drift (those free)."""
+        base = self.hydraulic(c)
+        names = [n for n in c.effects if n != "friction"]
+        x = np.array([c.x[c.effects.index(n)] for n in names])
+        cols = []
+        for i in range(len(names)):
+            step = JAC_STEP * max(1.0, abs(x[i]))
+            cols.append(c.gain * (self.hydraulic(c, x + step * np.eye(len(x))[i]) - base) / step)
+        fc = self.coulomb_N(c)
+        col = self.friction_column(c)
+        if c.channel is not None:
+            lag = c.channel[1] + LAG_STEP_S
+            cols.append(c.gain * (self.hydraulic(c, lag=lag) + fc * self.friction_column(c, lag) - base - fc * col)
+                        / LAG_STEP_S)
+        if "force_gain" in c.instrument:
+            cols.append(base + fc * col)
+        if "friction" in c.effects:
+            cols.append(c.gain * col)
+        if "force_offset" in c.instrument:
+            cols.append(np.ones_like(base))
+        if DRIFT in c.instrument and self.time_s is not None:
+            cols.append(np.asarray(self.time_s, dtype=float))
+        return np.column_stack(cols) if cols else np.zeros((base.size, 0))
+
+
+def nested(a: Reading, b: Reading) -> bool:
+    """Whether reading ``a`` is a special case of ``b`` (its effects, instrument terms and channel among b's; an
+    LVDT scale's tied terms are one parameter, nested in neither direction)."""
+    ca, cb = a.candidate, b.candidate
+    return (not a.scale and not b.scale and set(ca.effects) <= set(cb.effects)
+            and set(ca.instrument) <= set(cb.instrument) and (ca.channel is None or cb.channel is not None))
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the candidate cases
+# ----------------------------------------------------------------------------------------------------------------
+
+def converges(plan: CasePlan, damper: Damper, effects: Sequence[Effects], phi: float, spec: WindowSpec) -> bool:
+    """Whether every window of the triangle ``plan`` starts after Δp has reached ϕ of its steady value for each of
+    ``effects``: the window's start stroke 2·start_fraction·Y against the stroke to converge from rest at -Y (Eq. 28,
+    the first half-period) and from the opposite steady Δp after a reversal at either end."""
+    y, w = plan.amplitude_m, plan.velocity_m_s
+    have = 2.0 * spec.start_fraction * y
+    for eff in effects:
+        need = [stroke_to_converge(w, damper, phi=phi, start_position_m=-y, effects=eff),
+                stroke_to_converge(w, damper, phi=phi, start_position_m=-y, effects=eff, reversal=True),
+                stroke_to_converge(-w, damper, phi=phi, start_position_m=y, effects=eff, reversal=True)]
+        if not all(np.isfinite(s) and s <= have for s in (float(v) for v in need)):
+            return False
+    return True
+
+
+def _window_samples_ok(plan: CasePlan, spec: WindowSpec, n_bins: int) -> bool:
+    half_samples = 0.5 * plan.period_s * plan.sample_rate_Hz
+    return ((spec.end_fraction - spec.start_fraction) * half_samples >= MIN_WINDOW_SAMPLES
+            and spec.start_fraction * half_samples / n_bins >= MIN_BIN_SAMPLES)
+
+
+def triangle_plan(case: str, speed_m_s: float, amplitude_m: float, fs: float) -> CasePlan:
+    """A triangle case of speed W and amplitude Y: period 4Y/W (Eq. 26), two periods recorded, phase -π/2."""
+    period = 4.0 * amplitude_m / speed_m_s
+    return CasePlan(case=case, waveform="triangle", sample_rate_Hz=fs, amplitude_m=amplitude_m, period_s=period,
+                    duration_s=2.0 * period)
+
+
+def candidate_cases(obs: Observations, damper: Damper, limits: RigLimits, effects: Sequence[Effects],
+                    spec: WindowSpec, n_bins: int, phi: float) -> list[Probe]:
+    """The candidates (module docstring): the triangle grid, a repeat of the campaign's first triangle case and
+    a standstill, each within the rig's limits and the design constraints (force checked later, on the rivals'
+    predictions)."""
+    speeds = obs.speed_m_s[obs.speed_m_s > 0]
+    lo = float(speeds.min()) / SPEED_BELOW if speeds.size else 1e-4
+    grid_v = np.geomspace(lo, max(limits.max_speed_m_s, lo * 1.01), N_SPEEDS)
+    grid_y = np.geomspace(limits.min_amplitude_m, max(limits.max_amplitude_m, limits.min_amplitude_m), N_AMPLITUDES)
+    probes = []
+    for v in grid_v:
+        for y in grid_y:
+            plan = triangle_plan(f"C{len(probes) + 1:03d}", float(v), float(y), limits.sample_rate_Hz)
+            probes.append(Probe(plan.case, plan, f"triangle {v * 1e3:.3g} mm/s, {y * 1e3:.3g} mm", 0.0))
+    first = next((p for p in obs.plans if p.waveform == "triangle"), None)
+    if first is not None:
+        plan = replace(first, case=f"C{len(probes) + 1:03d}", duration_s=2.0 * first.period_s)
+        probes.append(Probe(plan.case, plan, f"repeat of {first.case} at the end", 0.0))
+    kept = [replace(p, rig_time_s=p.plan.duration_s + SETUP_S) for p in probes
+            if p.plan.duration_s <= MAX_CASE_S and p.plan.velocity_m_s <= limits.max_speed_m_s * (1 + 1e-9)
+            and limits.min_amplitude_m * (1 - 1e-9) <= p.plan.amplitude_m <= limits.max_amplitude_m * (1 + 1e-9)
+            and _window_samples_ok(p.plan, spec, n_bins) and converges(p.plan, damper, effects, phi, spec)]
+    kept.append(Probe(f"C{len(probes) + 1:03d}", None, "standstill at the end", STANDSTILL_S + SETUP_S))
+    return kept
+
+
+def probe_observations(campaign: str, probes: Sequence[Probe], spec: WindowSpec, n_bins: int,
+                       viscosity_scale: float) -> Observations:
+    """The windows and transient bins (as the campaign's, :mod:`isokinetic.diagnosis.observations`) of the
+    triangle ``probes``, driven at their planned speeds; forces 0 and σ 1 until :func:`probe_sigma` sets them."""
+    cols = {k: [] for k in ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s", "start", "stop")}
+    plans, drives = [], []
+    for probe in probes:
+        plan = probe.plan
+        drive = Drive((plan.velocity_m_s,) * 4)
+        times = drive_times(plan, drive)
+        half = plan.period_s / 2.0
+        for k, (t0, _t1, sign) in enumerate(windowed_half_periods(plan, plan.duration_s, spec), start=1):
+            edges = [(t0 + a, t0 + b, "transient") for a, b in
+                     zip(*(np.linspace(0.0, spec.start_fraction * half, n_bins + 1)[s] for s in (slice(None, -1),
+                                                                                                 slice(1, None))),
+                         strict=True)]
+            edges.append((t0 + spec.start_fraction * half, t0 + spec.end_fraction * half + 0.5 / plan.sample_rate_Hz,
+                          "window"))
+            for a, b, kind in edges:
+                j0, j1 = np.searchsorted(times, [a, b], side="left")
+                for key, value in (("case", plan.case), ("case_index", len(plans)), ("kind", kind), ("segment", k),
+                                   ("period", (k + 1) // 2), ("sign", sign), ("speed_m_s", plan.velocity_m_s),
+                                   ("start", int(j0)), ("stop", int(j1))):
+                    cols[key].append(value)
+        plans.append(replace(plan, duration_s=float(times[max(int(max(cols["stop"][-1], 1)) - 1, 0)])))
+        drives.append(drive)
+    arrays = {k: np.asarray(v, dtype=object if k in ("case", "kind") else
+                            (np.int64 if k in ("case_index", "segment", "period", "start", "stop") else float))
+              for k, v in cols.items()}
+    n = len(arrays["case"])
+    return Observations(campaign=campaign, plans=tuple(plans), drives=tuple(drives), force_N=np.zeros(n),
+                        sigma_N=np.ones(n), rep_rel=0.0,
+                        viscosity_scale=(viscosity_scale,) * len(plans) if viscosity_scale != 1.0 else (), **arrays)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the criterion
+# ----------------------------------------------------------------------------------------------------------------
+
+def mean_variance_N2(noise: Mapping, fs: float, n: np.ndarray, force_N: np.ndarray) -> np.ndarray:
+    """Variance of a mean of ``n`` samples at the true force ``force_N`` under the campaign's noise model: its
+    triangle windows' (white plus coloured, :meth:`isokinetic.measurement.noise.NoiseModel.mean_variance`, of the
+    sample rate nearest ``fs``), else its sine bins' (a/n + b F²); ValueError where it has neither."""
+    objects = noise.get("objects") or {}
+    n = np.maximum(np.asarray(n, dtype=float), 1.0)
+    f2 = np.asarray(force_N, dtype=float) ** 2
+    if objects:
+        model = objects[min(objects, key=lambda r: abs(float(r) - fs))]
+        return np.asarray(model.mean_variance(n, f2), dtype=float)
+    sine = noise.get("sine")
+    if sine:
+        return sine["white_var_N2"] / n + sine["rel_var"] * f2 + (sine.get("between_case_rel", 0.0) ** 2) * f2
+    raise ValueError("the campaign has no fitted noise model")
+
+
+@dataclass
+class PairState:
+    """The normal equations of one directed pair (A true, B refitted) over the observations so far (column-scaled):
+    M = JᵀJ, b = Jᵀr, rr = rᵀr; Δχ² = rr − bᵀM⁺b."""
+
+    true: int
+    refit: int
+    scale: np.ndarray
+    m: np.ndarray
+    b: np.ndarray
+    rr: float
+
+    def added(self, r: np.ndarray, jac: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        js = jac / self.scale
+        return self.m + js.T @ js, self.b + js.T @ r, self.rr + float(r @ r)
+
+    @staticmethod
+    def chi2(m: np.ndarray, b: np.ndarray, rr: float) -> float:
+        if not b.size:
+            return max(rr, 0.0)
+        return max(rr - float(b @ np.linalg.pinv(m, rcond=1e-10, hermitian=True) @ b), 0.0)
+
+
+def pair_state(true: int, refit: int, old: Sequence[tuple[np.ndarray, np.ndarray]], sigma: np.ndarray) -> PairState:
+    """The directed pair's normal equations over the old observations (``old``: each reading's (μ, J))."""
+    r = (old[true][0] - old[refit][0]) / sigma
+    jac = old[refit][1] / sigma[:, None]
+    scale = np.sqrt(np.sum(jac * jac, axis=0))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    js = jac / scale
+    return PairState(true, refit, scale, js.T @ js, js.T @ r, float(r @ r))
+
+
+def directed_pairs(readings: Sequence[Reading]) -> list[list[tuple[int, int]]]:
+    """Per unordered pair of readings, the directions that count: both for non-nested readings (the smaller
+    separates), the larger true and the smaller refitted for nested ones."""
+    out = []
+    for i in range(len(readings)):
+        for j in range(i + 1, len(readings)):
+            a, b = readings[i], readings[j]
+            if nested(a, b):
+                out.append([(j, i)])
+            elif nested(b, a):
+                out.append([(i, j)])
+            else:
+                out.append([(i, j), (j, i)])
+    return out
+
+
+@dataclass
+class GroupModel:
+    """One group's readings, their predictions and Jacobians on the old observations and on every probe row
+    (drift parts apart: they depend on when a case runs), and the pairs' states."""
+
+    name: str
+    readings: list[Reading]
+    probe_mu: list[np.ndarray]
+    probe_jac: list[np.ndarray]
+    pairs: list[list[PairState]]
+
+    def separation(self, states: Sequence[Sequence[tuple]] | None = None) -> float:
+        """The group's Δχ²: its least separated pair (each pair its smaller counted direction)."""
+        if states is None:
+            states = [[(s.m, s.b, s.rr) for s in pair] for pair in self.pairs]
+        return min(min(PairState.chi2(*s) for s in pair) for pair in states)
+
+
+def drift_column(reading: Reading) -> bool:
+    return DRIFT in reading.candidate.instrument
+
+
+def probe_rows(group: GroupModel, k: int, rows: np.ndarray, t_rel: np.ndarray, sigma: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(μ, J) of reading ``k`` on probe ``rows`` run at campaign times ``t_rel`` (relative to the reference):
+    the drift's force and column added."""
+    c = group.readings[k].candidate
+    mu = group.probe_mu[k][rows] + c.drift_N_s * t_rel
+    jac = group.probe_jac[k][rows].copy()
+    if drift_column(group.readings[k]) and jac.shape[1]:
+        jac[:, -1] = t_rel
+    return mu / sigma, jac / sigma[:, None]
+
+
+def with_case(group: GroupModel, rows: np.ndarray, t_rel: np.ndarray, sigma: np.ndarray) -> list[list[tuple]]:
+    """The pairs' normal equations with one more case's rows."""
+    cached = {}
+    out = []
+    for pair in group.pairs:
+        states = []
+        for s in pair:
+            for k in (s.true, s.refit):
+                if k not in cached:
+                    cached[k] = probe_rows(group, k, rows, t_rel, sigma)
+            r = cached[s.true][0] - cached[s.refit][0]
+            states.append(s.added(r, cached[s.refit][1]))
+        out.append(states)
+    return out
+
+
+def commit(group: GroupModel, states: Sequence[Sequence[tuple]]) -> None:
+    for pair, new in zip(group.pairs, states, strict=True):
+        for s, (m, b, rr) in zip(pair, new, strict=True):
+            s.m, s.b, s.rr = m, b, rr
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the plan
+# ----------------------------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ProbeRows:
+    """Every candidate's rows: the case each row belongs to, its time after the case's start [s], its σ [N]."""
+
+    case: np.ndarray
+    time_s: np.ndarray
+    sigma_N: np.ndarray
+
+    def of(self, i: int) -> np.ndarray:
+        return np.flatnonzero(self.case == i)
+
+
+def tied(reading: Reading, jac: np.ndarray) -> np.ndarray:
+    """The Jacobian of an LVDT-scale reading (``reading.scale``): its discharge and gain columns merged into one
+    of ln k (C_D·√k: ∂x/∂ln k = 1/2; gain 1/k: ∂g/∂ln k = -g); other readings' unchanged."""
+    if not reading.scale:
+        return jac
+    c = reading.candidate
+    nonlinear = [n for n in c.effects if n != "friction"]
+    i, g = nonlinear.index("discharge"), len(nonlinear) + (c.channel is not None)
+    merged = 0.5 * jac[:, i] - c.gain * jac[:, g]
+    rest = [k for k in range(jac.shape[1]) if k not in (i, g)]
+    return np.column_stack([merged, jac[:, rest]])
+
+
+def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel, n_standstill: int) -> GroupModel:
+    """A group's readings evaluated on the old observations and the probes (``n_standstill`` standstill rows
+    appended: the model's force 0, read as gain·0 + offset + drift)."""
+    olds = [(old.prediction(r.candidate), tied(r, old.jacobian(r.candidate))) for r in readings]
+    mus, jacs = [], []
+    for r in readings:
+        c = r.candidate
+        mu, jac = probe.prediction(c), tied(r, probe.jacobian(c))
+        still = np.zeros((n_standstill, jac.shape[1]))
+        at = jac.shape[1] - 1 - (DRIFT in c.instrument and probe.time_s is not None)
+        if "force_offset" in c.instrument and at >= 0:
+            still[:, at] = 1.0
+        mus.append(np.concatenate([mu, np.full(n_standstill, c.offset_N)]))
+        jacs.append(np.vstack([jac, still]))
+    sigma = old.dg.obs.sigma_N
+    pairs = [[pair_state(i, j, olds, sigma) for i, j in dirs] for dirs in directed_pairs(readings)]
+    return GroupModel(name, readings, mus, jacs, pairs)
+
+
+def greedy_plan(groups: Sequence[GroupModel], probes: Sequence[Probe], rows: ProbeRows, t_end_rel_s: float,
+                target_se: float = TARGET_SE, max_cases: int = MAX_CASES, budget_s: float = BUDGET_S) -> list[dict]:
+    """The ranked plan: each step the probe adding most to Σ_group min(Δχ², target²) per minute of rig time,
+    until every group reaches the target, ``max_cases`` or ``budget_s``. Per step: the probe's index, its start
+    [s after the reference time], the groups' Δχ² before and after it."""
+    cap = target_se ** 2
+    now = [g.separation() for g in groups]
+    chosen, plan, used = set(), [], 0.0
+    while len(plan) < max_cases and any(d < cap for d in now):
+        best = None
+        for i, probe in enumerate(probes):
+            if i in chosen or used + probe.rig_time_s > budget_s:
+                continue
+            idx = rows.of(i)
+            t_rel = t_end_rel_s + used + rows.time_s[idx]
+            states = [with_case(g, idx, t_rel, rows.sigma_N[idx]) for g in groups]
+            after = [g.separation(s) for g, s in zip(groups, states, strict=True)]
+            gain = sum(min(a, cap) - min(b, cap) for a, b in zip(after, now, strict=True))
+            rate = gain / (probe.rig_time_s / 60.0)
+            if gain > 1e-9 and (best is None or rate > best[0]):
+                best = (rate, i, states, after)
+        if best is None:
+            break
+        _rate, i, states, after = best
+        for g, s in zip(groups, states, strict=True):
+            commit(g, s)
+        plan.append({"probe": i, "start_s": t_end_rel_s + used, "before": now, "after": after})
+        chosen.add(i)
+        used += probes[i].rig_time_s
+        now = after
+    return plan
+
+
+def rival_dict(group: str, reading: Reading, force_ref_N: float) -> dict:
+    """A rival in diagnosis.json: its label, group, effects, parameters and instrument terms."""
+    c = reading.candidate
+    return {"label": reading.label, "group": group, "effects": list(c.effects), "params": dict(c.params),
+            "instrument": {"force_gain": c.gain if "force_gain" in c.instrument else None,
+                           "force_offset_N": c.offset_N if "force_offset" in c.instrument else None,
+                           "force_drift_N_s": c.drift_N_s if DRIFT in c.instrument else None,
+                           "force_lag_s": None if c.channel is None else c.channel[1],
+                           "force_lag_form": None if c.channel is None else LAG_FORM_NAMES[c.channel[0]]}}
+
+
+def plan_entry(n: int, probe: Probe, step: dict, names: Sequence[str]) -> dict:
+    """One case of the plan (the agreed shape, with its label and each group's marginal separation)."""
+    plan = probe.plan
+    gains = {g: b - a for g, a, b in zip(names, step["before"], step["after"], strict=True)}
+    resolves = [g for g, d in gains.items() if d >= RESOLVES_MIN_CHI2]
+    return {"case": f"N{n:02d}", "waveform": "standstill" if plan is None else plan.waveform,
+            "velocity_m_s": None if plan is None else plan.velocity_m_s,
+            "amplitude_m": 0.0 if plan is None else plan.amplitude_m,
+            "period_s": None if plan is None else plan.period_s, "frequency_Hz": None,
+            "periods": 0 if plan is None else 2, "sample_rate_Hz": step["fs"],
+            "duration_s": STANDSTILL_S if plan is None else plan.duration_s,
+            "rig_time_s": probe.rig_time_s, "resolves": resolves,
+            "separation_se": math.sqrt(max(max(gains.values()), 0.0)) if gains else 0.0,
+            "separation_se_by_group": {g: math.sqrt(max(d, 0.0)) for g, d in gains.items()}, "label": probe.label}
+
+
+def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list[Reading]]], dict]:
+    """(group name, readings) of each confounded group, and of the partial explanations within the margin of an
+    unexplained verdict; and {group: why no case separates it}."""
+    out, unresolvable = [], {}
+    for group in result.get("confounded") or []:
+        name = "+".join(group)
+        readings = group_readings(group, ctx)
+        if isinstance(readings, str):
+            unresolvable[name] = readings
+        elif all(name != n for n, _ in out):
+            out.append((name, readings))
+    if not result.get("confounded") and not result.get("explained", True) and result.get("verdict") \
+            and ctx.get("candidates"):   # partial explanations of a named verdict (none named: outside the catalogue)
+        partial = partial_readings(ctx["best"], ctx["candidates"])
+        if partial:
+            out.append(("+".join(sorted({e for r in partial for e in r.candidate.effects}, key=_order)), partial))
+    return out, unresolvable
+
+
+def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: WindowSpec = DEFAULTS.window,
+               n_bins: int = 4, design: DesignLimits = DEFAULTS.design, declared: Mapping | None = None) -> dict:
+    """The ``next_tests`` block of diagnosis.json (contract 1.5) for a diagnosis ``result`` and its fits ``ctx``
+    (:func:`isokinetic.diagnosis.verdict.diagnose_observations`' ``predictions['fits']``)."""
+    started = time.perf_counter()
+    groups, unresolvable = ([], {}) if ctx is None else contexts_groups(result, ctx)
+    if not groups and not unresolvable:
+        return {"needed": False, "note": NO_PLAN_NOTE, "plan": []}
+    block = {"needed": True, "criterion": CRITERION, "target_se": TARGET_SE, "rivals": [], "plan": [],
+             "total_rig_time_s": 0.0, "separation_se": {}, "unresolvable": unresolvable}
+    if groups:
+        block.update(planned(groups, ctx, damper, spec, n_bins, design, declared))
+    block["note"] = plan_note(block)
+    block["seconds"] = round(time.perf_counter() - started, 3)
+    return block
+
+
+def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: Damper, spec: WindowSpec,
+            n_bins: int, design: DesignLimits, declared: Mapping | None) -> dict:
+    """The plan's keys (rivals, plan, rig time, separations, limits) of the groups that cases can separate."""
+    dg: Diagnoser = ctx["dg"]
+    obs = dg.obs
+    limits = rig_limits(obs, damper, design, declared)
+    effects = [dg.param.effects([n for n in r.candidate.effects if n != "friction"],
+                                [r.candidate.x[r.candidate.effects.index(n)] for n in r.candidate.effects
+                                 if n != "friction"]) for _, rs in groups for r in rs]
+    probes = candidate_cases(obs, damper, limits, effects, spec, n_bins, design.convergence_fraction)
+    triangles = [p for p in probes if p.plan is not None]
+    scale = float(np.median(obs.viscosity_scale)) if obs.viscosity_scale else 1.0
+    pobs = probe_observations(obs.campaign, triangles, spec, n_bins, scale)
+    fs = limits.sample_rate_Hz
+    time_s = None if dg.time_s is None else np.zeros(len(pobs))
+    probe_ch = Channel(Evaluator(pobs, damper), time_s, dg)
+    old_ch = Channel(dg.evaluator, dg.time_s, dg)
+    models = [group_model(name, rs, old_ch, probe_ch, 1) for name, rs in groups]
+    verdict_mu = np.concatenate([models[0].probe_mu[0][:len(pobs)], [0.0]])
+    n = np.concatenate([pobs.stop - pobs.start, [STANDSTILL_S * fs]])
+    sigma = np.sqrt(mean_variance_N2(obs.noise, fs, n, verdict_mu) + (obs.rep_rel * verdict_mu) ** 2)
+    row_case = np.concatenate([pobs.case_index, [len(triangles)]])
+    row_time = np.concatenate([0.5 * (pobs.start + pobs.stop) / fs, [0.5 * STANDSTILL_S]])
+    probes = [*triangles, probes[-1]]
+    peak = np.zeros(len(probes))
+    for m in models:
+        for mu in m.probe_mu:
+            np.maximum.at(peak, row_case, np.abs(mu))
+    usable = peak <= limits.max_force_N
+    rows = ProbeRows(np.where(usable[row_case], row_case, -1), row_time, sigma)
+    t_end = 0.0 if dg.time_s is None else float(np.max(dg.time_s))
+    steps = greedy_plan(models, probes, rows, t_end)
+    names = [m.name for m in models]
+    plan = [plan_entry(k, probes[s["probe"]], {**s, "fs": fs}, names) for k, s in enumerate(steps, start=1)]
+    final = steps[-1]["after"] if steps else [m.separation() for m in models]
+    before = [m.separation() for m in models] if not steps else None
+    return {"rivals": [rival_dict(m.name, r, dg.param.force_ref_N) for m in models for r in m.readings],
+            "plan": plan, "total_rig_time_s": float(sum(p["rig_time_s"] for p in plan)),
+            "separation_se": {g: math.sqrt(max(d, 0.0)) for g, d in zip(names, final, strict=True)},
+            "separation_se_now": {g: math.sqrt(max(d, 0.0)) for g, d in
+                                  zip(names, steps[0]["before"] if steps else before, strict=True)},
+            "candidates_considered": int(usable.sum()),
+            "limits": {"max_speed_m_s": limits.max_speed_m_s, "min_amplitude_m": limits.min_amplitude_m,
+                       "max_amplitude_m": limits.max_amplitude_m, "max_force_N": limits.max_force_N,
+                       "sample_rate_Hz": fs, "convergence_fraction": design.convergence_fraction,
+                       "max_case_s": MAX_CASE_S, "budget_s": BUDGET_S, "setup_s": SETUP_S, "source": limits.source}}
+
+
+def plan_note(block: Mapping) -> str:
+    """One line: what the plan does (or why there is none)."""
+    target = block["target_se"]
+    done = [g for g, se in (block.get("separation_se_now") or {}).items() if se >= target]
+    parts = [f"{g}: the campaign's own data already separate the rivals ({block['separation_se_now'][g]:.1f} SE)"
+             for g in done]
+    if block["plan"]:
+        short = [g for g, se in block["separation_se"].items() if se < block["target_se"]]
+        parts.append(f"{len(block['plan'])} case(s), {block['total_rig_time_s'] / 60.0:.1f} min of rig time, separate "
+                     + ", ".join(f"{g} by {se:.1f} SE" for g, se in block["separation_se"].items())
+                     + (f" (short of {block['target_se']:g} SE: {', '.join(short)})" if short else ""))
+    elif set(block["separation_se"]) - set(done):
+        parts.append("no candidate case within the rig's limits adds to the separation of "
+                     + ", ".join(g for g in block["separation_se"] if g not in done))
+    parts += [f"{g}: {why}" for g, why in block["unresolvable"].items()]
+    return "; ".join(parts)

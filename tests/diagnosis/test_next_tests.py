@@ -1,0 +1,178 @@
+"""The next test (isokinetic.diagnosis.next_tests, issue 37): the criterion against a brute-force refit, the
+candidates and the plan within the rig's limits and the paper's design constraints, the note of a campaign
+without confounding, the block valid against the schema."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from isokinetic.contracts.settings import DEFAULTS
+from isokinetic.diagnosis import next_tests as nt
+from isokinetic.diagnosis import verdict as vd
+from isokinetic.diagnosis.model import Evaluator
+from isokinetic.diagnosis.observations import Observations
+from isokinetic.diagnosis.result import validate_diagnosis
+from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.physics.convergence import quasi_steady_boundary
+from isokinetic.physics.damper import NOMINAL, Effects
+
+SPEC, N_BINS, DESIGN = DEFAULTS.window, 4, DEFAULTS.design
+#: A command channel that measured the LVDT's scale as 1 (no displacement-scale confounding).
+MEASURED_SCALE = {"estimate": 1.0, "std_error": 1e-3, "n_cases": 2, "applied": False, "source": "command"}
+
+
+def stacked(a: Observations, b: Observations, force_N: np.ndarray) -> Observations:
+    """One set of observations of ``a`` and ``b`` (every one in period 1: a fit sees them all)."""
+    keys = ("case", "kind", "segment", "sign", "speed_m_s", "start", "stop", "sigma_N")
+    return Observations(campaign=a.campaign, plans=a.plans + b.plans, drives=a.drives + b.drives, rep_rel=0.0,
+                        case_index=np.concatenate([a.case_index, b.case_index + len(a.plans)]),
+                        period=np.ones(len(a) + len(b), dtype=np.int64), force_N=force_N, holes=a.holes,
+                        noise=a.noise, **{k: np.concatenate([getattr(a, k), getattr(b, k)]) for k in keys})
+
+
+def test_the_linearised_separation_is_a_brute_force_refit_of_the_rival(campaign):
+    obs, damper = campaign
+    truth = Evaluator(obs, damper).predict(Effects(viscosity_Pa_s=1.06 * damper.viscosity_Pa_s))
+    dg = Diagnoser(replace(obs, force_N=truth), damper)
+    a, b = dg.refit(("viscosity",)), dg.refit(("discharge",))
+    readings = [nt.Reading("viscosity", a), nt.Reading("discharge", b)]
+    probe = nt.probe_observations(obs.campaign, [nt.Probe("P1", nt.triangle_plan("P1", 2e-3, 2e-3, 50.0), "", 1.0)],
+                                  SPEC, N_BINS, 1.0)
+    probe = replace(probe, sigma_N=np.full(len(probe), 2.0))
+    group = nt.group_model("g", readings, nt.Channel(dg.evaluator, None, dg),
+                           nt.Channel(Evaluator(probe, damper), None, dg), 0)
+    rows = np.arange(len(probe))
+    states = nt.with_case(group, rows, np.zeros(rows.size), probe.sigma_N)
+    linear = {(s.true, s.refit): nt.PairState.chi2(*new) for s, new in zip(group.pairs[0], states[0], strict=True)}
+    # brute force: the rival refitted (nonlinear least squares, its gain and offset profiled) to the other's
+    # noise-free means over the old observations and the new case's
+    for true, refit in ((0, 1), (1, 0)):
+        c = readings[true].candidate
+        both = stacked(obs, probe, np.zeros(len(obs) + len(probe)))
+        model = Diagnoser(both, damper).model(dg.param.effects(c.effects, c.x))
+        brute = Diagnoser(replace(both, force_N=c.gain * model + c.offset_N), damper)
+        refitted = brute.refit(readings[refit].candidate.effects, tol=1e-10)
+        assert refitted.chi2_fit > 25.0    # the new case separates them: the comparison is not of two zeros
+        assert linear[(true, refit)] == pytest.approx(refitted.chi2_fit, rel=0.03)
+
+
+def test_a_nested_pair_counts_only_the_larger_reading_true(campaign):
+    obs, damper = campaign
+    dg = Diagnoser(obs, damper)
+    small, large = dg.refit(("viscosity",)), dg.refit(("discharge", "viscosity"))
+    other = dg.refit(("discharge",))
+    pairs = nt.directed_pairs([nt.Reading("v", small), nt.Reading("dv", large), nt.Reading("d", other)])
+    assert pairs == [[(1, 0)], [(0, 2), (2, 0)], [(1, 2)]]
+
+
+def test_every_candidate_lies_within_the_rig_and_starts_its_windows_after_convergence(campaign):
+    obs, damper = campaign
+    limits = nt.rig_limits(obs, damper, DESIGN)
+    effects = [NOMINAL, Effects(air_volume_fraction=0.002)]
+    probes = nt.candidate_cases(obs, damper, limits, effects, SPEC, N_BINS, DESIGN.convergence_fraction)
+    triangles = [p.plan for p in probes if p.plan is not None]
+    assert len(triangles) >= 10 and probes[-1].plan is None   # the grid, and a standstill
+    for plan in triangles:
+        assert plan.velocity_m_s <= limits.max_speed_m_s * (1 + 1e-12)
+        assert DESIGN.min_amplitude_m * (1 - 1e-12) <= plan.amplitude_m <= DESIGN.max_amplitude_m * (1 + 1e-12)
+        assert plan.period_s == pytest.approx(4.0 * plan.amplitude_m / plan.velocity_m_s)   # Eq. 26
+        assert 2.0 * plan.period_s <= nt.MAX_CASE_S
+        for eff in effects:   # the A-T diagram: above its quasi-steady boundary (Eq. 28, bisection)
+            _t, y_min = quasi_steady_boundary([plan.velocity_m_s], damper, phi=DESIGN.convergence_fraction,
+                                              start_fraction=SPEC.start_fraction, effects=eff)
+            assert np.isfinite(y_min[0]) and plan.amplitude_m >= y_min[0]
+
+
+def test_a_case_below_the_quasi_steady_boundary_is_refused(campaign):
+    _obs, damper = campaign
+    speed = 2e-3
+    _t, y_min = quasi_steady_boundary([speed], damper, phi=DESIGN.convergence_fraction,
+                                      start_fraction=SPEC.start_fraction)
+    short = nt.triangle_plan("P", speed, 0.9 * float(y_min[0]), 1000.0)
+    assert not nt.converges(short, damper, [NOMINAL], DESIGN.convergence_fraction, SPEC)
+
+
+@pytest.fixture(scope="module")
+def confounded(campaign):
+    """A diagnosis with a confounding (one slow case, a 1 % gain and a 30 ms lag in the force channel: air against
+    the lag) and its fits."""
+    obs, damper = campaign
+    one = obs.subset(obs.case == "T01")
+    force = 1.01 * Evaluator(one, damper).lagged(NOMINAL, [0.03])[0]
+    force = force + np.random.default_rng(1).normal(0.0, 1.0, len(one)) * one.sigma_N
+    t = np.linspace(0.0, 400.0, len(one))
+    result, predictions = vd.diagnose_observations(replace(one, force_N=force), damper,
+                                                   sensor={"obs_time_s": t, "time_ref_s": 200.0,
+                                                           "displacement_scale": MEASURED_SCALE})
+    return result, predictions, damper
+
+
+def test_a_confounded_verdict_gets_a_plan_that_separates_its_rivals(confounded):
+    result, predictions, damper = confounded
+    assert result["confounded"]
+    block = nt.next_tests(result, predictions["fits"], damper, SPEC, N_BINS, DESIGN)
+    groups = ["+".join(g) for g in result["confounded"]]
+    assert block["needed"] and block["plan"] and set(block["separation_se"]) == set(groups)
+    assert max(block["separation_se"].values()) >= nt.TARGET_SE
+    assert {r["group"] for r in block["rivals"]} == set(groups)
+    assert all(p["resolves"] and set(p["resolves"]) <= set(groups) for p in block["plan"])
+
+
+def test_the_plan_respects_the_rigs_limits_and_budget(confounded):
+    result, predictions, damper = confounded
+    block = nt.next_tests(result, predictions["fits"], damper, SPEC, N_BINS, DESIGN)
+    limits = block["limits"]
+    assert 1 <= len(block["plan"]) <= nt.MAX_CASES
+    assert block["total_rig_time_s"] == pytest.approx(sum(p["rig_time_s"] for p in block["plan"]))
+    assert block["total_rig_time_s"] <= nt.BUDGET_S
+    for p in block["plan"]:
+        if p["waveform"] == "triangle":
+            assert p["velocity_m_s"] <= limits["max_speed_m_s"] * (1 + 1e-12)
+            assert limits["min_amplitude_m"] * (1 - 1e-12) <= p["amplitude_m"]
+            assert p["amplitude_m"] <= limits["max_amplitude_m"] * (1 + 1e-12)
+            assert p["period_s"] == pytest.approx(4.0 * p["amplitude_m"] / p["velocity_m_s"])
+            assert p["rig_time_s"] == pytest.approx(2.0 * p["period_s"] + nt.SETUP_S)
+
+
+def test_the_block_is_valid_against_the_schema(confounded):
+    result, predictions, damper = confounded
+    block = nt.next_tests(result, predictions["fits"], damper, SPEC, N_BINS, DESIGN)
+    validate_diagnosis({**result, "next_tests": vd.json_safe(block)})
+
+
+def test_a_campaign_without_confounding_gets_the_one_line_note_and_costs_nothing(campaign):
+    obs, damper = campaign
+    force = Evaluator(obs, damper).predict(NOMINAL) + np.random.default_rng(2).normal(0.0, 1.0, len(obs)) * obs.sigma_N
+    result, predictions = vd.diagnose_observations(replace(obs, force_N=force), damper,
+                                                   sensor={"displacement_scale": MEASURED_SCALE})
+    assert not result.get("confounded")
+    calls = predictions["fits"]["dg"].calls
+    block = nt.next_tests(result, predictions["fits"], damper, SPEC, N_BINS, DESIGN)
+    assert block == {"needed": False, "note": "no confounding: no further test proposed", "plan": []}
+    assert predictions["fits"]["dg"].calls == calls   # no model run
+    validate_diagnosis({**result, "next_tests": block})
+
+
+def test_an_lvdt_scale_the_verdicts_own_terms_equal_is_stated_unresolvable(campaign):
+    obs, damper = campaign
+    force = Evaluator(obs, damper).predict(Effects(discharge_coefficient=0.9 * damper.discharge_coefficient))
+    dg = Diagnoser(replace(obs, force_N=force), damper)
+    best = dg.refit(("discharge",))
+    ctx = {"dg": dg, "bdg": dg, "best": best, "candidates": [best], "hyp": None, "verdict": ["discharge"],
+           "margin": vd.SENSOR_MARGIN}
+    assert nt.group_readings(["displacement_scale", "force_gain", "discharge"], ctx) == nt.SCALE_REASON
+
+
+def test_an_lvdt_scale_reading_is_a_gain_tied_to_the_discharge_coefficient(campaign):
+    obs, damper = campaign
+    k = 1.02   # the LVDT reads 2 % long: the true speeds are the measured ones over k
+    from isokinetic.diagnosis.instrument import rescaled_drives
+
+    truth = Evaluator(rescaled_drives(obs, k), damper).predict(NOMINAL)
+    dg = Diagnoser(replace(obs, force_N=truth), damper)
+    scale = nt.fit_scale(dg, dg.refit(("viscosity",)))
+    assert scale.gain == pytest.approx(1.0 / k, rel=2e-3)
+    assert scale.params["discharge_coefficient"] == pytest.approx(damper.discharge_coefficient * math.sqrt(k),
+                                                                   rel=2e-3)
