@@ -74,3 +74,23 @@ rule blind_score:
         vector_format=VECTOR_FORMAT,
     script:
         "../scripts/blind_score.py"
+
+
+rule blind_next_test:
+    """One scenario built to be confounded, run end to end (issue 37): its diagnosis' next tests and the uniform
+    plan of the same rig time simulated on its own reference rig, appended to copies of its campaign, diagnosed
+    again and judged against the truth (isokinetic.stages.blind_next_test)."""
+    output:
+        **rule_outputs("blind_next_test", campaign=BLIND_DIR),
+    log:
+        "logs/blind/next_test.log",
+    benchmark:
+        benchmark_path("blind_next_test", BLIND_DIR)
+    priority: 10
+    resources:
+        **rule_resources("blind_next_test"),
+    params:
+        **rule_settings(SETTINGS, "blind_diagnose"),
+        code=code_version("blind_next_test.py"),
+    script:
+        "../scripts/blind_next_test.py"

@@ -272,7 +272,7 @@ def check_raw_after_run():
 BLIND_ROOT = f"{RESULTS_DIR}/{BLIND_DIR}"
 BLIND_OUTPUTS = [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_score").values()] + [
     campaign_path(BLIND_DIR, f.path) for f in rule_figures("blind_score")
-]
+] + [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_next_test").values() if not is_folder(p)]
 #: Every campaign's plan check in one table, written by the index job.
 DESIGN_SUMMARY = f"{RESULTS_DIR}/design/plan_check.parquet"
 

@@ -73,6 +73,8 @@ FIGURES = (
     Figure("fig05_stroke_to_converge", "design", "design", "design", "Fig. 5 - stroke to converge"),
     Figure("fig06_at_diagram", "design", "design", "design", "Fig. 6 - A-T diagram of the plan"),
     Figure("fig16_gap", "diagnosis", "diagnosis", "diagnosis", "Fig. 16 - the sim-to-real gap before and after"),
+    Figure("fig21_next_tests", "diagnosis", "diagnosis", "diagnosis",
+           "Fig. 21 - the next tests that would separate what the diagnosis cannot tell apart, on the A-T diagram"),
     Figure("fig17_blind_confusion", "blind_score", "", "blind", "Fig. 17 - blind test: truth against verdict"),
     Figure("fig18_compare_overlay", "compare", "", "compare",
            "Fig. 18 - the campaigns' characteristics overlaid, with uncertainty bands"),
@@ -122,6 +124,7 @@ STAGE_OUTPUTS = {
     "provenance": {"provenance": "provenance.json"},
     "campaign_report": {"page": "report.html"},
     "blind_score": {"scores": "scores.parquet", "summary": "summary.json"},
+    "blind_next_test": {"proof": "next_test.json", "work": "next_test/"},
     "compare": {"table": "compare.parquet", "csv": "compare.csv", "summary": "compare.json"},
     "compare_report": {"page": "report.html"},
 }
@@ -157,6 +160,7 @@ RULE_STAGES = {
     "diagnosis": ("diagnosis",),
     "campaign_report": ("raw_check", "provenance", "campaign_report"),
     "blind_score": ("blind_score",),
+    "blind_next_test": ("blind_next_test",),
     "compare": ("compare", "compare_report"),
 }
 
