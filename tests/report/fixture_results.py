@@ -158,7 +158,7 @@ def build_campaign(root: Path, *, damper: bool = True, stamped: bool = True) -> 
                root / "diagnosis.json")
     for k, fig in enumerate(CAMPAIGN_FIGURES):
         (root / fig.path).parent.mkdir(parents=True, exist_ok=True)
-        (root / fig.path).write_bytes(tiny_png((20 * k, 100, 200 - 10 * k)))
+        (root / fig.path).write_bytes(tiny_png((20 * k % 256, 100, (200 - 10 * k) % 256)))
     if stamped:
         stamp(root / "characteristic.parquet", record("characteristic"))
         stamp(root / "models" / "models.parquet", record("models"))

@@ -41,3 +41,37 @@ def test_a_diagnosis_before_contract_1_3_shows_no_structure_section(results):
     root = build_campaign(results)
     page = render_campaign_report(root)
     assert "Residual structure" not in plain(page)
+
+
+def with_plan(d: dict) -> dict:
+    """The fixture's diagnosis with a confounding and the next tests that resolve it (contract 1.5)."""
+    plan = [{"case": "N01", "waveform": "triangle", "velocity_m_s": 6.35e-5, "amplitude_m": 1e-4, "period_s": 6.2992,
+             "frequency_Hz": None, "periods": 2, "sample_rate_Hz": 50.0, "duration_s": 12.6, "rig_time_s": 42.6,
+             "resolves": ["air+force_lag"], "separation_se": 17.5}]
+    block = {"needed": True, "note": "1 case(s), 0.7 min of rig time, separate air+force_lag by 17.5 SE",
+             "rivals": [], "plan": plan, "total_rig_time_s": 42.6, "separation_se": {"air+force_lag": 17.5},
+             "separation_se_now": {"air+force_lag": 0.356}, "target_se": 5.0,
+             "unresolvable": {"displacement_scale+force_gain+discharge": "no case separates them"}}
+    d = {**d, "confounded": [["air", "force_lag"]], "next_tests": block}
+    validate_diagnosis(d)
+    return d
+
+
+def test_the_page_shows_the_plan_beside_the_confounding_it_resolves(results):
+    root = build_campaign(results)
+    write_json(with_plan(diagnosis()), root / "diagnosis.json")
+    page = render_campaign_report(root)
+    text = plain(page)
+    assert "Next tests" in text and "1 case(s), 0.7 min of rig time" in text
+    assert "air+force_lag: separated by 0.356 SE now, 17.5 SE with the plan" in text
+    assert "N01" in text and "0.0635" in text and "diagnosis.json next_tests.plan.0.separation_se\"" in page
+    assert "displacement_scale+force_gain+discharge: no case separates them" in text
+
+
+def test_a_campaign_without_confounding_shows_the_one_line_note(results):
+    root = build_campaign(results)
+    d = {**diagnosis(), "next_tests": {"needed": False, "note": "no confounding: no further test proposed", "plan": []}}
+    write_json(d, root / "diagnosis.json")
+    text = plain(render_campaign_report(root))
+    assert "Next tests: no confounding: no further test proposed." in text
+    assert "the cases that would separate" not in text

@@ -33,7 +33,7 @@ def test_rule_and_sibling_of_every_file_the_pages_read():
         assert (stage_of(fig.path), rule_of(fig.path)) == (fig.stage, stage_rule(fig.stage)), fig
         assert sibling_table(fig.path) == SIBLINGS[fig.stage], fig
     assert [Path(f.path).name for f in CAMPAIGN_FIGURES] == browser.campaign_figure_files()
-    assert len(CAMPAIGN_FIGURES) == 13 and [f.section for f in FIGURES if f not in CAMPAIGN_FIGURES] == [
+    assert len(CAMPAIGN_FIGURES) == 14 and [f.section for f in FIGURES if f not in CAMPAIGN_FIGURES] == [
         "blind", "compare", "compare"]
 
 

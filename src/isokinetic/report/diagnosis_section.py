@@ -4,7 +4,8 @@ Read from ``results/<campaign>/diagnosis.json`` (:mod:`isokinetic.stages.diagnos
 verdict and whether it explains the gap within noise, the gap before and after, the instrument
 terms, the fitted effect parameters with their standard errors and correlations, the speed bands
 where the nominal model misses, the residual-structure tests of the verdict on every axis (contract 1.3), the
-top candidates, confounded effects and the observations used. Every value's title names its JSON key path,
+top candidates, confounded effects with the next tests that would separate them (contract 1.5) and the observations
+used. Every value's title names its JSON key path,
 which ``python -m isokinetic trace`` audits.
 """
 
@@ -44,6 +45,11 @@ CANDIDATE_COLS = [Col("rank", "rank"), Col("effects", "effects", text, False),
                   Col("holdout_gap_after", "holdout gap"), Col("score", "score"),
                   Col("params", "fitted parameters", text, False)]
 SHOWN_CANDIDATES = 8
+PLAN_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text, False),
+             Col("velocity_m_s", "speed [mm/s]", scale=1e3), Col("amplitude_m", "amplitude [mm]", scale=1e3),
+             Col("period_s", "period [s]"), Col("rig_time_s", "rig time [s]", lambda x: fmt(x, 3)),
+             Col("resolves_text", "resolves", text, False),
+             Col("separation_se", "separation [SE]", lambda x: fmt(x, 3))]
 
 
 def _how_far(diag: Mapping, src: Source) -> Table:
@@ -242,6 +248,27 @@ def _confounded(diag: Mapping) -> str | None:
     return "; ".join(", ".join(g) if isinstance(g, (list, tuple)) else str(g) for g in confounded)
 
 
+def _next_tests(diag: Mapping, src: Source) -> dict | None:
+    """The next tests beside the confounding they resolve (contract 1.5, ``next_tests``): the note, each group's
+    separation now and with the plan, the plan's cases, what no case separates."""
+    block = diag.get("next_tests")
+    if not isinstance(block, Mapping):
+        return None
+    plan = block.get("plan") or []
+    table = None
+    if plan:
+        df = pd.DataFrame([{**e, "key": f"next_tests.plan.{i}", "resolves_text": ", ".join(e.get("resolves") or [])
+                            or "-"} for i, e in enumerate(plan)])
+        table = json_table_view(df, PLAN_COLS, src, "key", "next-tests",
+                                json_keys={"velocity_m_s", "amplitude_m", "period_s", "rig_time_s", "separation_se"})
+    now = block.get("separation_se_now") or {}
+    groups = [{"group": g, "now": fmt(now.get(g), 3), "planned": fmt(se, 3)}
+              for g, se in (block.get("separation_se") or {}).items()]
+    return {"needed": bool(block.get("needed")), "note": block.get("note", ""), "table": table, "groups": groups,
+            "total_min": fmt((block.get("total_rig_time_s") or 0.0) / 60.0, 3),
+            "unresolvable": dict(block.get("unresolvable") or {}), "target_se": block.get("target_se")}
+
+
 def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[FigureView],
                       viscosity_note: str | None = None) -> dict:
     """The data of the diagnosis section (``state``: missing, not_diagnosed or ok); ``viscosity_note``:
@@ -258,4 +285,5 @@ def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[Figur
             "structure": _structure(diag, src),
             "viscosity_note": Markup(viscosity_note) if viscosity_note else None,
             "candidates": _candidates(diag, src), "confounded": _confounded(diag),
+            "next_tests": _next_tests(diag, src),
             "lineage": lineage_of(src, "verdict"), "observations": _observations(diag), "figures": figures}

@@ -23,7 +23,7 @@ import pandas as pd
 
 from isokinetic.contracts.campaign import case_plan, viscosity_scales
 from isokinetic.contracts.campaign_folder import CampaignFolder
-from isokinetic.contracts.outputs import STAGE_OUTPUTS, rule_figures
+from isokinetic.contracts.outputs import STAGE_OUTPUTS, figure
 from isokinetic.contracts.settings import DEFAULTS, DesignLimits, Settings
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import (
@@ -394,10 +394,12 @@ def not_used(cases: pd.DataFrame, obs: Observations) -> dict[str, str]:
 
 
 def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | None, spec: WindowSpec = DEFAULTS.window,
-                    n_bins: int = 4, design: DesignLimits = DEFAULTS.design) -> dict:
+                    n_bins: int = 4, design: DesignLimits = DEFAULTS.design, plan_figure_path: Path | None = None
+                    ) -> dict:
     """Diagnose, validate against the schema, write diagnosis.json, next_tests.yaml beside it (the plan as a
-    manifest fragment, :func:`isokinetic.diagnosis.plan_text.plan_yaml`) and the gap figure (none without
-    ``figure_path``: the blind suite draws none, and then needs no plotting library)."""
+    manifest fragment, :func:`isokinetic.diagnosis.plan_text.plan_yaml`), the gap figure (none without
+    ``figure_path``: the blind suite draws none, and then needs no plotting library) and, at ``plan_figure_path``,
+    the next tests on the A-T diagram (Fig. 21, :func:`isokinetic.plots.next_tests.next_tests_figure`)."""
     try:
         result, obs, predictions = diagnose(Path(campaign_root), spec, n_bins, design=design)
     except Exception as exc:  # noqa: BLE001 - an accepted campaign always gets its diagnosis.json
@@ -415,6 +417,14 @@ def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | No
         from isokinetic.plots.style import save_figure
 
         save_figure(gap_figure(result, obs, predictions), figure_path)
+    if plan_figure_path is not None:
+        from isokinetic.plots.next_tests import next_tests_figure
+        from isokinetic.plots.style import save_figure
+
+        fits = predictions.get("fits")
+        damper = fits["dg"].evaluator.damper if fits else None   # the damper the diagnosis ran
+        save_figure(next_tests_figure(result["campaign"], result.get("next_tests"), obs.plans if obs else (), damper,
+                                      design, spec), plan_figure_path)
     return result
 
 
@@ -422,6 +432,6 @@ def run_diagnosis(campaign_root: str | Path, settings: Settings, figures: bool =
     """The chain's diagnosis step (:mod:`isokinetic.stages.chain`): :func:`write_diagnosis` into the campaign
     folder's diagnosis.json and, with ``figures``, Fig. 16, at the places the output registry names."""
     root = Path(campaign_root)
-    figure = next(iter(rule_figures("diagnosis"))).path
-    return write_diagnosis(root, root / STAGE_OUTPUTS["diagnosis"]["json"], root / figure if figures else None,
-                           settings.window, design=settings.design)
+    gap, plan = (root / figure(name).path if figures else None for name in ("fig16_gap", "fig21_next_tests"))
+    return write_diagnosis(root, root / STAGE_OUTPUTS["diagnosis"]["json"], gap, settings.window,
+                           design=settings.design, plan_figure_path=plan)
