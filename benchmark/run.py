@@ -174,20 +174,22 @@ def main() -> None:
         shutil.rmtree(work, ignore_errors=True)
 
 
-def diagnosis_seconds(work: Path, campaign: str) -> tuple[float, float, int, int]:
-    """(wall time [s], CPU time [s], cases diagnosed, model runs) of diagnosing a built campaign in a fresh process
-    pinned to one core (imports excluded); reads results/<campaign>/ and writes nothing. The CPU time is the one to
-    compare on a busy machine (the wall time waits for the core whenever another process has it)."""
+def diagnosis_seconds(work: Path, campaign: str) -> tuple[float, float, int, int, float]:
+    """(wall time [s], CPU time [s], cases diagnosed, model runs, the next-test plan's wall time [s]: 0 where none
+    is needed) of diagnosing a built campaign in a fresh process pinned to one core (imports excluded); reads
+    results/<campaign>/ and writes nothing. The CPU time is the one to compare on a busy machine (the wall time
+    waits for the core whenever another process has it)."""
     code = ("import time, pathlib; from isokinetic.stages.diagnosis import diagnose; t = time.perf_counter(); "
             "c = time.process_time(); "
             f"r, obs, _ = diagnose(pathlib.Path('results/{campaign}')); s = time.perf_counter() - t; "
-            "print(s, time.process_time() - c, 0 if obs is None else len(obs.plans), r.get('model_evaluations') or 0)")
+            "print(s, time.process_time() - c, 0 if obs is None else len(obs.plans), r.get('model_evaluations') or 0, "
+            "(r.get('next_tests') or {}).get('seconds') or 0.0)")
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
     pin = ["taskset", "-c", "0"] if shutil.which("taskset") else []
     out = subprocess.run([*pin, sys.executable, "-c", code], cwd=work, check=True, env=env,
                          capture_output=True, text=True)
-    seconds, cpu, cases, runs = out.stdout.strip().splitlines()[-1].split()
-    return float(seconds), float(cpu), int(cases), int(runs)
+    seconds, cpu, cases, runs, plan = out.stdout.strip().splitlines()[-1].split()
+    return float(seconds), float(cpu), int(cases), int(runs), float(plan)
 
 
 def built_campaigns(work: Path) -> list[str]:
@@ -197,13 +199,13 @@ def built_campaigns(work: Path) -> list[str]:
 
 def print_diagnoses(work: Path) -> None:
     """The diagnosis time of every built campaign, one core each (issue 35: <= 2 s for paper-lag-damper, 27
-    triangle cases)."""
-    print(f"\n{'diagnosis, one core':<26}{'cases':>6}{'model runs':>12}{'wall s':>9}{'CPU s':>8}")
+    triangle cases); of it, the next-test plan's (issue 37: none where nothing is confounded)."""
+    print(f"\n{'diagnosis, one core':<26}{'cases':>6}{'model runs':>12}{'wall s':>9}{'CPU s':>8}{'plan s':>8}")
     for campaign in built_campaigns(work):
-        seconds, cpu, cases, runs = diagnosis_seconds(work, campaign)
+        seconds, cpu, cases, runs, plan = diagnosis_seconds(work, campaign)
         target = "   target <= 2 s" if campaign == "paper-lag-damper" else ""
-        print(f"{campaign:<26}{cases:>6}{runs:>12}{seconds:>9.2f}{cpu:>8.2f}   load {load_average()}{target}",
-              flush=True)
+        print(f"{campaign:<26}{cases:>6}{runs:>12}{seconds:>9.2f}{cpu:>8.2f}{plan:>8.2f}   load {load_average()}"
+              f"{target}", flush=True)
 
 
 if __name__ == "__main__":

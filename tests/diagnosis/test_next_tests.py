@@ -176,3 +176,26 @@ def test_an_lvdt_scale_reading_is_a_gain_tied_to_the_discharge_coefficient(campa
     assert scale.gain == pytest.approx(1.0 / k, rel=2e-3)
     assert scale.params["discharge_coefficient"] == pytest.approx(damper.discharge_coefficient * math.sqrt(k),
                                                                    rel=2e-3)
+
+
+def test_a_gain_confounding_sets_the_verdict_with_its_gain_against_discharge_and_viscosity_without(campaign):
+    obs, damper = campaign
+    truth = 1.015 * Evaluator(obs, damper).predict(Effects(discharge_coefficient=0.95 * damper.discharge_coefficient))
+    dg = Diagnoser(replace(obs, force_N=truth), damper)
+    best = dg.refit(("discharge",))
+    ctx = {"dg": dg, "bdg": dg, "best": best, "candidates": [best], "hyp": None, "verdict": ["discharge"],
+           "margin": vd.SENSOR_MARGIN, "gain_needed": True}
+    verdict, alt = nt.group_readings(["force_gain", "discharge", "viscosity"], ctx)
+    assert verdict.candidate is best and verdict.label == "discharge+force_gain"
+    assert alt.candidate.effects == ("discharge", "viscosity") and "force_gain" not in alt.candidate.instrument
+    assert alt.label == "discharge+viscosity" and alt.candidate.gain == 1.0
+
+
+def test_a_group_the_plan_leaves_short_of_the_target_is_told_the_sensor_check_that_decides_it():
+    block = {"target_se": 5.0, "plan": [{"case": "N01"}], "total_rig_time_s": 60.0,
+             "separation_se": {"force_gain+discharge+viscosity": 2.4, "air+force_lag": 7.0},
+             "separation_se_now": {"force_gain+discharge+viscosity": 1.5, "air+force_lag": 0.3}, "unresolvable": {}}
+    note = nt.plan_note(block)
+    assert "short of 5 SE: force_gain+discharge+viscosity" in note
+    assert "force_gain+discharge+viscosity: calibrate the load cell against a reference force to decide" in note
+    assert "air+force_lag: check" not in note

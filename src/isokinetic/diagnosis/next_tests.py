@@ -94,6 +94,12 @@ LAG_STEP_S = 1e-4
 #: Partial explanations of an unexplained verdict taken as rivals (best overdispersed score first).
 MAX_PARTIAL_RIVALS = 3
 PHYSICS = ("discharge", "viscosity")
+#: What decides a group no case of the rig's range separates to the target, by the instrument term in it (first
+#: match): a check of the sensor itself.
+ADVICE = (("displacement_scale", "record the command channel or calibrate the LVDT"),
+          ("force_gain", "calibrate the load cell against a reference force"),
+          ("force_lag", "check the force channel's dynamics (its filter settings, or a step of known force)"),
+          ("force_drift", "check the load cell's zero before and after the campaign"))
 SCALE_REASON = ("inside the model an LVDT scale k is a load-cell gain 1/k plus C_D·√k: no case of any waveform "
                 "separates them; record the command channel or calibrate the LVDT")
 
@@ -189,9 +195,12 @@ def group_readings(group: Sequence[str], ctx: Mapping) -> list[Reading] | str:
         return scale_readings(group, ctx)
     if "force_gain" in group:
         physics = tuple(e for e in PHYSICS if e in group)
-        gain = bdg.refit(_without(verdict, physics), bdg.instrument, best)
-        alt = bdg.refit(tuple(sorted({*verdict, *physics}, key=_order)), _without(bdg.instrument, ["force_gain"]), best)
-        pair = [(gain, ("force_gain",)), (alt, ("force_gain",))]
+        if ctx.get("gain_needed"):   # the verdict with its gain against discharge and viscosity with none
+            alt = bdg.refit(tuple(sorted({*verdict, *physics}, key=_order)), _without(bdg.instrument, ["force_gain"]),
+                            best)
+        else:                        # the verdict's discharge and viscosity against a gain without them
+            alt = bdg.refit(_without(verdict, physics), bdg.instrument, best)
+        pair = [(best, ("force_gain",)), (alt, ("force_gain",))]
     elif DRIFT in group:
         drifting = tuple(e for e in group if e != DRIFT)
         drift = bdg.refit(_without(verdict, drifting), bdg.instrument, best)
@@ -686,6 +695,7 @@ def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list
     """(group name, readings) of each confounded group, and of the partial explanations within the margin of an
     unexplained verdict; and {group: why no case separates it}."""
     out, unresolvable = [], {}
+    ctx = {**ctx, "gain_needed": (result.get("instrument") or {}).get("force_gain") is not None}
     for group in result.get("confounded") or []:
         name = "+".join(group)
         readings = group_readings(group, ctx)
@@ -766,6 +776,12 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
                        "max_case_s": MAX_CASE_S, "budget_s": BUDGET_S, "setup_s": SETUP_S, "source": limits.source}}
 
 
+def advice(group: str) -> str:
+    """The sensor check that decides a group cases cannot separate ('' for a group of damper effects alone)."""
+    members = group.split("+")
+    return next((what for term, what in ADVICE if term in members), "")
+
+
 def plan_note(block: Mapping) -> str:
     """One line: what the plan does (or why there is none)."""
     target = block["target_se"]
@@ -777,6 +793,7 @@ def plan_note(block: Mapping) -> str:
         parts.append(f"{len(block['plan'])} case(s), {block['total_rig_time_s'] / 60.0:.1f} min of rig time, separate "
                      + ", ".join(f"{g} by {se:.1f} SE" for g, se in block["separation_se"].items())
                      + (f" (short of {block['target_se']:g} SE: {', '.join(short)})" if short else ""))
+        parts += [f"{g}: {advice(g)} to decide" for g in short if advice(g)]
     elif set(block["separation_se"]) - set(done):
         parts.append("no candidate case within the rig's limits adds to the separation of "
                      + ", ".join(g for g in block["separation_se"] if g not in done))
