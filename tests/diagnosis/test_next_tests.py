@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from isokinetic.contracts.settings import DEFAULTS
+from isokinetic.diagnosis import next_cases as nc
 from isokinetic.diagnosis import next_tests as nt
 from isokinetic.diagnosis import verdict as vd
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.physics.convergence import quasi_steady_boundary
 from isokinetic.physics.damper import NOMINAL, Effects
 
 SPEC, N_BINS, DESIGN = DEFAULTS.window, 4, DEFAULTS.design
@@ -38,7 +38,7 @@ def test_the_linearised_separation_is_a_brute_force_refit_of_the_rival(campaign)
     dg = Diagnoser(replace(obs, force_N=truth), damper)
     a, b = dg.refit(("viscosity",)), dg.refit(("discharge",))
     readings = [nt.Reading("viscosity", a), nt.Reading("discharge", b)]
-    probe = nt.probe_observations(obs.campaign, [nt.Probe("P1", nt.triangle_plan("P1", 2e-3, 2e-3, 50.0), "", 1.0)],
+    probe = nc.probe_observations(obs.campaign, [nc.Probe("P1", nc.triangle_plan("P1", 2e-3, 2e-3, 50.0), "", 1.0)],
                                   SPEC, N_BINS, 1.0)
     probe = replace(probe, sigma_N=np.full(len(probe), 2.0))
     group = nt.group_model("g", readings, nt.Channel(dg.evaluator, None, dg),
@@ -65,33 +65,6 @@ def test_a_nested_pair_counts_only_the_larger_reading_true(campaign):
     other = dg.refit(("discharge",))
     pairs = nt.directed_pairs([nt.Reading("v", small), nt.Reading("dv", large), nt.Reading("d", other)])
     assert pairs == [[(1, 0)], [(0, 2), (2, 0)], [(1, 2)]]
-
-
-def test_every_candidate_lies_within_the_rig_and_starts_its_windows_after_convergence(campaign):
-    obs, damper = campaign
-    limits = nt.rig_limits(obs, damper, DESIGN)
-    effects = [NOMINAL, Effects(air_volume_fraction=0.002)]
-    probes = nt.candidate_cases(obs, damper, limits, effects, SPEC, N_BINS, DESIGN.convergence_fraction)
-    triangles = [p.plan for p in probes if p.plan is not None]
-    assert len(triangles) >= 10 and probes[-1].plan is None   # the grid, and a standstill
-    for plan in triangles:
-        assert plan.velocity_m_s <= limits.max_speed_m_s * (1 + 1e-12)
-        assert DESIGN.min_amplitude_m * (1 - 1e-12) <= plan.amplitude_m <= DESIGN.max_amplitude_m * (1 + 1e-12)
-        assert plan.period_s == pytest.approx(4.0 * plan.amplitude_m / plan.velocity_m_s)   # Eq. 26
-        assert 2.0 * plan.period_s <= nt.MAX_CASE_S
-        for eff in effects:   # the A-T diagram: above its quasi-steady boundary (Eq. 28, bisection)
-            _t, y_min = quasi_steady_boundary([plan.velocity_m_s], damper, phi=DESIGN.convergence_fraction,
-                                              start_fraction=SPEC.start_fraction, effects=eff)
-            assert np.isfinite(y_min[0]) and plan.amplitude_m >= y_min[0]
-
-
-def test_a_case_below_the_quasi_steady_boundary_is_refused(campaign):
-    _obs, damper = campaign
-    speed = 2e-3
-    _t, y_min = quasi_steady_boundary([speed], damper, phi=DESIGN.convergence_fraction,
-                                      start_fraction=SPEC.start_fraction)
-    short = nt.triangle_plan("P", speed, 0.9 * float(y_min[0]), 1000.0)
-    assert not nt.converges(short, damper, [NOMINAL], DESIGN.convergence_fraction, SPEC)
 
 
 @pytest.fixture(scope="module")
@@ -133,7 +106,7 @@ def test_the_plan_respects_the_rigs_limits_and_budget(confounded):
             assert limits["min_amplitude_m"] * (1 - 1e-12) <= p["amplitude_m"]
             assert p["amplitude_m"] <= limits["max_amplitude_m"] * (1 + 1e-12)
             assert p["period_s"] == pytest.approx(4.0 * p["amplitude_m"] / p["velocity_m_s"])
-            assert p["rig_time_s"] == pytest.approx(2.0 * p["period_s"] + nt.SETUP_S)
+            assert p["rig_time_s"] == pytest.approx(2.0 * p["period_s"] + nc.SETUP_S)
 
 
 def test_the_block_is_valid_against_the_schema(confounded):

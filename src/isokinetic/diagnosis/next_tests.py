@@ -2,35 +2,30 @@
 how much rig time they cost.
 
 Rivals. Each confounded group of the verdict (``confounded`` in diagnosis.json), and the partial explanations of
-an unexplained verdict whose overdispersed scores lie within CONFOUNDED_SCORE of each other, is turned into full
-hypotheses (:func:`readings`): damper effects with their fitted parameters and the instrument terms fitted with
-them (load-cell gain, offset and zero drift, force-channel lag), each predicting any new case. They are built
-from the diagnosis' own fits, refitted where a reading was not fitted (:meth:`Diagnoser.refit`): the verdict
-against the same-size candidates within the margin; a load-cell gain without discharge and viscosity against
-discharge + viscosity with no gain; the verdict's effects without a lag against the lag without the effects
-the lag is confounded with (or the rival candidate with the other channel); an effect without the zero drift
-against the drift without it. An LVDT scale without a command channel is the same model as a load-cell gain plus
-C_D·√k (:mod:`isokinetic.diagnosis.verdict`): no case of any waveform separates them, and the plan says so.
+an unexplained verdict that names effects whose overdispersed scores lie within CONFOUNDED_SCORE of each other, is
+turned into full hypotheses (:func:`group_readings`, :func:`partial_readings`): damper effects with their fitted
+parameters and the instrument terms fitted with them (load-cell gain, offset and zero drift, force-channel lag), each
+predicting any new case. They are built from the diagnosis' own fits, refitted where a reading was not fitted
+(:meth:`Diagnoser.refit`): the verdict against the same-size candidates within the margin; the verdict with its
+load-cell gain against discharge + viscosity with none; the verdict's effects through an ideal force channel against
+the lag without the effects it is confounded with (or the rival candidate with the other channel); the verdict
+without the drifting effect, drift free, against the verdict without the drift; the verdict against an LVDT scale k
+(:func:`fit_scale`: the model's gain 1/k tied to C_D·√k). Where the verdict's own terms are that family (discharge
+and a free gain, no viscosity), no case of any waveform separates them, and the plan says so.
 
-Candidates (:func:`candidate_cases`). Triangle cases on a grid of speeds log-spaced from SPEED_BELOW times below
-the campaign's slowest to the rig's top speed, and of amplitudes log-spaced within the design limits
-(:class:`isokinetic.contracts.settings.DesignLimits`) and the piston's stroke; period 4Y/W (Eq. 26); only those
-whose windows start after the pressure has converged for every rival (Eq. 28 from rest, and from the opposite
-direction's steady pressure after each reversal: :func:`isokinetic.physics.convergence.stroke_to_converge`; a case
-to the right of the A-T diagram's boundary), whose peak force stays below the rig's, with enough samples per
-window, and no longer than MAX_CASE_S. Beside them a repeat of the campaign's first triangle case at the end (a
-drift of the zero or of a parameter moves it, a constant effect does not) and a standstill (the zero alone).
+Candidates: :mod:`isokinetic.diagnosis.next_cases` (triangle cases within the rig's limits whose windows start after
+convergence, Eq. 28; a repeat of the first case and a standstill at the end).
 
-Criterion (:func:`separation`). The expected χ² difference between rivals A and B when A is true, linearised with
-B refitted: Δχ²_A→B = ||(I − P_B)(μ_A − μ_B)/σ||² over the old observations and the candidates', P_B the
-weighted projection on B's Jacobian (its effects' parameters, its force-channel lag, its gain, friction, offset
-and drift columns). Of two non-nested rivals the smaller direction counts (the plan must separate whichever is
-true); of nested ones (one's terms a subset of the other's), the larger true and the smaller refitted (the
-likelihood-ratio test of the extra terms). A group's separation is its least separated pair. σ of a new mean is
+Criterion (:class:`PairState`, :meth:`GroupModel.separation`). The expected χ² difference between rivals A and B
+when A is true, linearised with B refitted: Δχ²_A→B = ||(I − P_B)(μ_A − μ_B)/σ||² over the old observations and the
+candidates', P_B the weighted projection on B's Jacobian (its effects' parameters, its force-channel lag, its gain,
+friction, offset and drift columns). Of two non-nested rivals the smaller direction counts (the plan must separate
+whichever is true); of nested ones (one's terms a subset of the other's), the larger true and the smaller refitted
+(the likelihood-ratio test of the extra terms). A group's separation is its least separated pair. σ of a new mean is
 the campaign's own fitted noise model (white plus coloured, :class:`isokinetic.measurement.noise.NoiseModel`, for
-the mean of its samples) with the between-period scatter. A D-optimal design on the parameters would buy
-precision of every parameter, including those the rivals share; this criterion buys only the difference the
-rivals predict, in the units the verdict's tests use (χ²).
+the mean of its samples) with the between-period scatter. A D-optimal design on the parameters would buy precision
+of every parameter, including those the rivals share; this criterion buys only the difference the rivals predict, in
+the units the verdict's tests use (χ²).
 
 Selection (:func:`greedy_plan`): greedy, the case that adds most to Σ_group min(Δχ²_group, TARGET_SE²) per minute
 of rig time, until every group reaches TARGET_SE standard errors, MAX_CASES cases or BUDGET_S of rig time. New
@@ -42,7 +37,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -50,13 +45,18 @@ from isokinetic.contracts.settings import DEFAULTS, DesignLimits, WindowSpec
 from isokinetic.diagnosis.candidate import CONFOUNDED_SCORE, Candidate, overdispersed_score
 from isokinetic.diagnosis.instrument import DRIFT, LAG_FORM_NAMES
 from isokinetic.diagnosis.model import Evaluator
-from isokinetic.diagnosis.observations import Observations
+from isokinetic.diagnosis.next_cases import (
+    MAX_CASE_S,
+    SETUP_S,
+    STANDSTILL_S,
+    Probe,
+    candidate_cases,
+    mean_variance_N2,
+    probe_observations,
+    rig_limits,
+)
 from isokinetic.diagnosis.search import Diagnoser
-from isokinetic.measurement.windows import windowed_half_periods
-from isokinetic.physics.convergence import stroke_to_converge
-from isokinetic.physics.damper import Damper, Effects
-from isokinetic.physics.plan import CasePlan
-from isokinetic.physics.responses import Drive, drive_times
+from isokinetic.physics.damper import Damper
 
 CRITERION = ("expected chi-square difference between rivals A and B when A is true, B refitted (linearised: "
              "||(I - P_B)(mu_A - mu_B)/sigma||^2 over the old and the new observations, P_B the weighted projection "
@@ -68,24 +68,6 @@ TARGET_SE = 5.0
 #: Most cases a plan proposes, and its rig-time budget [s].
 MAX_CASES = 8
 BUDGET_S = 7200.0
-#: Rig time a case costs beside its record [s]: the stated default for setting a case up and starting it.
-SETUP_S = 30.0
-#: Longest record a candidate may need [s].
-MAX_CASE_S = 1200.0
-#: The speed grid: N_SPEEDS speeds from the campaign's slowest divided by SPEED_BELOW to the rig's top speed;
-#: where the rig's top speed is not known, SPEED_ABOVE times the campaign's fastest (a stated default).
-N_SPEEDS = 10
-SPEED_BELOW = 4.0
-SPEED_ABOVE = 2.0
-#: Amplitudes of the grid, log-spaced within the design limits and the stroke.
-N_AMPLITUDES = 4
-#: The rig's largest force where the load cell's full scale is not known: this times the largest window force.
-FORCE_ABOVE = 2.0
-#: Fewest samples in a window, and in a transient bin, of a candidate triangle.
-MIN_WINDOW_SAMPLES = 20
-MIN_BIN_SAMPLES = 2
-#: A standstill's record [s].
-STANDSTILL_S = 60.0
 #: A case "resolves" a group where it adds at least this to the group's Δχ².
 RESOLVES_MIN_CHI2 = 1.0
 #: Step of the finite-difference Jacobian: optimiser units (order one) and the force channel's lag [s].
@@ -105,19 +87,6 @@ SCALE_REASON = ("inside the model an LVDT scale k is a load-cell gain 1/k plus C
 
 
 @dataclass(frozen=True)
-class RigLimits:
-    """What the rig can run (SI): speeds, amplitudes (design limits and the stroke), force, sample rate; ``source``
-    says where each came from."""
-
-    max_speed_m_s: float
-    min_amplitude_m: float
-    max_amplitude_m: float
-    max_force_N: float
-    sample_rate_Hz: float
-    source: dict = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
 class Reading:
     """One rival: a fitted candidate (effects, parameters, instrument terms, force channel) and its label.
     ``scale``: an LVDT scale k read as its model equivalent, gain 1/k tied to C_D·√k (one parameter, ln k)."""
@@ -125,40 +94,6 @@ class Reading:
     label: str
     candidate: Candidate
     scale: bool = False
-
-
-@dataclass(frozen=True)
-class Probe:
-    """A candidate case: its plan (None: a standstill), its label and its rig time [s]."""
-
-    case: str
-    plan: CasePlan | None
-    label: str
-    rig_time_s: float
-
-
-def rig_limits(obs: Observations, damper: Damper, design: DesignLimits = DEFAULTS.design,
-               declared: Mapping | None = None) -> RigLimits:
-    """The rig's limits: ``declared`` (max_speed_m_s, max_force_N, max_amplitude_m) where given, else the stated
-    defaults (SPEED_ABOVE times the campaign's fastest speed, FORCE_ABOVE times its largest window force); the
-    amplitude within ``design`` and 0.95 of the smaller chamber's stroke (Eq. 2); the campaign's triangle sample
-    rate (the most common)."""
-    declared = dict(declared or {})
-    tri = np.array([p.waveform == "triangle" for p in obs.plans])
-    rates = [p.sample_rate_Hz for p, t in zip(obs.plans, tri, strict=True) if t] \
-        or [p.sample_rate_Hz for p in obs.plans]
-    fs = max(set(rates), key=rates.count)
-    speed = float(np.max(obs.speed_m_s)) * SPEED_ABOVE
-    force = float(np.max(np.abs(obs.force_N[obs.is_window]))) * FORCE_ABOVE
-    stroke = 0.95 * min(damper.chamber_volume_1_m3, damper.chamber_volume_2_m3) / damper.piston_area_m2
-    source = {"max_speed_m_s": "declared" if "max_speed_m_s" in declared else f"{SPEED_ABOVE:g} x the campaign's",
-              "max_force_N": "declared" if "max_force_N" in declared else f"{FORCE_ABOVE:g} x the largest window force",
-              "amplitude": "design limits and 0.95 of the stroke", "sample_rate_Hz": "the campaign's"}
-    return RigLimits(max_speed_m_s=float(declared.get("max_speed_m_s", speed)),
-                     min_amplitude_m=design.min_amplitude_m,
-                     max_amplitude_m=min(design.max_amplitude_m, float(declared.get("max_amplitude_m", stroke)),
-                                         stroke),
-                     max_force_N=float(declared.get("max_force_N", force)), sample_rate_Hz=float(fs), source=source)
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -366,117 +301,8 @@ def nested(a: Reading, b: Reading) -> bool:
 
 
 # ----------------------------------------------------------------------------------------------------------------
-# the candidate cases
-# ----------------------------------------------------------------------------------------------------------------
-
-def converges(plan: CasePlan, damper: Damper, effects: Sequence[Effects], phi: float, spec: WindowSpec) -> bool:
-    """Whether every window of the triangle ``plan`` starts after Δp has reached ϕ of its steady value for each of
-    ``effects``: the window's start stroke 2·start_fraction·Y against the stroke to converge from rest at -Y (Eq. 28,
-    the first half-period) and from the opposite steady Δp after a reversal at either end."""
-    y, w = plan.amplitude_m, plan.velocity_m_s
-    have = 2.0 * spec.start_fraction * y
-    for eff in effects:
-        need = [stroke_to_converge(w, damper, phi=phi, start_position_m=-y, effects=eff),
-                stroke_to_converge(w, damper, phi=phi, start_position_m=-y, effects=eff, reversal=True),
-                stroke_to_converge(-w, damper, phi=phi, start_position_m=y, effects=eff, reversal=True)]
-        if not all(np.isfinite(s) and s <= have for s in (float(v) for v in need)):
-            return False
-    return True
-
-
-def _window_samples_ok(plan: CasePlan, spec: WindowSpec, n_bins: int) -> bool:
-    half_samples = 0.5 * plan.period_s * plan.sample_rate_Hz
-    return ((spec.end_fraction - spec.start_fraction) * half_samples >= MIN_WINDOW_SAMPLES
-            and spec.start_fraction * half_samples / n_bins >= MIN_BIN_SAMPLES)
-
-
-def triangle_plan(case: str, speed_m_s: float, amplitude_m: float, fs: float) -> CasePlan:
-    """A triangle case of speed W and amplitude Y: period 4Y/W (Eq. 26), two periods recorded, phase -π/2."""
-    period = 4.0 * amplitude_m / speed_m_s
-    return CasePlan(case=case, waveform="triangle", sample_rate_Hz=fs, amplitude_m=amplitude_m, period_s=period,
-                    duration_s=2.0 * period)
-
-
-def candidate_cases(obs: Observations, damper: Damper, limits: RigLimits, effects: Sequence[Effects],
-                    spec: WindowSpec, n_bins: int, phi: float) -> list[Probe]:
-    """The candidates (module docstring): the triangle grid, a repeat of the campaign's first triangle case and
-    a standstill, each within the rig's limits and the design constraints (force checked later, on the rivals'
-    predictions)."""
-    speeds = obs.speed_m_s[obs.speed_m_s > 0]
-    lo = float(speeds.min()) / SPEED_BELOW if speeds.size else 1e-4
-    grid_v = np.geomspace(lo, max(limits.max_speed_m_s, lo * 1.01), N_SPEEDS)
-    grid_y = np.geomspace(limits.min_amplitude_m, max(limits.max_amplitude_m, limits.min_amplitude_m), N_AMPLITUDES)
-    probes = []
-    for v in grid_v:
-        for y in grid_y:
-            plan = triangle_plan(f"C{len(probes) + 1:03d}", float(v), float(y), limits.sample_rate_Hz)
-            probes.append(Probe(plan.case, plan, f"triangle {v * 1e3:.3g} mm/s, {y * 1e3:.3g} mm", 0.0))
-    first = next((p for p in obs.plans if p.waveform == "triangle"), None)
-    if first is not None:
-        plan = replace(first, case=f"C{len(probes) + 1:03d}", duration_s=2.0 * first.period_s)
-        probes.append(Probe(plan.case, plan, f"repeat of {first.case} at the end", 0.0))
-    kept = [replace(p, rig_time_s=p.plan.duration_s + SETUP_S) for p in probes
-            if p.plan.duration_s <= MAX_CASE_S and p.plan.velocity_m_s <= limits.max_speed_m_s * (1 + 1e-9)
-            and limits.min_amplitude_m * (1 - 1e-9) <= p.plan.amplitude_m <= limits.max_amplitude_m * (1 + 1e-9)
-            and _window_samples_ok(p.plan, spec, n_bins) and converges(p.plan, damper, effects, phi, spec)]
-    kept.append(Probe(f"C{len(probes) + 1:03d}", None, "standstill at the end", STANDSTILL_S + SETUP_S))
-    return kept
-
-
-def probe_observations(campaign: str, probes: Sequence[Probe], spec: WindowSpec, n_bins: int,
-                       viscosity_scale: float) -> Observations:
-    """The windows and transient bins (as the campaign's, :mod:`isokinetic.diagnosis.observations`) of the
-    triangle ``probes``, driven at their planned speeds; forces 0 and σ 1 until :func:`probe_sigma` sets them."""
-    cols = {k: [] for k in ("case", "case_index", "kind", "segment", "period", "sign", "speed_m_s", "start", "stop")}
-    plans, drives = [], []
-    for probe in probes:
-        plan = probe.plan
-        drive = Drive((plan.velocity_m_s,) * 4)
-        times = drive_times(plan, drive)
-        half = plan.period_s / 2.0
-        for k, (t0, _t1, sign) in enumerate(windowed_half_periods(plan, plan.duration_s, spec), start=1):
-            edges = [(t0 + a, t0 + b, "transient") for a, b in
-                     zip(*(np.linspace(0.0, spec.start_fraction * half, n_bins + 1)[s] for s in (slice(None, -1),
-                                                                                                 slice(1, None))),
-                         strict=True)]
-            edges.append((t0 + spec.start_fraction * half, t0 + spec.end_fraction * half + 0.5 / plan.sample_rate_Hz,
-                          "window"))
-            for a, b, kind in edges:
-                j0, j1 = np.searchsorted(times, [a, b], side="left")
-                for key, value in (("case", plan.case), ("case_index", len(plans)), ("kind", kind), ("segment", k),
-                                   ("period", (k + 1) // 2), ("sign", sign), ("speed_m_s", plan.velocity_m_s),
-                                   ("start", int(j0)), ("stop", int(j1))):
-                    cols[key].append(value)
-        plans.append(replace(plan, duration_s=float(times[max(int(max(cols["stop"][-1], 1)) - 1, 0)])))
-        drives.append(drive)
-    arrays = {k: np.asarray(v, dtype=object if k in ("case", "kind") else
-                            (np.int64 if k in ("case_index", "segment", "period", "start", "stop") else float))
-              for k, v in cols.items()}
-    n = len(arrays["case"])
-    return Observations(campaign=campaign, plans=tuple(plans), drives=tuple(drives), force_N=np.zeros(n),
-                        sigma_N=np.ones(n), rep_rel=0.0,
-                        viscosity_scale=(viscosity_scale,) * len(plans) if viscosity_scale != 1.0 else (), **arrays)
-
-
-# ----------------------------------------------------------------------------------------------------------------
 # the criterion
 # ----------------------------------------------------------------------------------------------------------------
-
-def mean_variance_N2(noise: Mapping, fs: float, n: np.ndarray, force_N: np.ndarray) -> np.ndarray:
-    """Variance of a mean of ``n`` samples at the true force ``force_N`` under the campaign's noise model: its
-    triangle windows' (white plus coloured, :meth:`isokinetic.measurement.noise.NoiseModel.mean_variance`, of the
-    sample rate nearest ``fs``), else its sine bins' (a/n + b F²); ValueError where it has neither."""
-    objects = noise.get("objects") or {}
-    n = np.maximum(np.asarray(n, dtype=float), 1.0)
-    f2 = np.asarray(force_N, dtype=float) ** 2
-    if objects:
-        model = objects[min(objects, key=lambda r: abs(float(r) - fs))]
-        return np.asarray(model.mean_variance(n, f2), dtype=float)
-    sine = noise.get("sine")
-    if sine:
-        return sine["white_var_N2"] / n + sine["rel_var"] * f2 + (sine.get("between_case_rel", 0.0) ** 2) * f2
-    raise ValueError("the campaign has no fitted noise model")
-
 
 @dataclass
 class PairState:
