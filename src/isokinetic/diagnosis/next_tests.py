@@ -76,6 +76,10 @@ LAG_STEP_S = 1e-4
 #: Partial explanations of an unexplained verdict taken as rivals (best overdispersed score first).
 MAX_PARTIAL_RIVALS = 3
 PHYSICS = ("discharge", "viscosity")
+#: Highest sample rate of the model runs at the candidates [Hz]: a window's or transient bin's mean is an integral
+#: over its times, which 250 samples a second resolve for the relaxations and force channels fitted (group delays of
+#: a few ms and more); a 2 kHz campaign's 20-min candidates would otherwise hold tens of millions of samples.
+MODEL_RATE_HZ = 250.0
 #: What decides a group no case of the rig's range separates to the target, by the instrument term in it (first
 #: match): a check of the sensor itself.
 ADVICE = (("displacement_scale", "record the command channel or calibrate the LVDT"),
@@ -566,17 +570,22 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
     probes = candidate_cases(obs, damper, limits, effects, spec, n_bins, design.convergence_fraction)
     triangles = [p for p in probes if p.plan is not None]
     scale = float(np.median(obs.viscosity_scale)) if obs.viscosity_scale else 1.0
-    pobs = probe_observations(obs.campaign, triangles, spec, n_bins, scale)
+    # the model runs the candidates on a grid of at most MODEL_RATE_HZ (their means are integrals over the same
+    # times); each mean's noise is that of the rig's samples
+    pobs = probe_observations(obs.campaign, [replace(p, plan=replace(
+        p.plan, sample_rate_Hz=min(p.plan.sample_rate_Hz, MODEL_RATE_HZ))) for p in triangles], spec, n_bins, scale)
     fs = limits.sample_rate_Hz
+    model_fs = np.array([p.sample_rate_Hz for p in pobs.plans])[pobs.case_index]
+    rig_fs = np.array([p.plan.sample_rate_Hz for p in triangles])[pobs.case_index]
     time_s = None if dg.time_s is None else np.zeros(len(pobs))
     probe_ch = Channel(Evaluator(pobs, damper), time_s, dg)
     old_ch = Channel(dg.evaluator, dg.time_s, dg)
     models = [group_model(name, rs, old_ch, probe_ch, 1) for name, rs in groups]
     verdict_mu = np.concatenate([models[0].probe_mu[0][:len(pobs)], [0.0]])
-    n = np.concatenate([pobs.stop - pobs.start, [STANDSTILL_S * fs]])
+    n = np.concatenate([np.round((pobs.stop - pobs.start) * rig_fs / model_fs), [STANDSTILL_S * fs]])
     sigma = np.sqrt(mean_variance_N2(obs.noise, fs, n, verdict_mu) + (obs.rep_rel * verdict_mu) ** 2)
     row_case = np.concatenate([pobs.case_index, [len(triangles)]])
-    row_time = np.concatenate([0.5 * (pobs.start + pobs.stop) / fs, [0.5 * STANDSTILL_S]])
+    row_time = np.concatenate([0.5 * (pobs.start + pobs.stop) / model_fs, [0.5 * STANDSTILL_S]])
     probes = [*triangles, probes[-1]]
     peak = np.zeros(len(probes))
     for m in models:
