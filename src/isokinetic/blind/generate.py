@@ -85,6 +85,7 @@ from isokinetic.contracts.scenarios import (
     scenario_names,
     suite_composition,
 )
+from isokinetic.contracts.settings import DEFAULTS
 from isokinetic.io import write_json
 from isokinetic.measurement.model_windows import ModelPlan
 from isokinetic.measurement.windows import WindowSpec
@@ -233,7 +234,7 @@ class DetectionProblem(MeanDetection):
 
     @classmethod
     def of(cls, name: str, cases: Sequence[CasePlan], damper: Damper, rig: rr.RigImperfections,
-           spec: WindowSpec = WindowSpec()) -> DetectionProblem:
+           spec: WindowSpec = DEFAULTS.window) -> DetectionProblem:
         mp = ModelPlan.from_cases(name, plan_table(name, cases), spec)
         return cls(mp, damper, rig, mp.forces(damper, NOMINAL)[0])
 
@@ -611,7 +612,7 @@ def out_of_catalogue_true_effects(kind: str, damper: Damper, cases: Sequence[Cas
 
 def detection_levels(name: str, effects: Iterable[str], cases: Sequence[CasePlan], damper: Damper,
                      rig: rr.RigImperfections, signs: Mapping[str, float],
-                     spec: WindowSpec = WindowSpec()) -> dict[str, float] | None:
+                     spec: WindowSpec = DEFAULTS.window) -> dict[str, float] | None:
     """Detection level of each of ``effects`` (EFFECTS order) on one drawn damper, plan and rig; None
     as soon as one is not detectable with MULTIPLE_RANGE[1] x its level within its bound (BOUNDS)."""
     detection: dict[str, float] = {}
@@ -636,7 +637,7 @@ def overlay(effects: rr.TrueEffects, extra: rr.TrueEffects) -> rr.TrueEffects:
 
 
 def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSequence,
-                  multiples: Mapping[str, float] | None = None, spec: WindowSpec = WindowSpec(),
+                  multiples: Mapping[str, float] | None = None, spec: WindowSpec = DEFAULTS.window,
                   n_velocities: tuple[int, int] = N_VELOCITIES,
                   low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
                   high_end_mm_s: tuple[float, float] = HIGH_END_MM_S, out_of_catalogue: str = "",
@@ -694,7 +695,7 @@ def make_scenario(name: str, truth: Sequence[str], seed_seq: np.random.SeedSeque
 
 
 def generate_scenarios(seed: int, n_per_effect: int, n_pairs: int, n_none: int, n_out: int = 0, n_sine: int = 0, *,
-                       multiple: float | None = None, spec: WindowSpec = WindowSpec(),
+                       multiple: float | None = None, spec: WindowSpec = DEFAULTS.window,
                        n_velocities: tuple[int, int] = N_VELOCITIES,
                        low_end_mm_s: tuple[float, float] = LOW_END_MM_S,
                        high_end_mm_s: tuple[float, float] = HIGH_END_MM_S,

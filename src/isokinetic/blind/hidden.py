@@ -46,6 +46,7 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.contracts.scenarios import DETECTION_RMS_Z, HIDDEN_AXES
+from isokinetic.contracts.settings import DEFAULTS
 from isokinetic.measurement.model_windows import ModelPlan
 from isokinetic.measurement.windows import WindowSpec
 from isokinetic.physics.damper import Damper
@@ -117,7 +118,7 @@ def rig_forces(damper: Damper, cases: Sequence[CasePlan], effects: rr.TrueEffect
     return out
 
 
-def window_plan(name: str, cases: Sequence[CasePlan], spec: WindowSpec = WindowSpec()) -> ModelPlan:
+def window_plan(name: str, cases: Sequence[CasePlan], spec: WindowSpec = DEFAULTS.window) -> ModelPlan:
     """The diagnosis' windows of the plan (sample indices of each case's record)."""
     return ModelPlan.from_cases(name, plan_table(name, cases), spec)
 
@@ -154,7 +155,7 @@ def signature_rms_z(kind: str, strength: float, damper: Damper, cases: Sequence[
 
 def hidden_effects(kind: str, name: str, damper: Damper, cases: Sequence[CasePlan], base: rr.TrueEffects,
                    rig: rr.RigImperfections, rng: np.random.Generator,
-                   spec: WindowSpec = WindowSpec()) -> tuple[dict[str, float], dict]:
+                   spec: WindowSpec = DEFAULTS.window) -> tuple[dict[str, float], dict]:
     """(TrueEffects fields, the truth's ``hidden`` record) of a hidden kind in one drawn scenario: its strength
     scaled to a drawn multiple of its signature's detection level and its rms_z measured there (module doc)."""
     windows = window_plan(name, cases, spec)
