@@ -12,6 +12,7 @@ from isokinetic.contracts.settings import DEFAULTS
 from isokinetic.diagnosis import next_cases as nc
 from isokinetic.diagnosis import next_tests as nt
 from isokinetic.diagnosis import verdict as vd
+from isokinetic.diagnosis.candidate import Candidate
 from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import validate_diagnosis
@@ -172,3 +173,27 @@ def test_a_group_the_plan_leaves_short_of_the_target_is_told_the_sensor_check_th
     assert "short of 5 SE: force_gain+discharge+viscosity" in note
     assert "force_gain+discharge+viscosity: calibrate the load cell against a reference force to decide" in note
     assert "air+force_lag: check" not in note
+
+
+def test_no_case_is_proposed_that_cannot_separate_the_readings(campaign):
+    obs, damper = campaign
+    dg = Diagnoser(obs, damper)
+    same = dg.refit(("viscosity",))
+    probe = nc.probe_observations(obs.campaign, [nc.Probe("P1", nc.triangle_plan("P1", 2e-3, 2e-3, 50.0), "", 60.0)],
+                                  SPEC, N_BINS, 1.0)
+    group = nt.group_model("g", [nt.Reading("a", same), nt.Reading("b", replace(same, params=dict(same.params)))],
+                           nt.Channel(dg.evaluator, None, dg), nt.Channel(Evaluator(probe, damper), None, dg), 0)
+    rows = nt.ProbeRows(probe.case_index, np.zeros(len(probe)), np.ones(len(probe)))
+    assert nt.greedy_plan([group], [nc.Probe("P1", probe.plans[0], "", 60.0)], rows, 0.0) == []
+
+
+def test_partial_explanations_fitted_twice_are_one_reading():
+    def partial(effects, chi2_holdout, channel=None):
+        return Candidate(effects=effects, x=np.zeros(len(effects)), params={}, prediction=np.zeros(1), chi2_fit=400.0,
+                         chi2_holdout=chi2_holdout, n_fit=100, n_holdout=100, gap_after=2.0, holdout_gap_after=2.0,
+                         score=chi2_holdout, explained=False, channel=channel)
+    best = partial(("friction", "leakage"), 400.0, (0, 0.01))
+    twice = partial(("friction", "leakage"), 401.0, (1, 0.012))
+    other = partial(("leakage",), 402.0)
+    readings = nt.partial_readings(best, [best, twice, other])
+    assert sorted(r.label for r in readings) == ["friction+leakage+force_lag", "leakage"]

@@ -227,8 +227,12 @@ def partial_readings(best: Candidate, candidates: Sequence[Candidate]) -> list[R
     scores = {id(c): overdispersed_score(c, candidates) for c in candidates}
     close = sorted((c for c in candidates if scores[id(c)] <= min(scores.values()) + CONFOUNDED_SCORE),
                    key=lambda c: scores[id(c)])
-    if best not in close:
+    if not any(c is best for c in close):   # by identity: a Candidate holds arrays
         close = [best, *close]
+    distinct = {}
+    for c in close:   # one reading per effect set and channel kind (the search and the lag search fit some twice)
+        distinct.setdefault((c.effects, c.channel is None), c)
+    close = list(distinct.values())
     return [Reading(_label(c), c) for c in close[:MAX_PARTIAL_RIVALS]] if len(close) >= 2 else []
 
 
@@ -367,12 +371,13 @@ class GroupModel:
     probe_mu: list[np.ndarray]
     probe_jac: list[np.ndarray]
     pairs: list[list[PairState]]
+    variance_scale: float = 1.0   # the overdispersion ŝ² of partial explanations (none explains): Δχ² in its units
 
     def separation(self, states: Sequence[Sequence[tuple]] | None = None) -> float:
         """The group's Δχ²: its least separated pair (each pair its smaller counted direction)."""
         if states is None:
             states = [[(s.m, s.b, s.rr) for s in pair] for pair in self.pairs]
-        return min(min(PairState.chi2(*s) for s in pair) for pair in states)
+        return min(min(PairState.chi2(*s) for s in pair) for pair in states) / self.variance_scale
 
 
 def drift_column(reading: Reading) -> bool:
@@ -442,9 +447,11 @@ def tied(reading: Reading, jac: np.ndarray) -> np.ndarray:
     return np.column_stack([merged, jac[:, rest]])
 
 
-def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel, n_standstill: int) -> GroupModel:
+def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel, n_standstill: int,
+                variance_scale: float = 1.0) -> GroupModel:
     """A group's readings evaluated on the old observations and the probes (``n_standstill`` standstill rows
-    appended: the model's force 0, read as gain·0 + offset + drift)."""
+    appended: the model's force 0, read as gain·0 + offset + drift); ``variance_scale`` the noise's overdispersion
+    the group's Δχ² is divided by."""
     olds = [(old.prediction(r.candidate), tied(r, old.jacobian(r.candidate))) for r in readings]
     mus, jacs = [], []
     for r in readings:
@@ -458,13 +465,14 @@ def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel
         jacs.append(np.vstack([jac, still]))
     sigma = old.dg.obs.sigma_N
     pairs = [[pair_state(i, j, olds, sigma) for i, j in dirs] for dirs in directed_pairs(readings)]
-    return GroupModel(name, readings, mus, jacs, pairs)
+    return GroupModel(name, readings, mus, jacs, pairs, variance_scale)
 
 
 def greedy_plan(groups: Sequence[GroupModel], probes: Sequence[Probe], rows: ProbeRows, t_end_rel_s: float,
                 target_se: float = TARGET_SE, max_cases: int = MAX_CASES, budget_s: float = BUDGET_S) -> list[dict]:
-    """The ranked plan: each step the probe adding most to Σ_group min(Δχ², target²) per minute of rig time,
-    until every group reaches the target, ``max_cases`` or ``budget_s``. Per step: the probe's index, its start
+    """The ranked plan: each step the probe adding most to Σ_group min(Δχ², target²) per minute of rig time (at
+    least RESOLVES_MIN_CHI2: a case that adds less is not worth its time), until every group reaches the target,
+    ``max_cases`` or ``budget_s``. Per step: the probe's index, its start
     [s after the reference time], the groups' Δχ² before and after it."""
     cap = target_se ** 2
     now = [g.separation() for g in groups]
@@ -480,7 +488,7 @@ def greedy_plan(groups: Sequence[GroupModel], probes: Sequence[Probe], rows: Pro
             after = [g.separation(s) for g, s in zip(groups, states, strict=True)]
             gain = sum(min(a, cap) - min(b, cap) for a, b in zip(after, now, strict=True))
             rate = gain / (probe.rig_time_s / 60.0)
-            if gain > 1e-9 and (best is None or rate > best[0]):
+            if gain >= RESOLVES_MIN_CHI2 and (best is None or rate > best[0]):   # a case must earn its time
                 best = (rate, i, states, after)
         if best is None:
             break
@@ -521,10 +529,12 @@ def plan_entry(n: int, probe: Probe, step: dict, names: Sequence[str]) -> dict:
             "separation_se_by_group": {g: math.sqrt(max(d, 0.0)) for g, d in gains.items()}, "label": probe.label}
 
 
-def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list[Reading]]], dict]:
+def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list[Reading]]], dict, dict]:
     """(group name, readings) of each confounded group, and of the partial explanations within the margin of an
-    unexplained verdict; and {group: why no case separates it}."""
-    out, unresolvable = [], {}
+    unexplained verdict; {group: why no case separates it}; {group: its overdispersion ŝ²} (partial explanations:
+    the smallest χ²_fit/dof of the candidates, as :func:`isokinetic.diagnosis.candidate.overdispersed_score` takes
+    it, at least 1: where nothing fits within noise, a χ² difference counts in that unit)."""
+    out, unresolvable, overdispersion = [], {}, {}
     ctx = {**ctx, "gain_needed": (result.get("instrument") or {}).get("force_gain") is not None}
     for group in result.get("confounded") or []:
         name = "+".join(group)
@@ -537,8 +547,10 @@ def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list
             and ctx.get("candidates"):   # partial explanations of a named verdict (none named: outside the catalogue)
         partial = partial_readings(ctx["best"], ctx["candidates"])
         if partial:
-            out.append(("+".join(sorted({e for r in partial for e in r.candidate.effects}, key=_order)), partial))
-    return out, unresolvable
+            name = "+".join(sorted({e for r in partial for e in r.candidate.effects}, key=_order))
+            out.append((name, partial))
+            overdispersion[name] = max(1.0, min(c.chi2_fit / max(c.n_fit - c.k, 1) for c in ctx["candidates"]))
+    return out, unresolvable, overdispersion
 
 
 def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: WindowSpec = DEFAULTS.window,
@@ -546,20 +558,20 @@ def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: Windo
     """The ``next_tests`` block of diagnosis.json (contract 1.5) for a diagnosis ``result`` and its fits ``ctx``
     (:func:`isokinetic.diagnosis.verdict.diagnose_observations`' ``predictions['fits']``)."""
     started = time.perf_counter()
-    groups, unresolvable = ([], {}) if ctx is None else contexts_groups(result, ctx)
+    groups, unresolvable, overdispersion = ([], {}, {}) if ctx is None else contexts_groups(result, ctx)
     if not groups and not unresolvable:
         return {"needed": False, "note": NO_PLAN_NOTE, "plan": []}
     block = {"needed": True, "criterion": CRITERION, "target_se": TARGET_SE, "rivals": [], "plan": [],
              "total_rig_time_s": 0.0, "separation_se": {}, "unresolvable": unresolvable}
     if groups:
-        block.update(planned(groups, ctx, damper, spec, n_bins, design, declared))
+        block.update(planned(groups, ctx, damper, spec, n_bins, design, declared, overdispersion))
     block["note"] = plan_note(block)
     block["seconds"] = round(time.perf_counter() - started, 3)
     return block
 
 
 def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: Damper, spec: WindowSpec,
-            n_bins: int, design: DesignLimits, declared: Mapping | None) -> dict:
+            n_bins: int, design: DesignLimits, declared: Mapping | None, overdispersion: Mapping | None = None) -> dict:
     """The plan's keys (rivals, plan, rig time, separations, limits) of the groups that cases can separate."""
     dg: Diagnoser = ctx["dg"]
     obs = dg.obs
@@ -580,7 +592,7 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
     time_s = None if dg.time_s is None else np.zeros(len(pobs))
     probe_ch = Channel(Evaluator(pobs, damper), time_s, dg)
     old_ch = Channel(dg.evaluator, dg.time_s, dg)
-    models = [group_model(name, rs, old_ch, probe_ch, 1) for name, rs in groups]
+    models = [group_model(name, rs, old_ch, probe_ch, 1, (overdispersion or {}).get(name, 1.0)) for name, rs in groups]
     verdict_mu = np.concatenate([models[0].probe_mu[0][:len(pobs)], [0.0]])
     n = np.concatenate([np.round((pobs.stop - pobs.start) * rig_fs / model_fs), [STANDSTILL_S * fs]])
     sigma = np.sqrt(mean_variance_N2(obs.noise, fs, n, verdict_mu) + (obs.rep_rel * verdict_mu) ** 2)
