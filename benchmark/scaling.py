@@ -1,7 +1,7 @@
 """Scaling benchmark: the workflow on N small raw campaigns, N = 1, 10, 100, 500.
 
     .venv/bin/python benchmark/scaling.py [--sizes 1 10 100 500] [--cores 2] [--keep DIR]
-        [--as-shipped] [--no-gc-freeze] [--scheduling-only RATE]
+        [--as-shipped] [--no-gc-freeze] [--scheduling-only SECONDS]
 
 For each N a scratch project is made (this repository's Snakefile, workflow/, profiles/ and
 config/resources.yaml, a config with no virtual campaigns and no blind suite, and data/raw/ holding N
@@ -21,10 +21,13 @@ itself fails. Wall times depend on other load on the machine: the load average i
 
 The start-up tricks can be switched off to weigh them: ``--as-shipped`` runs Snakemake's scheduler as it ships
 (``ISOKINETIC_COALESCE_REEVALUATIONS=0``: no :mod:`isokinetic.scheduling` patch), ``--no-gc-freeze`` runs every job
-without ``gc.freeze`` (``ISOKINETIC_GC_FREEZE=0``, :mod:`isokinetic.job`). ``--scheduling-only RATE`` measures
-Snakemake's own scheduling of the same DAG without running a job: ``--touch`` (each job only marked done) with
-jobs released at RATE a second (``--max-jobs-per-timespan RATE/1s``, about what two cores finish in a real build
-is 2 a second); then the build's CPU is Snakemake's own, and its wall time is the jobs over RATE plus that CPU.
+without ``gc.freeze`` (``ISOKINETIC_GC_FREEZE=0``, :mod:`isokinetic.job`). ``--scheduling-only SECONDS`` measures
+Snakemake's own scheduling alone, with the patch and as shipped: a DAG of the build's shape (per campaign ingest ->
+characteristic -> analysis and diagnosis -> campaign_report; one report_index over all; :data:`TOY_SNAKEFILE`)
+whose every job sleeps SECONDS and touches its output, so that the build lasts as long as jobs take while the
+cores stay free; the patch is installed as ``workflow/rules/common.smk`` installs it, and the project's profile
+is used. (Neither a dry run nor ``--touch`` reaches the patched method: Snakemake arms its wake-ups only in a real
+build with its job-rate limiter, which ``--touch`` turns off.)
 
 Peak memory is the largest resident set of the Snakemake main process alone, polled every 0.1 s
 (psutil RSS, and on Linux the kernel's high-water mark VmHWM of that process, which also catches peaks
@@ -477,9 +480,70 @@ def switches(args: argparse.Namespace) -> dict[str, str]:
     return {**(AS_SHIPPED if args.as_shipped else {}), **(NO_GC_FREEZE if args.no_gc_freeze else {})}
 
 
-def scheduling_only_args(rate: int | None) -> list[str]:
-    """Snakemake's arguments that mark every job done without running it, ``rate`` jobs a second (None: none)."""
-    return [] if rate is None else ["--touch", "--max-jobs-per-timespan", f"{rate}/1s"]
+#: A workflow of the build's shape whose jobs only sleep (config campaigns: how many, sleep_s: each job's seconds), with
+#: the scheduler patch installed as common.smk installs it.
+TOY_SNAKEFILE = """\
+from isokinetic.scheduling import coalesce_reevaluations
+
+coalesce_reevaluations()
+CAMPAIGNS = [f"c{i:04d}" for i in range(1, int(config["campaigns"]) + 1)]
+SLEEP = "sleep " + str(config["sleep_s"]) + " && touch {output}"
+
+rule all:
+    input: "index.txt"
+
+rule report_index:
+    input: expand("{c}/report.txt", c=CAMPAIGNS)
+    output: "index.txt"
+    shell: SLEEP
+
+rule ingest:
+    output: "{c}/ingest.txt"
+    shell: SLEEP
+
+rule characteristic:
+    input: "{c}/ingest.txt"
+    output: "{c}/characteristic.txt"
+    shell: SLEEP
+
+rule analysis:
+    input: "{c}/characteristic.txt"
+    output: "{c}/analysis.txt"
+    shell: SLEEP
+
+rule diagnosis:
+    input: "{c}/characteristic.txt"
+    output: "{c}/diagnosis.txt"
+    shell: SLEEP
+
+rule campaign_report:
+    input: "{c}/analysis.txt", "{c}/diagnosis.txt"
+    output: "{c}/report.txt"
+    shell: SLEEP
+"""
+
+
+def scheduling_only(source: Path, scratch: Path, sizes: list[int], sleep_s: float, cores: int,
+                    extra: list[str]) -> list[str]:
+    """The toy DAG (TOY_SNAKEFILE) of each size built with the scheduler patch and as shipped: one line each."""
+    lines = ["| campaigns | jobs | scheduler | build | Snakemake's own CPU | per job |",
+             "|---:|---:|---|---:|---:|---:|"]
+    for n in sizes:
+        for label, env in (("with the patch", {}), ("as shipped", AS_SHIPPED)):
+            project = scratch / f"toy-n{n}-{'shipped' if env else 'patched'}"
+            project.mkdir(parents=True)
+            (project / "Snakefile").write_text(TOY_SNAKEFILE, encoding="utf-8")
+            shutil.copytree(source / "profiles", project / "profiles")
+            os.environ.update(env or dict.fromkeys(AS_SHIPPED, "1"))
+            run = run_snakemake(project, [*snakemake_args(cores, extra), "--config", f"campaigns={n}",
+                                 f"sleep_s={sleep_s}"],
+                                project / "build.log")
+            jobs = 5 * n + 2
+            status = "" if run.returncode == 0 else f" (FAILED, exit {run.returncode}: {run.log})"
+            lines.append(f"| {n} | {jobs} | {label} | {run.wall_s:.1f} s{status} | {run.main_cpu_s:.1f} s "
+                         f"| {run.main_cpu_s / jobs * 1e3:.0f} ms |")
+            print(lines[-1], f"load average {load_average()}", flush=True)
+    return lines
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -497,8 +561,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--as-shipped", action="store_true",
                         help="Snakemake's scheduler as it ships: no isokinetic.scheduling patch")
     parser.add_argument("--no-gc-freeze", action="store_true", help="every job without gc.freeze (isokinetic.job)")
-    parser.add_argument("--scheduling-only", type=int, metavar="RATE",
-                        help="no job runs (--touch), RATE jobs released a second: Snakemake's own scheduling cost")
+    parser.add_argument("--scheduling-only", type=float, metavar="SECONDS",
+                        help="Snakemake's own scheduling, with the patch and as shipped, of a DAG of the build's shape "
+                             "whose jobs sleep SECONDS")
     parser.add_argument("--snakemake-args", nargs=argparse.REMAINDER, default=[],
                         help="further snakemake arguments for every run, e.g. --scheduler greedy (put last)")
     return parser.parse_args(argv)
@@ -513,7 +578,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
     signal.signal(signal.SIGTERM, exit_on_sigterm)
     sizes = sorted(set(args.sizes))
-    incremental = 0 if args.scheduling_only is not None else args.incremental_on
+    incremental = args.incremental_on
     if incremental is None:
         incremental = INCREMENTAL_SIZE if INCREMENTAL_SIZE in sizes else sizes[-1]
     if args.keep:
@@ -521,14 +586,22 @@ def main(argv: list[str] | None = None) -> None:
         scratch = Path(tempfile.mkdtemp(prefix="scaling-", dir=args.keep))
     else:
         scratch = Path(tempfile.mkdtemp(prefix="isokinetic-scaling-"))
-    extra = [*scheduling_only_args(args.scheduling_only), *args.snakemake_args]
+    extra = args.snakemake_args
     os.environ.update(switches(args))
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}; snakemake --cores {args.cores} {' '.join(extra)}".rstrip())
     print("switches: " + (" ".join(f"{k}={v}" for k, v in switches(args).items()) or "none (the build as committed)"))
-    print(describe_seed())
+    print(describe_seed() if args.scheduling_only is None else
+          f"scheduling only: a DAG of the build's shape, every job sleeping {args.scheduling_only:g} s")
     print(f"workflow from {args.source}; scratch projects in {scratch}; load average {load_average()}")
     sys.stdout.flush()
+    if args.scheduling_only is not None:
+        try:
+            print("\n".join(scheduling_only(args.source, scratch, sizes, args.scheduling_only, args.cores, extra)))
+        finally:
+            if not args.keep:
+                shutil.rmtree(scratch, ignore_errors=True)
+        return
     rows: list[Row] = []
     incremental_verdict = None
     imports = None
@@ -539,7 +612,7 @@ def main(argv: list[str] | None = None) -> None:
             row, jobs = measure(project, n, args.cores, extra, build=not args.dry_run_only)
             rows.append(row)
             print(f"{row.summary()}; load average {load_average()}")
-            if row.built and args.scheduling_only is None:
+            if row.built:
                 imports = imports or rule_imports(args.source)
                 print(where_it_goes(project, row, jobs, imports))
             sys.stdout.flush()
