@@ -43,7 +43,7 @@ def test_the_linearised_separation_is_a_brute_force_refit_of_the_rival(campaign)
                                   SPEC, N_BINS, 1.0)
     probe = replace(probe, sigma_N=np.full(len(probe), 2.0))
     group = nt.group_model("g", readings, nt.Channel(dg.evaluator, None, dg),
-                           nt.Channel(Evaluator(probe, damper), None, dg), 0)
+                           nt.Channel(Evaluator(probe, damper), None, dg))
     rows = np.arange(len(probe))
     states = nt.with_case(group, rows, np.zeros(rows.size), probe.sigma_N)
     linear = {(s.true, s.refit): nt.PairState.chi2(*new) for s, new in zip(group.pairs[0], states[0], strict=True)}
@@ -182,7 +182,7 @@ def test_no_case_is_proposed_that_cannot_separate_the_readings(campaign):
     probe = nc.probe_observations(obs.campaign, [nc.Probe("P1", nc.triangle_plan("P1", 2e-3, 2e-3, 50.0), "", 60.0)],
                                   SPEC, N_BINS, 1.0)
     group = nt.group_model("g", [nt.Reading("a", same), nt.Reading("b", replace(same, params=dict(same.params)))],
-                           nt.Channel(dg.evaluator, None, dg), nt.Channel(Evaluator(probe, damper), None, dg), 0)
+                           nt.Channel(dg.evaluator, None, dg), nt.Channel(Evaluator(probe, damper), None, dg))
     rows = nt.ProbeRows(probe.case_index, np.zeros(len(probe)), np.ones(len(probe)))
     assert nt.greedy_plan([group], [nc.Probe("P1", probe.plans[0], "", 60.0)], rows, 0.0) == []
 

@@ -14,7 +14,7 @@ without the drifting effect, drift free, against the verdict without the drift; 
 and a free gain, no viscosity), no case of any waveform separates them, and the plan says so.
 
 Candidates: :mod:`isokinetic.diagnosis.next_cases` (triangle cases within the rig's limits whose windows start after
-convergence, Eq. 28; a repeat of the first case and a standstill at the end).
+convergence, Eq. 28, and a repeat of the first case at the end; a sine-only campaign's, sine cases).
 
 Criterion (:class:`PairState`, :meth:`GroupModel.separation`). The expected χ² difference between rivals A and B
 when A is true, linearised with B refitted: Δχ²_A→B = ||(I − P_B)(μ_A − μ_B)/σ||² over the old observations and the
@@ -48,14 +48,16 @@ from isokinetic.diagnosis.model import Evaluator
 from isokinetic.diagnosis.next_cases import (
     MAX_CASE_S,
     SETUP_S,
-    STANDSTILL_S,
     Probe,
+    RigLimits,
     candidate_cases,
     mean_variance_N2,
     probe_observations,
     rig_limits,
+    sine_probe_observations,
 )
 from isokinetic.diagnosis.search import Diagnoser
+from isokinetic.diagnosis.sine_observations import N_SINE_BINS
 from isokinetic.physics.damper import Damper
 
 CRITERION = ("expected chi-square difference between rivals A and B when A is true, B refitted (linearised: "
@@ -447,22 +449,13 @@ def tied(reading: Reading, jac: np.ndarray) -> np.ndarray:
     return np.column_stack([merged, jac[:, rest]])
 
 
-def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel, n_standstill: int,
+def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel,
                 variance_scale: float = 1.0) -> GroupModel:
-    """A group's readings evaluated on the old observations and the probes (``n_standstill`` standstill rows
-    appended: the model's force 0, read as gain·0 + offset + drift); ``variance_scale`` the noise's overdispersion
-    the group's Δχ² is divided by."""
+    """A group's readings evaluated on the old observations and the probes; ``variance_scale`` the noise's
+    overdispersion the group's Δχ² is divided by."""
     olds = [(old.prediction(r.candidate), tied(r, old.jacobian(r.candidate))) for r in readings]
-    mus, jacs = [], []
-    for r in readings:
-        c = r.candidate
-        mu, jac = probe.prediction(c), tied(r, probe.jacobian(c))
-        still = np.zeros((n_standstill, jac.shape[1]))
-        at = jac.shape[1] - 1 - (DRIFT in c.instrument and probe.time_s is not None)
-        if "force_offset" in c.instrument and at >= 0:
-            still[:, at] = 1.0
-        mus.append(np.concatenate([mu, np.full(n_standstill, c.offset_N)]))
-        jacs.append(np.vstack([jac, still]))
+    mus = [probe.prediction(r.candidate) for r in readings]
+    jacs = [tied(r, probe.jacobian(r.candidate)) for r in readings]
     sigma = old.dg.obs.sigma_N
     pairs = [[pair_state(i, j, olds, sigma) for i, j in dirs] for dirs in directed_pairs(readings)]
     return GroupModel(name, readings, mus, jacs, pairs, variance_scale)
@@ -518,12 +511,12 @@ def plan_entry(n: int, probe: Probe, step: dict, names: Sequence[str]) -> dict:
     plan = probe.plan
     gains = {g: b - a for g, a, b in zip(names, step["before"], step["after"], strict=True)}
     resolves = [g for g, d in gains.items() if d >= RESOLVES_MIN_CHI2]
-    return {"case": f"N{n:02d}", "waveform": "standstill" if plan is None else plan.waveform,
-            "velocity_m_s": None if plan is None else plan.velocity_m_s,
-            "amplitude_m": 0.0 if plan is None else plan.amplitude_m,
-            "period_s": None if plan is None else plan.period_s, "frequency_Hz": None,
-            "periods": 0 if plan is None else 2, "sample_rate_Hz": step["fs"],
-            "duration_s": STANDSTILL_S if plan is None else plan.duration_s,
+    triangle = plan.waveform == "triangle"
+    return {"case": f"N{n:02d}", "waveform": plan.waveform,
+            "velocity_m_s": plan.velocity_m_s if triangle else None, "amplitude_m": plan.amplitude_m,
+            "period_s": plan.period_s if triangle else None, "frequency_Hz": None if triangle else plan.frequency_Hz,
+            "periods": 2 if triangle else int(round(plan.duration_s * plan.frequency_Hz)),
+            "sample_rate_Hz": plan.sample_rate_Hz, "duration_s": plan.duration_s,
             "rig_time_s": probe.rig_time_s, "resolves": resolves,
             "separation_se": math.sqrt(max(max(gains.values()), 0.0)) if gains else 0.0,
             "separation_se_by_group": {g: math.sqrt(max(d, 0.0)) for g, d in gains.items()}, "label": probe.label}
@@ -580,25 +573,26 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
                                 [r.candidate.x[r.candidate.effects.index(n)] for n in r.candidate.effects
                                  if n != "friction"]) for _, rs in groups for r in rs]
     probes = candidate_cases(obs, damper, limits, effects, spec, n_bins, design.convergence_fraction)
-    triangles = [p for p in probes if p.plan is not None]
+    if not probes:
+        return {"rivals": [rival_dict(name, r, dg.param.force_ref_N) for name, rs in groups for r in rs],
+                "candidates_considered": 0, "limits": limits_dict(limits, design)}
     scale = float(np.median(obs.viscosity_scale)) if obs.viscosity_scale else 1.0
     # the model runs the candidates on a grid of at most MODEL_RATE_HZ (their means are integrals over the same
     # times); each mean's noise is that of the rig's samples
-    pobs = probe_observations(obs.campaign, [replace(p, plan=replace(
-        p.plan, sample_rate_Hz=min(p.plan.sample_rate_Hz, MODEL_RATE_HZ))) for p in triangles], spec, n_bins, scale)
+    model = [replace(p, plan=replace(p.plan, sample_rate_Hz=min(p.plan.sample_rate_Hz, MODEL_RATE_HZ))) for p in probes]
+    pobs = probe_observations(obs.campaign, model, spec, n_bins, scale) if probes[0].plan.waveform == "triangle" \
+        else sine_probe_observations(obs.campaign, model, N_SINE_BINS, scale)
     fs = limits.sample_rate_Hz
     model_fs = np.array([p.sample_rate_Hz for p in pobs.plans])[pobs.case_index]
-    rig_fs = np.array([p.plan.sample_rate_Hz for p in triangles])[pobs.case_index]
-    time_s = None if dg.time_s is None else np.zeros(len(pobs))
-    probe_ch = Channel(Evaluator(pobs, damper), time_s, dg)
+    rig_fs = np.array([p.plan.sample_rate_Hz for p in probes])[pobs.case_index]
+    probe_ch = Channel(Evaluator(pobs, damper), None if dg.time_s is None else np.zeros(len(pobs)), dg)
     old_ch = Channel(dg.evaluator, dg.time_s, dg)
-    models = [group_model(name, rs, old_ch, probe_ch, 1, (overdispersion or {}).get(name, 1.0)) for name, rs in groups]
-    verdict_mu = np.concatenate([models[0].probe_mu[0][:len(pobs)], [0.0]])
-    n = np.concatenate([np.round((pobs.stop - pobs.start) * rig_fs / model_fs), [STANDSTILL_S * fs]])
+    models = [group_model(name, rs, old_ch, probe_ch, (overdispersion or {}).get(name, 1.0)) for name, rs in groups]
+    verdict_mu = models[0].probe_mu[0]
+    n = np.round((pobs.stop - pobs.start) * rig_fs / model_fs)
     sigma = np.sqrt(mean_variance_N2(obs.noise, fs, n, verdict_mu) + (obs.rep_rel * verdict_mu) ** 2)
-    row_case = np.concatenate([pobs.case_index, [len(triangles)]])
-    row_time = np.concatenate([0.5 * (pobs.start + pobs.stop) / model_fs, [0.5 * STANDSTILL_S]])
-    probes = [*triangles, probes[-1]]
+    row_case = pobs.case_index
+    row_time = 0.5 * (pobs.start + pobs.stop) / model_fs
     peak = np.zeros(len(probes))
     for m in models:
         for mu in m.probe_mu:
@@ -608,7 +602,7 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
     t_end = 0.0 if dg.time_s is None else float(np.max(dg.time_s))
     steps = greedy_plan(models, probes, rows, t_end)
     names = [m.name for m in models]
-    plan = [plan_entry(k, probes[s["probe"]], {**s, "fs": fs}, names) for k, s in enumerate(steps, start=1)]
+    plan = [plan_entry(k, probes[s["probe"]], s, names) for k, s in enumerate(steps, start=1)]
     final = steps[-1]["after"] if steps else [m.separation() for m in models]
     before = [m.separation() for m in models] if not steps else None
     return {"rivals": [rival_dict(m.name, r, dg.param.force_ref_N) for m in models for r in m.readings],
@@ -617,10 +611,16 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
             "separation_se_now": {g: math.sqrt(max(d, 0.0)) for g, d in
                                   zip(names, steps[0]["before"] if steps else before, strict=True)},
             "candidates_considered": int(usable.sum()),
-            "limits": {"max_speed_m_s": limits.max_speed_m_s, "min_amplitude_m": limits.min_amplitude_m,
-                       "max_amplitude_m": limits.max_amplitude_m, "max_force_N": limits.max_force_N,
-                       "sample_rate_Hz": fs, "convergence_fraction": design.convergence_fraction,
-                       "max_case_s": MAX_CASE_S, "budget_s": BUDGET_S, "setup_s": SETUP_S, "source": limits.source}}
+            "limits": limits_dict(limits, design)}
+
+
+def limits_dict(limits: RigLimits, design: DesignLimits) -> dict:
+    """The rig's limits the candidates kept to (``next_tests.limits``), with where each came from."""
+    return {"max_speed_m_s": limits.max_speed_m_s, "min_amplitude_m": limits.min_amplitude_m,
+            "max_amplitude_m": limits.max_amplitude_m, "max_force_N": limits.max_force_N,
+            "max_frequency_Hz": limits.max_frequency_Hz, "sample_rate_Hz": limits.sample_rate_Hz,
+            "convergence_fraction": design.convergence_fraction, "max_case_s": MAX_CASE_S, "budget_s": BUDGET_S,
+            "setup_s": SETUP_S, "source": limits.source}
 
 
 def advice(group: str) -> str:
@@ -644,5 +644,7 @@ def plan_note(block: Mapping) -> str:
     elif set(block["separation_se"]) - set(done):
         parts.append("no candidate case within the rig's limits adds to the separation of "
                      + ", ".join(g for g in block["separation_se"] if g not in done))
+    elif block.get("candidates_considered") == 0:
+        parts.append("no candidate case lies within the rig's limits and the design constraints")
     parts += [f"{g}: {why}" for g, why in block["unresolvable"].items()]
     return "; ".join(parts)
