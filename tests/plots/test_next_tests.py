@@ -34,3 +34,10 @@ def test_a_campaign_without_a_plan_has_no_marks_and_says_why():
     fig = next_tests_figure("small", block, PLANS, TABLE_1)
     assert proposed(fig) == []
     assert "no confounding" in fig._supxlabel.get_text()
+
+
+def test_the_campaigns_own_cases_are_named_as_such():
+    fig = next_tests_figure("small", {"needed": True, "note": "1 case(s)", "plan": [TRIANGLE]}, PLANS, TABLE_1)
+    labels = fig.axes[0].get_legend_handles_labels()[1]
+    assert any(label.startswith("campaign, T = 40 s") for label in labels)
+    assert not any(label.startswith("planned") for label in labels)

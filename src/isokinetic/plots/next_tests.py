@@ -38,6 +38,9 @@ def next_tests_figure(campaign: str, block: Mapping | None, plans: Sequence[Case
                             design.min_amplitude_m, spec.start_fraction, design.convergence_fraction)
     ax = fig.axes[0]
     fig.suptitle(f"{campaign}: the next tests on the A\u2013T diagram", fontsize=12)
+    for line in ax.get_lines():   # Fig. 6's planned cases are the campaign's own here
+        if str(line.get_gid()).startswith("planned"):
+            line.set_label(line.get_label().replace("planned", "campaign", 1))
     plan = list((block or {}).get("plan") or [])
     tri = [e for e in plan if e["waveform"] == "triangle"]
     if tri:
@@ -50,7 +53,7 @@ def next_tests_figure(campaign: str, block: Mapping | None, plans: Sequence[Case
         for e, ti, yi in zip(tri, t, y, strict=True):
             ax.annotate(f"{e['case']}: {e['separation_se']:.1f} SE", (ti, yi), xytext=(8, 6),
                         textcoords="offset points", fontsize=8, color="tab:green", zorder=8)
-        ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8)
     other = [f"{e['case']}: {e['waveform']}" for e in plan if e["waveform"] != "triangle"]
     note = (block or {}).get("note") or "no next_tests in diagnosis.json"
     text = "; ".join([f"next tests: {note}", *([f"not on the diagram: {', '.join(other)}"] if other else [])])
