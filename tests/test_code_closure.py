@@ -44,6 +44,14 @@ def test_the_characteristic_rule_reaches_the_window_method_and_no_figure():
     assert not any(m.startswith("isokinetic.plots") for m in reached)
 
 
+
+def test_the_blind_suites_scoring_reruns_the_scoring_rule_not_the_scenarios_or_their_diagnoses():
+    # the blind package's method reaches the rules through their runners in stages/
+    assert {"isokinetic.blind.score", "isokinetic.stages.blind_score"} <= script_closure("blind_score.py")
+    assert "isokinetic.blind.generate" in script_closure("blind_generate.py")
+    for script in ("blind_generate.py", "blind_diagnose.py"):
+        assert "isokinetic.blind.score" not in script_closure(script)
+
 @pytest.mark.parametrize("script", sorted(p.name for p in SCRIPTS.glob("*.py")))
 def test_the_static_closure_holds_every_module_the_script_imports_at_run_time(script):
     # an independent reading: what Python itself loads when the script's imports run (function-level imports
