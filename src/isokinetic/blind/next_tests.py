@@ -62,6 +62,7 @@ from isokinetic.blind.score import (
     TARGET_SCALE_ERROR,
     score_row,
 )
+from isokinetic.diagnosis.next_tests import TARGET_SE
 from isokinetic.reference import campaign as rrc
 from isokinetic.reference import rig as rr
 
@@ -462,14 +463,17 @@ def proof_row(raw_dir: str | os.PathLike, truth: Mapping, work_root: str | os.Pa
         return {**base, "in_proof": False, "confounded": "", "note": block.get("note", "not confounded"),
                 "verdict": "+".join(before.get("verdict") or []), "explained": bool(before.get("explained"))}
     row = prove_scenario(raw_dir, truth, before, block.get("plan") or [], work_root, diagnose)
+    separations = [float(v) for v in (block.get("separation_se") or {}).values()]
     return {**base, **row, "in_proof": True, "note": str(block.get("note", "no next_tests block")),
+            "predicted_se": min(separations) if separations and row["n_cases"] else None,
             "verdict_before": "+".join(before.get("verdict") or []), "explained_before": bool(before.get("explained"))}
 
 
 def proof_summary(rows: Sequence[Mapping]) -> dict:
     """The two rates over the scenarios in the proof (every one with a confounding counts; one without a plan
     counts as not resolved by either plan), the target TARGET_RESOLVED_RATE and whether the proposed plans beat
-    the uniform ones."""
+    the uniform ones; and how many plans the diagnosis expected to separate every group by TARGET_SE
+    (``predicted_se``) and how many of those resolved."""
     proof = [r for r in rows if r.get("in_proof")]
     n = len(proof)
     resolved = sum(bool(r["resolved"]) for r in proof)
@@ -478,8 +482,15 @@ def proof_summary(rows: Sequence[Mapping]) -> dict:
     return {"n": n, "with_plan": sum(bool(r.get("n_cases")) for r in proof), "resolved": resolved,
             "uniform_resolved": uniform, "rate": rate, "uniform_rate": uniform / n if n else None,
             "target": TARGET_RESOLVED_RATE,
+            "predicted_to_separate": sum((r.get("predicted_se") or 0.0) >= TARGET_SE for r in proof),
+            "resolved_predicted": sum(bool(r["resolved"]) and (r.get("predicted_se") or 0.0) >= TARGET_SE
+                                      for r in proof),
             "pass": None if rate is None else bool(rate >= TARGET_RESOLVED_RATE and resolved > uniform),
             "not_in_proof": [r["scenario"] for r in rows if not r.get("in_proof")]}
+
+
+def _se(value: float | None) -> str:
+    return "—" if value is None else f"{value:.1f}"
 
 
 def _yes(value: bool | None) -> str:
@@ -489,22 +500,25 @@ def _yes(value: bool | None) -> str:
 def proof_table(rows: Sequence[Mapping]) -> str:
     """The proof as a Markdown table (scenario, confounding, plan size and rig time, resolved by the proposed
     plan, by the uniform one, what kept either from it) and its two rates."""
-    lines = ["| scenario | truth | confounded | plan | rig time [min] | proposed | uniform | why not |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| scenario | truth | confounded | plan | rig time [min] | expected [SE] | proposed | uniform | why not |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if not r.get("in_proof"):
             continue
         why = "; ".join(f"{k}: {v}" for k, v in (("proposed", _why(r.get("proposed"))),
                                                  ("uniform", _why(r.get("uniform")))) if v)
         lines.append(f"| {r['scenario']} | {r['truth'] or 'none'} | {r['confounded'] or '(rivals)'} | {r['n_cases']} "
-                     f"| {r['plan_rig_time_s'] / 60.0:.1f} | {_yes(r['resolved'])} | {_yes(r['uniform_resolved'])} "
+                     f"| {r['plan_rig_time_s'] / 60.0:.1f} | {_se(r.get('predicted_se'))} | {_yes(r['resolved'])} "
+                     f"| {_yes(r['uniform_resolved'])} "
                      f"| {why or (r['note'] if not r['n_cases'] else '')} |")
     s = proof_summary(rows)
     if s["n"]:
         lines.append("")
         lines.append(f"resolved to the truth: proposed {s['resolved']}/{s['n']} = {100 * s['rate']:.0f} %, uniform "
                      f"{s['uniform_resolved']}/{s['n']} = {100 * s['uniform_rate']:.0f} % (target >= "
-                     f"{100 * s['target']:.0f} % and proposed > uniform: {'PASS' if s['pass'] else 'FAIL'})")
+                     f"{100 * s['target']:.0f} % and proposed > uniform: {'PASS' if s['pass'] else 'FAIL'}); plans "
+                     f"expected to separate every group by {TARGET_SE:g} SE: {s['predicted_to_separate']}, of which "
+                     f"{s['resolved_predicted']} resolved")
     return "\n".join(lines)
 
 
