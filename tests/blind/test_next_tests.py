@@ -204,3 +204,17 @@ def test_the_proofs_rates_count_a_confounded_scenario_without_a_plan_as_unresolv
     summary = nt.proof_summary(rows)
     assert (summary["n"], summary["with_plan"], summary["rate"], summary["uniform_rate"]) == (2, 1, 0.5, 0.0)
     assert summary["pass"] is False and summary["not_in_proof"] == ["c"]
+
+
+def test_a_scenario_enters_the_proof_only_with_a_confounding_and_without_a_plan_resolves_nothing(tmp_path):
+    s = tiny_scenario()
+    raw = write(s, s.rig_cases(), tmp_path / "raw")
+    clear = {"status": "ok", "verdict": ["leakage"], "confounded": [],
+             "next_tests": {"needed": False, "note": "no confounding: no further test proposed", "plan": []}}
+    row = nt.proof_row(raw, truth_of(s), tmp_path / "a", lambda r, w: clear)
+    assert not row["in_proof"] and row["note"] == "no confounding: no further test proposed"
+    stuck = {**BEFORE, "next_tests": {"needed": True, "note": "no case separates them", "plan": [],
+                                      "separation_se": {"leakage+discharge": 0.4}}}
+    row = nt.proof_row(raw, truth_of(s), tmp_path / "b", lambda r, w: stuck)
+    assert row["in_proof"] and row["n_cases"] == 0 and not row["resolved"] and not row["uniform_resolved"]
+    assert row["predicted_se"] is None and row["confounded"] == "leakage+discharge"

@@ -451,7 +451,9 @@ def proof_row(raw_dir: str | os.PathLike, truth: Mapping, work_root: str | os.Pa
     diagnosis proposes none) and the uniform one run and judged (:func:`prove_scenario`). ``in_proof`` False for
     a scenario with nothing to resolve; ``expected``: the group a scenario built to be confounded was built for."""
     work_root = Path(work_root)
-    base = {"scenario": str(truth["scenario"]), "truth": "+".join(truth.get("truth") or []),
+    kind = str(truth.get("out_of_catalogue") or "")
+    base = {"scenario": str(truth["scenario"]),
+            "truth": "+".join([*(truth.get("truth") or []), *([f"({kind})"] if kind else [])]),
             "expected": group_text((truth.get("confounding") or {}).get("expected") or [])}
     try:
         before = diagnose(Path(raw_dir), work_root / "before")
