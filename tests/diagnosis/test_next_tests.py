@@ -197,3 +197,21 @@ def test_partial_explanations_fitted_twice_are_one_reading():
     other = partial(("leakage",), 402.0)
     readings = nt.partial_readings(best, [best, twice, other])
     assert sorted(r.label for r in readings) == ["friction+leakage+force_lag", "leakage"]
+
+
+def test_the_fit_correlation_is_that_of_the_unscaled_fisher_information():
+    rng = np.random.default_rng(4)
+    base = rng.normal(size=(200, 1))
+    jac = np.column_stack([base[:, 0] * 3e4 + rng.normal(size=200) * 2e3, base[:, 0] * 0.01, rng.normal(size=200)])
+    cov = np.linalg.inv(jac.T @ jac)   # independent: no scaling, a plain inverse
+    expected = abs(cov[0, 1]) / np.sqrt(cov[0, 0] * cov[1, 1])
+    scale = np.sqrt(np.sum(jac * jac, axis=0))
+    js = jac / scale
+    corr = nt.Correlation(None, np.zeros((0, 3)), js.T @ js, scale, (0,), 1, False)
+    assert corr.rho() == pytest.approx(expected, rel=1e-9) and expected > 0.9
+    assert corr.chi2() < nt.TARGET_SE ** 2
+    # a case whose rows move the two columns apart brings the correlation down, below the diagnosis' limit
+    rows = np.column_stack([np.full(50, 3e4), np.full(50, -0.01), np.zeros(50)])
+    group = nt.GroupModel("g", [], [], [], [], corr=replace(corr, probe_jac=rows))
+    (fisher,) = nt.with_case(group, np.arange(50), np.zeros(50), np.ones(50))
+    assert corr.rho(fisher) < nt.CORRELATION_LIMIT and corr.chi2(fisher) > nt.TARGET_SE ** 2

@@ -58,6 +58,7 @@ from isokinetic.diagnosis.next_cases import (
 )
 from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.diagnosis.sine_observations import N_SINE_BINS
+from isokinetic.diagnosis.verdict import DRIFT_CONFOUNDED_CORRELATION as CORRELATION_LIMIT
 from isokinetic.physics.damper import Damper
 
 CRITERION = ("expected chi-square difference between rivals A and B when A is true, B refitted (linearised: "
@@ -363,10 +364,46 @@ def directed_pairs(readings: Sequence[Reading]) -> list[list[tuple[int, int]]]:
     return out
 
 
+def jacobian_columns(c: Candidate, has_time: bool) -> list[str]:
+    """The names of :meth:`Channel.jacobian`'s columns of ``c``, in order."""
+    return ([n for n in c.effects if n != "friction"] + (["force_lag"] if c.channel is not None else [])
+            + [t for t in ("force_gain",) if t in c.instrument] + [e for e in ("friction",) if e in c.effects]
+            + [t for t in ("force_offset",) if t in c.instrument]
+            + ([DRIFT] if DRIFT in c.instrument and has_time else []))
+
+
+@dataclass
+class Correlation:
+    """A group the diagnosis lists by a fit correlation (an effect against the force-channel lag or the zero drift,
+    beyond CORRELATION_LIMIT, :func:`isokinetic.diagnosis.verdict.instrument_confounding`): the verdict's Fisher
+    information over the observations so far (columns scaled), its Jacobian on every probe row (the drift's column
+    set when a case runs), the effects' columns and the instrument term's."""
+
+    reading: Reading
+    probe_jac: np.ndarray
+    fisher: np.ndarray
+    scale: np.ndarray
+    effects: tuple[int, ...]
+    term: int
+    drift: bool
+
+    def rho(self, fisher: np.ndarray | None = None) -> float:
+        """The largest |correlation| of the effects with the instrument term in the fit."""
+        cov = np.linalg.pinv(self.fisher if fisher is None else fisher, rcond=1e-12, hermitian=True)
+        d = np.sqrt(np.maximum(np.diag(cov), 1e-300))
+        return max(abs(float(cov[e, self.term])) / (d[e] * d[self.term]) for e in self.effects)
+
+    def chi2(self, fisher: np.ndarray | None = None) -> float:
+        """The correlation as the plan's separation: TARGET_SE² where it falls to CORRELATION_LIMIT, 0 at 1."""
+        rho = min(self.rho(fisher), 1.0)
+        return TARGET_SE ** 2 * (1.0 - rho * rho) / (1.0 - CORRELATION_LIMIT ** 2)
+
+
 @dataclass
 class GroupModel:
     """One group's readings, their predictions and Jacobians on the old observations and on every probe row
-    (drift parts apart: they depend on when a case runs), and the pairs' states."""
+    (drift parts apart: they depend on when a case runs), and the pairs' states; ``corr`` for a group the diagnosis
+    lists by a fit correlation (its separation is then the correlation's, :meth:`Correlation.chi2`)."""
 
     name: str
     readings: list[Reading]
@@ -374,9 +411,13 @@ class GroupModel:
     probe_jac: list[np.ndarray]
     pairs: list[list[PairState]]
     variance_scale: float = 1.0   # the overdispersion ŝ² of partial explanations (none explains): Δχ² in its units
+    corr: Correlation | None = None
 
-    def separation(self, states: Sequence[Sequence[tuple]] | None = None) -> float:
-        """The group's Δχ²: its least separated pair (each pair its smaller counted direction)."""
+    def separation(self, states: Sequence | None = None) -> float:
+        """The group's Δχ²: its least separated pair (each pair its smaller counted direction); of a correlation
+        group, the correlation's equivalent (``states``' last member its Fisher information)."""
+        if self.corr is not None:
+            return self.corr.chi2(None if states is None else states[-1])
         if states is None:
             states = [[(s.m, s.b, s.rr) for s in pair] for pair in self.pairs]
         return min(min(PairState.chi2(*s) for s in pair) for pair in states) / self.variance_scale
@@ -398,10 +439,11 @@ def probe_rows(group: GroupModel, k: int, rows: np.ndarray, t_rel: np.ndarray, s
     return mu / sigma, jac / sigma[:, None]
 
 
-def with_case(group: GroupModel, rows: np.ndarray, t_rel: np.ndarray, sigma: np.ndarray) -> list[list[tuple]]:
-    """The pairs' normal equations with one more case's rows."""
+def with_case(group: GroupModel, rows: np.ndarray, t_rel: np.ndarray, sigma: np.ndarray) -> list:
+    """The pairs' normal equations with one more case's rows (a correlation group: and, last, the verdict's Fisher
+    information)."""
     cached = {}
-    out = []
+    out: list = []
     for pair in group.pairs:
         states = []
         for s in pair:
@@ -411,10 +453,20 @@ def with_case(group: GroupModel, rows: np.ndarray, t_rel: np.ndarray, sigma: np.
             r = cached[s.true][0] - cached[s.refit][0]
             states.append(s.added(r, cached[s.refit][1]))
         out.append(states)
+    if group.corr is not None:
+        c = group.corr
+        jac = c.probe_jac[rows].copy()
+        if c.drift:
+            jac[:, -1] = t_rel
+        js = jac / sigma[:, None] / c.scale
+        out.append(c.fisher + js.T @ js)
     return out
 
 
-def commit(group: GroupModel, states: Sequence[Sequence[tuple]]) -> None:
+def commit(group: GroupModel, states: Sequence) -> None:
+    if group.corr is not None:
+        group.corr.fisher = states[-1]
+        states = states[:-1]
     for pair, new in zip(group.pairs, states, strict=True):
         for s, (m, b, rr) in zip(pair, new, strict=True):
             s.m, s.b, s.rr = m, b, rr
@@ -450,15 +502,50 @@ def tied(reading: Reading, jac: np.ndarray) -> np.ndarray:
 
 
 def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel,
-                variance_scale: float = 1.0) -> GroupModel:
+                variance_scale: float = 1.0, target: tuple | None = None) -> GroupModel:
     """A group's readings evaluated on the old observations and the probes; ``variance_scale`` the noise's
-    overdispersion the group's Δχ² is divided by."""
+    overdispersion the group's Δχ² is divided by; ``target`` (:func:`correlation_target`) where the diagnosis lists
+    the group by a fit correlation."""
     olds = [(old.prediction(r.candidate), tied(r, old.jacobian(r.candidate))) for r in readings]
     mus = [probe.prediction(r.candidate) for r in readings]
     jacs = [tied(r, probe.jacobian(r.candidate)) for r in readings]
     sigma = old.dg.obs.sigma_N
     pairs = [[pair_state(i, j, olds, sigma) for i, j in dirs] for dirs in directed_pairs(readings)]
-    return GroupModel(name, readings, mus, jacs, pairs, variance_scale)
+    return GroupModel(name, readings, mus, jacs, pairs, variance_scale,
+                      None if target is None else correlation(target, old, probe))
+
+
+def correlation(target: tuple, old: Channel, probe: Channel) -> Correlation:
+    """The verdict's Fisher information over the old observations and its Jacobian on the probes
+    (:class:`Correlation`) of a ``target`` (reading, correlated effects, instrument term)."""
+    reading, effects, term = target
+    c = reading.candidate
+    has_time = old.time_s is not None
+    names = jacobian_columns(c, has_time)
+    jac = old.jacobian(c) / old.dg.obs.sigma_N[:, None]
+    scale = np.sqrt(np.sum(jac * jac, axis=0))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    js = jac / scale
+    return Correlation(reading, probe.jacobian(c), js.T @ js, scale, tuple(names.index(e) for e in effects),
+                       names.index(term), DRIFT in c.instrument and has_time)
+
+
+def correlation_target(group: Sequence[str], result: Mapping, ctx: Mapping) -> tuple | None:
+    """(the verdict's reading, the effects, the instrument term) where the diagnosis lists ``group`` by a fit
+    correlation beyond CORRELATION_LIMIT (``identifiability.lag_correlation`` with the verdict's lag, or
+    ``drift_correlation`` with its zero drift), else None: there the plan must bring the correlation down."""
+    best = ctx["best"]
+    ident = result.get("identifiability") or {}
+    if DRIFT in group and DRIFT in best.instrument:
+        term, corr = DRIFT, ident.get("drift_correlation") or {}
+    elif "force_lag" in group and best.channel is not None:
+        term, corr = "force_lag", ident.get("lag_correlation") or {}
+    else:
+        return None
+    effects = tuple(e for e in group if e != term)
+    if not effects or not all(e in best.effects and abs(corr.get(e) or 0.0) > CORRELATION_LIMIT for e in effects):
+        return None
+    return Reading(_label(best, (DRIFT,)), best), effects, term
 
 
 def greedy_plan(groups: Sequence[GroupModel], probes: Sequence[Probe], rows: ProbeRows, t_end_rel_s: float,
@@ -522,12 +609,19 @@ def plan_entry(n: int, probe: Probe, step: dict, names: Sequence[str]) -> dict:
             "separation_se_by_group": {g: math.sqrt(max(d, 0.0)) for g, d in gains.items()}, "label": probe.label}
 
 
-def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list[Reading]]], dict, dict]:
+def overdispersion_of(candidates) -> float:
+    """ŝ² of readings none of which need explain: the smallest χ²_fit/dof among them, at least 1 (as
+    :func:`isokinetic.diagnosis.candidate.overdispersed_score` takes it): where the readings leave misfit the noise
+    model does not describe, a χ² difference counts in that unit."""
+    return max(1.0, min(c.chi2_fit / max(c.n_fit - c.k, 1) for c in candidates))
+
+
+def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list[Reading]]], dict, dict, dict]:
     """(group name, readings) of each confounded group, and of the partial explanations within the margin of an
-    unexplained verdict; {group: why no case separates it}; {group: its overdispersion ŝ²} (partial explanations:
-    the smallest χ²_fit/dof of the candidates, as :func:`isokinetic.diagnosis.candidate.overdispersed_score` takes
-    it, at least 1: where nothing fits within noise, a χ² difference counts in that unit)."""
-    out, unresolvable, overdispersion = [], {}, {}
+    unexplained verdict; {group: why no case separates it}; {group: its overdispersion ŝ²}
+    (:func:`overdispersion_of` its readings; partial explanations: of every candidate); {group: its correlation
+    target} (:func:`correlation_target`)."""
+    out, unresolvable, overdispersion, targets = [], {}, {}, {}
     ctx = {**ctx, "gain_needed": (result.get("instrument") or {}).get("force_gain") is not None}
     for group in result.get("confounded") or []:
         name = "+".join(group)
@@ -536,14 +630,18 @@ def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list
             unresolvable[name] = readings
         elif all(name != n for n, _ in out):
             out.append((name, readings))
+            overdispersion[name] = overdispersion_of(r.candidate for r in readings)
+            target = correlation_target(group, result, ctx)
+            if target is not None:
+                targets[name] = target
     if not result.get("confounded") and not result.get("explained", True) and result.get("verdict") \
             and ctx.get("candidates"):   # partial explanations of a named verdict (none named: outside the catalogue)
         partial = partial_readings(ctx["best"], ctx["candidates"])
         if partial:
             name = "+".join(sorted({e for r in partial for e in r.candidate.effects}, key=_order))
             out.append((name, partial))
-            overdispersion[name] = max(1.0, min(c.chi2_fit / max(c.n_fit - c.k, 1) for c in ctx["candidates"]))
-    return out, unresolvable, overdispersion
+            overdispersion[name] = overdispersion_of(ctx["candidates"])
+    return out, unresolvable, overdispersion, targets
 
 
 def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: WindowSpec = DEFAULTS.window,
@@ -551,20 +649,21 @@ def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: Windo
     """The ``next_tests`` block of diagnosis.json (contract 1.5) for a diagnosis ``result`` and its fits ``ctx``
     (:func:`isokinetic.diagnosis.verdict.diagnose_observations`' ``predictions['fits']``)."""
     started = time.perf_counter()
-    groups, unresolvable, overdispersion = ([], {}, {}) if ctx is None else contexts_groups(result, ctx)
+    groups, unresolvable, overdispersion, targets = ([], {}, {}, {}) if ctx is None else contexts_groups(result, ctx)
     if not groups and not unresolvable:
         return {"needed": False, "note": NO_PLAN_NOTE, "plan": []}
     block = {"needed": True, "criterion": CRITERION, "target_se": TARGET_SE, "rivals": [], "plan": [],
              "total_rig_time_s": 0.0, "separation_se": {}, "unresolvable": unresolvable}
     if groups:
-        block.update(planned(groups, ctx, damper, spec, n_bins, design, declared, overdispersion))
+        block.update(planned(groups, ctx, damper, spec, n_bins, design, declared, overdispersion, targets))
     block["note"] = plan_note(block)
     block["seconds"] = round(time.perf_counter() - started, 3)
     return block
 
 
 def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: Damper, spec: WindowSpec,
-            n_bins: int, design: DesignLimits, declared: Mapping | None, overdispersion: Mapping | None = None) -> dict:
+            n_bins: int, design: DesignLimits, declared: Mapping | None, overdispersion: Mapping | None = None,
+            targets: Mapping | None = None) -> dict:
     """The plan's keys (rivals, plan, rig time, separations, limits) of the groups that cases can separate."""
     dg: Diagnoser = ctx["dg"]
     obs = dg.obs
@@ -587,7 +686,9 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
     rig_fs = np.array([p.plan.sample_rate_Hz for p in probes])[pobs.case_index]
     probe_ch = Channel(Evaluator(pobs, damper), None if dg.time_s is None else np.zeros(len(pobs)), dg)
     old_ch = Channel(dg.evaluator, dg.time_s, dg)
-    models = [group_model(name, rs, old_ch, probe_ch, (overdispersion or {}).get(name, 1.0)) for name, rs in groups]
+    models = [group_model(name, rs, old_ch, probe_ch, (overdispersion or {}).get(name, 1.0), (targets or {}).get(name))
+              for name, rs in groups]
+    rho_now = {m.name: m.corr.rho() for m in models if m.corr is not None}
     verdict_mu = models[0].probe_mu[0]
     n = np.round((pobs.stop - pobs.start) * rig_fs / model_fs)
     sigma = np.sqrt(mean_variance_N2(obs.noise, fs, n, verdict_mu) + (obs.rep_rel * verdict_mu) ** 2)
@@ -611,6 +712,8 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
             "separation_se_now": {g: math.sqrt(max(d, 0.0)) for g, d in
                                   zip(names, steps[0]["before"] if steps else before, strict=True)},
             "candidates_considered": int(usable.sum()),
+            "correlation": {m.name: {"now": rho_now[m.name], "plan": m.corr.rho(), "limit": CORRELATION_LIMIT}
+                            for m in models if m.corr is not None},
             "limits": limits_dict(limits, design)}
 
 
