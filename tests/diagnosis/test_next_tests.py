@@ -215,3 +215,12 @@ def test_the_fit_correlation_is_that_of_the_unscaled_fisher_information():
     group = nt.GroupModel("g", [], [], [], [], corr=replace(corr, probe_jac=rows))
     (fisher,) = nt.with_case(group, np.arange(50), np.zeros(50), np.ones(50))
     assert corr.rho(fisher) < nt.CORRELATION_LIMIT and corr.chi2(fisher) > nt.TARGET_SE ** 2
+
+
+def test_a_group_no_case_separates_is_told_the_sensor_check_that_decides_it():
+    block = {"target_se": 5.0, "plan": [], "total_rig_time_s": 0.0, "separation_se": {"air+force_lag": 0.8},
+             "separation_se_now": {"air+force_lag": 0.8}, "unresolvable": {}}
+    note = nt.plan_note(block)
+    assert note.startswith("no candidate case within the rig's limits adds to the separation of air+force_lag")
+    assert "air+force_lag: check the force channel's dynamics" in note
+

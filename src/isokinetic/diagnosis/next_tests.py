@@ -745,8 +745,9 @@ def plan_note(block: Mapping) -> str:
                      + (f" (short of {block['target_se']:g} SE: {', '.join(short)})" if short else ""))
         parts += [f"{g}: {advice(g)} to decide" for g in short if advice(g)]
     elif set(block["separation_se"]) - set(done):
-        parts.append("no candidate case within the rig's limits adds to the separation of "
-                     + ", ".join(g for g in block["separation_se"] if g not in done))
+        left = [g for g in block["separation_se"] if g not in done]
+        parts.append("no candidate case within the rig's limits adds to the separation of " + ", ".join(left))
+        parts += [f"{g}: {advice(g)} to decide" for g in left if advice(g)]
     elif block.get("candidates_considered") == 0:
         parts.append("no candidate case lies within the rig's limits and the design constraints")
     parts += [f"{g}: {why}" for g, why in block["unresolvable"].items()]
