@@ -117,3 +117,14 @@ def test_a_sine_check_that_cannot_be_made_is_reported_and_leaves_the_verdict(mon
                                  None, 1e-3)
     assert result == {"campaign": "c", "verdict": ["friction"], "explained": True,
                       "sine_check": {"cases": "H1,H2", "error": "FloatingPointError: overflow in a model run"}}
+
+
+def test_a_plan_that_fails_leaves_the_diagnosis_standing_and_says_why(tmp_path, monkeypatch):
+    def broken(*_args, **_kwargs):
+        raise KeyError("rival")
+
+    monkeypatch.setattr(dg, "next_tests", broken)
+    result, _obs, _pred = dg.diagnose(process(tmp_path, Effects()))
+    assert result["status"] == "ok" and result["verdict"] == []
+    assert result["next_tests"]["plan"] == [] and "KeyError" in result["next_tests"]["note"]
+    validate_diagnosis(result)

@@ -328,11 +328,11 @@ def planned_tests(result: dict, predictions: dict, damper: Damper, spec: WindowS
                   design: DesignLimits) -> dict:
     """The ``next_tests`` block (:func:`isokinetic.diagnosis.next_tests.next_tests`; computed only where the
     verdict has a confounding or rival partial explanations). A plan that cannot be computed (a rival's model run
-    that fails) says so, with the reason, and proposes nothing."""
+    that fails, or any other error) says so, with the reason, and proposes nothing: the diagnosis stands."""
     try:
         return json_safe(next_tests(result, predictions.get("fits"), damper, spec, n_bins, design))
-    except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
-        log.warning("%s: the next-test plan failed: %s", result.get("campaign"), exc)
+    except Exception as exc:  # noqa: BLE001 - the verdict is written whatever becomes of its plan
+        log.exception("%s: the next-test plan failed", result.get("campaign"))
         return {"needed": True, "note": f"the plan could not be computed: {type(exc).__name__}: {exc}", "plan": []}
 
 
