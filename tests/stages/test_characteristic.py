@@ -281,8 +281,8 @@ def test_a_short_steady_step_keeps_its_first_period():
 
 
 def test_compare_and_static_force_take_a_free_records_bins_as_no_case_point(sine_campaign):
-    from isokinetic.measurement.static_force_fit import branch_points
     from isokinetic.measurement.comparison import campaign_points
+    from isokinetic.measurement.static_force_fit import branch_points
 
     _vc, root = sine_campaign
     char = pd.read_parquet(root / "characteristic.parquet")
