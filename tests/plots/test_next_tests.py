@@ -36,6 +36,14 @@ def test_a_campaign_without_a_plan_has_no_marks_and_says_why():
     assert "no confounding" in fig._supxlabel.get_text()
 
 
+def test_a_campaign_without_triangle_cases_gets_its_diagram():
+    # a sine-only campaign (a real MTS sweep, a crank dyno) has no triangle case to place: the diagram still draws
+    sines = [CasePlan("S01", "sine", 500.0, amplitude_m=1e-3, frequency_Hz=2.0)]
+    fig = next_tests_figure("sweep", {"needed": False, "note": "no confounding: no further test proposed",
+                                      "plan": []}, sines, TABLE_1)
+    assert proposed(fig) == [] and "no confounding" in fig._supxlabel.get_text()
+
+
 def test_the_campaigns_own_cases_are_named_as_such():
     fig = next_tests_figure("small", {"needed": True, "note": "1 case(s)", "plan": [TRIANGLE]}, PLANS, TABLE_1)
     labels = fig.axes[0].get_legend_handles_labels()[1]

@@ -53,7 +53,8 @@ def _wrapped_footnote(fig: Figure, text: str) -> None:
 def planned_triangles(planned: pd.DataFrame | None) -> pd.DataFrame:
     """Triangle rows with finite velocity and amplitude (from a plan check or a cases table)."""
     if planned is None or len(planned) == 0:
-        return pd.DataFrame(columns=["case", "velocity_m_s", "amplitude_m", "period_s"])
+        return pd.DataFrame({"case": pd.Series(dtype=object), **{c: pd.Series(dtype=float) for c in
+                                                                  ("velocity_m_s", "amplitude_m", "period_s")}})
     df = planned[planned["waveform"] == "triangle"] if "waveform" in planned else planned
     amp = pd.to_numeric(df["amplitude_m"], errors="coerce")
     per = pd.to_numeric(df["period_s"], errors="coerce")
