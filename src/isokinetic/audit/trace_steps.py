@@ -209,7 +209,7 @@ def _diagnosis_run(ctx: Context, src: RawSource, root: Path, files: Sequence[Pat
     scratch, spec = _characteristic_chain(ctx, src, root, files)
     ctx.report.step("Running diagnosis.diagnose on the re-derived campaign (windows + transient bins, candidate fits; "
                     "this takes a few seconds per campaign)")
-    result, _obs, _pred = diagnose(scratch, spec)
+    result, _obs, _pred = diagnose(scratch, spec, design=_chain_settings(ctx, root, files).design)
     return result
 
 

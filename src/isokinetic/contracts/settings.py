@@ -131,10 +131,10 @@ def settings_from_flat(values: Mapping[str, float]) -> Settings:
 RULE_SETTINGS = {"ingest": ("max_case_file_MB",),
                  "characteristic": ("window", "repeatability_tolerance", "sample_rate_tolerance", "gap"),
                  "analysis": ("window", "design"),
-                 "diagnosis": ("window",),
+                 "diagnosis": ("window", "design"),   # design: the next tests' limits (Fig. 21, next_tests)
                  "blind_generate": ("window",),
                  "blind_diagnose": ("window", "repeatability_tolerance", "sample_rate_tolerance", "gap",
-                                    "max_case_file_MB")}
+                                    "max_case_file_MB", "design")}
 
 
 #: Every setting by the flat name a job's params and lineage record keep (``trace`` reads them): (its field of
