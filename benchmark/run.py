@@ -1,5 +1,6 @@
 """Benchmark figures for docs/benchmarks.md (the README keeps a short "How fast" table of them): full rebuild,
-no-op rerun, a new raw campaign, the chain's job overhead against a plain script, where the time goes per rule, diagnosis and virtual-rig speed.
+no-op rerun, a new raw campaign, the chain's job overhead against a plain script, where the time goes per rule,
+diagnosis and virtual-rig speed.
 
     .venv/bin/python benchmark/run.py [--keep DIR] [--diagnoses PROJECT]
 
