@@ -11,11 +11,7 @@ from isokinetic.contracts.outputs import result_file_names
 
 PACKAGE = Path(isokinetic.__file__).parent
 #: Literals allowed, by (module relative to the package, literal), each with its reason. Keep it short.
-ALLOWED: dict[tuple[str, str], str] = {
-    ("blind/score.py", "campaign.json"): "score_sources opens ingest/campaign.json by hand; the module was moving into "
-                                         "blind/ while the folder reader was written (issue 36, part 6): to be read "
-                                         "through CampaignFolder, then this entry goes",
-}
+ALLOWED: dict[tuple[str, str], str] = {}
 
 
 def _docstrings(tree: ast.AST) -> set[int]:

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from isokinetic.blind.generate import MAGNITUDE_BINS, PARAM_KEYS, effect_text, magnitude_bin
+from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.contracts.scenarios import EFFECTS
 from isokinetic.diagnosis.candidate import ALPHA
@@ -633,9 +634,9 @@ def read_diagnoses(work_roots: Iterable[str | os.PathLike], names: Iterable[str]
     return found
 
 
-def _raw_dir(meta_path: Path) -> str:
-    """The raw campaign folder a diagnosis ingested: the parent of ``manifest_file`` in its campaign.json."""
-    manifest = json.loads(meta_path.read_text(encoding="utf-8")).get("manifest_file") or ""
+def _raw_dir(folder: CampaignFolder) -> str:
+    """The raw campaign folder a diagnosis ingested: the parent of its metadata record's ``manifest_file``."""
+    manifest = folder.meta.manifest_file or ""
     return Path(manifest).parent.as_posix() if manifest else ""
 
 
@@ -669,9 +670,9 @@ def score_sources(truth_root, work_roots: Iterable[str | os.PathLike], names: It
         for r in roots:
             if not diagnosis and (r / name / DIAGNOSIS_FILE).is_file():
                 diagnosis = (r / name / DIAGNOSIS_FILE).as_posix()
-            meta_path = r / name / "ingest" / "campaign.json"
-            if not raw and meta_path.is_file():
-                raw = _raw_dir(meta_path)
+            folder = CampaignFolder.at(r / name)
+            if not raw and folder.has_meta():
+                raw = _raw_dir(folder)
         if not raw and name in truth_files:
             raw = _raw_beside(Path(truth_files[name]))
         rows.append({"scenario": name, "raw_dir": raw, "truth_file": truth_files.get(name, ""),
