@@ -17,6 +17,7 @@ from isokinetic.audit.raw_folder import SnakemakeInputs, snakemake_inputs
 from isokinetic.audit.raw_inventory import UnusableFolder, orphaned_results, unusable_folders
 from isokinetic.audit.refused import refusal
 from isokinetic.code_closure import code_hash
+from isokinetic.contracts.outputs import DESIGN_SUMMARY as DESIGN_SUMMARY_FILE
 from isokinetic.contracts.outputs import (
     BLIND_DIR,
     CAMPAIGN_ID,
@@ -270,11 +271,13 @@ def check_raw_after_run():
 
 
 BLIND_ROOT = f"{RESULTS_DIR}/{BLIND_DIR}"
-BLIND_OUTPUTS = [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_score").values()] + [
-    campaign_path(BLIND_DIR, f.path) for f in rule_figures("blind_score")
-] + [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_next_test").values() if not is_folder(p)]
+BLIND_OUTPUTS = (
+    [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_score").values()]
+    + [campaign_path(BLIND_DIR, f.path) for f in rule_figures("blind_score")]
+    + [campaign_path(BLIND_DIR, p) for p in rule_outputs_of("blind_next_test").values() if not is_folder(p)]
+)
 #: Every campaign's plan check in one table, written by the index job.
-DESIGN_SUMMARY = f"{RESULTS_DIR}/design/plan_check.parquet"
+DESIGN_SUMMARY = f"{RESULTS_DIR}/{DESIGN_SUMMARY_FILE}"
 
 
 def blind_composition(blind):
