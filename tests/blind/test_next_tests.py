@@ -218,3 +218,13 @@ def test_a_scenario_enters_the_proof_only_with_a_confounding_and_without_a_plan_
     row = nt.proof_row(raw, truth_of(s), tmp_path / "b", lambda r, w: stuck)
     assert row["in_proof"] and row["n_cases"] == 0 and not row["resolved"] and not row["uniform_resolved"]
     assert row["predicted_se"] is None and row["confounded"] == "leakage+discharge"
+
+
+def test_a_plan_the_rig_cannot_run_resolves_nothing_and_says_why_in_strict_json(tmp_path):
+    s = tiny_scenario()
+    raw = write(s, s.rig_cases(), tmp_path / "raw")
+    plan = [{**tri("N01", 1e-3, 4.0), "waveform": "ramp"}]
+    row = nt.prove_scenario(raw, truth_of(s), BEFORE, plan, tmp_path / "p", lambda r, w: pytest.fail("diagnosed"))
+    assert not row["resolved"] and "'ramp'" in row["proposed"]["error"] and "'ramp'" in row["uniform"]["error"]
+    json.dumps(row, allow_nan=False)
+    assert not (tmp_path / "p" / "proposed" / "raw").exists()

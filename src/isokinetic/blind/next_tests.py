@@ -406,7 +406,7 @@ def run_plan(raw_dir: str | os.PathLike, truth: Mapping, before: Mapping, plan: 
     try:
         out = extend_campaign(raw_dir, truth, plan, work_root / "raw")
     except ValueError as exc:
-        return {**judge(truth, before, None, math.nan), "error": str(exc), "rig_time_s": math.nan}
+        return {**judge(truth, before, None, math.nan), "error": str(exc), "rig_time_s": None}
     span = float(sum(case_spans_s(out, read_manifest(out))))
     rig_time = float(sum(rig_time_s(rig_case(e)) for e in plan))
     try:
@@ -432,7 +432,7 @@ def prove_scenario(raw_dir: str | os.PathLike, truth: Mapping, before: Mapping, 
         uniform = run_plan(raw_dir, truth, before, uniform_plan(read_manifest(raw_dir), plan, srig.harmonics),
                            work_root / "uniform", diagnose)
     except ValueError as exc:   # a proposed plan the rig cannot run has no rig time to spread
-        uniform = {**judge(truth, before, None, math.nan), "error": str(exc), "rig_time_s": math.nan}
+        uniform = {**judge(truth, before, None, math.nan), "error": str(exc), "rig_time_s": None}
     return {**row, "proposed": proposed, "uniform": uniform, "resolved": proposed["resolved"],
             "uniform_resolved": uniform["resolved"]}
 
