@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 import isokinetic.io
+from campaign_meta_fixture import write_campaign_meta
 from isokinetic.audit import lineage, provenance
 from isokinetic.blind.score import SCORE_COLUMNS, SOURCE_COLUMNS
 from isokinetic.contracts.row_keys import parse_row_keys
@@ -253,8 +254,11 @@ def test_blind_scores_name_raw_folder_truth_and_diagnosis(tmp_path):
     for name in ("blind-000", "blind-001"):
         write_json({"scenario": name, "truth": ["friction"], "magnitude_x_detection": 2.0}, truth_root / f"{name}.json")
         (tmp_path / "blind" / "raw" / name).mkdir(parents=True)
-    write_json({"campaign": "blind-000", "manifest_file": "results/blind/raw/blind-000/campaign.yaml"},
-               work / "blind-000" / "ingest" / "campaign.json")
+    write_campaign_meta(work / "blind-000", "blind-000", source="raw",
+                        manifest_file="results/blind/raw/blind-000/campaign.yaml")
+    # a record that does not read (a key missing) stops nothing: the raw folder beside the truth file is named
+    write_json({"campaign": "blind-001", "manifest_file": "elsewhere/campaign.yaml"},
+               work / "blind-001" / "ingest" / "campaign.json")
     write_json({"verdict": ["friction"], "gap_before": 9.0, "gap_after": 1.0, "shrink": 9.0},
                work / "blind-000" / "diagnosis.json")
     scores, _ = blind_score.write_scores(truth_root, [work], tmp_path / "scores.parquet",

@@ -12,6 +12,7 @@ figure (:mod:`isokinetic.plots.blind_score`).
 from __future__ import annotations
 
 import json
+import logging
 import math
 import os
 from collections.abc import Iterable, Mapping
@@ -22,10 +23,13 @@ import pandas as pd
 
 from isokinetic.blind.generate import MAGNITUDE_BINS, PARAM_KEYS, effect_text, magnitude_bin
 from isokinetic.contracts.campaign_folder import CampaignFolder
+from isokinetic.contracts.campaign_meta import CampaignMetaError
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.contracts.scenarios import EFFECTS
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.physics.effects import BY_NAME
+
+log = logging.getLogger(__name__)
 
 SCORE_COLUMNS = ("scenario", "waveform", "truth", "out_of_catalogue", "verdict", "exact", "exact_up_to_confounding",
                  "explained", "n_truth", "magnitude_x_detection", "magnitude_bin", "gap_before", "gap_after",
@@ -635,8 +639,13 @@ def read_diagnoses(work_roots: Iterable[str | os.PathLike], names: Iterable[str]
 
 
 def _raw_dir(folder: CampaignFolder) -> str:
-    """The raw campaign folder a diagnosis ingested: the parent of its metadata record's ``manifest_file``."""
-    manifest = folder.meta.manifest_file or ""
+    """The raw campaign folder a diagnosis ingested: the parent of its metadata record's ``manifest_file``; ''
+    where the record does not read (the raw folder beside the truth file is taken then, :func:`score_sources`)."""
+    try:
+        manifest = folder.meta.manifest_file or ""
+    except (CampaignMetaError, ValueError) as exc:
+        log.warning("blind score: %s: %s", folder.root, exc)
+        return ""
     return Path(manifest).parent.as_posix() if manifest else ""
 
 
