@@ -45,8 +45,9 @@ def diagnose_chunk(args: tuple[str, list[str], str]) -> tuple[dict, dict]:
     return out, cpu
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def add_suite_arguments(parser: argparse.ArgumentParser) -> None:
+    """The benchmark suite's composition as command-line options, with its defaults (seed 777: 6 per effect, 9
+    pairs, 9 without effect, 16 out of the catalogue, 14 sine-only): one place for benchmark/next_tests.py too."""
     parser.add_argument("--seed", type=int, default=777)
     parser.add_argument("--per-effect", type=int, default=6)
     parser.add_argument("--pairs", type=int, default=9)
@@ -54,6 +55,11 @@ def main() -> None:
     parser.add_argument("--out", type=int, default=16, help="out-of-catalogue scenarios (cycling through the "
                         "kinds; 16: each of the eight twice)")
     parser.add_argument("--sine", type=int, default=14, help="sine-only scenarios (0: the triangle suite alone)")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_suite_arguments(parser)
     parser.add_argument("--jobs", type=int, default=2)
     parser.add_argument("--no-sensor-chain", action="store_true", help="an ideal sensor chain (same scenarios)")
     parser.add_argument("--keep", type=Path, metavar="DIR", help="work in DIR (created) and keep it")

@@ -26,6 +26,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from blind_suite import add_suite_arguments  # benchmark/blind_suite.py, beside this script
 from isokinetic.blind import confounded as cf
 from isokinetic.blind.generate import export_scenario, generate_scenarios
 from isokinetic.blind.next_tests import proof_row, proof_summary, proof_table
@@ -56,12 +57,7 @@ def prove(task: tuple) -> tuple[dict, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seed", type=int, default=777)
-    parser.add_argument("--per-effect", type=int, default=6)
-    parser.add_argument("--pairs", type=int, default=9)
-    parser.add_argument("--none", type=int, default=9)
-    parser.add_argument("--out", type=int, default=16)
-    parser.add_argument("--sine", type=int, default=14)
+    add_suite_arguments(parser)
     parser.add_argument("--kinds", default="all", help="confounded kinds: 'all', 'none' or a comma list")
     parser.add_argument("--names", nargs="*", help="only these scenarios of the suite")
     parser.add_argument("--jobs", type=int, default=2)
