@@ -101,15 +101,9 @@ class Settings:
     @classmethod
     def from_config(cls, config: Mapping) -> Settings:
         """The settings of a config already validated with its defaults filled (:func:`with_defaults`;
-        Snakemake's ``validate`` fills them too)."""
-        windows, validation, design = config["windows"], config["validation"], config["design"]
-        return cls(window=WindowSpec(float(windows["start_fraction"]), float(windows["end_fraction"])),
-                   repeatability_tolerance=float(config["repeatability"]["tolerance"]),
-                   sample_rate_tolerance=float(validation["sample_rate_tolerance"]),
-                   gap=GapTolerance(float(validation["max_missing_fraction"]), float(validation["max_gap_s"])),
-                   max_case_file_MB=float(config["ingest"]["max_case_file_MB"]),
-                   design=DesignLimits(float(design["convergence_fraction"]), float(design["max_amplitude_mm"]) * 1e-3,
-                                       float(design["min_amplitude_mm"]) * 1e-3))
+        Snakemake's ``validate`` fills them too): each setting at its config key, in SI (CONFIG_KEYS)."""
+        return settings_from_flat({name: float(config[block][key]) * factor
+                                   for name, ((block, key), factor) in CONFIG_KEYS.items()})
 
 
 #: The settings' defaults: what every stage applies where it is called without settings (outside a build).

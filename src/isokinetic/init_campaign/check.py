@@ -14,8 +14,8 @@ four standard errors, an amplitude beyond :data:`AMPLITUDE_TOLERANCE`, a sample 
 by ingest's own rule (:func:`isokinetic.measurement.sampling.rate_offset` beyond the project's
 ``validation.sample_rate_tolerance``: a rate --check accepts is one validate accepts), a file above the project's
 ``ingest.max_case_file_MB`` not read, as ingest does not read it. The settings are the project's
-(:func:`isokinetic.contracts.settings.project_settings`: the config of the project around the working directory
-or the folder, else the defaults). Exit status 0 when every case agrees, 1 otherwise.
+(:func:`isokinetic.contracts.settings.project_settings`: the config of the project around the folder, else around
+the working directory, else the defaults). Exit status 0 when every case agrees, 1 otherwise.
 """
 
 from __future__ import annotations

@@ -751,7 +751,8 @@ def ingest_campaign(campaign_dir: str | Path, campaign_root: str | Path,
         unknown = sorted(set(cases) - {spec.id for spec in manifest.cases})
         if unknown:
             raise KeyError(f"{manifest_file}: no case {', '.join(unknown)}")
-        manifest = dataclasses.replace(manifest, cases=tuple(s for s in manifest.cases if s.id in set(cases)))
+        wanted = set(cases)
+        manifest = dataclasses.replace(manifest, cases=tuple(s for s in manifest.cases if s.id in wanted))
     for warning in manifest.warnings:
         log.warning("campaign %s: %s", manifest.campaign, warning)
     rows, quarantined, series, cache = [], [], {}, FileCache()
