@@ -51,7 +51,7 @@ from isokinetic.diagnosis.sine_check import channel_of, sine_check
 from isokinetic.diagnosis.sine_observations import PERIODIC_RESIDUAL, periodic_motion
 from isokinetic.diagnosis.structure import case_temperatures
 from isokinetic.diagnosis.verdict import diagnose_observations, structure_keys
-from isokinetic.io import write_json
+from isokinetic.io import write_json, write_text
 from isokinetic.measurement.windows import WindowSpec, motion_start
 from isokinetic.physics.damper import NOMINAL, Damper
 
@@ -410,8 +410,8 @@ def write_diagnosis(campaign_root: Path, json_path: Path, figure_path: Path | No
         result, obs, predictions = no_model(name, f"diagnosis failed: {type(exc).__name__}: {exc}", "failed"), None, {}
     validate_diagnosis(result)
     write_json(result, json_path)
-    (Path(json_path).parent / STAGE_OUTPUTS["diagnosis"]["next_tests"]).write_text(
-        plan_yaml(result.get("next_tests"), result["campaign"]), encoding="utf-8")
+    write_text(plan_yaml(result.get("next_tests"), result["campaign"]),
+               Path(json_path).parent / STAGE_OUTPUTS["diagnosis"]["next_tests"])
     if figure_path is not None:
         from isokinetic.plots.diagnosis import gap_figure  # matplotlib only where a figure is drawn
         from isokinetic.plots.style import save_figure
