@@ -149,6 +149,46 @@ def test_an_unexplained_effect_better_than_the_nominal_model_by_more_than_the_ma
     assert not vd.no_effect_earns(air, nominal, [air])
 
 
+def explaining(effects, score):
+    return replace(unexplained(effects, score), explained=True, chi2_fit=score, score=score)
+
+
+class Polisher:
+    """A diagnoser whose polishing refit lowers each effect set's score (and χ²) by its ``gains``."""
+
+    def __init__(self, gains):
+        self.gains, self.refitted = gains, []
+
+    def refit(self, effects, instrument, warm, tol):
+        self.refitted.append(effects)
+        gain = self.gains.get(effects, 0.0)
+        return replace(warm, chi2_fit=warm.chi2_fit - gain, score=warm.score - gain)
+
+
+def test_a_rival_whose_polished_fit_scores_better_is_the_verdict():
+    # the leakage-beside-discharge campaign's search fits: 178.7 and 188.4, polished 171.4 and 159.6
+    dv, ld = explaining(("discharge", "viscosity"), 178.7), explaining(("leakage", "discharge"), 188.4)
+    best, candidates = vd.chosen_candidate(Polisher({dv.effects: 7.3, ld.effects: 28.8}), [dv, ld])
+    assert best.effects == ld.effects and best.score == pytest.approx(159.6)
+    assert [c.score for c in candidates] == [pytest.approx(171.4), pytest.approx(159.6)]   # polished, in place
+
+
+def test_a_rival_polished_into_the_margin_is_listed_as_confounded():
+    dv, ld = explaining(("discharge", "viscosity"), 178.7), explaining(("leakage", "discharge"), 188.4)
+    best, candidates = vd.chosen_candidate(Polisher({dv.effects: 7.3, ld.effects: 10.0}), [dv, ld])
+    assert best.effects == dv.effects
+    rivals = [c for c in candidates if c.effects != best.effects and c.score - best.score < vd.CONFOUNDED_SCORE]
+    assert [c.effects for c in rivals] == [ld.effects]   # 178.4 against 171.4 (unpolished 17 apart)
+
+
+def test_rivals_beyond_the_reach_or_of_another_size_are_not_polished():
+    best = explaining(("viscosity",), 100.0)
+    far, larger = explaining(("discharge",), 100.0 + vd.RIVAL_REACH + 1.0), explaining(("leakage", "air"), 101.0)
+    polisher = Polisher({})
+    vd.chosen_candidate(polisher, [best, far, larger])
+    assert polisher.refitted == [best.effects]
+
+
 def confounding_of(lag_correlation, drift_correlation):
     out = {"instrument": {"force_gain": None, "force_lag_s": 0.04, "force_drift_N_s": 0.01},
            "identifiability": {"lag_correlation": lag_correlation, "drift_correlation": drift_correlation}}

@@ -14,6 +14,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from isokinetic.blind import confounded as cf
 from isokinetic.blind.generate import out_of_catalogue_true_effects
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.physics.damper import TABLE_1
@@ -482,3 +483,18 @@ def test_a_sine_sweep_with_friction_beside_a_large_load_cell_offset_gets_frictio
     assert result["verdict"] == ["friction"]
     assert result["params"]["coulomb_force_N"] == pytest.approx(10.0, rel=0.15)
     assert result["instrument"]["force_offset_N"] == pytest.approx(-142.0, abs=2.0)
+
+
+@pytest.mark.slow
+def test_leakage_beside_discharge_on_turbulent_speeds_is_found_by_its_polished_fit(tmp_path):
+    # the confounded kind built for issue 37's proof: its search fit scores 29 above its optimum, the wrong pair's 7
+    kind = cf.BY_NAME["leakage_turbulent"]
+    scenario = cf.make_confounded(kind, 777, cf.KINDS.index(kind))
+    raw = cf.export_confounded(kind, scenario, tmp_path / "raw", tmp_path / "truth")
+    truth = json.loads((tmp_path / "truth" / f"{scenario.name}.json").read_text(encoding="utf-8"))
+    result = diagnose_raw_campaign(raw, tmp_path / "work")
+    assert result["verdict"] == ["leakage", "discharge"] and result["explained"] is True
+    true_conductance = truth["magnitude"]["leakage"]
+    assert result["params"]["leakage_conductance_m3_s_Pa"] == pytest.approx(true_conductance, rel=0.15)
+    assert result["params"]["discharge_coefficient"] == pytest.approx(truth["effects"]["discharge_coefficient"],
+                                                                      rel=0.01)
