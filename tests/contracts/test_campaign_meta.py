@@ -38,7 +38,8 @@ def test_a_raw_ingests_file_reads_typed_and_writes_back_unchanged(raw_meta_file)
     assert (meta.campaign, meta.source, meta.temperature_C) == (CAMPAIGN, "rig", 40.0)
     assert meta.damper.piston_area_m2 == MANIFEST["damper"]["piston_area_m2"]
     assert meta.warnings == () and meta.gas_force_N is None and meta.metadata["operator"] == "fixture"
-    assert meta.present == {"viscosity_law", "gas_force_N", "csv", "warnings"}
+    assert meta.present == {"viscosity_law", "gas_force_N", "csv", "warnings", "force_calibration"}
+    assert written["force_calibration"] is None and meta.calibration is None
     assert meta.to_mapping() == written
 
 
@@ -76,6 +77,19 @@ def test_a_missing_key_or_an_unusable_damper_block_is_refused():
         CampaignMeta.from_mapping(partial)
     with pytest.raises(CampaignMetaError, match="density_kg_m3"):
         CampaignMeta.from_mapping({**SIMULATED, "damper": {**TABLE_1.to_dict(), "density_kg_m3": -1.0}})
+
+
+def test_a_declared_force_calibration_reads_as_gain_and_uncertainty_and_writes_back():
+    written = {**SIMULATED, "force_calibration": {"gain": 1.012, "uncertainty_rel": 0.001}}
+    meta = CampaignMeta.from_mapping(written)
+    assert meta.calibration == (1.012, 0.001)
+    assert meta.to_mapping() == written
+
+
+@pytest.mark.parametrize("calibration", [{"gain": 1.01}, {"gain": "1.01", "uncertainty_rel": 0.001}, {}])
+def test_a_force_calibration_without_its_two_numbers_is_refused(calibration):
+    with pytest.raises(CampaignMetaError, match="^c.json: key 'force_calibration' must hold the numbers"):
+        CampaignMeta.from_mapping({**SIMULATED, "force_calibration": calibration}, where="c.json")
 
 
 def test_the_viscosity_law_needs_the_damper_block():

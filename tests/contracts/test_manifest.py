@@ -184,6 +184,57 @@ def test_bad_gas_force_fails_the_campaign(raw_campaign, value, words):
     assert words in str(info.value)
 
 
+def test_a_force_calibration_is_optional_and_read_as_declared(raw_campaign):
+    assert load_manifest(MANIFEST_FILE).force_calibration is None
+    raw_campaign.edit_manifest(_set({"gain": 1.012, "uncertainty_rel": "1e-3"}, "columns", "force", "calibration"))
+    m = load_manifest(MANIFEST_FILE)
+    assert m.force_calibration == {"gain": 1.012, "uncertainty_rel": 0.001}   # 1e-3: a string to PyYAML
+    assert m.columns["force"].unit == "kN"   # the column itself unchanged
+
+
+def test_a_force_calibrations_gain_defaults_to_one(raw_campaign):
+    raw_campaign.edit_manifest(_set({"uncertainty_rel": 0.002}, "columns", "force", "calibration"))
+    assert load_manifest(MANIFEST_FILE).force_calibration == {"gain": 1.0, "uncertainty_rel": 0.002}
+
+
+def _case_force_calibration(m):
+    m["cases"][0]["columns"] = {"force": {"calibration": {"gain": 1.01, "uncertainty_rel": 0.001}}}
+
+
+@pytest.mark.parametrize("edit, key, words", [
+    (_set({"gain": 0.85, "uncertainty_rel": 0.001}, "columns", "force", "calibration"),
+     "columns.force.calibration.gain", "within [0.9, 1.1]"),
+    (_set({"gain": 1.15, "uncertainty_rel": 0.001}, "columns", "force", "calibration"),
+     "columns.force.calibration.gain", "within [0.9, 1.1]"),
+    (_set({"gain": "heavy", "uncertainty_rel": 0.001}, "columns", "force", "calibration"),
+     "columns.force.calibration.gain", "got 'heavy'"),
+    (_set({"gain": True, "uncertainty_rel": 0.001}, "columns", "force", "calibration"),
+     "columns.force.calibration.gain", "got True"),
+    (_set({"gain": 1.01, "uncertainty_rel": 0.0}, "columns", "force", "calibration"),
+     "columns.force.calibration.uncertainty_rel", "> 0 and <= 0.02"),
+    (_set({"gain": 1.01, "uncertainty_rel": -0.001}, "columns", "force", "calibration"),
+     "columns.force.calibration.uncertainty_rel", "> 0 and <= 0.02"),
+    (_set({"gain": 1.01, "uncertainty_rel": 0.03}, "columns", "force", "calibration"),
+     "columns.force.calibration.uncertainty_rel", "> 0 and <= 0.02"),
+    (_set({"gain": 1.01, "uncertainty_rel": float("nan")}, "columns", "force", "calibration"),
+     "columns.force.calibration.uncertainty_rel", "got nan"),
+    (_set({"gain": 1.01}, "columns", "force", "calibration"), "columns.force.calibration.uncertainty_rel",
+     "missing"),
+    (_set({"gain": 1.01, "uncertainty_rel": 0.001, "sigma": 1}, "columns", "force", "calibration"),
+     "columns.force.calibration.sigma", "not a key of the calibration"),
+    (_set(1.01, "columns", "force", "calibration"), "columns.force.calibration", "expected a mapping"),
+    (_set({"gain": 1.01, "uncertainty_rel": 0.001}, "columns", "displacement", "calibration"),
+     "columns.displacement.calibration", "only the force column"),
+    (_case_force_calibration, "cases.T01.columns.force.calibration", "declared once on the campaign's force column"),
+])
+def test_a_bad_force_calibration_fails_the_campaign_naming_the_key(raw_campaign, edit, key, words):
+    raw_campaign.edit_manifest(edit)
+    with pytest.raises(ManifestError) as info:
+        load_manifest(MANIFEST_FILE)
+    assert str(info.value).startswith(f"{MANIFEST_FILE}: key {key!r}: ")   # the file names the campaign's folder
+    assert words in str(info.value)
+
+
 def test_csv_block_is_optional_and_reaches_every_case(raw_campaign):
     m = load_manifest(MANIFEST_FILE)
     assert m.csv is None and {c.csv for c in m.cases} == {None}

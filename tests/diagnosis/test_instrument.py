@@ -204,3 +204,44 @@ def test_linear_terms_inside_and_at_their_bounds_are_the_bounded_least_squares()
     g, _fc, offset, _r = terms.solve(force, model, np.sign(model), w, False)
     assert g == pytest.approx(1.02, rel=1e-12)
     assert offset == pytest.approx(np.sum(w * (force - 1.02 * model)) / np.sum(w), rel=1e-9)
+
+
+def _calibrated_rig(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(model, weights, force) of a load cell of gain 1.013 with an offset of 2 N and noise."""
+    rng = np.random.default_rng(seed)
+    model = rng.uniform(-800.0, 800.0, 60)
+    w = rng.uniform(0.5, 2.0, model.size)
+    return model, w, 1.013 * model + 2.0 + rng.normal(0.0, 1.0, model.size) / np.sqrt(w)
+
+
+def test_a_calibrated_free_gain_is_the_weighted_mean_of_the_data_and_the_calibration():
+    model, w, force = _calibrated_rig(5)
+    centre, sd = 1.01, 0.0005
+    terms = ins.LinearTerms(free=("force_gain",), gain_centre=centre, gain_sd=sd)
+    g, *_rest = terms.solve(force, model, np.sign(model), w, False)
+    closed_form = (np.sum(w * model * force) + centre / sd**2) / (np.sum(w * model**2) + 1.0 / sd**2)
+    assert g == pytest.approx(closed_form, rel=1e-12)
+    assert centre < g < 1.013   # pulled from the data's gain towards the calibration
+
+
+def test_a_gain_not_fitted_is_the_calibrated_gain():
+    model, w, force = _calibrated_rig(6)
+    terms = ins.LinearTerms(free=("force_offset",), offset_bound_N=50.0, gain_centre=1.013, gain_sd=0.001)
+    g, _fc, offset, _r = terms.solve(force, model, np.sign(model), w, False)
+    assert g == 1.013
+    assert offset == pytest.approx(np.sum(w * (force - 1.013 * model)) / np.sum(w), rel=1e-9)
+
+
+def test_without_a_calibration_the_gain_is_the_plain_weighted_least_squares():
+    model, w, force = _calibrated_rig(7)
+    g, _fc, offset, _r = ins.LinearTerms(offset_bound_N=50.0).solve(force, model, np.sign(model), w, False)
+    a = np.column_stack([model, np.ones_like(model)]) * np.sqrt(w)[:, None]
+    ref = np.linalg.lstsq(a, force * np.sqrt(w), rcond=None)[0]
+    assert (g, offset) == pytest.approx(tuple(ref), rel=1e-10)
+    assert ins.LinearTerms(free=()).solve(force, model, np.sign(model), w, False)[0] == 1.0
+
+
+def test_a_calibrated_gain_is_bounded_around_its_centre():
+    model, w, force = _calibrated_rig(8)
+    terms = ins.LinearTerms(free=("force_gain",), gain_centre=1.09)   # the data's 1.013 lies below 1.09 - 0.02
+    assert terms.solve(force, model, np.sign(model), w, False)[0] == pytest.approx(1.09 - ins.GAIN_BOUND, rel=1e-12)

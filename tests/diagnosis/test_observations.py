@@ -4,6 +4,7 @@ the sine fit and the bins' noise model against known truths, and the model over 
 against the independent reference rig."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
@@ -392,3 +393,8 @@ def test_a_windows_parts_leave_out_the_samples_their_window_leaves_out(mixed):
     clean = build_observations(campaign, cases, char, lambda r: pd.read_parquet(root / r["timeseries_file"]),
                                WindowSpec()).subwindows
     np.testing.assert_allclose(parts.force_N[rows], clean.force_N[rows], rtol=0.02)   # the spike gone from its part
+
+
+def test_a_subset_carries_the_load_cells_declared_calibration(mixed):
+    obs = replace(mixed[0], force_calibration=(1.012, 0.001))
+    assert obs.subset(obs.case == "H01").force_calibration == (1.012, 0.001)

@@ -1,10 +1,13 @@
 """The search's fits (diagnosis.search): the secant Jacobian against forward differences and the
 secant equation, and fits with it against fits with scipy's own differences."""
 
+from dataclasses import replace
+
 import numpy as np
+import pytest
 from scipy import optimize
 
-from isokinetic.diagnosis.search import DIFF_STEP, FIT_TOL, SecantJacobian
+from isokinetic.diagnosis.search import DIFF_STEP, FIT_TOL, Diagnoser, SecantJacobian
 
 
 def residuals(x):
@@ -98,3 +101,11 @@ def test_an_unexplained_search_goes_on_while_larger_sets_change_its_choice():
     """Every size beats the one before by more than the margin: the search extends up to the whole catalogue."""
     sizes = searched_sizes(lambda n: 1000.0 - 100.0 * n)
     assert max(sizes) == 7
+
+
+def test_the_diagnoser_holds_the_gain_to_the_observations_calibration(campaign):
+    obs, damper = campaign
+    linear = Diagnoser(replace(obs, force_calibration=(1.02, 0.001)), damper).linear
+    assert (linear.gain_centre, linear.gain_sd) == pytest.approx((1.02, 0.00102))
+    plain = Diagnoser(obs, damper).linear
+    assert (plain.gain_centre, plain.gain_sd) == (1.0, None)

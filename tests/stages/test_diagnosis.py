@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pytest
+import yaml
 
 from isokinetic.diagnosis.plan_text import plan_yaml
 from isokinetic.diagnosis.result import validate_diagnosis
@@ -12,7 +13,10 @@ from isokinetic.measurement.repeatability import repeatability
 from isokinetic.physics.damper import TABLE_1, Effects
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.virtual_rig import Measurement
+from isokinetic.reference import campaign as rrc
+from isokinetic.reference import rig as rr
 from isokinetic.stages import diagnosis as dg
+from isokinetic.stages.blind_diagnose import process_raw_campaign
 from isokinetic.stages.characteristic import assemble, windows_stage
 from isokinetic.stages.validate import write_validated
 from isokinetic.stages.virtual_rig import VirtualCampaign, write_campaign
@@ -128,3 +132,18 @@ def test_a_plan_that_fails_leaves_the_diagnosis_standing_and_says_why(tmp_path, 
     assert result["status"] == "ok" and result["verdict"] == []
     assert result["next_tests"]["plan"] == [] and "KeyError" in result["next_tests"]["note"]
     validate_diagnosis(result)
+
+
+def test_a_declared_load_cell_calibration_reaches_the_triangles_and_the_sines_beside_them(tmp_path):
+    raw = tmp_path / "raw" / "calibrated"
+    cases = [rr.TriangleCase("T01", 0.1e-3, 20.0, 50.0), rr.TriangleCase("T02", 0.5e-3, 10.0, 50.0),
+             rr.SineCase("H01", 0.5, 30e-6, 4, 200.0)]
+    rrc.write_campaign(raw, cases, rr.TABLE1, rig=rr.RigImperfections(force_noise_N=3.0), seed=2, write_phase=False)
+    manifest = yaml.safe_load((raw / "campaign.yaml").read_text(encoding="utf-8"))
+    manifest["columns"]["force"]["calibration"] = {"gain": 1.012, "uncertainty_rel": 0.001}
+    (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    root = process_raw_campaign(raw, tmp_path / "work")
+    *_head, obs, reason, sensor = dg.prepare_sensor(root)
+    assert obs is not None, reason
+    assert obs.force_calibration == (1.012, 0.001)
+    assert sensor["sine_obs"].force_calibration == (1.012, 0.001)

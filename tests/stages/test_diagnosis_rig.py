@@ -7,6 +7,7 @@ The rig shares no code with the diagnosis' model; its campaigns go through the r
 
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -498,3 +499,31 @@ def test_leakage_beside_discharge_on_turbulent_speeds_is_found_by_its_polished_f
     assert result["params"]["leakage_conductance_m3_s_Pa"] == pytest.approx(true_conductance, rel=0.15)
     assert result["params"]["discharge_coefficient"] == pytest.approx(truth["effects"]["discharge_coefficient"],
                                                                       rel=0.01)
+
+
+def _gain_groups(result: dict) -> list[list[str]]:
+    return [g for g in result.get("confounded") or [] if "force_gain" in g]
+
+
+@pytest.mark.slow
+def test_a_declared_load_cell_calibration_separates_the_gain_from_discharge_and_viscosity(tmp_path):
+    # issue 37's confounded kind: a load-cell gain error beside a discharge change; without the calibration the
+    # diagnosis lists the gain with discharge and viscosity as confounded, the calibration separates them
+    kind = cf.BY_NAME["gain_discharge"]
+    scenario = cf.make_confounded(kind, 777, cf.KINDS.index(kind))
+    raw = cf.export_confounded(kind, scenario, tmp_path / "raw", tmp_path / "truth")
+    truth = json.loads((tmp_path / "truth" / f"{scenario.name}.json").read_text(encoding="utf-8"))
+    assert _gain_groups(diagnose_raw_campaign(raw, tmp_path / "work")), "no gain group to separate"
+    declared = tmp_path / "declared" / raw.name
+    shutil.copytree(raw, declared)
+    manifest = yaml.safe_load((declared / "campaign.yaml").read_text(encoding="utf-8"))
+    true_gain = truth["instrument"]["force_gain"]
+    manifest["columns"]["force"]["calibration"] = {"gain": true_gain, "uncertainty_rel": 0.001}
+    (declared / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    result = diagnose_raw_campaign(declared, tmp_path / "work-declared")
+    assert _gain_groups(result) == []
+    assert result["verdict"] == truth["truth"]
+    gain_test = result["instrument_tests"]["force_gain"]
+    assert gain_test["calibration"] == {"gain": true_gain, "uncertainty_rel": 0.001}
+    estimate = result["instrument"]["force_gain"] or gain_test["estimate"]
+    assert estimate == pytest.approx(true_gain, rel=0.003)

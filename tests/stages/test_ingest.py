@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import math
 from pathlib import Path
@@ -239,3 +240,12 @@ def test_gas_force_shifts_the_characteristic_and_is_recorded(raw_campaign):
     before, after = static_force_stage("results/plain"), static_force_stage("results/gas")
     assert after.static_force_N - before.static_force_N == pytest.approx(-25.0, abs=1e-6)
     assert (after.gas_force_N, math.isnan(before.gas_force_N)) == (25.0, True)
+
+
+def test_a_declared_force_calibration_is_carried_into_campaign_json(raw_campaign):
+    calibration = {"gain": 0.987, "uncertainty_rel": 0.0015}
+    raw_campaign.edit_manifest(lambda m: m["columns"]["force"].update(calibration=calibration))
+    ingest_campaign(raw_campaign.raw_dir, raw_campaign.root)
+    folder = CampaignFolder.at(raw_campaign.root)
+    assert json.loads(folder.ingest_path("meta").read_text())["force_calibration"] == calibration
+    assert folder.meta.calibration == (0.987, 0.0015)

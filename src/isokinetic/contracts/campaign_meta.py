@@ -5,8 +5,9 @@
 ``campaign.schema.json`` (package data of :mod:`isokinetic.contracts`, the one description of the keys).
 The keys readers use are typed fields; a key the schema does not name (a newer writer's, a hand-added
 one) is kept in :attr:`CampaignMeta.extra` and written back unchanged, so old and new folders both read.
-The optional keys raw ingest adds (``viscosity_law``, ``gas_force_N``, ``csv``, ``warnings``) are written
-back only when the record was built with them (a simulated campaign's file has none).
+The optional keys raw ingest adds (``viscosity_law``, ``gas_force_N``, ``csv``, ``warnings``,
+``force_calibration``) are written back only when the record was built with them (a simulated campaign's file has
+none).
 
 The schema uses only ``type``, ``required``, ``properties`` and ``items``, checked here by
 :func:`schema_problems` without importing jsonschema (0.1 s a job); the tests check that jsonschema agrees.
@@ -26,7 +27,7 @@ from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
 
 SCHEMA_RESOURCE = "campaign.schema.json"
 #: The optional keys raw ingest writes (the virtual rig does not).
-RAW_INGEST_KEYS = ("viscosity_law", "gas_force_N", "csv", "warnings")
+RAW_INGEST_KEYS = ("viscosity_law", "gas_force_N", "csv", "warnings", "force_calibration")
 #: Optional keys of the record: raw ingest's and the writing job's lineage record.
 OPTIONAL_KEYS = (*RAW_INGEST_KEYS, "lineage")
 #: JSON type name -> the Python types json.loads gives for it.
@@ -94,6 +95,8 @@ class CampaignMeta:
     csv: Mapping[str, Any] | None = None
     warnings: tuple[str, ...] = ()
     lineage: Mapping[str, Any] | None = None
+    #: the load cell's declared calibration {"gain", "uncertainty_rel"} (manifest columns.force.calibration, 1.6)
+    force_calibration: Mapping[str, float] | None = None
     #: keys the schema does not name, kept as they were read
     extra: Mapping[str, Any] = field(default_factory=dict)
     #: the optional keys (OPTIONAL_KEYS) the record carries, written back by to_mapping
@@ -110,6 +113,11 @@ class CampaignMeta:
             damper = None if mapping["damper"] is None else Damper.from_mapping(mapping["damper"])
         except (KeyError, ValueError) as exc:
             raise CampaignMetaError(f"{where}: {exc}") from None
+        calibration = mapping.get("force_calibration")
+        if calibration is not None and not all(_type_ok(calibration.get(k), "number")
+                                               for k in ("gain", "uncertainty_rel")):
+            raise CampaignMetaError(f"{where}: key 'force_calibration' must hold the numbers gain and uncertainty_rel, "
+                                    f"got {calibration!r}")
         known = set(CAMPAIGN_KEYS) | set(OPTIONAL_KEYS)
         return cls(format_version=mapping["format_version"], campaign=mapping["campaign"], source=mapping["source"],
                    description=mapping["description"],
@@ -119,6 +127,7 @@ class CampaignMeta:
                    viscosity_law_block=mapping.get("viscosity_law"),
                    gas_force_N=mapping.get("gas_force_N"), csv=mapping.get("csv"),
                    warnings=tuple(mapping.get("warnings", ())), lineage=mapping.get("lineage"),
+                   force_calibration=calibration,
                    extra={k: v for k, v in mapping.items() if k not in known},
                    present=frozenset(k for k in OPTIONAL_KEYS if k in mapping))
 
@@ -131,7 +140,8 @@ class CampaignMeta:
                     "manifest_file": self.manifest_file, "manifest_sha256": self.manifest_sha256,
                     "metadata": dict(self.metadata)})
         optional = {"viscosity_law": self.viscosity_law_block, "gas_force_N": self.gas_force_N, "csv": self.csv,
-                    "warnings": list(self.warnings), "lineage": self.lineage}
+                    "warnings": list(self.warnings), "lineage": self.lineage,
+                    "force_calibration": None if self.force_calibration is None else dict(self.force_calibration)}
         out.update({k: v for k, v in optional.items() if k in self.present})
         problems = schema_problems(out)
         if problems:
@@ -142,6 +152,12 @@ class CampaignMeta:
     def generated_by(self) -> Mapping[str, Any] | None:
         """The virtual rig's record of a simulated campaign (``metadata.generated_by``), None for a raw one."""
         return self.metadata.get("generated_by")
+
+    @property
+    def calibration(self) -> tuple[float, float] | None:
+        """(gain, uncertainty_rel) of the load cell's declared calibration (``force_calibration``), None without."""
+        cal = self.force_calibration
+        return None if cal is None else (float(cal["gain"]), float(cal["uncertainty_rel"]))
 
     def viscosity_law(self) -> ViscosityLaw | None:
         """The oil's viscosity-temperature law (``viscosity_law``, format 1.1), None without one or without a

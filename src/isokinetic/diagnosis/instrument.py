@@ -70,6 +70,11 @@ class LinearTerms:
     names the instrument terms fitted (others fixed at g = 1, F_0 = 0, r = 0; the drift only where ``time_s`` is
     given). The drift is bounded so that it moves the zero by at most the offset bound at either end
     (``drift_bound_N_s``).
+
+    A declared calibration of the load cell (manifest ``columns.force.calibration``, format 1.6) centres the gain:
+    free, it lies within ``gain_centre`` ± ``gain_bound`` and, with ``gain_sd`` (the calibration's standard
+    uncertainty of g), the calibration is one more observation of g, the row (g - gain_centre)/gain_sd of the
+    weighted least squares; not free, g is ``gain_centre`` (a gain "held" is the gain as calibrated).
     """
 
     free: tuple[str, ...] = INSTRUMENT
@@ -77,20 +82,29 @@ class LinearTerms:
     gain_bound: float = GAIN_BOUND
     friction_bound_N: float = math.inf
     drift_bound_N_s: float = 0.0
+    gain_centre: float = 1.0
+    gain_sd: float | None = None
+
+    @property
+    def gain_range(self) -> tuple[float, float]:
+        """The bounds of a free gain: ``gain_centre`` ± ``gain_bound``."""
+        return self.gain_centre - self.gain_bound, self.gain_centre + self.gain_bound
 
     def solve(self, force_N: np.ndarray, model_N: np.ndarray, sign: np.ndarray, weight: np.ndarray,
               friction: bool, time_s: np.ndarray | None = None) -> tuple[float, float, float, float]:
-        """(gain, coulomb_force_N, offset_N, drift_N_s) minimising Σ w (F - g (m + F_C s) - F_0 - r τ)² within
-        the bounds (τ = ``time_s``, relative to the reference time at which F_0 is the offset)."""
+        """(gain, coulomb_force_N, offset_N, drift_N_s) minimising Σ w (F - g (m + F_C s) - F_0 - r τ)² (plus
+        ((g - gain_centre)/gain_sd)² with a calibration) within the bounds (τ = ``time_s``, relative to the reference
+        time at which F_0 is the offset)."""
         root_w = np.sqrt(weight)
         y = force_N.copy()
+        centre = self.gain_centre
         cols, lo, hi, names = [], [], [], []
         if "force_gain" in self.free:
-            cols.append(model_N), lo.append(1.0 - self.gain_bound), hi.append(1.0 + self.gain_bound), names.append("g")
+            cols.append(model_N), lo.append(self.gain_range[0]), hi.append(self.gain_range[1]), names.append("g")
         else:
-            y = y - model_N
+            y = y - centre * model_N
         if friction:
-            cols.append(sign), lo.append(0.0), hi.append((1.0 + self.gain_bound) * self.friction_bound_N)
+            cols.append(sign), lo.append(0.0), hi.append((centre + self.gain_bound) * self.friction_bound_N)
             names.append("c")
         if "force_offset" in self.free and self.offset_bound_N > 0:
             cols.append(np.ones_like(y)), lo.append(-self.offset_bound_N), hi.append(self.offset_bound_N)
@@ -99,15 +113,19 @@ class LinearTerms:
             cols.append(np.asarray(time_s, dtype=float)), lo.append(-self.drift_bound_N_s)
             hi.append(self.drift_bound_N_s), names.append("r")
         if not cols:
-            return 1.0, 0.0, 0.0, 0.0
-        a = np.column_stack(cols) * root_w[:, None]
-        sol = np.linalg.lstsq(a, y * root_w, rcond=None)[0]
+            return centre, 0.0, 0.0, 0.0
+        a, b = np.column_stack(cols) * root_w[:, None], y * root_w
+        if "g" in names and self.gain_sd:   # the calibration: one more observation of g, of standard error gain_sd
+            row = np.zeros(len(names))
+            row[names.index("g")] = 1.0 / self.gain_sd
+            a, b = np.vstack([a, row]), np.append(b, centre / self.gain_sd)
+        sol = np.linalg.lstsq(a, b, rcond=None)[0]
         if not np.all((sol >= lo) & (sol <= hi)):   # the unbounded minimum is the bounded one where it is inside
             from scipy.optimize import lsq_linear  # scipy.optimize: only where a bound is reached
 
-            sol = lsq_linear(a, y * root_w, bounds=(lo, hi), method="bvls").x
+            sol = lsq_linear(a, b, bounds=(lo, hi), method="bvls").x
         v = dict(zip(names, sol, strict=True))
-        g = float(v.get("g", 1.0))
+        g = float(v.get("g", centre))
         return g, float(v.get("c", 0.0)) / g, float(v.get("o", 0.0)), float(v.get("r", 0.0))
 
 

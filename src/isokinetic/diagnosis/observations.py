@@ -99,6 +99,9 @@ class Observations:
     holes: np.ndarray = field(default_factory=lambda: np.zeros((0, 2), dtype=np.int64))
     # the triangle windows' WINDOW_PARTS parts (never fitted; None: not built, or a subset)
     subwindows: Observations | None = None
+    # the load cell's declared calibration (gain, relative standard uncertainty) (campaign.json force_calibration,
+    # manifest columns.force.calibration); None: none declared
+    force_calibration: tuple[float, float] | None = None
 
     def __len__(self) -> int:
         return int(self.force_N.size)
@@ -133,6 +136,7 @@ class Observations:
         return Observations(campaign=self.campaign, plans=tuple(plans), rep_rel=self.rep_rel, holes=holes,
                             case_index=np.array([remap[i] for i in self.case_index[keep]], dtype=np.int64),
                             drives=tuple(drives) if self.drives else (), noise=self.noise, viscosity_scale=scales,
+                            force_calibration=self.force_calibration,
                             speed_rel_se=None if self.speed_rel_se is None else self.speed_rel_se[keep], **fields_)
 
 

@@ -143,8 +143,11 @@ class Diagnoser:
             self.time_s = t - self.time_ref_s
         drift_bound = offset_bound / float(np.max(np.abs(self.time_s))) if self.time_s is not None else 0.0
         self.instrument = INSTRUMENT + ((DRIFT,) if self.time_s is not None else ())
+        # a declared load-cell calibration (gain, relative uncertainty) centres the gain and observes it once more
+        centre, rel = obs.force_calibration or (1.0, None)
         self.linear = LinearTerms(offset_bound_N=offset_bound, drift_bound_N_s=drift_bound,
-                                  friction_bound_N=self.param.bounds("friction")[1] * self.param.force_ref_N)
+                                  friction_bound_N=self.param.bounds("friction")[1] * self.param.force_ref_N,
+                                  gain_centre=centre, gain_sd=None if rel is None else rel * centre)
         self.weight = 1.0 / obs.sigma_N**2
         self.hold_mask = obs.period == 2
         self.fit_time_s = None if self.time_s is None else self.time_s[self.fit_mask]

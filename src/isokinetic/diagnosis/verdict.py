@@ -44,7 +44,6 @@ from isokinetic.diagnosis.gap import gap_bands
 from isokinetic.diagnosis.identifiability import identifiability
 from isokinetic.diagnosis.instrument import (
     DRIFT,
-    GAIN_BOUND,
     LAG_FORM_NAMES,
     LAG_FORMS,
     displacement_scale,
@@ -227,9 +226,8 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
                                "force_lag": None if lag is None and hyp is None else
                                {**(hyp["report"] if hyp is not None else {}), **(lag or {})},
                                "displacement_scale": scale,
-                               "bounds": {"force_gain": [1.0 - GAIN_BOUND, 1.0 + GAIN_BOUND],
-                                          "force_offset_N": [-dg.linear.offset_bound_N,
-                                                             dg.linear.offset_bound_N],
+                               "bounds": {"force_gain": list(dg.linear.gain_range),
+                                          "force_offset_N": [-dg.linear.offset_bound_N, dg.linear.offset_bound_N],
                                           "force_drift_N_s": [-dg.linear.drift_bound_N_s, dg.linear.drift_bound_N_s]}}
     instrument_confounding(out, bdg, best, candidates, verdict, hyp, scale)
     residual_inputs = structure_keys(out, dg.obs, best, alpha, sensor, damper)
@@ -493,8 +491,8 @@ def verdict_keys(dg: Diagnoser, best: Candidate, candidates: Sequence[Candidate]
 def instrument_report(dg: Diagnoser, best: Candidate, delay_s: float | None,
                       lagged: np.ndarray | None = None) -> tuple[dict, dict]:
     """The ``instrument`` key and its test details: each load-cell term (gain, offset, zero drift) refitted
-    as fixed (gain 1, offset 0, no drift) and kept where the fit χ² rises beyond the χ²₁ quantile at
-    1 - alpha (the drift at 1 - alpha·DRIFT_ALPHA_FACTOR: a slow drift of the oil's viscosity over the
+    as fixed (gain 1, or a declared calibration's; offset 0, no drift) and kept where the fit χ² rises beyond the
+    χ²₁ quantile at 1 - alpha (the drift at 1 - alpha·DRIFT_ALPHA_FACTOR: a slow drift of the oil's viscosity over the
     campaign also leaves a small slope in time). The estimates are the terms solved on all observations (both
     periods: instrument terms are measured on all the data) with the verdict's model held; the offset is the
     one at the diagnoser's reference time (``time_ref_s``, the campaign's middle). ``lagged``: the verdict is
@@ -517,6 +515,9 @@ def instrument_report(dg: Diagnoser, best: Candidate, delay_s: float | None,
         tests["force_offset"]["reference_time_s"] = dg.time_ref_s
     if DRIFT not in best.instrument:
         tests[DRIFT] = {"estimate": None, "needed": False, "reason": "no campaign time per observation"}
+    if obs.force_calibration is not None:   # the declared calibration the gain is held to (its estimate, or held)
+        declared = dict(zip(("gain", "uncertainty_rel"), obs.force_calibration, strict=True))
+        tests["force_gain"] = {**tests.get("force_gain", {"estimate": gain, "needed": False}), "calibration": declared}
     return ({"delay_s": delay_s,
              "force_offset_N": offset if needed["force_offset"] else None,
              "force_gain": gain if needed["force_gain"] else None,

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -160,8 +161,10 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bi
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
     scale, delays = motion_terms(ok if not char.empty else ok.iloc[0:0], sines, load)
     lvdt = scale["estimate"] if scale["applied"] else 1.0
+    calibration = CampaignFolder.at(root).meta.calibration   # the load cell's (gain, uncertainty_rel), or None
 
-    def scaled(o: Observations) -> Observations:
+    def scaled(o: Observations) -> Observations:   # every build of the campaign's observations carries it
+        o = replace(o, force_calibration=calibration)
         return rescaled_drives(o, scale["estimate"]) if scale["applied"] and len(o) else o
 
     def observations(of: pd.DataFrame, windows: pd.DataFrame) -> Observations:
