@@ -1,14 +1,19 @@
 """The next test (isokinetic.diagnosis.next_tests, issue 37): the criterion against a brute-force refit, the
 candidates and the plan within the rig's limits and the paper's design constraints, the note of a campaign
-without confounding, the block valid against the schema."""
+without confounding, the block valid against the schema; the load-cell calibration proposed for a gain group
+(isokinetic.diagnosis.next_calibration) on the reference rig's campaign built for it (blind kind gain_discharge)."""
 
+import json
 import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
+from isokinetic.blind import confounded as cf
+from isokinetic.blind.next_tests import read_manifest, write_manifest
 from isokinetic.contracts.settings import DEFAULTS
+from isokinetic.diagnosis import next_calibration as ncal
 from isokinetic.diagnosis import next_cases as nc
 from isokinetic.diagnosis import next_tests as nt
 from isokinetic.diagnosis import verdict as vd
@@ -18,6 +23,8 @@ from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.physics.damper import NOMINAL, Effects
+from isokinetic.stages.blind_diagnose import process_raw_campaign
+from isokinetic.stages.diagnosis import diagnose
 
 SPEC, N_BINS, DESIGN = DEFAULTS.window, 4, DEFAULTS.design
 #: A command channel that measured the LVDT's scale as 1 (no displacement-scale confounding).
@@ -224,3 +231,113 @@ def test_a_group_no_case_separates_is_told_the_sensor_check_that_decides_it():
     assert note.startswith("no candidate case within the rig's limits adds to the separation of air+force_lag")
     assert "air+force_lag: check the force channel's dynamics" in note
 
+
+
+GAIN_GROUP = "force_gain+discharge+viscosity"
+
+
+def diagnosed_gain_kind(tmp, calibration: dict | None = None) -> dict:
+    """diagnosis.json's document of the blind kind gain_discharge (seed 777: a load cell reading 1.5 % high beside
+    a discharge coefficient, on the reference rig), its force column declaring ``calibration`` where given."""
+    kind = cf.BY_NAME["gain_discharge"]
+    raw = cf.export_confounded(kind, cf.make_confounded(kind, 777, cf.KINDS.index(kind)), tmp / "raw", tmp / "truth")
+    if calibration is not None:
+        manifest = read_manifest(raw)
+        manifest["columns"]["force"]["calibration"] = calibration
+        write_manifest(raw, manifest)
+    result, _obs, _predictions = diagnose(process_raw_campaign(raw, tmp / "work"))
+    return result
+
+
+@pytest.fixture(scope="module")
+def gain_kind(tmp_path_factory):
+    result = diagnosed_gain_kind(tmp_path_factory.mktemp("gain_kind"))
+    assert GAIN_GROUP in ["+".join(g) for g in result["confounded"]]   # the kind lists the gain group
+    return result
+
+
+def test_a_gain_group_gets_a_calibration_separating_it_by_the_gains_difference_over_its_uncertainty(gain_kind):
+    block = gain_kind["next_tests"]
+    # each reading's load-cell gain: its fitted one where free, else held at 1 (no calibration declared)
+    gains = [r["instrument"]["force_gain"] or 1.0 for r in block["rivals"] if r["group"] == GAIN_GROUP]
+    assert len(gains) == 2
+    expected = abs(gains[0] - gains[1]) / 0.001
+    (entry,) = block["calibrations"]
+    assert entry["check"] == "load_cell_gain" and entry["channel"] == "force" and entry["uncertainty_rel"] == 0.001
+    assert entry["separation_se_by_group"][GAIN_GROUP] == pytest.approx(expected, rel=1e-9)
+    assert expected > nt.TARGET_SE and entry["resolves"] == [GAIN_GROUP]   # a 1.5 % gain: far beyond 0.1 %
+    assert entry["rig_time_s"] == 1800.0
+
+
+def test_a_group_the_calibration_takes_beyond_the_target_gets_no_case_and_counts_its_rig_time(gain_kind):
+    block = gain_kind["next_tests"]
+    (entry,) = block["calibrations"]
+    assert not [p for p in block["plan"] if GAIN_GROUP in p["resolves"]]
+    # χ² of independent measurements add: the campaign's own separation and the calibration's
+    now, cal = block["separation_se_now"][GAIN_GROUP], entry["separation_se_by_group"][GAIN_GROUP]
+    assert block["separation_se"][GAIN_GROUP] == pytest.approx(math.hypot(now, cal), rel=1e-9)
+    assert block["total_rig_time_s"] == pytest.approx(1800.0 + sum(p["rig_time_s"] for p in block["plan"]))
+
+
+def test_the_note_of_a_calibrated_gain_group_names_the_calibration_not_a_check_in_words(gain_kind):
+    note = gain_kind["next_tests"]["note"]
+    assert "a load-cell calibration against a reference force (±0.1 %, 30 min of rig time) separates " \
+           f"{GAIN_GROUP} by" in note
+    assert "to decide" not in note and "no candidate case" not in note
+
+
+def test_a_credit_beyond_the_target_leaves_the_group_no_case(campaign):
+    obs, damper = campaign
+    dg = Diagnoser(obs, damper)
+    readings = [nt.Reading("viscosity", dg.refit(("viscosity",))), nt.Reading("discharge", dg.refit(("discharge",)))]
+    plan = nc.triangle_plan("P1", 2e-3, 2e-3, 50.0)
+    probe = nc.probe_observations(obs.campaign, [nc.Probe("P1", plan, "", 60.0)], SPEC, N_BINS, 1.0)
+    rows = nt.ProbeRows(probe.case_index, np.zeros(len(probe)), np.full(len(probe), 2.0))
+
+    def chosen(credit: float) -> list:
+        group = nt.group_model("g", readings, nt.Channel(dg.evaluator, None, dg),
+                               nt.Channel(Evaluator(probe, damper), None, dg), credit=credit)
+        return nt.greedy_plan([group], [nc.Probe("P1", plan, "", 60.0)], rows, 0.0)
+
+    assert len(chosen(0.0)) == 1                       # the case separates the two readings
+    assert chosen(nt.TARGET_SE ** 2) == []             # a calibration that reaches the target leaves it none
+
+
+def test_a_campaign_declaring_a_calibration_as_tight_gets_none(tmp_path):
+    # the gain a calibration of the load cell reading 1.5 % high finds
+    result = diagnosed_gain_kind(tmp_path, {"gain": 1.015, "uncertainty_rel": 0.001})
+    block = result["next_tests"]
+    assert block.get("calibrations", []) == []
+    assert "separates force_gain" not in block.get("note", "")
+
+
+def test_the_calibration_is_proposed_only_above_the_declared_uncertainty():
+    gain = Candidate(effects=("discharge",), x=np.zeros(1), params={}, prediction=np.zeros(1), chi2_fit=1.0,
+                     chi2_holdout=1.0, n_fit=10, n_holdout=10, gap_after=0.0, holdout_gap_after=0.0, score=0.0,
+                     explained=True, gain=1.015, instrument=("force_gain", "force_offset"))
+    held = replace(gain, effects=("discharge", "viscosity"), gain=1.0, instrument=("force_offset",))
+    groups = [(GAIN_GROUP, [nt.Reading("a", gain), nt.Reading("b", held)])]
+    assert ncal.calibration_proposal(groups, (1.0, 0.001))[0] == []
+    (entry,), credit, _why = ncal.calibration_proposal(groups, (1.0, 0.01))
+    assert entry["separation_se"] == pytest.approx(15.0) and credit[GAIN_GROUP] == pytest.approx(225.0)
+
+
+def test_the_block_with_a_calibration_is_valid_against_the_schema_and_a_broken_entry_is_not(gain_kind):
+    validate_diagnosis(gain_kind)
+    broken = json.loads(json.dumps(gain_kind))
+    del broken["next_tests"]["calibrations"][0]["how"]
+    with pytest.raises(Exception, match="how"):
+        validate_diagnosis(broken)
+
+
+def test_an_lvdt_scale_group_no_case_separates_gets_the_calibration_of_its_verdicts_gain(campaign):
+    obs, damper = campaign
+    force = 1.012 * Evaluator(obs, damper).predict(Effects(discharge_coefficient=0.9 * damper.discharge_coefficient))
+    dg = Diagnoser(replace(obs, force_N=force), damper)
+    best = dg.refit(("discharge",))
+    group = "displacement_scale+force_gain+discharge"
+    family = nt.scale_family({group: nt.SCALE_REASON}, {"best": best})
+    (entry,), _credit, _why = ncal.calibration_proposal(family, None)
+    # the verdict's load cell reads its fitted gain; the scale's reads true (its gain 1/k is the LVDT's)
+    assert entry["separation_se_by_group"][group] == pytest.approx(abs(best.gain - 1.0) / 0.001, rel=1e-9)
+    assert entry["separation_se"] > nt.TARGET_SE

@@ -1,12 +1,14 @@
 """The next-test plan as text (isokinetic.diagnosis.plan_text): next_tests.yaml is a manifest fragment the manifest
-reader takes, and ``python -m isokinetic next-test`` prints the plan (one line where none is needed)."""
+reader takes, and ``python -m isokinetic next-test`` prints the plan (one line where none is needed); a proposed
+load-cell calibration is a commented declaration of the force column's ``calibration``."""
 
 import json
 
 import pytest
+import yaml
 
 from isokinetic.__main__ import main
-from isokinetic.contracts.manifest import load_manifest
+from isokinetic.contracts.manifest import force_calibration, load_manifest
 from isokinetic.diagnosis.plan_text import plan_lines, plan_yaml
 
 BLOCK = {
@@ -72,3 +74,37 @@ def test_the_command_prints_one_line_where_no_test_is_needed(tmp_path, capsys):
     assert main(["next-test", "bench", "--results", str(tmp_path)]) == 0
     assert capsys.readouterr().out == "no confounding: no further test proposed\n"
     assert plan_lines(block) == ["no confounding: no further test proposed"]
+
+
+CALIBRATION = {"check": "load_cell_gain", "channel": "force", "uncertainty_rel": 0.001, "rig_time_s": 1800.0,
+               "resolves": ["force_gain+discharge+viscosity"], "separation_se": 14.1,
+               "separation_se_by_group": {"force_gain+discharge+viscosity": 14.1}, "how": "a reference load cell"}
+CALIBRATED = {**BLOCK, "calibrations": [CALIBRATION], "total_rig_time_s": 1932.6, "target_se": 5.0}
+
+
+def test_the_calibration_is_a_commented_declaration_of_the_force_columns_calibration(tmp_path):
+    text = plan_yaml(CALIBRATED, "bench")
+    assert "# Load-cell calibration (next_tests.calibrations): resolves force_gain+discharge+viscosity (14.1 SE)" \
+        in text and "reading per unit true force" in text
+    start = text.index("# columns:")
+    block = [line[2:] for line in text[start:].splitlines()[:3]]   # uncommented
+    declared = yaml.safe_load("\n".join(block).replace("<measured>", "1.012"))
+    # the manifest reader's own key (columns.force.calibration) takes it
+    assert force_calibration(declared["columns"], "bench") == {"gain": 1.012, "uncertainty_rel": 0.001}
+    # commented, the fragment pasted into a manifest still reads as its cases
+    folder = tmp_path / "bench"
+    folder.mkdir()
+    (folder / "campaign.yaml").write_text(MANIFEST + text, encoding="utf-8")
+    assert [c.id for c in load_manifest(folder / "campaign.yaml").cases] == ["N01", "N02"]
+
+
+def test_the_command_prints_the_calibration(tmp_path, capsys):
+    (tmp_path / "bench").mkdir()
+    (tmp_path / "bench" / "diagnosis.json").write_text(json.dumps({"next_tests": CALIBRATED}), encoding="utf-8")
+    assert main(["next-test", "bench", "--results", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    (line,) = [line for line in out if line.strip().startswith("CAL")]
+    assert "load cell against a reference force" in line and "1800 s" in line and "14.1 SE" in line
+    assert "force_gain+discharge+viscosity" in line
+    assert any("columns: force: calibration: {gain: <measured>, uncertainty_rel: 0.001}" in x for x in out)
+    assert out[-1].strip().startswith("total rig time 1933 s")

@@ -75,3 +75,31 @@ def test_a_campaign_without_confounding_shows_the_one_line_note(results):
     text = plain(render_campaign_report(root))
     assert "Next tests: no confounding: no further test proposed." in text
     assert "the cases that would separate" not in text
+
+
+def with_calibration(d: dict) -> dict:
+    """The fixture's diagnosis with the load cell's gain confounded and the calibration that resolves it, no case
+    (contract 1.6)."""
+    group = "force_gain+discharge+viscosity"
+    calibration = {"check": "load_cell_gain", "channel": "force", "uncertainty_rel": 0.001, "rig_time_s": 1800.0,
+                   "resolves": [group], "separation_se": 14.06, "separation_se_by_group": {group: 14.06},
+                   "how": "mount a reference load cell in series"}
+    block = {"needed": True, "note": f"a load-cell calibration against a reference force (±0.1 %, 30 min of rig "
+                                     f"time) separates {group} by 14.1 SE",
+             "rivals": [], "plan": [], "calibrations": [calibration], "total_rig_time_s": 1800.0,
+             "separation_se": {group: 14.14}, "separation_se_now": {group: 1.49}, "target_se": 5.0, "unresolvable": {}}
+    d = {**d, "confounded": [["force_gain", "discharge", "viscosity"]], "next_tests": block}
+    validate_diagnosis(d)
+    return d
+
+
+def test_the_page_shows_the_calibration_beside_the_group_it_resolves(results):
+    root = build_campaign(results)
+    write_json(with_calibration(diagnosis()), root / "diagnosis.json")
+    page = render_campaign_report(root)
+    text = plain(page)
+    assert ("force_gain+discharge+viscosity: separated by 1.49 SE now, 14.1 SE with the plan (target 5.0 SE); "
+            "the load-cell calibration below alone separates it by 14.1 SE") in text
+    assert "diagnosis.json next_tests.calibrations.0.separation_se\"" in page
+    assert "Calibrate the load cell against a reference force: mount a reference load cell in series" in text
+    assert "columns: force: calibration: {gain: <measured>, uncertainty_rel: 0.001}" in text

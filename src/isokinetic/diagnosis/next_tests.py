@@ -30,6 +30,10 @@ the units the verdict's tests use (χ²).
 Selection (:func:`greedy_plan`): greedy, the case that adds most to Σ_group min(Δχ²_group, TARGET_SE²) per minute
 of rig time, until every group reaches TARGET_SE standard errors, MAX_CASES cases or BUDGET_S of rig time. New
 cases run after the campaign's, in the plan's order (their campaign times enter the drift terms).
+
+A group holding the load cell's gain gets a calibration against a reference force instead
+(:mod:`isokinetic.diagnosis.next_calibration`, ``calibrations``): its Δχ² is credited to the group before the cases
+are chosen (an independent measurement: χ² adds), so cases go only to groups it leaves short of TARGET_SE.
 """
 
 from __future__ import annotations
@@ -45,6 +49,7 @@ from isokinetic.contracts.settings import DEFAULTS, DesignLimits, WindowSpec
 from isokinetic.diagnosis.candidate import CONFOUNDED_SCORE, Candidate, overdispersed_score
 from isokinetic.diagnosis.instrument import DRIFT, LAG_FORM_NAMES
 from isokinetic.diagnosis.model import Evaluator
+from isokinetic.diagnosis.next_calibration import calibration_proposal, calibration_text, declared_calibration
 from isokinetic.diagnosis.next_cases import (
     MAX_CASE_S,
     SETUP_S,
@@ -412,15 +417,18 @@ class GroupModel:
     pairs: list[list[PairState]]
     variance_scale: float = 1.0   # the overdispersion ŝ² of partial explanations (none explains): Δχ² in its units
     corr: Correlation | None = None
+    credit: float = 0.0   # Δχ² of an independent measurement planned beside the cases (a load-cell calibration)
 
-    def separation(self, states: Sequence | None = None) -> float:
+    def separation(self, states: Sequence | None = None, credited: bool = True) -> float:
         """The group's Δχ²: its least separated pair (each pair its smaller counted direction); of a correlation
-        group, the correlation's equivalent (``states``' last member its Fisher information)."""
+        group, the correlation's equivalent (``states``' last member its Fisher information); with ``credit`` unless
+        not ``credited`` (added to the least separated pair: it can only understate the sum of a pair's own)."""
+        extra = self.credit if credited else 0.0
         if self.corr is not None:
-            return self.corr.chi2(None if states is None else states[-1])
+            return self.corr.chi2(None if states is None else states[-1]) + extra
         if states is None:
             states = [[(s.m, s.b, s.rr) for s in pair] for pair in self.pairs]
-        return min(min(PairState.chi2(*s) for s in pair) for pair in states) / self.variance_scale
+        return min(min(PairState.chi2(*s) for s in pair) for pair in states) / self.variance_scale + extra
 
 
 def drift_column(reading: Reading) -> bool:
@@ -502,17 +510,17 @@ def tied(reading: Reading, jac: np.ndarray) -> np.ndarray:
 
 
 def group_model(name: str, readings: list[Reading], old: Channel, probe: Channel,
-                variance_scale: float = 1.0, target: tuple | None = None) -> GroupModel:
+                variance_scale: float = 1.0, target: tuple | None = None, credit: float = 0.0) -> GroupModel:
     """A group's readings evaluated on the old observations and the probes; ``variance_scale`` the noise's
     overdispersion the group's Δχ² is divided by; ``target`` (:func:`correlation_target`) where the diagnosis lists
-    the group by a fit correlation."""
+    the group by a fit correlation; ``credit`` the Δχ² of a calibration planned beside the cases."""
     olds = [(old.prediction(r.candidate), tied(r, old.jacobian(r.candidate))) for r in readings]
     mus = [probe.prediction(r.candidate) for r in readings]
     jacs = [tied(r, probe.jacobian(r.candidate)) for r in readings]
     sigma = old.dg.obs.sigma_N
     pairs = [[pair_state(i, j, olds, sigma) for i, j in dirs] for dirs in directed_pairs(readings)]
     return GroupModel(name, readings, mus, jacs, pairs, variance_scale,
-                      None if target is None else correlation(target, old, probe))
+                      None if target is None else correlation(target, old, probe), credit)
 
 
 def correlation(target: tuple, old: Channel, probe: Channel) -> Correlation:
@@ -646,25 +654,42 @@ def contexts_groups(result: Mapping, ctx: Mapping) -> tuple[list[tuple[str, list
 
 def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: WindowSpec = DEFAULTS.window,
                n_bins: int = 4, design: DesignLimits = DEFAULTS.design, declared: Mapping | None = None) -> dict:
-    """The ``next_tests`` block of diagnosis.json (contract 1.5) for a diagnosis ``result`` and its fits ``ctx``
-    (:func:`isokinetic.diagnosis.verdict.diagnose_observations`' ``predictions['fits']``)."""
+    """The ``next_tests`` block of diagnosis.json (contract 1.6) for a diagnosis ``result`` and its fits ``ctx``
+    (:func:`isokinetic.diagnosis.verdict.diagnose_observations`' ``predictions['fits']``): the load-cell calibration
+    that separates its gain groups (:func:`isokinetic.diagnosis.next_calibration.calibration_proposal`, credited to
+    them first), then the cases; the rig time of both."""
     started = time.perf_counter()
     groups, unresolvable, overdispersion, targets = ([], {}, {}, {}) if ctx is None else contexts_groups(result, ctx)
     if not groups and not unresolvable:
         return {"needed": False, "note": NO_PLAN_NOTE, "plan": []}
+    family = scale_family(unresolvable, ctx)
+    calibrations, credits, why_not = calibration_proposal([*groups, *family], declared_calibration(ctx["dg"].obs))
     block = {"needed": True, "criterion": CRITERION, "target_se": TARGET_SE, "rivals": [], "plan": [],
-             "total_rig_time_s": 0.0, "separation_se": {}, "unresolvable": unresolvable}
+             "calibrations": calibrations, "separation_se": {}, "unresolvable": unresolvable}
     if groups:
-        block.update(planned(groups, ctx, damper, spec, n_bins, design, declared, overdispersion, targets))
-    block["note"] = plan_note(block)
+        block.update(planned(groups, ctx, damper, spec, n_bins, design, declared, overdispersion, targets, credits))
+    block["separation_se"].update({g: math.sqrt(credits[g]) for g, _ in family if g in credits})   # no case adds
+    block["total_rig_time_s"] = float(sum(e["rig_time_s"] for e in (*block["plan"], *calibrations)))
+    block["note"] = plan_note(block, why_not)
     block["seconds"] = round(time.perf_counter() - started, 3)
     return block
 
 
+def scale_family(unresolvable: Mapping[str, str], ctx: Mapping) -> list[tuple[str, list[Reading]]]:
+    """The LVDT-scale groups no case separates (SCALE_REASON) as the readings a load-cell calibration tells apart:
+    the verdict with its fitted gain against the scale, whose load cell is as calibrated (its model gain 1/k is the
+    LVDT's; nothing to fit)."""
+    best = ctx["best"]
+    return [(g, [Reading(_label(best, ("force_gain",)), best), Reading("displacement_scale", best, scale=True)])
+            for g, why in unresolvable.items() if why == SCALE_REASON and "force_gain" in best.instrument]
+
+
 def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: Damper, spec: WindowSpec,
             n_bins: int, design: DesignLimits, declared: Mapping | None, overdispersion: Mapping | None = None,
-            targets: Mapping | None = None) -> dict:
-    """The plan's keys (rivals, plan, rig time, separations, limits) of the groups that cases can separate."""
+            targets: Mapping | None = None, credits: Mapping | None = None) -> dict:
+    """The plan's keys (rivals, plan, separations, limits) of the groups that cases can separate; ``credits``: the
+    Δχ² a calibration adds to a group, counted before the cases are chosen (in ``separation_se``, not in
+    ``separation_se_now``, the campaign's own)."""
     dg: Diagnoser = ctx["dg"]
     obs = dg.obs
     limits = rig_limits(obs, damper, design, declared)
@@ -686,8 +711,9 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
     rig_fs = np.array([p.plan.sample_rate_Hz for p in probes])[pobs.case_index]
     probe_ch = Channel(Evaluator(pobs, damper), None if dg.time_s is None else np.zeros(len(pobs)), dg)
     old_ch = Channel(dg.evaluator, dg.time_s, dg)
-    models = [group_model(name, rs, old_ch, probe_ch, (overdispersion or {}).get(name, 1.0), (targets or {}).get(name))
-              for name, rs in groups]
+    models = [group_model(name, rs, old_ch, probe_ch, (overdispersion or {}).get(name, 1.0), (targets or {}).get(name),
+                          (credits or {}).get(name, 0.0)) for name, rs in groups]
+    own = [m.separation(credited=False) for m in models]
     rho_now = {m.name: m.corr.rho() for m in models if m.corr is not None}
     verdict_mu = models[0].probe_mu[0]
     n = np.round((pobs.stop - pobs.start) * rig_fs / model_fs)
@@ -705,12 +731,9 @@ def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: D
     names = [m.name for m in models]
     plan = [plan_entry(k, probes[s["probe"]], s, names) for k, s in enumerate(steps, start=1)]
     final = steps[-1]["after"] if steps else [m.separation() for m in models]
-    before = [m.separation() for m in models] if not steps else None
     return {"rivals": [rival_dict(m.name, r, dg.param.force_ref_N) for m in models for r in m.readings],
-            "plan": plan, "total_rig_time_s": float(sum(p["rig_time_s"] for p in plan)),
-            "separation_se": {g: math.sqrt(max(d, 0.0)) for g, d in zip(names, final, strict=True)},
-            "separation_se_now": {g: math.sqrt(max(d, 0.0)) for g, d in
-                                  zip(names, steps[0]["before"] if steps else before, strict=True)},
+            "plan": plan, "separation_se": {g: math.sqrt(max(d, 0.0)) for g, d in zip(names, final, strict=True)},
+            "separation_se_now": {g: math.sqrt(max(d, 0.0)) for g, d in zip(names, own, strict=True)},
             "candidates_considered": int(usable.sum()),
             "correlation": {m.name: {"now": rho_now[m.name], "plan": m.corr.rho(), "limit": CORRELATION_LIMIT}
                             for m in models if m.corr is not None},
@@ -732,23 +755,31 @@ def advice(group: str) -> str:
     return next((what for term, what in ADVICE if term in members), "")
 
 
-def plan_note(block: Mapping) -> str:
-    """One line: what the plan does (or why there is none)."""
+def plan_note(block: Mapping, calibration_why: Mapping | None = None) -> str:
+    """One line: what the plan does (or why there is none): the calibration proposed first (``calibrations``), then
+    the cases; a gain group gets no sensor advice in words where a calibration entry or ``calibration_why`` (why none
+    is proposed) speaks for it."""
     target = block["target_se"]
     done = [g for g, se in (block.get("separation_se_now") or {}).items() if se >= target]
     parts = [f"{g}: the campaign's own data already separate the rivals ({block['separation_se_now'][g]:.1f} SE)"
              for g in done]
+    calibrations = block.get("calibrations") or []
+    parts += [calibration_text(c) for c in calibrations]
+    told = {g for c in calibrations for g in c["resolves"]} | set(calibration_why or {})
+    final = block["separation_se"]
     if block["plan"]:
-        short = [g for g, se in block["separation_se"].items() if se < block["target_se"]]
-        parts.append(f"{len(block['plan'])} case(s), {block['total_rig_time_s'] / 60.0:.1f} min of rig time, separate "
-                     + ", ".join(f"{g} by {se:.1f} SE" for g, se in block["separation_se"].items())
-                     + (f" (short of {block['target_se']:g} SE: {', '.join(short)})" if short else ""))
-        parts += [f"{g}: {advice(g)} to decide" for g in short if advice(g)]
-    elif set(block["separation_se"]) - set(done):
-        left = [g for g in block["separation_se"] if g not in done]
+        short = [g for g, se in final.items() if se < target]
+        minutes = (block["total_rig_time_s"] - sum(c["rig_time_s"] for c in calibrations)) / 60.0   # the cases'
+        parts.append(f"{len(block['plan'])} case(s), {minutes:.1f} min of rig time, "
+                     + ("with the calibration " if calibrations else "") + "separate "
+                     + ", ".join(f"{g} by {se:.1f} SE" for g, se in final.items())
+                     + (f" (short of {target:g} SE: {', '.join(short)})" if short else ""))
+        parts += [f"{g}: {advice(g)} to decide" for g in short if advice(g) and g not in told]
+    elif [g for g, se in final.items() if g not in done and se < target]:
+        left = [g for g, se in final.items() if g not in done and se < target]
         parts.append("no candidate case within the rig's limits adds to the separation of " + ", ".join(left))
-        parts += [f"{g}: {advice(g)} to decide" for g in left if advice(g)]
+        parts += [f"{g}: {advice(g)} to decide" for g in left if advice(g) and g not in told]
     elif block.get("candidates_considered") == 0:
         parts.append("no candidate case lies within the rig's limits and the design constraints")
-    parts += [f"{g}: {why}" for g, why in block["unresolvable"].items()]
+    parts += [f"{g}: {why}" for g, why in {**block["unresolvable"], **(calibration_why or {})}.items()]
     return "; ".join(parts)

@@ -4,7 +4,8 @@ Read from ``results/<campaign>/diagnosis.json`` (:mod:`isokinetic.stages.diagnos
 verdict and whether it explains the gap within noise, the gap before and after, the instrument
 terms, the fitted effect parameters with their standard errors and correlations, the speed bands
 where the nominal model misses, the residual-structure tests of the verdict on every axis (contract 1.3), the
-top candidates, confounded effects with the next tests that would separate them (contract 1.5) and the observations
+top candidates, confounded effects with the next tests that would separate them (contract 1.5; the load-cell
+calibration beside the cases, 1.6) and the observations
 used. Every value's title names its JSON key path,
 which ``python -m isokinetic trace`` audits.
 """
@@ -50,6 +51,11 @@ PLAN_COLS = [Col("case", "case", text, False), Col("waveform", "waveform", text,
              Col("period_s", "period [s]"), Col("rig_time_s", "rig time [s]", lambda x: fmt(x, 3)),
              Col("resolves_text", "resolves", text, False),
              Col("separation_se", "separation [SE]", lambda x: fmt(x, 3))]
+CALIBRATION_COLS = [Col("check", "calibration", text, False),
+                    Col("uncertainty_rel", "uncertainty (1 σ) [%]", lambda x: fmt(x, 2), scale=100.0),
+                    Col("rig_time_s", "rig time [s]", lambda x: fmt(x, 3)),
+                    Col("resolves_text", "resolves", text, False),
+                    Col("separation_se", "separation [SE]", lambda x: fmt(x, 3))]
 
 
 def _how_far(diag: Mapping, src: Source) -> Table:
@@ -248,9 +254,24 @@ def _confounded(diag: Mapping) -> str | None:
     return "; ".join(", ".join(g) if isinstance(g, (list, tuple)) else str(g) for g in confounded)
 
 
+def _calibrations(entries: Sequence[Mapping], src: Source) -> dict | None:
+    """The load-cell calibration the plan proposes (contract 1.6, ``next_tests.calibrations``): its table and how
+    it is done and declared."""
+    if not entries:
+        return None
+    df = pd.DataFrame([{**e, "key": f"next_tests.calibrations.{i}", "resolves_text": ", ".join(e.get("resolves") or [])}
+                       for i, e in enumerate(entries)])
+    table = json_table_view(df, CALIBRATION_COLS, src, "key", "next-calibrations",
+                            json_keys={"uncertainty_rel", "rig_time_s", "separation_se"})
+    return {"table": table, "how": [str(e.get("how", "")) for e in entries],
+            "declare": [f"columns: force: calibration: {{gain: <measured>, uncertainty_rel: {e['uncertainty_rel']:g}}}"
+                        for e in entries]}
+
+
 def _next_tests(diag: Mapping, src: Source) -> dict | None:
     """The next tests beside the confounding they resolve (contract 1.5, ``next_tests``): the note, each group's
-    separation now and with the plan, the plan's cases, what no case separates."""
+    separation now and with the plan (and by the load-cell calibration alone, 1.6), the calibration and the plan's
+    cases, what no case separates."""
     block = diag.get("next_tests")
     if not isinstance(block, Mapping):
         return None
@@ -261,10 +282,14 @@ def _next_tests(diag: Mapping, src: Source) -> dict | None:
                             or "-"} for i, e in enumerate(plan)])
         table = json_table_view(df, PLAN_COLS, src, "key", "next-tests",
                                 json_keys={"velocity_m_s", "amplitude_m", "period_s", "rig_time_s", "separation_se"})
+    calibrations = block.get("calibrations") or []
+    by_calibration = {g: se for c in calibrations for g, se in (c.get("separation_se_by_group") or {}).items()}
     now = block.get("separation_se_now") or {}
-    groups = [{"group": g, "now": fmt(now.get(g), 3), "planned": fmt(se, 3)}
+    groups = [{"group": g, "now": fmt(now.get(g), 3), "planned": fmt(se, 3),
+               "calibration": fmt(by_calibration[g], 3) if g in by_calibration else None}
               for g, se in (block.get("separation_se") or {}).items()]
     return {"needed": bool(block.get("needed")), "note": block.get("note", ""), "table": table, "groups": groups,
+            "calibrations": _calibrations(calibrations, src),
             "total_min": fmt((block.get("total_rig_time_s") or 0.0) / 60.0, 3),
             "unresolvable": dict(block.get("unresolvable") or {}), "target_se": block.get("target_se")}
 

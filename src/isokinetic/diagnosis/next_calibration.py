@@ -1,0 +1,90 @@
+"""The next test of a load cell's gain (issue 37): a calibration against a reference force, proposed beside the
+cases of :mod:`isokinetic.diagnosis.next_tests` where a confounded group holds the load cell's gain.
+
+Why a calibration and not a case: a gain g scales every force the load cell reads, as a discharge coefficient with
+a viscosity together do; the two readings of such a group differ only in the compressibility transients, which the
+fitted force-channel lag takes up in part, so no case within the rig's limits separates them (on the reference
+rig's campaign built for it, 1.5 SE now and 2.2 SE with two cases). A calibration measures g itself: the group's
+readings predict it at g_A and g_B (a reading with the gain held: the campaign's declared centre, else 1; an LVDT
+scale's reading, also of a scale group no case separates, :func:`isokinetic.diagnosis.next_tests.scale_family`: its
+load cell as calibrated, its gain 1/k being the LVDT's), so a calibration of relative standard
+uncertainty u tells them apart by |g_A − g_B|/u standard errors (:func:`calibration_se`). It is independent of the
+campaign's records: its χ² adds to the cases' (:func:`calibration_proposal`'s credits).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Mapping, Sequence
+
+#: Relative standard uncertainty (1 σ) of the proposed calibration (stated, not measured here): a reference load cell
+#: of ISO 376 class 00 or 0.5 (reproducibility 0.05-0.1 %) mounted in series, read over load steps each way, gives
+#: the working cell's gain to about 0.1 %; the groups' gains differ by about a per cent (the gain error the verdict
+#: cannot tell from discharge with viscosity), so 0.1 % separates them by some ten standard errors.
+CALIBRATION_UNCERTAINTY_REL = 1e-3
+#: Rig time of the calibration [s]: the reference cell mounted in series with the load cell, load steps each way
+#: over the campaign's force range, held until both read steadily, and the reference removed (half an hour).
+CALIBRATION_RIG_TIME_S = 1800.0
+CHECK = "load_cell_gain"
+HOW = ("mount a reference load cell (ISO 376 class 00 or 0.5) in series with the rig's load cell; apply load steps "
+       "each way over the campaign's force range; fit the rig's reading against the reference force: its slope is "
+       "the gain (the load cell's reading per unit true force)")
+#: A calibration "resolves" a group where it separates its readings by at least this [standard errors].
+RESOLVES_MIN_SE = 1.0
+
+
+def reading_gain(reading, centre: float) -> float:
+    """The load cell's gain g a reading predicts a calibration to find: its fitted gain where free, else the
+    ``centre`` it was held at; an LVDT scale's reading (``scale``: its model gain 1/k is the LVDT's) the centre."""
+    c = reading.candidate
+    if getattr(reading, "scale", False) or "force_gain" not in c.instrument:
+        return float(centre)
+    return float(c.gain)
+
+
+def calibration_se(readings: Sequence, centre: float = 1.0,
+                   uncertainty_rel: float = CALIBRATION_UNCERTAINTY_REL) -> float:
+    """The calibration's expected separation of a group's readings [SE]: its least separated pair,
+    |g_A − g_B|/u."""
+    gains = [reading_gain(r, centre) for r in readings]
+    return min(abs(a - b) for a, b in itertools.combinations(gains, 2)) / uncertainty_rel if len(gains) > 1 else 0.0
+
+
+def declared_calibration(obs) -> tuple[float, float] | None:
+    """The campaign's declared calibration (gain, uncertainty_rel) (:attr:`Observations.force_calibration`), or
+    None."""
+    cal = obs.force_calibration
+    return None if cal is None else (float(cal[0]), float(cal[1]))
+
+
+def calibration_proposal(groups: Sequence[tuple[str, Sequence]], declared: tuple[float, float] | None
+                         ) -> tuple[list[dict], dict[str, float], dict[str, str]]:
+    """(the ``calibrations`` entries, {group: the calibration's Δχ² credited before the cases are chosen},
+    {gain group: why no calibration is proposed for it}) of the groups (name, readings). One calibration of
+    CALIBRATION_UNCERTAINTY_REL serves every group holding ``force_gain``; proposed where it separates one by at least
+    RESOLVES_MIN_SE, unless the campaign ``declared`` one at least as tight."""
+    gain_groups = [(name, rs) for name, rs in groups if "force_gain" in name.split("+")]
+    if not gain_groups:
+        return [], {}, {}
+    if declared is not None and declared[1] <= CALIBRATION_UNCERTAINTY_REL:
+        why = (f"the campaign's declared load-cell calibration (±{declared[1] * 100:.2g} %) holds the gain: a further "
+               "calibration would not separate it")
+        return [], {}, {name: why for name, _ in gain_groups}
+    centre = 1.0 if declared is None else declared[0]
+    se = {name: calibration_se(rs, centre) for name, rs in gain_groups}
+    resolves = [g for g, s in se.items() if s >= RESOLVES_MIN_SE]
+    if not resolves:
+        why = (f"its readings' load-cell gains differ by less than {CALIBRATION_UNCERTAINTY_REL * 100:.2g} %: "
+               "a calibration of the load cell would not separate them either")
+        return [], {}, dict.fromkeys(se, why)
+    entry = {"check": CHECK, "channel": "force", "uncertainty_rel": CALIBRATION_UNCERTAINTY_REL,
+             "rig_time_s": CALIBRATION_RIG_TIME_S, "resolves": resolves, "separation_se": max(se.values()),
+             "separation_se_by_group": se, "how": HOW}
+    return [entry], {g: s * s for g, s in se.items()}, {}
+
+
+def calibration_text(entry: Mapping) -> str:
+    """A calibration entry in one clause of the plan's note."""
+    return (f"a load-cell calibration against a reference force (±{entry['uncertainty_rel'] * 100:.2g} %, "
+            f"{entry['rig_time_s'] / 60.0:.0f} min of rig time) separates "
+            + ", ".join(f"{g} by {entry['separation_se_by_group'][g]:.1f} SE" for g in entry["resolves"]))
