@@ -117,6 +117,38 @@ def test_the_uniform_plan_spreads_the_plans_size_and_rig_time_over_the_campaigns
     assert uniform[-1]["velocity_m_s"] == pytest.approx(max(speeds), rel=5e-3)
 
 
+CALIBRATION = {"check": "load_cell_gain", "channel": "force", "uncertainty_rel": 0.001, "rig_time_s": 1800.0}
+
+
+def test_a_plans_calibration_is_declared_in_the_copy_as_the_rig_reads_it(tmp_path):
+    s = tiny_scenario()
+    s = dataclasses.replace(s, rig=dataclasses.replace(s.rig, force_gain=1.015))
+    raw = write(s, s.rig_cases(), tmp_path / "raw")
+    before = tree_hashes(raw)
+    out = nt.extend_campaign(raw, truth_of(s), [], tmp_path / "copy", [CALIBRATION])
+    declared = nt.read_manifest(out)["columns"]["force"]["calibration"]
+    assert declared["uncertainty_rel"] == 0.001
+    assert declared["gain"] == pytest.approx(1.015, rel=5 * 0.001) and declared["gain"] != 1.015   # read, not known
+    assert "calibration" not in nt.read_manifest(raw)["columns"]["force"] and tree_hashes(raw) == before
+    again = nt.extend_campaign(raw, truth_of(s), [], tmp_path / "again", [CALIBRATION])
+    assert nt.read_manifest(again)["columns"]["force"]["calibration"] == declared   # seeded
+
+
+def test_a_plan_without_a_calibration_declares_none(tmp_path):
+    s = tiny_scenario()
+    raw = write(s, s.rig_cases(), tmp_path / "raw")
+    out = nt.extend_campaign(raw, truth_of(s), [nt.plan_entry(SHORT[0])], tmp_path / "copy")
+    assert "calibration" not in nt.read_manifest(out)["columns"]["force"]
+
+
+def test_the_uniform_plan_spends_a_calibrations_rig_time_on_cases_at_least_one():
+    s = tiny_scenario()
+    manifest = rrc.campaign_manifest(s.name, s.rig_cases(), rr.TABLE1)
+    uniform = nt.uniform_plan(manifest, [], extra_s=1800.0)
+    assert len(uniform) == 1 and uniform[0]["rig_time_s"] == pytest.approx(1800.0, rel=1e-3)
+    assert nt.uniform_plan(manifest, []) == []
+
+
 BEFORE = {"status": "ok", "verdict": ["leakage"], "explained": True, "confounded": [["leakage", "discharge"]]}
 
 

@@ -16,10 +16,17 @@ Same rig, same nuisances
     records through the same measurement chain (:func:`isokinetic.reference.campaign.measure`). A campaign
     without a command channel gets none in its new cases either.
 
+A calibration
+    A plan's ``calibrations`` entry (the load cell against a reference force) is run as the calibration reads the
+    scenario's rig: its true load-cell gain times (1 + u ε), u the entry's relative standard uncertainty and ε
+    standard normal from the stream ``[seed, CALIBRATION_STREAM]`` (:func:`calibrated_gain`); the copy's
+    campaign.yaml then declares it (``columns.force.calibration: {gain, uncertainty_rel}``, the format's 1.6
+    addition), as the engineer would after calibrating. Its rig time counts in the plan's.
+
 A copy, never the original
     The raw folder is copied (:func:`extend_campaign`) and only the copy gets the new case files and manifest
-    entries; the copy is diagnosed through the build's chain (a ``diagnose`` callable: the layer that runs stages
-    passes :func:`isokinetic.stages.blind_diagnose.diagnose_raw_campaign`).
+    entries (and a calibration's declaration); the copy is diagnosed through the build's chain (a ``diagnose``
+    callable: the layer that runs stages passes :func:`isokinetic.stages.blind_diagnose.diagnose_raw_campaign`).
 
 The judge (:func:`judge`)
     The confounding *resolves to the truth* when no group of the first verdict's ``confounded`` remains and none
@@ -34,8 +41,9 @@ The judge (:func:`judge`)
 
 The uniform plan (:func:`uniform_plan`)
     The baseline a proposed plan must beat: as many cases and the same rig time, spread over the campaign's own
-    range. Triangle campaigns: speeds log-spaced over the campaign's speeds, amplitudes following the campaign's
-    (log-log interpolated over speed), all periods scaled by one factor so that the rig time is the plan's.
+    range (a plan's calibration is no case: its rig time goes to the uniform cases' records, at least one case).
+    Triangle campaigns: speeds log-spaced over the campaign's speeds, amplitudes following the campaign's (log-log
+    interpolated over speed), all periods scaled by one factor so that the rig time is the plan's.
     Sine campaigns: frequencies log-spaced over the campaign's, amplitudes following the campaign's (over
     frequency), each case a equal share of the rig time in whole cycles (at least :data:`MIN_SINE_CYCLES`).
 """
@@ -74,6 +82,9 @@ MIN_SINE_CYCLES = 4
 AMPLITUDE_RTOL = 1e-3
 #: The integrator's tolerance of an appended case (write_campaign's default: the campaign's own).
 EXPORT_RTOL = 1e-10
+
+#: The spawn key's last entry of a calibration's error draw (``[seed, CALIBRATION_STREAM]``: apart from every case's).
+CALIBRATION_STREAM = 0xCA1
 
 #: A plan's or the original verdict's confounded group, as a set.
 Group = frozenset
@@ -223,11 +234,28 @@ def case_file_text(srig: ScenarioRig, case, index: int, n_cases: int, start_s: f
     return text if command else drop_csv_column(text, rrc.EXPORT_COLUMNS["command"][0])
 
 
+def calibrated_gain(srig: ScenarioRig, uncertainty_rel: float) -> float:
+    """The load-cell gain a calibration of relative standard uncertainty ``uncertainty_rel`` reads on the scenario's
+    rig: its true gain times (1 + u ε), ε standard normal from the stream ``[seed, CALIBRATION_STREAM]``."""
+    eps = float(np.random.default_rng(np.random.SeedSequence([srig.seed, CALIBRATION_STREAM])).standard_normal())
+    return float(srig.rig.force_gain) * (1.0 + uncertainty_rel * eps)
+
+
+def calibration_declaration(srig: ScenarioRig, calibrations: Sequence[Mapping]) -> dict | None:
+    """campaign.yaml's ``columns.force.calibration`` after a plan's load-cell calibrations (the tightest one's
+    uncertainty; :func:`calibrated_gain`), or None where the plan has none."""
+    u = [float(c["uncertainty_rel"]) for c in calibrations if c.get("check") == "load_cell_gain"]
+    if not u:
+        return None
+    return {"gain": round(calibrated_gain(srig, min(u)), 7), "uncertainty_rel": min(u)}
+
+
 def extend_campaign(raw_dir: str | os.PathLike, truth: Mapping, plan: Sequence[Mapping],
-                    out_root: str | os.PathLike) -> Path:
+                    out_root: str | os.PathLike, calibrations: Sequence[Mapping] = ()) -> Path:
     """A copy of the raw campaign ``raw_dir`` as ``out_root/<campaign>/`` (replaced if it exists) with the plan's
-    cases simulated on the scenario's own rig (module doc) and appended: their case files and manifest entries.
-    Nothing under ``raw_dir`` is written. Returns the copy's folder."""
+    cases simulated on the scenario's own rig (module doc) and appended: their case files and manifest entries;
+    with ``calibrations`` (a plan's), the calibration read on the rig declared in its manifest
+    (:func:`calibration_declaration`). Nothing under ``raw_dir`` is written. Returns the copy's folder."""
     raw_dir = Path(raw_dir)
     out = Path(out_root) / raw_dir.name
     if out.resolve() == raw_dir.resolve():
@@ -251,7 +279,11 @@ def extend_campaign(raw_dir: str | os.PathLike, truth: Mapping, plan: Sequence[M
         text = case_file_text(srig, case, n + j, n, start, span, float(manifest["temperature_C"]), command)
         (out / f"{case.case_id}.csv").write_text(text, encoding="utf-8", newline="\n")
         start += case.duration_s + 1.0 / case.sample_rate_Hz
-    write_manifest(out, {**manifest, "cases": [*manifest["cases"], *manifest_entries(cases, manifest)]})
+    declared = calibration_declaration(srig, calibrations)
+    columns = manifest["columns"] if declared is None else \
+        {**manifest["columns"], "force": {**manifest["columns"]["force"], "calibration": declared}}
+    write_manifest(out, {**manifest, "columns": columns,
+                         "cases": [*manifest["cases"], *manifest_entries(cases, manifest)]})
     return out
 
 
@@ -380,13 +412,17 @@ def uniform_sines(manifest: Mapping, n: int, total_s: float, harmonics: tuple = 
             for i, (fi, y) in enumerate(zip(f, _log_interp(f, freq, amp), strict=True), start=1)]
 
 
-def uniform_plan(manifest: Mapping, plan: Sequence[Mapping], harmonics: tuple = ()) -> list[dict]:
+def uniform_plan(manifest: Mapping, plan: Sequence[Mapping], harmonics: tuple = (), extra_s: float = 0.0
+                 ) -> list[dict]:
     """The uniform plan beside ``plan`` (module doc): as many cases, the same rig time (its records, as
-    :func:`rig_time_s` counts them), spread over the campaign's range (sines for a sine-only campaign)."""
-    total = float(sum(rig_time_s(rig_case(e, harmonics)) for e in plan))
+    :func:`rig_time_s` counts them, plus ``extra_s``: a calibration's rig time, in at least one case), spread over
+    the campaign's range (sines for a sine-only campaign)."""
+    total = float(sum(rig_time_s(rig_case(e, harmonics)) for e in plan)) + extra_s
+    n = max(len(plan), 1) if extra_s > 0 else len(plan)
+    if not n:
+        return []
     sine_only = all(e.get("waveform") == "sine" for e in manifest["cases"])
-    return uniform_sines(manifest, len(plan), total, harmonics) if sine_only else \
-        uniform_triangles(manifest, len(plan), total)
+    return uniform_sines(manifest, n, total, harmonics) if sine_only else uniform_triangles(manifest, n, total)
 
 
 # --------------------------------------------------------------------------------------------
@@ -398,17 +434,17 @@ Diagnose = Callable[[Path, Path], dict]
 
 
 def run_plan(raw_dir: str | os.PathLike, truth: Mapping, before: Mapping, plan: Sequence[Mapping],
-             work_root: str | os.PathLike, diagnose: Diagnose) -> dict:
-    """The plan's cases appended to a copy of the campaign (``work_root/raw/``), diagnosed (``work_root/work/``)
-    and judged (:func:`judge`); a plan the rig cannot run or a diagnosis that fails is not resolved, and says
-    why (``error``)."""
+             work_root: str | os.PathLike, diagnose: Diagnose, calibrations: Sequence[Mapping] = ()) -> dict:
+    """The plan's cases appended to a copy of the campaign (``work_root/raw/``; its ``calibrations`` declared
+    there), diagnosed (``work_root/work/``) and judged (:func:`judge`); a plan the rig cannot run or a diagnosis
+    that fails is not resolved, and says why (``error``)."""
     work_root = Path(work_root)
     try:
-        out = extend_campaign(raw_dir, truth, plan, work_root / "raw")
+        out = extend_campaign(raw_dir, truth, plan, work_root / "raw", calibrations)
     except ValueError as exc:
         return {**judge(truth, before, None, math.nan), "error": str(exc), "rig_time_s": None}
     span = float(sum(case_spans_s(out, read_manifest(out))))
-    rig_time = float(sum(rig_time_s(rig_case(e)) for e in plan))
+    rig_time = float(sum(rig_time_s(rig_case(e)) for e in plan)) + calibration_time_s(calibrations)
     try:
         after = diagnose(out, work_root / "work")
     except Exception as exc:  # noqa: BLE001 - a failed diagnosis is a plan that did not resolve
@@ -416,20 +452,28 @@ def run_plan(raw_dir: str | os.PathLike, truth: Mapping, before: Mapping, plan: 
     return {**judge(truth, before, after, span), "error": "", "rig_time_s": rig_time}
 
 
+def calibration_time_s(calibrations: Sequence[Mapping]) -> float:
+    """The rig time of a plan's calibrations [s]."""
+    return float(sum(float(c["rig_time_s"]) for c in calibrations))
+
+
 def prove_scenario(raw_dir: str | os.PathLike, truth: Mapping, before: Mapping, plan: Sequence[Mapping],
-                   work_root: str | os.PathLike, diagnose: Diagnose) -> dict:
-    """One row of the proof: the scenario's confounding, the plan's size and rig time, and the proposed and the
-    uniform plan each run (:func:`run_plan`, in ``work_root/proposed`` and ``work_root/uniform``) and judged."""
+                   work_root: str | os.PathLike, diagnose: Diagnose, calibrations: Sequence[Mapping] = ()) -> dict:
+    """One row of the proof: the scenario's confounding, the plan's size (cases and calibrations) and rig time, and
+    the proposed and the uniform plan each run (:func:`run_plan`, in ``work_root/proposed`` and
+    ``work_root/uniform``) and judged."""
     work_root = Path(work_root)
     srig = ScenarioRig.from_truth(truth)
+    extra = calibration_time_s(calibrations)
     row = {"scenario": str(truth["scenario"]),
            "confounded": ";".join(group_text(g) for g in before.get("confounded") or []),
-           "n_cases": len(plan), "plan_rig_time_s": float(sum(float(e["rig_time_s"]) for e in plan))}
-    if not plan:
+           "n_cases": len(plan), "n_calibrations": len(calibrations),
+           "plan_rig_time_s": float(sum(float(e["rig_time_s"]) for e in plan)) + extra}
+    if not plan and not calibrations:
         return {**row, "proposed": None, "uniform": None, "resolved": False, "uniform_resolved": False}
-    proposed = run_plan(raw_dir, truth, before, plan, work_root / "proposed", diagnose)
+    proposed = run_plan(raw_dir, truth, before, plan, work_root / "proposed", diagnose, calibrations)
     try:
-        uniform = run_plan(raw_dir, truth, before, uniform_plan(read_manifest(raw_dir), plan, srig.harmonics),
+        uniform = run_plan(raw_dir, truth, before, uniform_plan(read_manifest(raw_dir), plan, srig.harmonics, extra),
                            work_root / "uniform", diagnose)
     except ValueError as exc:   # a proposed plan the rig cannot run has no rig time to spread
         uniform = {**judge(truth, before, None, math.nan), "error": str(exc), "rig_time_s": None}
@@ -464,10 +508,12 @@ def proof_row(raw_dir: str | os.PathLike, truth: Mapping, work_root: str | os.Pa
     if not needed:
         return {**base, "in_proof": False, "confounded": "", "note": block.get("note", "not confounded"),
                 "verdict": "+".join(before.get("verdict") or []), "explained": bool(before.get("explained"))}
-    row = prove_scenario(raw_dir, truth, before, block.get("plan") or [], work_root, diagnose)
+    row = prove_scenario(raw_dir, truth, before, block.get("plan") or [], work_root, diagnose,
+                         block.get("calibrations") or [])
     separations = [float(v) for v in (block.get("separation_se") or {}).values()]
+    planned = row["n_cases"] or row["n_calibrations"]
     return {**base, **row, "in_proof": True, "note": str(block.get("note", "no next_tests block")),
-            "predicted_se": min(separations) if separations and row["n_cases"] else None,
+            "predicted_se": min(separations) if separations and planned else None,
             "verdict_before": "+".join(before.get("verdict") or []), "explained_before": bool(before.get("explained"))}
 
 
@@ -481,7 +527,8 @@ def proof_summary(rows: Sequence[Mapping]) -> dict:
     resolved = sum(bool(r["resolved"]) for r in proof)
     uniform = sum(bool(r["uniform_resolved"]) for r in proof)
     rate = resolved / n if n else None
-    return {"n": n, "with_plan": sum(bool(r.get("n_cases")) for r in proof), "resolved": resolved,
+    return {"n": n, "with_plan": sum(bool(r.get("n_cases") or r.get("n_calibrations")) for r in proof),
+            "resolved": resolved,
             "uniform_resolved": uniform, "rate": rate, "uniform_rate": uniform / n if n else None,
             "target": TARGET_RESOLVED_RATE,
             "predicted_to_separate": sum((r.get("predicted_se") or 0.0) >= TARGET_SE for r in proof),
@@ -509,10 +556,11 @@ def proof_table(rows: Sequence[Mapping]) -> str:
             continue
         why = "; ".join(f"{k}: {v}" for k, v in (("proposed", _why(r.get("proposed"))),
                                                  ("uniform", _why(r.get("uniform")))) if v)
-        lines.append(f"| {r['scenario']} | {r['truth'] or 'none'} | {r['confounded'] or '(rivals)'} | {r['n_cases']} "
+        size = f"{r['n_cases']}" + (" + calibration" if r.get("n_calibrations") else "")
+        lines.append(f"| {r['scenario']} | {r['truth'] or 'none'} | {r['confounded'] or '(rivals)'} | {size} "
                      f"| {r['plan_rig_time_s'] / 60.0:.1f} | {_se(r.get('predicted_se'))} | {_yes(r['resolved'])} "
                      f"| {_yes(r['uniform_resolved'])} "
-                     f"| {why or (r['note'] if not r['n_cases'] else '')} |")
+                     f"| {why or (r['note'] if not (r['n_cases'] or r.get('n_calibrations')) else '')} |")
     s = proof_summary(rows)
     if s["n"]:
         lines.append("")
