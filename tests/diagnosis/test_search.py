@@ -109,3 +109,16 @@ def test_the_diagnoser_holds_the_gain_to_the_observations_calibration(campaign):
     assert (linear.gain_centre, linear.gain_sd) == pytest.approx((1.02, 0.00102))
     plain = Diagnoser(obs, damper).linear
     assert (plain.gain_centre, plain.gain_sd) == (1.0, None)
+
+
+def test_a_declared_calibration_counts_as_one_more_observation_in_the_fits_chi2(campaign):
+    obs, damper = campaign
+    forced = replace(obs, force_N=1.004 * Diagnoser(obs, damper).nominal, force_calibration=(1.0, 0.001))
+    dg = Diagnoser(forced, damper)
+    fit = dg.refit(())
+    assert 1.0 < fit.gain < 1.004   # the data pull the gain away from the calibration, the calibration holds it
+    z = (forced.force_N - fit.measured_prediction) / forced.sigma_N
+    chi2_obs = float(np.sum(z[dg.fit_mask] ** 2))
+    assert fit.chi2_fit == pytest.approx(chi2_obs + ((fit.gain - 1.0) / 0.001) ** 2, rel=1e-9)
+    plain = Diagnoser(replace(forced, force_calibration=None), damper).refit(())
+    assert plain.gain == pytest.approx(1.004, rel=1e-6) and plain.chi2_fit == pytest.approx(0.0, abs=1e-6)

@@ -85,6 +85,14 @@ class LinearTerms:
     gain_centre: float = 1.0
     gain_sd: float | None = None
 
+    def prior_residuals(self, gain: float) -> np.ndarray:
+        """The calibration's residual (g - gain_centre)/gain_sd as an array of one, where the gain is free and a
+        calibration is declared (else empty): the fits' objective and χ² count it beside the observations, so that
+        the gain profiled with it and the effects fitted around it minimise the same sum."""
+        if "force_gain" not in self.free or not self.gain_sd:
+            return np.zeros(0)
+        return np.array([(gain - self.gain_centre) / self.gain_sd])
+
     @property
     def gain_range(self) -> tuple[float, float]:
         """The bounds of a free gain: ``gain_centre`` ± ``gain_bound``."""

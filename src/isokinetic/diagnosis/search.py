@@ -209,7 +209,9 @@ class Diagnoser:
             m = self.model(self.param.effects(nonlinear, eff), fit=True, lag=lag)
             s = self.friction_signature(lag, fit=True) if friction else obs.sign
             g, fc, o, r = terms.solve(obs.force_N, m, s, w, friction, self.fit_time_s)
-            return (obs.force_N - g * (m + fc * s) - o - self.drift(r, True)) / obs.sigma_N
+            z = (obs.force_N - g * (m + fc * s) - o - self.drift(r, True)) / obs.sigma_N
+            prior = terms.prior_residuals(g)   # a declared calibration of the gain: one more residual
+            return np.concatenate([z, prior]) if prior.size else z
         return fun
 
     def fit(self, names: Sequence[str], starts: Sequence[Sequence[float]],
@@ -288,13 +290,14 @@ class Diagnoser:
         pred = hydraulic + fc * sign
         z = self.z(g * pred + o + self.drift(r))
         win = self.obs.is_window
-        chi2_fit = float(np.sum(z[fm] ** 2))
+        prior = terms.prior_residuals(g)   # a declared calibration: one more observation (of the gain) in the fit
+        chi2_fit = float(np.sum(z[fm] ** 2) + np.sum(prior**2))
         chi2_hold = float(np.sum(z[self.hold_mask] ** 2))
         n_fit, n_hold = int(fm.sum()), int(self.hold_mask.sum())
         k = len(names) + len(terms.free) + extra_k + (self.channel is not None)
         eps = self.scale_rel_sd
         chi2_win = float(np.sum(z[win] ** 2))
-        explained = (consistent_with_noise(chi2_fit, n_fit - k, self.alpha, eps)
+        explained = (consistent_with_noise(chi2_fit, n_fit + prior.size - k, self.alpha, eps)
                      and consistent_with_noise(chi2_hold, n_hold, self.alpha, eps)
                      and consistent_with_noise(chi2_win, int(win.sum()) - k, self.alpha, eps))
         values = dict(zip(nonlinear, np.asarray(x, dtype=float), strict=True))
