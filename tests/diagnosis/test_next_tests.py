@@ -330,14 +330,14 @@ def test_the_block_with_a_calibration_is_valid_against_the_schema_and_a_broken_e
         validate_diagnosis(broken)
 
 
-def test_an_lvdt_scale_group_no_case_separates_gets_the_calibration_of_its_verdicts_gain(campaign):
+def test_an_lvdt_scale_group_gets_no_load_cell_calibration(campaign):
     obs, damper = campaign
     force = 1.012 * Evaluator(obs, damper).predict(Effects(discharge_coefficient=0.9 * damper.discharge_coefficient))
     dg = Diagnoser(replace(obs, force_N=force), damper)
     best = dg.refit(("discharge",))
-    group = "displacement_scale+force_gain+discharge"
-    family = nt.scale_family({group: nt.SCALE_REASON}, {"best": best})
-    (entry,), _credit, _why = ncal.calibration_proposal(family, None)
-    # the verdict's load cell reads its fitted gain; the scale's reads true (its gain 1/k is the LVDT's)
-    assert entry["separation_se_by_group"][group] == pytest.approx(abs(best.gain - 1.0) / 0.001, rel=1e-9)
-    assert entry["separation_se"] > nt.TARGET_SE
+    held = dg.refit(("discharge", "viscosity"), ("force_offset",))
+    readings = [nt.Reading("verdict", best), nt.Reading("held", held)]
+    entries, _credit, _why = ncal.calibration_proposal([("displacement_scale+force_gain+discharge", readings)], None)
+    assert entries == []
+    (entry,), _credit, _why = ncal.calibration_proposal([("force_gain+discharge+viscosity", readings)], None)
+    assert entry["resolves"] == ["force_gain+discharge+viscosity"]

@@ -5,11 +5,16 @@ Why a calibration and not a case: a gain g scales every force the load cell read
 a viscosity together do; the two readings of such a group differ only in the compressibility transients, which the
 fitted force-channel lag takes up in part, so no case within the rig's limits separates them (on the reference
 rig's campaign built for it, 1.5 SE now and 2.2 SE with two cases). A calibration measures g itself: the group's
-readings predict it at g_A and g_B (a reading with the gain held: the campaign's declared centre, else 1; an LVDT
-scale's reading, also of a scale group no case separates, :func:`isokinetic.diagnosis.next_tests.scale_family`: its
-load cell as calibrated, its gain 1/k being the LVDT's), so a calibration of relative standard
-uncertainty u tells them apart by |g_A − g_B|/u standard errors (:func:`calibration_se`). It is independent of the
-campaign's records: its χ² adds to the cases' (:func:`calibration_proposal`'s credits).
+readings predict it at g_A and g_B (a reading with the gain held: the campaign's declared centre, else 1), so a
+calibration of relative standard uncertainty u tells them apart by |g_A − g_B|/u standard errors
+(:func:`calibration_se`). It is independent of the campaign's records: its χ² adds to the cases'
+(:func:`calibration_proposal`'s credits).
+
+Not for a group holding the LVDT's scale (``displacement_scale``, no command channel): there the diagnosis lists
+the scale's confounding whatever it measures, for its model has no scale term to hold a calibrated load cell
+against (its gain 1/k is the LVDT's only inside the next test's readings); the LVDT's calibration or the command
+channel decides, as ``unresolvable`` says. A calibration proposed there would promise a separation no re-diagnosis
+delivers (on the reference rig's LVDT 1.2 % long without a command channel: 12.9 SE expected, still listed).
 """
 
 from __future__ import annotations
@@ -63,7 +68,8 @@ def calibration_proposal(groups: Sequence[tuple[str, Sequence]], declared: tuple
     {gain group: why no calibration is proposed for it}) of the groups (name, readings). One calibration of
     CALIBRATION_UNCERTAINTY_REL serves every group holding ``force_gain``; proposed where it separates one by at least
     RESOLVES_MIN_SE, unless the campaign ``declared`` one at least as tight."""
-    gain_groups = [(name, rs) for name, rs in groups if "force_gain" in name.split("+")]
+    gain_groups = [(name, rs) for name, rs in groups
+                   if "force_gain" in name.split("+") and "displacement_scale" not in name.split("+")]
     if not gain_groups:
         return [], {}, {}
     if declared is not None and declared[1] <= CALIBRATION_UNCERTAINTY_REL:

@@ -662,26 +662,15 @@ def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: Windo
     groups, unresolvable, overdispersion, targets = ([], {}, {}, {}) if ctx is None else contexts_groups(result, ctx)
     if not groups and not unresolvable:
         return {"needed": False, "note": NO_PLAN_NOTE, "plan": []}
-    family = scale_family(unresolvable, ctx)
-    calibrations, credits, why_not = calibration_proposal([*groups, *family], declared_calibration(ctx["dg"].obs))
+    calibrations, credits, why_not = calibration_proposal(groups, declared_calibration(ctx["dg"].obs))
     block = {"needed": True, "criterion": CRITERION, "target_se": TARGET_SE, "rivals": [], "plan": [],
              "calibrations": calibrations, "separation_se": {}, "unresolvable": unresolvable}
     if groups:
         block.update(planned(groups, ctx, damper, spec, n_bins, design, declared, overdispersion, targets, credits))
-    block["separation_se"].update({g: math.sqrt(credits[g]) for g, _ in family if g in credits})   # no case adds
     block["total_rig_time_s"] = float(sum(e["rig_time_s"] for e in (*block["plan"], *calibrations)))
     block["note"] = plan_note(block, why_not)
     block["seconds"] = round(time.perf_counter() - started, 3)
     return block
-
-
-def scale_family(unresolvable: Mapping[str, str], ctx: Mapping) -> list[tuple[str, list[Reading]]]:
-    """The LVDT-scale groups no case separates (SCALE_REASON) as the readings a load-cell calibration tells apart:
-    the verdict with its fitted gain against the scale, whose load cell is as calibrated (its model gain 1/k is the
-    LVDT's; nothing to fit)."""
-    best = ctx["best"]
-    return [(g, [Reading(_label(best, ("force_gain",)), best), Reading("displacement_scale", best, scale=True)])
-            for g, why in unresolvable.items() if why == SCALE_REASON and "force_gain" in best.instrument]
 
 
 def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: Damper, spec: WindowSpec,
