@@ -134,6 +134,19 @@ def test_a_plans_calibration_is_declared_in_the_copy_as_the_rig_reads_it(tmp_pat
     assert nt.read_manifest(again)["columns"]["force"]["calibration"] == declared   # seeded
 
 
+def test_an_lvdt_calibration_is_declared_on_the_displacement_channel_from_its_own_draw(tmp_path):
+    s = tiny_scenario()
+    s = dataclasses.replace(s, rig=dataclasses.replace(s.rig, force_gain=1.015, displacement_gain=1.012))
+    raw = write(s, s.rig_cases(), tmp_path / "raw")
+    lvdt = {**CALIBRATION, "check": "lvdt_scale", "channel": "displacement"}
+    both = nt.read_manifest(nt.extend_campaign(raw, truth_of(s), [], tmp_path / "both", [CALIBRATION, lvdt]))
+    alone = nt.read_manifest(nt.extend_campaign(raw, truth_of(s), [], tmp_path / "alone", [CALIBRATION]))
+    declared = both["columns"]["displacement"]["calibration"]
+    assert set(declared) == {"scale", "uncertainty_rel"} and declared["scale"] == pytest.approx(1.012, rel=5e-3)
+    assert both["columns"]["force"]["calibration"] == alone["columns"]["force"]["calibration"]   # draws apart
+    assert "calibration" not in alone["columns"]["displacement"]
+
+
 def test_a_plan_without_a_calibration_declares_none(tmp_path):
     s = tiny_scenario()
     raw = write(s, s.rig_cases(), tmp_path / "raw")

@@ -17,11 +17,13 @@ Same rig, same nuisances
     without a command channel gets none in its new cases either.
 
 A calibration
-    A plan's ``calibrations`` entry (the load cell against a reference force) is run as the calibration reads the
-    scenario's rig: its true load-cell gain times (1 + u ε), u the entry's relative standard uncertainty and ε
-    standard normal from the stream ``[seed, CALIBRATION_STREAM]`` (:func:`calibrated_gain`); the copy's
-    campaign.yaml then declares it (``columns.force.calibration: {gain, uncertainty_rel}``, the format's 1.6
-    addition), as the engineer would after calibrating. Its rig time counts in the plan's.
+    A plan's ``calibrations`` entry is run as the calibration reads the scenario's rig: the load cell against a
+    reference force, its true gain times (1 + u ε), u the entry's relative standard uncertainty and ε standard
+    normal from the stream ``[seed, CALIBRATION_STREAM]``; the LVDT against a reference displacement, its true
+    scale times (1 + u ε), ε from ``[seed, CALIBRATION_STREAM, 1]`` (:func:`calibrated_value`). The copy's
+    campaign.yaml then declares it (``columns.force.calibration: {gain, uncertainty_rel}``,
+    ``columns.displacement.calibration: {scale, uncertainty_rel}``, the format's 1.6 additions), as the engineer
+    would after calibrating. Its rig time counts in the plan's.
 
 A copy, never the original
     The raw folder is copied (:func:`extend_campaign`) and only the copy gets the new case files and manifest
@@ -234,28 +236,38 @@ def case_file_text(srig: ScenarioRig, case, index: int, n_cases: int, start_s: f
     return text if command else drop_csv_column(text, rrc.EXPORT_COLUMNS["command"][0])
 
 
-def calibrated_gain(srig: ScenarioRig, uncertainty_rel: float) -> float:
-    """The load-cell gain a calibration of relative standard uncertainty ``uncertainty_rel`` reads on the scenario's
-    rig: its true gain times (1 + u ε), ε standard normal from the stream ``[seed, CALIBRATION_STREAM]``."""
-    eps = float(np.random.default_rng(np.random.SeedSequence([srig.seed, CALIBRATION_STREAM])).standard_normal())
-    return float(srig.rig.force_gain) * (1.0 + uncertainty_rel * eps)
+#: Per calibration check: (the channel of campaign.yaml it declares, the declaration's key of the value, the rig's
+#: true value's field of RigImperfections, the spawn key's tail of its error draw).
+CALIBRATED = {"load_cell_gain": ("force", "gain", "force_gain", ()),
+              "lvdt_scale": ("displacement", "scale", "displacement_gain", (1,))}
 
 
-def calibration_declaration(srig: ScenarioRig, calibrations: Sequence[Mapping]) -> dict | None:
-    """campaign.yaml's ``columns.force.calibration`` after a plan's load-cell calibrations (the tightest one's
-    uncertainty; :func:`calibrated_gain`), or None where the plan has none."""
-    u = [float(c["uncertainty_rel"]) for c in calibrations if c.get("check") == "load_cell_gain"]
-    if not u:
-        return None
-    return {"gain": round(calibrated_gain(srig, min(u)), 7), "uncertainty_rel": min(u)}
+def calibrated_value(srig: ScenarioRig, check: str, uncertainty_rel: float) -> float:
+    """The value a calibration ``check`` of relative standard uncertainty ``uncertainty_rel`` reads on the scenario's
+    rig: the true load-cell gain or LVDT scale times (1 + u ε), ε standard normal from its stream
+    ``[seed, CALIBRATION_STREAM, *tail]`` (:data:`CALIBRATED`)."""
+    _channel, _key, field, tail = CALIBRATED[check]
+    rng = np.random.default_rng(np.random.SeedSequence([srig.seed, CALIBRATION_STREAM, *tail]))
+    return float(getattr(srig.rig, field)) * (1.0 + uncertainty_rel * float(rng.standard_normal()))
+
+
+def calibration_declarations(srig: ScenarioRig, calibrations: Sequence[Mapping]) -> dict[str, dict]:
+    """{channel: campaign.yaml's ``columns.<channel>.calibration``} after a plan's calibrations (of each check the
+    tightest uncertainty; :func:`calibrated_value`)."""
+    out = {}
+    for check, (channel, key, _field, _tail) in CALIBRATED.items():
+        u = [float(c["uncertainty_rel"]) for c in calibrations if c.get("check") == check]
+        if u:
+            out[channel] = {key: round(calibrated_value(srig, check, min(u)), 7), "uncertainty_rel": min(u)}
+    return out
 
 
 def extend_campaign(raw_dir: str | os.PathLike, truth: Mapping, plan: Sequence[Mapping],
                     out_root: str | os.PathLike, calibrations: Sequence[Mapping] = ()) -> Path:
     """A copy of the raw campaign ``raw_dir`` as ``out_root/<campaign>/`` (replaced if it exists) with the plan's
     cases simulated on the scenario's own rig (module doc) and appended: their case files and manifest entries;
-    with ``calibrations`` (a plan's), the calibration read on the rig declared in its manifest
-    (:func:`calibration_declaration`). Nothing under ``raw_dir`` is written. Returns the copy's folder."""
+    with ``calibrations`` (a plan's), the calibrations read on the rig declared in its manifest
+    (:func:`calibration_declarations`). Nothing under ``raw_dir`` is written. Returns the copy's folder."""
     raw_dir = Path(raw_dir)
     out = Path(out_root) / raw_dir.name
     if out.resolve() == raw_dir.resolve():
@@ -279,9 +291,9 @@ def extend_campaign(raw_dir: str | os.PathLike, truth: Mapping, plan: Sequence[M
         text = case_file_text(srig, case, n + j, n, start, span, float(manifest["temperature_C"]), command)
         (out / f"{case.case_id}.csv").write_text(text, encoding="utf-8", newline="\n")
         start += case.duration_s + 1.0 / case.sample_rate_Hz
-    declared = calibration_declaration(srig, calibrations)
-    columns = manifest["columns"] if declared is None else \
-        {**manifest["columns"], "force": {**manifest["columns"]["force"], "calibration": declared}}
+    columns = dict(manifest["columns"])
+    for channel, declared in calibration_declarations(srig, calibrations).items():
+        columns[channel] = {**columns[channel], "calibration": declared}
     write_manifest(out, {**manifest, "columns": columns,
                          "cases": [*manifest["cases"], *manifest_entries(cases, manifest)]})
     return out
