@@ -1,7 +1,8 @@
 """The next test (isokinetic.diagnosis.next_tests, issue 37): the criterion against a brute-force refit, the
 candidates and the plan within the rig's limits and the paper's design constraints, the note of a campaign
 without confounding, the block valid against the schema; the load-cell calibration proposed for a gain group
-(isokinetic.diagnosis.next_calibration) on the reference rig's campaign built for it (blind kind gain_discharge)."""
+(isokinetic.diagnosis.next_calibration) on the reference rig's campaign built for it (blind kind gain_discharge), and
+the LVDT's calibration proposed for an LVDT-scale group without a command channel (blind kind scale_no_command)."""
 
 import json
 import math
@@ -24,7 +25,7 @@ from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.diagnosis.search import Diagnoser
 from isokinetic.physics.damper import NOMINAL, Effects
 from isokinetic.stages.blind_diagnose import process_raw_campaign
-from isokinetic.stages.diagnosis import diagnose
+from isokinetic.stages.diagnosis import diagnose, load_campaign
 
 SPEC, N_BINS, DESIGN = DEFAULTS.window, 4, DEFAULTS.design
 #: A command channel that measured the LVDT's scale as 1 (no displacement-scale confounding).
@@ -341,3 +342,91 @@ def test_an_lvdt_scale_group_gets_no_load_cell_calibration(campaign):
     assert entries == []
     (entry,), _credit, _why = ncal.calibration_proposal([("force_gain+discharge+viscosity", readings)], None)
     assert entry["resolves"] == ["force_gain+discharge+viscosity"]
+
+
+SCALE_GROUP = "displacement_scale+force_gain+discharge"
+
+
+@pytest.fixture(scope="module")
+def scale_kind(tmp_path_factory):
+    """(diagnosis.json's document, the fits, the damper) of the blind kind scale_no_command (seed 777: an LVDT 1.2 %
+    long without a command channel beside a discharge coefficient, on the reference rig)."""
+    tmp = tmp_path_factory.mktemp("scale_kind")
+    kind = cf.BY_NAME["scale_no_command"]
+    raw = cf.export_confounded(kind, cf.make_confounded(kind, 777, cf.KINDS.index(kind)), tmp / "raw", tmp / "truth")
+    root = process_raw_campaign(raw, tmp / "work")
+    result, _obs, predictions = diagnose(root)
+    assert SCALE_GROUP in ["+".join(g) for g in result["confounded"]]   # the kind lists the scale group
+    return result, predictions["fits"], load_campaign(root)[1]
+
+
+def lvdt_entry(block: dict) -> dict:
+    (entry,) = [c for c in block["calibrations"] if c["check"] == "lvdt_scale"]
+    return entry
+
+
+def test_a_scale_group_gets_an_lvdt_calibration_separating_it_by_one_over_the_verdicts_gain(scale_kind):
+    result, fits, _damper = scale_kind
+    # the verdict's reading: the LVDT's scale 1; the scale's: 1/g, the verdict's fitted gain g being the LVDT's 1/k
+    expected = abs(1.0 / fits["best"].gain - 1.0) / 0.001
+    entry = lvdt_entry(result["next_tests"])
+    assert entry["channel"] == "displacement" and entry["uncertainty_rel"] == 0.001 and entry["rig_time_s"] == 1800.0
+    assert entry["separation_se_by_group"][SCALE_GROUP] == pytest.approx(expected, rel=1e-9)
+    assert entry["separation_se"] == pytest.approx(expected, rel=1e-9)
+
+
+def test_the_lvdt_calibration_counts_in_the_groups_separation_and_the_rig_time(scale_kind):
+    block = scale_kind[0]["next_tests"]
+    entry = lvdt_entry(block)
+    assert block["separation_se"][SCALE_GROUP] == pytest.approx(entry["separation_se_by_group"][SCALE_GROUP])
+    assert block["total_rig_time_s"] == pytest.approx(1800.0 + sum(p["rig_time_s"] for p in block["plan"]))
+
+
+def test_the_lvdt_calibration_resolves_a_scale_group_whatever_its_separation():
+    verdict = Candidate(effects=("discharge",), x=np.zeros(1), params={}, prediction=np.zeros(1), chi2_fit=1.0,
+                        chi2_holdout=1.0, n_fit=10, n_holdout=10, gap_after=0.0, holdout_gap_after=0.0, score=0.0,
+                        explained=True, gain=0.9999, instrument=("force_gain", "force_offset"))
+    readings = [nt.Reading("verdict", verdict), nt.Reading("displacement_scale", verdict, scale=True)]
+    (entry,), credit, _why = ncal.lvdt_proposal([(SCALE_GROUP, readings)], None)
+    assert entry["separation_se"] < ncal.RESOLVES_MIN_SE   # a scale of 1.0001: 0.1 SE
+    assert entry["resolves"] == [SCALE_GROUP] and credit[SCALE_GROUP] == pytest.approx(entry["separation_se"] ** 2)
+
+
+def test_the_note_of_the_unresolvable_scale_group_names_the_lvdt_calibration_not_a_check_in_words(scale_kind):
+    block = scale_kind[0]["next_tests"]
+    assert SCALE_GROUP in block["unresolvable"]
+    assert ("an LVDT calibration against a reference displacement (±0.1 %, 30 min of rig time) separates "
+            f"{SCALE_GROUP} by {lvdt_entry(block)['separation_se']:.1f} SE and, declared, resolves its listing") \
+        in block["note"]
+    assert "record the command channel" not in block["note"] and "to decide" not in block["note"]
+
+
+def test_a_campaign_declaring_an_lvdt_calibration_as_tight_gets_none(scale_kind):
+    result, fits, damper = scale_kind
+    # the diagnosis' report of a declared calibration (Interface 3), on the scale group as if still listed
+    declared = {"estimate": 1.012, "std_error": None, "n_cases": 0, "applied": True, "source": "calibration",
+                "uncertainty_rel": 0.001}
+    tight = {**result, "instrument_tests": {**result["instrument_tests"], "displacement_scale": declared}}
+    block = nt.next_tests(tight, fits, damper, SPEC, N_BINS, DESIGN)
+    assert block["calibrations"] == []
+    assert f"{SCALE_GROUP}: the campaign's declared LVDT calibration (±0.1 %) holds the scale" in block["note"]
+
+
+def test_the_lvdt_calibration_is_proposed_only_above_the_declared_uncertainty(scale_kind):
+    _result, fits, _damper = scale_kind
+    family = nt.scale_family({SCALE_GROUP: nt.SCALE_REASON}, fits)
+    assert ncal.lvdt_proposal(family, (1.0, 0.001))[0] == []
+    (entry,), _credit, _why = ncal.lvdt_proposal(family, (1.0, 0.01))
+    assert entry["separation_se"] == pytest.approx(abs(1.0 / fits["best"].gain - 1.0) / 0.001, rel=1e-9)
+
+
+def test_the_load_cell_calibration_is_still_not_proposed_for_a_scale_group(scale_kind):
+    assert [c["check"] for c in scale_kind[0]["next_tests"]["calibrations"]] == ["lvdt_scale"]
+
+
+def test_the_block_with_an_lvdt_calibration_is_valid_against_the_schema_and_a_force_channel_is_not(scale_kind):
+    validate_diagnosis(scale_kind[0])
+    broken = json.loads(json.dumps(scale_kind[0]))
+    lvdt_entry(broken["next_tests"])["channel"] = "force"
+    with pytest.raises(Exception, match="displacement"):
+        validate_diagnosis(broken)

@@ -108,3 +108,35 @@ def test_the_command_prints_the_calibration(tmp_path, capsys):
     assert "force_gain+discharge+viscosity" in line
     assert any("columns: force: calibration: {gain: <measured>, uncertainty_rel: 0.001}" in x for x in out)
     assert out[-1].strip().startswith("total rig time 1933 s")
+
+
+LVDT = {"check": "lvdt_scale", "channel": "displacement", "uncertainty_rel": 0.001, "rig_time_s": 1800.0,
+        "resolves": ["displacement_scale+force_gain+discharge"], "separation_se": 13.0,
+        "separation_se_by_group": {"displacement_scale+force_gain+discharge": 13.0}, "how": "a micrometer calibrator"}
+LVDT_CALIBRATED = {**BLOCK, "calibrations": [LVDT], "total_rig_time_s": 1932.6, "target_se": 5.0}
+
+
+def test_the_lvdt_calibration_is_a_commented_declaration_of_the_displacement_columns_calibration(tmp_path):
+    text = plan_yaml(LVDT_CALIBRATED, "bench")
+    assert "# LVDT calibration (next_tests.calibrations): resolves displacement_scale+force_gain+discharge (13.0 SE)" \
+        in text and "reading per unit true displacement" in text
+    start = text.index("# columns:")
+    block = [line[2:] for line in text[start:].splitlines()[:3]]   # uncommented
+    declared = yaml.safe_load("\n".join(block).replace("<measured>", "1.012"))
+    assert declared == {"columns": {"displacement": {"calibration": {"scale": 1.012, "uncertainty_rel": 0.001}}}}
+    # commented, the fragment pasted into a manifest still reads as its cases
+    folder = tmp_path / "bench"
+    folder.mkdir()
+    (folder / "campaign.yaml").write_text(MANIFEST + text, encoding="utf-8")
+    assert [c.id for c in load_manifest(folder / "campaign.yaml").cases] == ["N01", "N02"]
+
+
+def test_the_command_prints_the_lvdt_calibration(tmp_path, capsys):
+    (tmp_path / "bench").mkdir()
+    (tmp_path / "bench" / "diagnosis.json").write_text(json.dumps({"next_tests": LVDT_CALIBRATED}), encoding="utf-8")
+    assert main(["next-test", "bench", "--results", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    (line,) = [line for line in out if line.strip().startswith("CAL")]
+    assert "LVDT against a reference displacement" in line and "1800 s" in line and "13.0 SE" in line
+    assert "displacement_scale+force_gain+discharge" in line
+    assert any("columns: displacement: calibration: {scale: <measured>, uncertainty_rel: 0.001}" in x for x in out)

@@ -103,3 +103,34 @@ def test_the_page_shows_the_calibration_beside_the_group_it_resolves(results):
     assert "diagnosis.json next_tests.calibrations.0.separation_se\"" in page
     assert "Calibrate the load cell against a reference force: mount a reference load cell in series" in text
     assert "columns: force: calibration: {gain: <measured>, uncertainty_rel: 0.001}" in text
+
+
+def with_lvdt_calibration(d: dict) -> dict:
+    """The fixture's diagnosis with an LVDT scale confounded without a command channel (the verdict's own family, no
+    case) and the LVDT calibration that resolves it (contract 1.6)."""
+    group = "displacement_scale+force_gain+discharge"
+    calibration = {"check": "lvdt_scale", "channel": "displacement", "uncertainty_rel": 0.001, "rig_time_s": 1800.0,
+                   "resolves": [group], "separation_se": 13.05, "separation_se_by_group": {group: 13.05},
+                   "how": "mount a micrometer calibrator against the rod"}
+    block = {"needed": True, "note": f"an LVDT calibration against a reference displacement (±0.1 %, 30 min of rig "
+                                     f"time) separates {group} by 13.0 SE and, declared, resolves its listing",
+             "rivals": [], "plan": [], "calibrations": [calibration], "total_rig_time_s": 1800.0,
+             "separation_se": {group: 13.05}, "target_se": 5.0,
+             "unresolvable": {group: "no case of any waveform separates them"}}
+    d = {**d, "confounded": [["displacement_scale", "force_gain", "discharge"]], "next_tests": block}
+    validate_diagnosis(d)
+    return d
+
+
+def test_the_page_shows_the_lvdt_calibration_beside_the_scale_group(results):
+    root = build_campaign(results)
+    write_json(with_lvdt_calibration(diagnosis()), root / "diagnosis.json")
+    page = render_campaign_report(root)
+    text = plain(page)
+    assert "the LVDT calibration below alone separates it by 13.1 SE" in text
+    assert ("displacement_scale+force_gain+discharge: no case of any waveform separates them; the LVDT calibration "
+            "below resolves its listing") in text
+    assert "diagnosis.json next_tests.calibrations.0.separation_se\"" in page
+    assert "Calibrate the LVDT against a reference displacement: mount a micrometer calibrator against the rod" in text
+    assert "columns: displacement: calibration: {scale: <measured>, uncertainty_rel: 0.001}" in text
+    assert "load-cell calibration" not in text

@@ -33,7 +33,9 @@ cases run after the campaign's, in the plan's order (their campaign times enter 
 
 A group holding the load cell's gain gets a calibration against a reference force instead
 (:mod:`isokinetic.diagnosis.next_calibration`, ``calibrations``): its Δχ² is credited to the group before the cases
-are chosen (an independent measurement: χ² adds), so cases go only to groups it leaves short of TARGET_SE.
+are chosen (an independent measurement: χ² adds), so cases go only to groups it leaves short of TARGET_SE. A group
+holding the LVDT's scale gets a calibration of the LVDT (also the family no case separates, which builds no readings:
+:func:`scale_family`), which resolves its listing.
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ from isokinetic.contracts.settings import DEFAULTS, DesignLimits, WindowSpec
 from isokinetic.diagnosis.candidate import CONFOUNDED_SCORE, Candidate, overdispersed_score
 from isokinetic.diagnosis.instrument import DRIFT, LAG_FORM_NAMES
 from isokinetic.diagnosis.model import Evaluator
-from isokinetic.diagnosis.next_calibration import calibration_proposal, calibration_text, declared_calibration
+from isokinetic.diagnosis.next_calibration import calibration_text, declared_calibration, declared_lvdt, proposals
 from isokinetic.diagnosis.next_cases import (
     MAX_CASE_S,
     SETUP_S,
@@ -95,7 +97,7 @@ ADVICE = (("displacement_scale", "record the command channel or calibrate the LV
           ("force_lag", "check the force channel's dynamics (its filter settings, or a step of known force)"),
           ("force_drift", "check the load cell's zero before and after the campaign"))
 SCALE_REASON = ("inside the model an LVDT scale k is a load-cell gain 1/k plus C_D·√k: no case of any waveform "
-                "separates them; record the command channel or calibrate the LVDT")
+                "separates them")
 
 
 @dataclass(frozen=True)
@@ -656,21 +658,33 @@ def next_tests(result: Mapping, ctx: Mapping | None, damper: Damper, spec: Windo
                n_bins: int = 4, design: DesignLimits = DEFAULTS.design, declared: Mapping | None = None) -> dict:
     """The ``next_tests`` block of diagnosis.json (contract 1.6) for a diagnosis ``result`` and its fits ``ctx``
     (:func:`isokinetic.diagnosis.verdict.diagnose_observations`' ``predictions['fits']``): the load-cell calibration
-    that separates its gain groups (:func:`isokinetic.diagnosis.next_calibration.calibration_proposal`, credited to
-    them first), then the cases; the rig time of both."""
+    that separates its gain groups and the LVDT's of its scale groups
+    (:func:`isokinetic.diagnosis.next_calibration.proposals`, credited to them first), then the cases; the rig time
+    of both."""
     started = time.perf_counter()
     groups, unresolvable, overdispersion, targets = ([], {}, {}, {}) if ctx is None else contexts_groups(result, ctx)
     if not groups and not unresolvable:
         return {"needed": False, "note": NO_PLAN_NOTE, "plan": []}
-    calibrations, credits, why_not = calibration_proposal(groups, declared_calibration(ctx["dg"].obs))
+    family = scale_family(unresolvable, ctx)
+    calibrations, credits, why_not = proposals(groups, family, declared_calibration(ctx["dg"].obs),
+                                               declared_lvdt(result))
     block = {"needed": True, "criterion": CRITERION, "target_se": TARGET_SE, "rivals": [], "plan": [],
              "calibrations": calibrations, "separation_se": {}, "unresolvable": unresolvable}
     if groups:
         block.update(planned(groups, ctx, damper, spec, n_bins, design, declared, overdispersion, targets, credits))
+    block["separation_se"].update({g: math.sqrt(credits[g]) for g, _ in family if g in credits})   # no case adds
     block["total_rig_time_s"] = float(sum(e["rig_time_s"] for e in (*block["plan"], *calibrations)))
     block["note"] = plan_note(block, why_not)
     block["seconds"] = round(time.perf_counter() - started, 3)
     return block
+
+
+def scale_family(unresolvable: Mapping[str, str], ctx: Mapping) -> list[tuple[str, list[Reading]]]:
+    """The LVDT-scale groups no case separates (SCALE_REASON) as the readings an LVDT calibration tells apart: the
+    verdict (the LVDT's scale 1) against the scale, whose k is 1/g of the verdict's fitted gain g (nothing to fit)."""
+    best = ctx["best"]
+    return [(g, [Reading(_label(best, ("force_gain",)), best), Reading("displacement_scale", best, scale=True)])
+            for g, why in unresolvable.items() if why == SCALE_REASON]
 
 
 def planned(groups: Sequence[tuple[str, list[Reading]]], ctx: Mapping, damper: Damper, spec: WindowSpec,
@@ -746,8 +760,8 @@ def advice(group: str) -> str:
 
 def plan_note(block: Mapping, calibration_why: Mapping | None = None) -> str:
     """One line: what the plan does (or why there is none): the calibration proposed first (``calibrations``), then
-    the cases; a gain group gets no sensor advice in words where a calibration entry or ``calibration_why`` (why none
-    is proposed) speaks for it."""
+    the cases; a gain or LVDT-scale group gets no advice in words where a calibration entry or ``calibration_why``
+    (why none is proposed) speaks for it."""
     target = block["target_se"]
     done = [g for g, se in (block.get("separation_se_now") or {}).items() if se >= target]
     parts = [f"{g}: the campaign's own data already separate the rivals ({block['separation_se_now'][g]:.1f} SE)"
@@ -760,12 +774,12 @@ def plan_note(block: Mapping, calibration_why: Mapping | None = None) -> str:
         short = [g for g, se in final.items() if se < target]
         minutes = (block["total_rig_time_s"] - sum(c["rig_time_s"] for c in calibrations)) / 60.0   # the cases'
         parts.append(f"{len(block['plan'])} case(s), {minutes:.1f} min of rig time, "
-                     + ("with the calibration " if calibrations else "") + "separate "
+                     + ("with the calibration" + "s" * (len(calibrations) > 1) + " " if calibrations else "")
+                     + "separate "
                      + ", ".join(f"{g} by {se:.1f} SE" for g, se in final.items())
                      + (f" (short of {target:g} SE: {', '.join(short)})" if short else ""))
         parts += [f"{g}: {advice(g)} to decide" for g in short if advice(g) and g not in told]
-    elif [g for g, se in final.items() if g not in done and se < target]:
-        left = [g for g, se in final.items() if g not in done and se < target]
+    elif left := [g for g, se in final.items() if g not in done and se < target and g not in block["unresolvable"]]:
         parts.append("no candidate case within the rig's limits adds to the separation of " + ", ".join(left))
         parts += [f"{g}: {advice(g)} to decide" for g in left if advice(g) and g not in told]
     elif block.get("candidates_considered") == 0:

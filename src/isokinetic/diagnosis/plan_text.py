@@ -7,18 +7,56 @@ The fragment is a list of cases in the manifest format of ``docs/raw-campaign-fo
 ``period_s`` and ``amplitude_mm`` of a triangle, ``frequency_Hz`` and ``amplitude_mm`` of a sine, ``duration_s`` of a
 standstill, ``sample_rate_Hz`` and ``file``), each with a comment saying what it resolves: pasted under the
 ``cases:`` of the campaign's ``campaign.yaml``, with the records the rig writes beside it, it is read as any case.
-A load-cell calibration the plan proposes (``calibrations``, contract 1.6) comes before the cases as commented lines:
-what to measure, and the declaration of the force column (``columns: force: calibration: {gain, uncertainty_rel}``,
-``docs/raw-campaign-format.md``) to uncomment with the measured gain.
+A calibration the plan proposes (``calibrations``, contract 1.6) comes before the cases as commented lines: what to
+measure, and the declaration to uncomment with the measured value (``docs/raw-campaign-format.md``): of a load cell's,
+the force column's ``calibration: {gain, uncertainty_rel}``; of an LVDT's, the displacement column's
+``calibration: {scale, uncertainty_rel}``.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 #: The triangle's phase of the raw-campaign format's convention (-π/2: start at -Y moving up), written out.
 TRIANGLE_PHASE = "-1.5707963"
+
+
+@dataclass(frozen=True)
+class CalibrationText:
+    """A calibration ``check``'s text: its name, what it calibrates against what, the column it declares, the
+    declared key, what that key is, the comment lines saying what to do."""
+
+    name: str
+    what: str
+    column: str
+    key: str
+    means: str
+    todo: tuple[str, ...]
+
+    @property
+    def title(self) -> str:
+        return self.name[:1].upper() + self.name[1:]
+
+
+CALIBRATIONS = {
+    "load_cell_gain": CalibrationText(
+        "load-cell calibration", "load cell against a reference force", "force", "gain", "reading per unit true force",
+        ("# To do: calibrate the load cell against a reference force: a reference load cell in series, load",
+         "# steps each way over the campaign's force range; `gain` is the slope of the rig's force reading",
+         "# against the reference force, i.e. the load cell's reading per unit true force (1.01: it reads 1 %",
+         "# high), the force column's unit and scale not corrected for it. Declare it beside the force column's")),
+    "lvdt_scale": CalibrationText(
+        "LVDT calibration", "LVDT against a reference displacement", "displacement", "scale",
+        "reading per unit true displacement",
+        ("# To do: calibrate the LVDT against a reference displacement: a micrometer calibrator or gauge blocks",
+         "# against the actuator's rod, steps each way over the campaign's stroke; `scale` is the slope of the",
+         "# LVDT's reading against the reference displacement, i.e. its reading per unit true displacement (1.01:",
+         "# it reads 1 % long), the displacement column's unit and scale not corrected for it; declared, the",
+         "# diagnosis takes the scale as measured and lists no displacement_scale group. Declare it beside the",
+         "# displacement column's")),
+}
 
 
 def _number(x: float) -> str:
@@ -46,21 +84,26 @@ def case_yaml(entry: Mapping) -> list[str]:
     return lines
 
 
+def declaration(entry: Mapping) -> str:
+    """The declaration of a proposed calibration in campaign.yaml, on one line (``<measured>`` to fill in)."""
+    t = CALIBRATIONS[entry["check"]]
+    return f"columns: {t.column}: calibration: {{{t.key}: <measured>, uncertainty_rel: {entry['uncertainty_rel']:g}}}"
+
+
 def calibration_yaml(entry: Mapping, target_se: float) -> list[str]:
-    """A proposed calibration as comment lines: what it resolves, what to measure, and the declaration of the force
-    column to uncomment (``gain`` the measured reading per unit true force); ``target_se`` the plan's target."""
+    """A proposed calibration as comment lines: what it resolves, what to measure, and the declaration of its column
+    to uncomment (the force column's ``gain``, the displacement column's ``scale``: the measured reading per unit
+    true force or displacement); ``target_se`` the plan's target."""
+    t = CALIBRATIONS[entry["check"]]
     groups = ", ".join(f"{g} ({entry['separation_se_by_group'].get(g, 0.0):.1f} SE)" for g in entry["resolves"])
-    return ["# Load-cell calibration (next_tests.calibrations): resolves " + groups
+    return [f"# {t.title} (next_tests.calibrations): resolves " + groups
             + f"; rig time {entry['rig_time_s']:.0f} s (a group it takes to {target_se:g} SE gets no case below).",
-            "# To do: calibrate the load cell against a reference force: a reference load cell in series, load",
-            "# steps each way over the campaign's force range; `gain` is the slope of the rig's force reading",
-            "# against the reference force, i.e. the load cell's reading per unit true force (1.01: it reads 1 %",
-            "# high), the force column's unit and scale not corrected for it. Declare it beside the force column's",
+            *t.todo,
             "# name and unit in campaign.yaml (uncomment, <measured> the slope; uncertainty_rel its relative",
             "# standard uncertainty, 1 sigma):",
             "# columns:",
-            "#   force:",
-            f"#     calibration: {{gain: <measured>, uncertainty_rel: {entry['uncertainty_rel']:g}}}"]
+            f"#   {t.column}:",
+            f"#     calibration: {{{t.key}: <measured>, uncertainty_rel: {entry['uncertainty_rel']:g}}}"]
 
 
 def plan_yaml(block: Mapping | None, campaign: str) -> str:
@@ -92,7 +135,7 @@ def case_text(e: Mapping) -> str:
 
 def calibration_label(e: Mapping) -> str:
     """A calibration entry in a few words."""
-    return f"load cell against a reference force, ±{e['uncertainty_rel'] * 100:.2g} %"
+    return f"{CALIBRATIONS[e['check']].what}, ±{e['uncertainty_rel'] * 100:.2g} %"
 
 
 def plan_lines(block: Mapping | None) -> list[str]:
@@ -108,8 +151,8 @@ def plan_lines(block: Mapping | None) -> list[str]:
     for e in block.get("calibrations") or []:
         lines.append(f"  CAL  {calibration_label(e):<44} {e['rig_time_s']:7.0f} s  {e['separation_se']:6.1f} SE  "
                      f"resolves {', '.join(e['resolves'])}")
-        lines.append(f"       declare in campaign.yaml: columns: force: calibration: {{gain: <measured>, "
-                     f"uncertainty_rel: {e['uncertainty_rel']:g}}} (gain: reading per unit true force)")
+        t = CALIBRATIONS[e["check"]]
+        lines.append(f"       declare in campaign.yaml: {declaration(e)} ({t.key}: {t.means})")
     for e in block.get("plan") or []:
         lines.append(f"  {e['case']}  {case_text(e):<44} {e['rig_time_s']:7.0f} s  {e['separation_se']:6.1f} SE  "
                      f"resolves {', '.join(e['resolves']) or '-'}")

@@ -19,6 +19,7 @@ import pandas as pd
 from markupsafe import Markup
 
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
+from isokinetic.diagnosis.plan_text import CALIBRATIONS, declaration
 from isokinetic.physics.effects import REGISTRY
 from isokinetic.physics.viscosity import ViscosityLaw, equivalent_temperature_offset_C
 from isokinetic.report.cells import Cell, Col, Row, Table, json_table_view, kv_table, number_cell
@@ -255,17 +256,17 @@ def _confounded(diag: Mapping) -> str | None:
 
 
 def _calibrations(entries: Sequence[Mapping], src: Source) -> dict | None:
-    """The load-cell calibration the plan proposes (contract 1.6, ``next_tests.calibrations``): its table and how
-    it is done and declared."""
+    """The calibrations the plan proposes (contract 1.6, ``next_tests.calibrations``: the load cell's, the LVDT's):
+    their table and, per entry, what it calibrates, how it is done and declared (:data:`plan_text.CALIBRATIONS`)."""
     if not entries:
         return None
     df = pd.DataFrame([{**e, "key": f"next_tests.calibrations.{i}", "resolves_text": ", ".join(e.get("resolves") or [])}
                        for i, e in enumerate(entries)])
     table = json_table_view(df, CALIBRATION_COLS, src, "key", "next-calibrations",
                             json_keys={"uncertainty_rel", "rig_time_s", "separation_se"})
-    return {"table": table, "how": [str(e.get("how", "")) for e in entries],
-            "declare": [f"columns: force: calibration: {{gain: <measured>, uncertainty_rel: {e['uncertainty_rel']:g}}}"
-                        for e in entries]}
+    return {"table": table, "entries": [{"text": CALIBRATIONS[e["check"]], "how": str(e.get("how", "")),
+                                         "declare": declaration(e), "lvdt": e["check"] == "lvdt_scale"}
+                                        for e in entries]}
 
 
 def _next_tests(diag: Mapping, src: Source) -> dict | None:
@@ -283,15 +284,19 @@ def _next_tests(diag: Mapping, src: Source) -> dict | None:
         table = json_table_view(df, PLAN_COLS, src, "key", "next-tests",
                                 json_keys={"velocity_m_s", "amplitude_m", "period_s", "rig_time_s", "separation_se"})
     calibrations = block.get("calibrations") or []
-    by_calibration = {g: se for c in calibrations for g, se in (c.get("separation_se_by_group") or {}).items()}
+    by_calibration = {g: (CALIBRATIONS[c["check"]].name, se)
+                      for c in calibrations for g, se in (c.get("separation_se_by_group") or {}).items()}
     now = block.get("separation_se_now") or {}
     groups = [{"group": g, "now": fmt(now.get(g), 3), "planned": fmt(se, 3),
-               "calibration": fmt(by_calibration[g], 3) if g in by_calibration else None}
+               "calibration": fmt(by_calibration[g][1], 3) if g in by_calibration else None,
+               "calibration_name": by_calibration[g][0] if g in by_calibration else None}
               for g, se in (block.get("separation_se") or {}).items()]
+    unresolvable = {g: why + (f"; the {by_calibration[g][0]} below resolves its listing" if g in by_calibration else "")
+                    for g, why in (block.get("unresolvable") or {}).items()}
     return {"needed": bool(block.get("needed")), "note": block.get("note", ""), "table": table, "groups": groups,
             "calibrations": _calibrations(calibrations, src),
             "total_min": fmt((block.get("total_rig_time_s") or 0.0) / 60.0, 3),
-            "unresolvable": dict(block.get("unresolvable") or {}), "target_se": block.get("target_se")}
+            "unresolvable": unresolvable, "target_se": block.get("target_se")}
 
 
 def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[FigureView],
