@@ -38,8 +38,10 @@ def test_a_raw_ingests_file_reads_typed_and_writes_back_unchanged(raw_meta_file)
     assert (meta.campaign, meta.source, meta.temperature_C) == (CAMPAIGN, "rig", 40.0)
     assert meta.damper.piston_area_m2 == MANIFEST["damper"]["piston_area_m2"]
     assert meta.warnings == () and meta.gas_force_N is None and meta.metadata["operator"] == "fixture"
-    assert meta.present == {"viscosity_law", "gas_force_N", "csv", "warnings", "force_calibration"}
+    assert meta.present == {"viscosity_law", "gas_force_N", "csv", "warnings", "force_calibration",
+                            "displacement_calibration"}
     assert written["force_calibration"] is None and meta.calibration is None
+    assert written["displacement_calibration"] is None and meta.lvdt_calibration is None
     assert meta.to_mapping() == written
 
 
@@ -90,6 +92,21 @@ def test_a_declared_force_calibration_reads_as_gain_and_uncertainty_and_writes_b
 def test_a_force_calibration_without_its_two_numbers_is_refused(calibration):
     with pytest.raises(CampaignMetaError, match="^c.json: key 'force_calibration' must hold the numbers"):
         CampaignMeta.from_mapping({**SIMULATED, "force_calibration": calibration}, where="c.json")
+
+
+def test_a_declared_lvdt_calibration_reads_as_scale_and_uncertainty_and_writes_back():
+    written = {**SIMULATED, "displacement_calibration": {"scale": 1.012, "uncertainty_rel": 0.001}}
+    meta = CampaignMeta.from_mapping(written)
+    assert (meta.lvdt_calibration, meta.calibration) == ((1.012, 0.001), None)
+    assert meta.to_mapping() == written
+
+
+@pytest.mark.parametrize("calibration", [{"scale": 1.01}, {"gain": 1.01, "uncertainty_rel": 0.001},
+                                         {"scale": None, "uncertainty_rel": 0.001}])
+def test_an_lvdt_calibration_without_its_two_numbers_is_refused(calibration):
+    with pytest.raises(CampaignMetaError, match="^c.json: key 'displacement_calibration' must hold the numbers "
+                                                "scale and uncertainty_rel"):
+        CampaignMeta.from_mapping({**SIMULATED, "displacement_calibration": calibration}, where="c.json")
 
 
 def test_the_viscosity_law_needs_the_damper_block():

@@ -223,11 +223,69 @@ def _case_force_calibration(m):
     (_set({"gain": 1.01, "uncertainty_rel": 0.001, "sigma": 1}, "columns", "force", "calibration"),
      "columns.force.calibration.sigma", "not a key of the calibration"),
     (_set(1.01, "columns", "force", "calibration"), "columns.force.calibration", "expected a mapping"),
-    (_set({"gain": 1.01, "uncertainty_rel": 0.001}, "columns", "displacement", "calibration"),
-     "columns.displacement.calibration", "only the force column"),
+    (_set({"gain": 1.01, "uncertainty_rel": 0.001}, "columns", "command", "calibration"),
+     "columns.command.calibration", "only the force and displacement columns"),
     (_case_force_calibration, "cases.T01.columns.force.calibration", "declared once on the campaign's force column"),
 ])
 def test_a_bad_force_calibration_fails_the_campaign_naming_the_key(raw_campaign, edit, key, words):
+    raw_campaign.edit_manifest(edit)
+    with pytest.raises(ManifestError) as info:
+        load_manifest(MANIFEST_FILE)
+    assert str(info.value).startswith(f"{MANIFEST_FILE}: key {key!r}: ")   # the file names the campaign's folder
+    assert words in str(info.value)
+
+
+def test_an_lvdt_calibration_is_optional_and_read_as_declared(raw_campaign):
+    assert load_manifest(MANIFEST_FILE).displacement_calibration is None
+    raw_campaign.edit_manifest(_set({"scale": 1.012, "uncertainty_rel": "1e-3"}, "columns", "displacement",
+                                    "calibration"))
+    m = load_manifest(MANIFEST_FILE)
+    assert m.displacement_calibration == {"scale": 1.012, "uncertainty_rel": 0.001}
+    assert m.force_calibration is None and m.columns["displacement"].unit == "mm"   # the column itself unchanged
+
+
+def test_an_lvdt_calibrations_scale_defaults_to_one(raw_campaign):
+    raw_campaign.edit_manifest(_set({"uncertainty_rel": 0.002}, "columns", "displacement", "calibration"))
+    assert load_manifest(MANIFEST_FILE).displacement_calibration == {"scale": 1.0, "uncertainty_rel": 0.002}
+
+
+def test_both_calibrations_are_read_side_by_side(raw_campaign):
+    raw_campaign.edit_manifest(_set({"scale": 0.995, "uncertainty_rel": 0.0005}, "columns", "displacement",
+                                    "calibration"))
+    raw_campaign.edit_manifest(_set({"gain": 1.004, "uncertainty_rel": 0.001}, "columns", "force", "calibration"))
+    m = load_manifest(MANIFEST_FILE)
+    assert (m.displacement_calibration, m.force_calibration) == ({"scale": 0.995, "uncertainty_rel": 0.0005},
+                                                                  {"gain": 1.004, "uncertainty_rel": 0.001})
+
+
+def _case_lvdt_calibration(m):
+    m["cases"][0]["columns"] = {"displacement": {"calibration": {"scale": 1.01, "uncertainty_rel": 0.001}}}
+
+
+def _lvdt(calibration):
+    return _set(calibration, "columns", "displacement", "calibration")
+
+
+@pytest.mark.parametrize("edit, key, words", [
+    (_lvdt({"scale": 0.85, "uncertainty_rel": 0.001}), "columns.displacement.calibration.scale", "within [0.9, 1.1]"),
+    (_lvdt({"scale": 1.15, "uncertainty_rel": 0.001}), "columns.displacement.calibration.scale", "within [0.9, 1.1]"),
+    (_lvdt({"scale": float("inf"), "uncertainty_rel": 0.001}), "columns.displacement.calibration.scale", "got inf"),
+    (_lvdt({"scale": "long", "uncertainty_rel": 0.001}), "columns.displacement.calibration.scale", "got 'long'"),
+    (_lvdt({"scale": True, "uncertainty_rel": 0.001}), "columns.displacement.calibration.scale", "got True"),
+    (_lvdt({"scale": 1.01, "uncertainty_rel": 0.0}), "columns.displacement.calibration.uncertainty_rel",
+     "> 0 and <= 0.02"),
+    (_lvdt({"scale": 1.01, "uncertainty_rel": 0.021}), "columns.displacement.calibration.uncertainty_rel",
+     "> 0 and <= 0.02"),
+    (_lvdt({"scale": 1.01, "uncertainty_rel": "tight"}), "columns.displacement.calibration.uncertainty_rel",
+     "got 'tight'"),
+    (_lvdt({"scale": 1.01}), "columns.displacement.calibration.uncertainty_rel", "missing"),
+    (_lvdt({"gain": 1.01, "uncertainty_rel": 0.001}), "columns.displacement.calibration.gain",
+     "not a key of the calibration (keys: scale, uncertainty_rel)"),
+    (_lvdt([1.01, 0.001]), "columns.displacement.calibration", "expected a mapping {scale, uncertainty_rel}"),
+    (_case_lvdt_calibration, "cases.T01.columns.displacement.calibration",
+     "declared once on the campaign's displacement column"),
+])
+def test_a_bad_lvdt_calibration_fails_the_campaign_naming_the_key(raw_campaign, edit, key, words):
     raw_campaign.edit_manifest(edit)
     with pytest.raises(ManifestError) as info:
         load_manifest(MANIFEST_FILE)

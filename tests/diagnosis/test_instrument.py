@@ -54,6 +54,39 @@ def test_no_command_channel_gives_no_scale():
     assert scale["estimate"] is None and scale["applied"] is False
 
 
+def test_without_a_command_channel_a_declared_lvdt_calibration_is_the_scale():
+    scale = ins.calibrated_scale(ins.displacement_scale(np.array([np.nan])), (1.012, 0.001))
+    assert scale == {"estimate": 1.012, "std_error": pytest.approx(1.012e-3), "uncertainty_rel": 0.001,
+                     "n_cases": 0, "applied": True, "source": "calibration",
+                     "calibration": {"scale": 1.012, "uncertainty_rel": 0.001}}
+    assert ins.scale_measured(scale)
+
+
+def test_a_declared_lvdt_scale_of_one_is_measured_and_not_applied():
+    scale = ins.calibrated_scale(ins.displacement_scale(np.array([])), (1.0, 0.002))
+    assert (scale["estimate"], scale["applied"], scale["source"]) == (1.0, False, "calibration")
+    assert ins.scale_measured(scale)
+
+
+def test_a_command_channels_measured_scale_stands_beside_a_declared_calibration():
+    measured = ins.displacement_scale(np.array([1.0119, 1.0121, 1.0120, 1.0122, 1.0118]))
+    scale = ins.calibrated_scale(measured, (1.005, 0.001))
+    assert scale == {**measured, "calibration": {"scale": 1.005, "uncertainty_rel": 0.001}}
+
+
+def test_a_command_far_from_the_lvdt_gives_way_to_a_declared_calibration():
+    rejected = ins.displacement_scale(np.array([1.2, 1.2001, 1.1999]))
+    assert not ins.scale_measured(rejected)
+    scale = ins.calibrated_scale(rejected, (1.01, 0.001))
+    assert (scale["estimate"], scale["source"], scale["command"]) == (1.01, "calibration", rejected)
+    assert "note" not in scale
+
+
+def test_without_a_declared_calibration_the_scale_is_unchanged():
+    unmeasured = ins.displacement_scale(np.array([]))
+    assert ins.calibrated_scale(unmeasured, None) is unmeasured and not ins.scale_measured(unmeasured)
+
+
 def test_rescaled_drives_divide_every_measured_speed(campaign):
     obs, _damper = campaign
     scaled = ins.rescaled_drives(obs, 1.02)

@@ -48,6 +48,14 @@ def test_check_refuses_a_load_cell_calibration_outside_its_range_naming_campaign
     assert f"{campaign_copy / 'campaign.yaml'}: key 'columns.force.calibration.gain': " in err
 
 
+def test_check_refuses_an_lvdt_calibration_outside_its_range_naming_campaign_and_key(campaign_copy, capsys):
+    edit_manifest(campaign_copy, lambda m: m["columns"]["displacement"].update(calibration={"scale": 0.8,
+                                                                                            "uncertainty_rel": 0.001}))
+    assert main(["init-campaign", "--check", str(campaign_copy)]) == 1
+    err = capsys.readouterr().err
+    assert f"{campaign_copy / 'campaign.yaml'}: key 'columns.displacement.calibration.scale': " in err
+
+
 def test_check_reports_a_wrong_period(campaign_copy, capsys):
     edit_manifest(campaign_copy, lambda m: case(m, "T16").update(period_s=20.1))
     assert findings(campaign_copy) == {"T16": ["period_s"], "T22": [], "H01": []}

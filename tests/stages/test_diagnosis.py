@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import yaml
 
+from isokinetic.blind.confounded import drop_command_channel
 from isokinetic.diagnosis.plan_text import plan_yaml
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.io import write_parquet
@@ -147,3 +148,45 @@ def test_a_declared_load_cell_calibration_reaches_the_triangles_and_the_sines_be
     assert obs is not None, reason
     assert obs.force_calibration == (1.012, 0.001)
     assert sensor["sine_obs"].force_calibration == (1.012, 0.001)
+
+
+def _lvdt_campaign(tmp_path, name: str, cases, command: bool, calibration: dict | None):
+    """A reference-rig campaign whose LVDT reads 1.2 % long, processed (with or without its command channel and a
+    declared LVDT calibration), and its prepared sensor chain."""
+    raw = tmp_path / "raw" / name
+    rrc.write_campaign(raw, cases, rr.TABLE1, rig=rr.RigImperfections(force_noise_N=3.0, displacement_gain=1.012),
+                       seed=4, write_phase=False)
+    if not command:
+        drop_command_channel(raw)
+    if calibration is not None:
+        manifest = yaml.safe_load((raw / "campaign.yaml").read_text(encoding="utf-8"))
+        manifest["columns"]["displacement"]["calibration"] = calibration
+        (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    *_head, obs, reason, sensor = dg.prepare_sensor(process_raw_campaign(raw, tmp_path / "work" / name))
+    assert obs is not None, reason
+    return obs, sensor
+
+
+SINES = [rr.SineCase(f"H0{i}", f, 40e-6, 4, 200.0) for i, f in enumerate((0.3, 0.8, 1.6), start=1)]
+
+
+def test_a_sine_only_campaign_without_command_channel_is_driven_through_its_declared_lvdt_scale(tmp_path):
+    plain, _ = _lvdt_campaign(tmp_path, "plain", SINES, command=False, calibration=None)
+    obs, sensor = _lvdt_campaign(tmp_path, "declared", SINES, command=False,
+                                 calibration={"scale": 1.012, "uncertainty_rel": 0.001})
+    scale = sensor["displacement_scale"]
+    assert (scale["estimate"], scale["applied"], scale["source"]) == (1.012, True, "calibration")
+    amplitude = np.array([d.amplitude_m for d in obs.drives])
+    assert amplitude.size and len(plain.drives) == amplitude.size
+    np.testing.assert_allclose(amplitude * 1.012, [d.amplitude_m for d in plain.drives], rtol=1e-9)
+
+
+def test_a_command_channels_measured_lvdt_scale_stands_beside_a_declared_calibration(tmp_path):
+    triangles = [rr.TriangleCase("T01", 0.1e-3, 20.0, 50.0), rr.TriangleCase("T02", 0.5e-3, 10.0, 50.0),
+                 rr.TriangleCase("T03", 1.0e-3, 10.0, 50.0)]
+    _obs, sensor = _lvdt_campaign(tmp_path, "measured", triangles, command=True,
+                                  calibration={"scale": 1.002, "uncertainty_rel": 0.001})
+    scale = sensor["displacement_scale"]
+    assert scale["source"] == "LVDT speed against the command channel" and scale["n_cases"] == 3
+    assert scale["estimate"] == pytest.approx(1.012, rel=1e-3) and scale["applied"] is True
+    assert scale["calibration"] == {"scale": 1.002, "uncertainty_rel": 0.001}

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from isokinetic.blind import confounded as cf
 from isokinetic.blind.generate import out_of_catalogue_true_effects
+from isokinetic.blind.score import param_error
 from isokinetic.diagnosis.result import validate_diagnosis
 from isokinetic.physics.damper import TABLE_1
 from isokinetic.physics.plan import CasePlan
@@ -527,3 +528,30 @@ def test_a_declared_load_cell_calibration_separates_the_gain_from_discharge_and_
     assert gain_test["calibration"] == {"gain": true_gain, "uncertainty_rel": 0.001}
     estimate = result["instrument"]["force_gain"] or gain_test["estimate"]
     assert estimate == pytest.approx(true_gain, rel=0.003)
+
+
+def _scale_groups(result: dict) -> list[list[str]]:
+    return [g for g in result.get("confounded") or [] if "displacement_scale" in g]
+
+
+def test_a_declared_lvdt_calibration_measures_the_scale_a_campaign_without_command_channel_cannot(tmp_path):
+    # issue 37's confounded kind: an LVDT reading 1.2 % long, no command channel; without the calibration the
+    # diagnosis lists the scale with the load-cell gain and discharge, with it the scale is measured
+    kind = cf.BY_NAME["scale_no_command"]
+    scenario = cf.make_confounded(kind, 777, cf.KINDS.index(kind))
+    raw = cf.export_confounded(kind, scenario, tmp_path / "raw", tmp_path / "truth")
+    truth = json.loads((tmp_path / "truth" / f"{scenario.name}.json").read_text(encoding="utf-8"))
+    assert _scale_groups(diagnose_raw_campaign(raw, tmp_path / "work")), "no scale group to separate"
+    declared = tmp_path / "declared" / raw.name
+    shutil.copytree(raw, declared)
+    manifest = yaml.safe_load((declared / "campaign.yaml").read_text(encoding="utf-8"))
+    true_scale = truth["instrument"]["displacement_scale"]
+    manifest["columns"]["displacement"]["calibration"] = {"scale": true_scale, "uncertainty_rel": 0.001}
+    (declared / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    result = diagnose_raw_campaign(declared, tmp_path / "work-declared")
+    assert _scale_groups(result) == []
+    assert result["verdict"] == truth["truth"]
+    assert param_error(truth, result) <= 0.15   # the blind score's sizes against the truth's
+    scale_test = result["instrument_tests"]["displacement_scale"]
+    assert (scale_test["source"], scale_test["uncertainty_rel"]) == ("calibration", 0.001)
+    assert result["instrument"]["displacement_scale"] == pytest.approx(true_scale, rel=0.003)

@@ -249,3 +249,13 @@ def test_a_declared_force_calibration_is_carried_into_campaign_json(raw_campaign
     folder = CampaignFolder.at(raw_campaign.root)
     assert json.loads(folder.ingest_path("meta").read_text())["force_calibration"] == calibration
     assert folder.meta.calibration == (0.987, 0.0015)
+
+
+def test_a_declared_lvdt_calibration_is_carried_into_campaign_json(raw_campaign):
+    calibration = {"scale": 1.008, "uncertainty_rel": 0.0005}
+    raw_campaign.edit_manifest(lambda m: m["columns"]["displacement"].update(calibration=calibration))
+    ingest_campaign(raw_campaign.raw_dir, raw_campaign.root)
+    folder = CampaignFolder.at(raw_campaign.root)
+    written = json.loads(folder.ingest_path("meta").read_text())
+    assert (written["displacement_calibration"], written["force_calibration"]) == (calibration, None)
+    assert folder.meta.lvdt_calibration == (1.008, 0.0005)

@@ -6,8 +6,8 @@
 The keys readers use are typed fields; a key the schema does not name (a newer writer's, a hand-added
 one) is kept in :attr:`CampaignMeta.extra` and written back unchanged, so old and new folders both read.
 The optional keys raw ingest adds (``viscosity_law``, ``gas_force_N``, ``csv``, ``warnings``,
-``force_calibration``) are written back only when the record was built with them (a simulated campaign's file has
-none).
+``force_calibration``, ``displacement_calibration``) are written back only when the record was built with them (a
+simulated campaign's file has none).
 
 The schema uses only ``type``, ``required``, ``properties`` and ``items``, checked here by
 :func:`schema_problems` without importing jsonschema (0.1 s a job); the tests check that jsonschema agrees.
@@ -27,7 +27,11 @@ from isokinetic.physics.viscosity import ViscosityLaw, law_from_mapping
 
 SCHEMA_RESOURCE = "campaign.schema.json"
 #: The optional keys raw ingest writes (the virtual rig does not).
-RAW_INGEST_KEYS = ("viscosity_law", "gas_force_N", "csv", "warnings", "force_calibration")
+RAW_INGEST_KEYS = ("viscosity_law", "gas_force_N", "csv", "warnings", "force_calibration",
+                   "displacement_calibration")
+#: The declared calibrations (format 1.6): campaign.json key -> the two numbers it holds.
+CALIBRATION_NUMBERS = {"force_calibration": ("gain", "uncertainty_rel"),
+                       "displacement_calibration": ("scale", "uncertainty_rel")}
 #: Optional keys of the record: raw ingest's and the writing job's lineage record.
 OPTIONAL_KEYS = (*RAW_INGEST_KEYS, "lineage")
 #: JSON type name -> the Python types json.loads gives for it.
@@ -97,6 +101,8 @@ class CampaignMeta:
     lineage: Mapping[str, Any] | None = None
     #: the load cell's declared calibration {"gain", "uncertainty_rel"} (manifest columns.force.calibration, 1.6)
     force_calibration: Mapping[str, float] | None = None
+    #: the LVDT's declared calibration {"scale", "uncertainty_rel"} (manifest columns.displacement.calibration, 1.6)
+    displacement_calibration: Mapping[str, float] | None = None
     #: keys the schema does not name, kept as they were read
     extra: Mapping[str, Any] = field(default_factory=dict)
     #: the optional keys (OPTIONAL_KEYS) the record carries, written back by to_mapping
@@ -113,11 +119,11 @@ class CampaignMeta:
             damper = None if mapping["damper"] is None else Damper.from_mapping(mapping["damper"])
         except (KeyError, ValueError) as exc:
             raise CampaignMetaError(f"{where}: {exc}") from None
-        calibration = mapping.get("force_calibration")
-        if calibration is not None and not all(_type_ok(calibration.get(k), "number")
-                                               for k in ("gain", "uncertainty_rel")):
-            raise CampaignMetaError(f"{where}: key 'force_calibration' must hold the numbers gain and uncertainty_rel, "
-                                    f"got {calibration!r}")
+        for key, numbers in CALIBRATION_NUMBERS.items():
+            calibration = mapping.get(key)
+            if calibration is not None and not all(_type_ok(calibration.get(k), "number") for k in numbers):
+                raise CampaignMetaError(f"{where}: key {key!r} must hold the numbers {' and '.join(numbers)}, "
+                                        f"got {calibration!r}")
         known = set(CAMPAIGN_KEYS) | set(OPTIONAL_KEYS)
         return cls(format_version=mapping["format_version"], campaign=mapping["campaign"], source=mapping["source"],
                    description=mapping["description"],
@@ -127,7 +133,8 @@ class CampaignMeta:
                    viscosity_law_block=mapping.get("viscosity_law"),
                    gas_force_N=mapping.get("gas_force_N"), csv=mapping.get("csv"),
                    warnings=tuple(mapping.get("warnings", ())), lineage=mapping.get("lineage"),
-                   force_calibration=calibration,
+                   force_calibration=mapping.get("force_calibration"),
+                   displacement_calibration=mapping.get("displacement_calibration"),
                    extra={k: v for k, v in mapping.items() if k not in known},
                    present=frozenset(k for k in OPTIONAL_KEYS if k in mapping))
 
@@ -141,7 +148,8 @@ class CampaignMeta:
                     "metadata": dict(self.metadata)})
         optional = {"viscosity_law": self.viscosity_law_block, "gas_force_N": self.gas_force_N, "csv": self.csv,
                     "warnings": list(self.warnings), "lineage": self.lineage,
-                    "force_calibration": None if self.force_calibration is None else dict(self.force_calibration)}
+                    **{key: None if getattr(self, key) is None else dict(getattr(self, key))
+                       for key in CALIBRATION_NUMBERS}}
         out.update({k: v for k, v in optional.items() if k in self.present})
         problems = schema_problems(out)
         if problems:
@@ -158,6 +166,13 @@ class CampaignMeta:
         """(gain, uncertainty_rel) of the load cell's declared calibration (``force_calibration``), None without."""
         cal = self.force_calibration
         return None if cal is None else (float(cal["gain"]), float(cal["uncertainty_rel"]))
+
+    @property
+    def lvdt_calibration(self) -> tuple[float, float] | None:
+        """(scale, uncertainty_rel) of the LVDT's declared calibration (``displacement_calibration``), None
+        without."""
+        cal = self.displacement_calibration
+        return None if cal is None else (float(cal["scale"]), float(cal["uncertainty_rel"]))
 
     def viscosity_law(self) -> ViscosityLaw | None:
         """The oil's viscosity-temperature law (``viscosity_law``, format 1.1), None without one or without a

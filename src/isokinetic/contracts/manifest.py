@@ -48,7 +48,9 @@ file's columns named by 1-based position (``name: 4`` or ``col4``, with ``csv: {
 
 Format 1.6 additions (docs/raw-campaign-format.md, "1.6 additions"): the campaign's force column may declare the
 load cell's calibration against a reference force, ``calibration: {gain, uncertainty_rel}``
-(:func:`force_calibration`; campaign level only: a case's force column may not declare one).
+(:func:`force_calibration`), and its displacement column the LVDT's against a reference displacement,
+``calibration: {scale, uncertainty_rel}`` (:func:`displacement_calibration`); campaign level only: a case's
+columns may not declare one.
 """
 
 from __future__ import annotations
@@ -123,15 +125,18 @@ CASE_FILE_SUFFIXES = (".csv", ".tsv", ".txt", ".dat")
 #: Largest data-row number a case's ``rows`` slice may name (1.2): far beyond any record.
 MAX_ROW = 1_000_000_000
 COLUMN_KEYS = ("name", "unit", "invert", "full_scale", "scale", "offset",    # full_scale: 1.2; scale, offset: 1.4
-               "calibration")                                                # calibration: 1.6, force only
-#: The keys of the force column's ``calibration`` (1.6) and the gain's default.
-CALIBRATION_KEYS = ("gain", "uncertainty_rel")
-DEFAULT_CALIBRATION_GAIN = 1.0
-#: Range of a declared load-cell gain (reading per unit true force): beyond 10 % the cell is no calibrated
-#: instrument (or the column's unit is wrong), which a conversion, not a calibration, corrects.
-CALIBRATION_GAIN_RANGE = (0.9, 1.1)
-#: Largest declared relative standard uncertainty of that gain: the diagnosis' own gain bound (2 %): a looser
-#: calibration tells the diagnosis nothing it does not assume.
+               "calibration")                                        # calibration: 1.6, force and displacement
+#: The columns that may declare a calibration (1.6, campaign level only): channel -> (the key of the instrument's
+#: reading per unit true quantity, what that reading is). The reading defaults to DEFAULT_CALIBRATION_READING.
+CALIBRATED_CHANNELS = {"force": ("gain", "the load cell's reading per unit true force"),
+                       "displacement": ("scale", "the LVDT's reading per unit true displacement")}
+DEFAULT_CALIBRATION_READING = 1.0
+#: Range of a declared gain or LVDT scale: beyond 10 % the sensor is no calibrated instrument (or the column's
+#: unit is wrong), which a conversion, not a calibration, corrects.
+CALIBRATION_RANGE = (0.9, 1.1)
+#: Largest declared relative standard uncertainty of either: the diagnosis' own gain bound (2 %): a looser load-cell
+#: calibration tells the diagnosis nothing it does not assume, and a looser LVDT one leaves the scale as free as
+#: that gain, which a scale error mimics (gain 1/k plus C_D·√k).
 MAX_CALIBRATION_UNCERTAINTY_REL = 0.02
 #: Largest 1-based column position a headerless file's column may be named by (1.4).
 MAX_COLUMN_POSITION = 10_000
@@ -235,6 +240,9 @@ class Manifest:
     #: The load cell's calibration (1.6, ``columns.force.calibration``): {"gain", "uncertainty_rel"}; None when
     #: none is declared (:func:`force_calibration`).
     force_calibration: dict[str, float] | None = None
+    #: The LVDT's calibration (1.6, ``columns.displacement.calibration``): {"scale", "uncertainty_rel"}; None when
+    #: none is declared (:func:`displacement_calibration`).
+    displacement_calibration: dict[str, float] | None = None
 
 
 def number(value) -> float | None:
@@ -405,38 +413,52 @@ def _campaign_columns(block, where: str, headerless: bool = False) -> tuple[dict
 
 def force_calibration(block, where: str) -> dict[str, float] | None:
     """The campaign force column's ``calibration`` (1.6): ``{gain, uncertainty_rel}``, the load cell's reading per
-    unit true force as a calibration against a reference force found it (``gain``, default 1, within
-    :data:`CALIBRATION_GAIN_RANGE`; the column's unit and scale not corrected for it) and that gain's relative
-    standard uncertainty (1 sigma, > 0 and <= :data:`MAX_CALIBRATION_UNCERTAINTY_REL`); None when not declared.
-    Any other channel's ``calibration``, or a malformed one, refuses the campaign naming the key."""
+    unit true force as a calibration against a reference force found it (:func:`column_calibration`)."""
+    return column_calibration(block, where, "force")
+
+
+def displacement_calibration(block, where: str) -> dict[str, float] | None:
+    """The campaign displacement column's ``calibration`` (1.6): ``{scale, uncertainty_rel}``, the LVDT's reading
+    per unit true displacement as a calibration against a reference displacement (gauge blocks, a micrometer
+    calibrator) found it (:func:`column_calibration`)."""
+    return column_calibration(block, where, "displacement")
+
+
+def column_calibration(block, where: str, channel: str) -> dict[str, float] | None:
+    """The campaign ``channel`` column's ``calibration`` (1.6, a channel of :data:`CALIBRATED_CHANNELS`): the
+    instrument's reading per unit true quantity (``gain`` or ``scale``, default 1, within
+    :data:`CALIBRATION_RANGE`; the column's unit and scale not corrected for it) and its relative standard
+    uncertainty (``uncertainty_rel``, 1 sigma, > 0 and <= :data:`MAX_CALIBRATION_UNCERTAINTY_REL`); None when not
+    declared. A ``calibration`` on any other channel, or a malformed one, refuses the campaign naming the key."""
     columns = block if isinstance(block, Mapping) else {}
-    for channel in CHANNELS:
-        if channel != "force" and isinstance(columns.get(channel), Mapping) and "calibration" in columns[channel]:
-            raise ManifestError(where, f"columns.{channel}.calibration", "only the force column declares a "
-                                "calibration (the load cell's gain)")
-    spec = columns.get("force")
+    for other in CHANNELS:
+        if other not in CALIBRATED_CHANNELS and isinstance(columns.get(other), Mapping) \
+                and "calibration" in columns[other]:
+            raise ManifestError(where, f"columns.{other}.calibration", "only the force and displacement columns "
+                                "declare a calibration (the load cell's gain, the LVDT's scale)")
+    spec = columns.get(channel)
     if not isinstance(spec, Mapping) or spec.get("calibration") is None:
         return None
-    key, cal = "columns.force.calibration", spec["calibration"]
+    (reading, what), key, cal = CALIBRATED_CHANNELS[channel], f"columns.{channel}.calibration", spec["calibration"]
+    keys = (reading, "uncertainty_rel")
     if not isinstance(cal, Mapping):
-        raise ManifestError(where, key, f"expected a mapping {{gain, uncertainty_rel}}, got {cal!r}")
-    unknown = sorted(str(k) for k in cal if k not in CALIBRATION_KEYS)
+        raise ManifestError(where, key, f"expected a mapping {{{', '.join(keys)}}}, got {cal!r}")
+    unknown = sorted(str(k) for k in cal if k not in keys)
     if unknown:
-        raise ManifestError(where, f"{key}.{unknown[0]}", f"not a key of the calibration (keys: "
-                                                          f"{', '.join(CALIBRATION_KEYS)})")
+        raise ManifestError(where, f"{key}.{unknown[0]}", f"not a key of the calibration (keys: {', '.join(keys)})")
     if cal.get("uncertainty_rel") is None:
-        raise ManifestError(where, f"{key}.uncertainty_rel", "missing (the gain's relative standard uncertainty)")
-    gain = DEFAULT_CALIBRATION_GAIN if cal.get("gain") is None else number(cal["gain"])
-    lo, hi = CALIBRATION_GAIN_RANGE
-    if gain is None or not lo <= gain <= hi:
-        raise ManifestError(where, f"{key}.gain", f"must be a number within [{lo:g}, {hi:g}] (the load cell's reading "
-                                                  f"per unit true force), got {cal['gain']!r}")
+        raise ManifestError(where, f"{key}.uncertainty_rel", f"missing (the {reading}'s relative standard uncertainty)")
+    value = DEFAULT_CALIBRATION_READING if cal.get(reading) is None else number(cal[reading])
+    lo, hi = CALIBRATION_RANGE
+    if value is None or not lo <= value <= hi:
+        raise ManifestError(where, f"{key}.{reading}", f"must be a number within [{lo:g}, {hi:g}] ({what}), "
+                                                       f"got {cal[reading]!r}")
     rel = number(cal["uncertainty_rel"])
     if rel is None or not 0.0 < rel <= MAX_CALIBRATION_UNCERTAINTY_REL:
         raise ManifestError(where, f"{key}.uncertainty_rel", f"must be a number > 0 and <= "
-                            f"{MAX_CALIBRATION_UNCERTAINTY_REL:g} (the gain's relative standard uncertainty, "
+                            f"{MAX_CALIBRATION_UNCERTAINTY_REL:g} (the {reading}'s relative standard uncertainty, "
                             f"1 sigma), got {cal['uncertainty_rel']!r}")
-    return {"gain": gain, "uncertainty_rel": rel}
+    return {reading: value, "uncertainty_rel": rel}
 
 
 def _damper(block, where: str) -> tuple[Damper | None, dict]:
@@ -587,10 +609,12 @@ def _case(entry: Mapping, case: str, sample_rate_Hz: float, base_columns: dict[s
         raise ManifestError(where, f"cases.{case}.file", f"{file!r} is a symlink to "
                             f"{(folder / file).resolve().as_posix()}, outside the campaign folder")
     override = entry.get("columns")
-    if isinstance(override, Mapping) and isinstance(override.get("force"), Mapping) \
-            and "calibration" in override["force"]:
-        raise ManifestError(where, f"cases.{case}.columns.force.calibration", "a calibration is the load cell's, "
-                            "declared once on the campaign's force column (columns.force.calibration), not on a case")
+    for channel in CHANNELS:
+        if isinstance(override, Mapping) and isinstance(override.get(channel), Mapping) \
+                and "calibration" in override[channel]:
+            raise ManifestError(where, f"cases.{case}.columns.{channel}.calibration", "a calibration is the "
+                                f"sensor's, declared once on the campaign's {channel} column "
+                                f"(columns.{channel}.calibration), not on a case")
     columns, column_issues = _case_columns(base_columns, override, headerless)
     problems += column_issues
     plan = dict(amplitude_m=math.nan, period_s=math.nan, frequency_Hz=math.nan, phase_rad=math.nan)
@@ -722,7 +746,8 @@ def load_manifest(path: str | Path) -> Manifest:
     dialect = csv_dialect(doc.get("csv"), where)
     headerless = dialect is not None and dialect.header == "none"
     base_columns, extra_columns = _campaign_columns(doc.get("columns"), where, headerless)
-    calibration = force_calibration(doc.get("columns"), where)
+    calibrations = {"force_calibration": force_calibration(doc.get("columns"), where),
+                    "displacement_calibration": displacement_calibration(doc.get("columns"), where)}
     damper, extra_damper = _damper(doc.get("damper"), where)
     law = viscosity_law(doc.get("damper"), damper, where)
     entries = doc.get("cases")
@@ -754,7 +779,7 @@ def load_manifest(path: str | Path) -> Manifest:
         cases=tuple(replace(c, gas_force_N=gas_force_N if c.case_gas_force_N is None else c.case_gas_force_N,
                             csv=dialect) for c in cases), metadata=metadata,
         sha256=hashlib.sha256(data).hexdigest(), warnings=tuple(_near_misses(doc, where)),
-        force_calibration=calibration)
+        **calibrations)
 
 
 def _near_misses(doc: Mapping, where: str) -> list[str]:

@@ -17,7 +17,9 @@ measured as its speed against the command channel's (:func:`case_speed_ratio`,
 :func:`displacement_scale`), the model then driven at the true speeds (:func:`rescaled_drives`). A sine-only
 campaign has no ramp to set against its command: its LVDT scale and actuator delay come from each case's amplitude
 and phase against the command channel's, read through a dead time and a first-order servo lag
-(:func:`case_sine_response`, :func:`sine_servo_terms`).
+(:func:`case_sine_response`, :func:`sine_servo_terms`). Where no command channel measures the scale, a declared
+calibration of the LVDT (manifest ``columns.displacement.calibration``, format 1.6) is its scale
+(:func:`calibrated_scale`).
 """
 
 from __future__ import annotations
@@ -339,6 +341,34 @@ def sine_servo_terms(frequency_Hz, ratio, lag_rad, rel_se) -> tuple[dict, dict]:
     delays = {"delay_s": dead + tau, "dead_time_s": dead, "servo_lag_s": tau, "n_cases": int(w.size),
               "source": SINE_SERVO_SOURCE}
     return scale, delays
+
+
+#: The ``source`` of an LVDT scale taken from its declared calibration (:func:`calibrated_scale`).
+CALIBRATION_SOURCE = "calibration"
+
+
+def scale_measured(scale: dict) -> bool:
+    """Whether a displacement-scale dict holds the LVDT's scale: an estimate (from a command channel that follows
+    the LVDT, none beyond SCALE_BOUND: no ``note``, or from a declared calibration)."""
+    return scale["estimate"] is not None and "note" not in scale
+
+
+def calibrated_scale(scale: dict, calibration: tuple[float, float] | None) -> dict:
+    """The displacement-scale dict with the LVDT's declared calibration (scale k, relative standard uncertainty u;
+    manifest ``columns.displacement.calibration``): where no command channel measures the scale
+    (:func:`scale_measured`), k is the scale: ``estimate`` k, applied where k is not 1 (the model then driven at
+    the measured speeds divided by k, as with a measured scale), ``std_error`` k·u, ``uncertainty_rel`` u,
+    ``source`` CALIBRATION_SOURCE, and the command's reading set aside, if any, under ``command``; where one
+    does, the measurement stands. Either way the declaration is reported under ``calibration``."""
+    if calibration is None:
+        return scale
+    k, u = (float(v) for v in calibration)
+    declared = {"scale": k, "uncertainty_rel": u}
+    if scale_measured(scale):
+        return {**scale, "calibration": declared}
+    out = {"estimate": k, "std_error": k * u, "uncertainty_rel": u, "n_cases": 0, "applied": k != 1.0,
+           "source": CALIBRATION_SOURCE, "calibration": declared}
+    return out if scale["estimate"] is None else {**out, "command": scale}
 
 
 def rescaled_drives(obs, scale: float):

@@ -48,6 +48,7 @@ from isokinetic.diagnosis.instrument import (
     LAG_FORMS,
     displacement_scale,
     fit_force_lag,
+    scale_measured,
 )
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.result import CONTRACT_VERSION, FORMAT_VERSION, METRIC, json_safe
@@ -111,8 +112,8 @@ SCALE_CONFOUNDED_NOTE = (
     "no command channel: the LVDT's scale k cannot be measured (where the servo closes on the LVDT the "
     "record shows the command whatever k is), and inside the model a displacement scale k is a load-cell "
     "gain 1/k plus C_D·√k (displacement scale ≡ load-cell gain + C_D·√k): the discharge and viscosity "
-    "effects claimed, or the load-cell gain reported, may be an LVDT scale error; calibrate the LVDT or record "
-    "the command to decide")
+    "effects claimed, or the load-cell gain reported, may be an LVDT scale error; calibrate the LVDT (and "
+    "declare it: columns.displacement.calibration) or record the command to decide")
 
 
 def instrument_confounding(out: dict, dg: Diagnoser, best, candidates, verdict: list[str], hyp: dict | None,
@@ -121,7 +122,7 @@ def instrument_confounding(out: dict, dg: Diagnoser, best, candidates, verdict: 
     notes: a load-cell gain against discharge + viscosity; a force-channel lag scoring within SENSOR_MARGIN of
     the verdict (alone, or with other effects where the verdict has none, and the reverse); a needed zero drift
     correlated with an effect beyond DRIFT_CONFOUNDED_CORRELATION; an unmeasured displacement scale (no command
-    channel) against a gain, discharge or viscosity."""
+    channel, no declared LVDT calibration) against a gain, discharge or viscosity."""
     gain = out["instrument"]["force_gain"] is not None
     group = gain_confounding(dg, best, candidates, gain)
     if group:
@@ -153,7 +154,7 @@ def instrument_confounding(out: dict, dg: Diagnoser, best, candidates, verdict: 
         out["confounded_drift_note"] = (f"the load-cell zero drift and {drifting} are correlated beyond "
                                         f"{DRIFT_CONFOUNDED_CORRELATION:g} in the fit: the data cannot tell them apart")
     physics = [e for e in verdict if e in ("discharge", "viscosity")]
-    unmeasured = scale["estimate"] is None or "note" in scale  # no command channel, or none that follows the LVDT
+    unmeasured = not scale_measured(scale)  # no command channel (or none that follows the LVDT) and no calibration
     if (physics or gain) and unmeasured:
         out.setdefault("confounded", []).append(["displacement_scale", "force_gain", *physics])
         out["confounded_scale_note"] = SCALE_CONFOUNDED_NOTE

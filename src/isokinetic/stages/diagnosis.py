@@ -29,6 +29,7 @@ from isokinetic.contracts.settings import DEFAULTS, DesignLimits, Settings
 from isokinetic.diagnosis.candidate import ALPHA
 from isokinetic.diagnosis.instrument import (
     INSTRUMENT,
+    calibrated_scale,
     case_delays,
     case_sine_response,
     case_speed_ratio,
@@ -107,7 +108,7 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bi
                    ) -> tuple[str, Damper | None, pd.DataFrame, Observations | None, str, dict]:
     """(campaign, damper, cases, observations, reason, sensor) of a processed campaign folder.
 
-    The LVDT's scale is measured first, from its speed against the command channel's
+    The LVDT's scale is measured first (or declared: :func:`motion_terms`), from its speed against the command's
     (:func:`isokinetic.diagnosis.instrument.displacement_scale`); where it departs from 1, the model is
     driven at the measured speeds divided by it. A sine-only campaign's scale and actuator delay come from its
     cases' amplitude and phase against the command (:func:`isokinetic.diagnosis.instrument.sine_servo_terms`;
@@ -159,12 +160,12 @@ def prepare_sensor(campaign_root: Path, spec: WindowSpec = DEFAULTS.window, n_bi
     modelled = cases[(cases["waveform"] != "sine") | cases["case"].isin(sines["case"])]
 
     ok = cases[(cases["status"] == "ok") & (cases["waveform"] == "triangle")]
-    scale, delays = motion_terms(ok if not char.empty else ok.iloc[0:0], sines, load)
+    meta = CampaignFolder.at(root).meta   # the declared calibrations: (gain or scale, uncertainty_rel), or None
+    scale, delays = motion_terms(ok if not char.empty else ok.iloc[0:0], sines, load, meta.lvdt_calibration)
     lvdt = scale["estimate"] if scale["applied"] else 1.0
-    calibration = CampaignFolder.at(root).meta.calibration   # the load cell's (gain, uncertainty_rel), or None
 
     def scaled(o: Observations) -> Observations:   # every build of the campaign's observations carries it
-        o = replace(o, force_calibration=calibration)
+        o = replace(o, force_calibration=meta.calibration)   # the load cell's
         return rescaled_drives(o, scale["estimate"]) if scale["applied"] and len(o) else o
 
     def observations(of: pd.DataFrame, windows: pd.DataFrame) -> Observations:
@@ -242,11 +243,14 @@ def any_four_windows(char: pd.DataFrame) -> bool:
     return any(has_four_windows(seg) for seg in char.groupby("case")["segment"].agg(list))
 
 
-def motion_terms(triangles: pd.DataFrame, sines: pd.DataFrame, load) -> tuple[dict, dict | None]:
+def motion_terms(triangles: pd.DataFrame, sines: pd.DataFrame, load,
+                 lvdt_calibration: tuple[float, float] | None = None) -> tuple[dict, dict | None]:
     """(the LVDT's displacement scale, the actuator delays or None) of a campaign's status-ok triangle cases
     (their speed against the command's, :func:`isokinetic.diagnosis.instrument.displacement_scale`; delays: None,
     cases.parquet's ``delay_s`` serve) or, without any, of its sine cases (amplitude and phase against the
-    command's, :func:`isokinetic.diagnosis.instrument.sine_servo_terms`); ``load``: row -> its time series."""
+    command's, :func:`isokinetic.diagnosis.instrument.sine_servo_terms`); ``load``: row -> its time series.
+    ``lvdt_calibration``: the LVDT's declared (scale, uncertainty_rel), the scale where no command channel
+    measures it (:func:`isokinetic.diagnosis.instrument.calibrated_scale`)."""
     scale = displacement_scale(np.array([case_speed_ratio(load(row), float(row["period_s"]), motion_start(row))
                                          for _, row in triangles.iterrows()]))
     delays = None
@@ -255,6 +259,7 @@ def motion_terms(triangles: pd.DataFrame, sines: pd.DataFrame, load) -> tuple[di
                                                 for _, row in sines.iterrows()), strict=True))
     elif triangles.empty:
         scale["source"] = "no triangle case"
+    scale = calibrated_scale(scale, lvdt_calibration)
     if "velocity_ratio" in triangles:  # the evidence against the plan (not applied: a real stroke error reads the same)
         ratios = triangles["velocity_ratio"].to_numpy(dtype=float)
         scale["velocity_ratio_to_plan"] = float(np.median(ratios[np.isfinite(ratios)])) if np.isfinite(ratios).any() \

@@ -703,8 +703,9 @@ def campaign_meta(manifest: Manifest, manifest_file: str) -> CampaignMeta:
         csv=None if manifest.csv is None else manifest.csv.to_dict(),
         # keys that look like slips of known ones (1.2, manifest near misses), () when none
         warnings=tuple(manifest.warnings),
-        # the load cell's calibration (columns.force.calibration, 1.6), None when none was declared
-        force_calibration=manifest.force_calibration, present=frozenset(RAW_INGEST_KEYS))
+        # the load cell's and the LVDT's calibrations (columns.<channel>.calibration, 1.6), None when none declared
+        force_calibration=manifest.force_calibration, displacement_calibration=manifest.displacement_calibration,
+        present=frozenset(RAW_INGEST_KEYS))
 
 
 def shared_file_warnings(manifest: Manifest, rows: list[dict]) -> list[str]:
