@@ -63,9 +63,17 @@ def test_without_a_command_channel_a_declared_lvdt_calibration_is_the_scale():
 
 
 def test_a_declared_lvdt_scale_of_one_is_measured_and_not_applied():
-    scale = ins.calibrated_scale(ins.displacement_scale(np.array([])), (1.0, 0.002))
+    scale = ins.calibrated_scale(ins.displacement_scale(np.array([])), (1.0, 0.001))
     assert (scale["estimate"], scale["applied"], scale["source"]) == (1.0, False, "calibration")
     assert ins.scale_measured(scale)
+
+
+def test_a_looser_lvdt_calibration_is_applied_but_does_not_measure_the_scale():
+    # a scale error within ±0.5 % would still read as a load-cell gain plus C_D·√k: the confounding stays listed
+    scale = ins.calibrated_scale(ins.displacement_scale(np.array([])), (1.012, 0.005))
+    assert (scale["estimate"], scale["applied"]) == (1.012, True)
+    assert not ins.scale_measured(scale)
+    assert ins.scale_measured({**scale, "uncertainty_rel": ins.SCALE_MIN_DEPARTURE})
 
 
 def test_a_command_channels_measured_scale_stands_beside_a_declared_calibration():

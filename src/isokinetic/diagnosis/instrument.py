@@ -349,8 +349,12 @@ CALIBRATION_SOURCE = "calibration"
 
 def scale_measured(scale: dict) -> bool:
     """Whether a displacement-scale dict holds the LVDT's scale: an estimate (from a command channel that follows
-    the LVDT, none beyond SCALE_BOUND: no ``note``, or from a declared calibration)."""
-    return scale["estimate"] is not None and "note" not in scale
+    the LVDT, none beyond SCALE_BOUND: no ``note``, or from a declared calibration as good as SCALE_MIN_DEPARTURE,
+    the departure below which no scale is applied: a looser one is applied, but a scale error within its
+    uncertainty would still read as a load-cell gain plus C_D·√k, so the scale's confounding stays listed)."""
+    if scale["estimate"] is None or "note" in scale:
+        return False
+    return scale.get("source") != CALIBRATION_SOURCE or float(scale["uncertainty_rel"]) <= SCALE_MIN_DEPARTURE
 
 
 def calibrated_scale(scale: dict, calibration: tuple[float, float] | None) -> dict:
