@@ -490,10 +490,7 @@ def test_a_sine_sweep_with_friction_beside_a_large_load_cell_offset_gets_frictio
 @pytest.mark.slow
 def test_leakage_beside_discharge_on_turbulent_speeds_is_found_by_its_polished_fit(tmp_path):
     # the confounded kind built for issue 37's proof: its search fit scores 29 above its optimum, the wrong pair's 7
-    kind = cf.BY_NAME["leakage_turbulent"]
-    scenario = cf.make_confounded(kind, 777, cf.KINDS.index(kind))
-    raw = cf.export_confounded(kind, scenario, tmp_path / "raw", tmp_path / "truth")
-    truth = json.loads((tmp_path / "truth" / f"{scenario.name}.json").read_text(encoding="utf-8"))
+    raw, truth = confounded_kind(tmp_path, "leakage_turbulent")
     result = diagnose_raw_campaign(raw, tmp_path / "work")
     assert result["verdict"] == ["leakage", "discharge"] and result["explained"] is True
     true_conductance = truth["magnitude"]["leakage"]
@@ -506,22 +503,32 @@ def _gain_groups(result: dict) -> list[list[str]]:
     return [g for g in result.get("confounded") or [] if "force_gain" in g]
 
 
+def confounded_kind(tmp_path, name: str):
+    """(raw folder, truth record) of issue 37's confounded kind ``name`` at seed 777, exported."""
+    kind = cf.BY_NAME[name]
+    scenario = cf.make_confounded(kind, 777, cf.KINDS.index(kind))
+    raw = cf.export_confounded(kind, scenario, tmp_path / "raw", tmp_path / "truth")
+    return raw, json.loads((tmp_path / "truth" / f"{scenario.name}.json").read_text(encoding="utf-8"))
+
+
+def diagnose_declared(raw, tmp_path, channel: str, calibration: dict) -> dict:
+    """The diagnosis of a copy of ``raw`` whose campaign.yaml declares ``calibration`` on ``channel``."""
+    declared = tmp_path / "declared" / raw.name
+    shutil.copytree(raw, declared)
+    manifest = yaml.safe_load((declared / "campaign.yaml").read_text(encoding="utf-8"))
+    manifest["columns"][channel]["calibration"] = calibration
+    (declared / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
+    return diagnose_raw_campaign(declared, tmp_path / "work-declared")
+
+
 @pytest.mark.slow
 def test_a_declared_load_cell_calibration_separates_the_gain_from_discharge_and_viscosity(tmp_path):
     # issue 37's confounded kind: a load-cell gain error beside a discharge change; without the calibration the
     # diagnosis lists the gain with discharge and viscosity as confounded, the calibration separates them
-    kind = cf.BY_NAME["gain_discharge"]
-    scenario = cf.make_confounded(kind, 777, cf.KINDS.index(kind))
-    raw = cf.export_confounded(kind, scenario, tmp_path / "raw", tmp_path / "truth")
-    truth = json.loads((tmp_path / "truth" / f"{scenario.name}.json").read_text(encoding="utf-8"))
+    raw, truth = confounded_kind(tmp_path, "gain_discharge")
     assert _gain_groups(diagnose_raw_campaign(raw, tmp_path / "work")), "no gain group to separate"
-    declared = tmp_path / "declared" / raw.name
-    shutil.copytree(raw, declared)
-    manifest = yaml.safe_load((declared / "campaign.yaml").read_text(encoding="utf-8"))
     true_gain = truth["instrument"]["force_gain"]
-    manifest["columns"]["force"]["calibration"] = {"gain": true_gain, "uncertainty_rel": 0.001}
-    (declared / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
-    result = diagnose_raw_campaign(declared, tmp_path / "work-declared")
+    result = diagnose_declared(raw, tmp_path, "force", {"gain": true_gain, "uncertainty_rel": 0.001})
     assert _gain_groups(result) == []
     assert result["verdict"] == truth["truth"]
     gain_test = result["instrument_tests"]["force_gain"]
@@ -537,18 +544,10 @@ def _scale_groups(result: dict) -> list[list[str]]:
 def test_a_declared_lvdt_calibration_measures_the_scale_a_campaign_without_command_channel_cannot(tmp_path):
     # issue 37's confounded kind: an LVDT reading 1.2 % long, no command channel; without the calibration the
     # diagnosis lists the scale with the load-cell gain and discharge, with it the scale is measured
-    kind = cf.BY_NAME["scale_no_command"]
-    scenario = cf.make_confounded(kind, 777, cf.KINDS.index(kind))
-    raw = cf.export_confounded(kind, scenario, tmp_path / "raw", tmp_path / "truth")
-    truth = json.loads((tmp_path / "truth" / f"{scenario.name}.json").read_text(encoding="utf-8"))
+    raw, truth = confounded_kind(tmp_path, "scale_no_command")
     assert _scale_groups(diagnose_raw_campaign(raw, tmp_path / "work")), "no scale group to separate"
-    declared = tmp_path / "declared" / raw.name
-    shutil.copytree(raw, declared)
-    manifest = yaml.safe_load((declared / "campaign.yaml").read_text(encoding="utf-8"))
     true_scale = truth["instrument"]["displacement_scale"]
-    manifest["columns"]["displacement"]["calibration"] = {"scale": true_scale, "uncertainty_rel": 0.001}
-    (declared / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
-    result = diagnose_raw_campaign(declared, tmp_path / "work-declared")
+    result = diagnose_declared(raw, tmp_path, "displacement", {"scale": true_scale, "uncertainty_rel": 0.001})
     assert _scale_groups(result) == []
     assert result["verdict"] == truth["truth"]
     assert param_error(truth, result) <= 0.15   # the blind score's sizes against the truth's
