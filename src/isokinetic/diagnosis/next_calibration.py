@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 #: Relative standard uncertainty (1 σ) of the proposed calibration (stated, not measured here): a reference load cell
 #: of ISO 376 class 00 or 0.5 (reproducibility 0.05-0.1 %) mounted in series, read over load steps each way, gives
@@ -94,31 +95,64 @@ def declared_calibration(obs) -> tuple[float, float] | None:
     return None if cal is None else (float(cal[0]), float(cal[1]))
 
 
+@dataclass(frozen=True)
+class SensorCheck:
+    """A sensor calibration the next test can propose for the groups holding ``holds``: its ``check`` and
+    ``channel`` (the ``calibrations`` entry's), its stated uncertainty and rig time, what to do (``how``), the
+    words of its notes, and whether it resolves a group whatever its separation (``resolves_always``: a declared
+    one makes the listing go, as an LVDT's calibration makes the scale measured) or where it separates it by
+    RESOLVES_MIN_SE."""
+
+    check: str
+    channel: str
+    holds: str
+    uncertainty_rel: float
+    rig_time_s: float
+    how: str
+    device: str
+    quantity: str
+    resolves_always: bool
+
+
+LOAD_CELL = SensorCheck(CHECK, "force", "force_gain", CALIBRATION_UNCERTAINTY_REL, CALIBRATION_RIG_TIME_S, HOW,
+                        "load cell", "gain", False)
+LVDT = SensorCheck(LVDT_CHECK, "displacement", "displacement_scale", LVDT_UNCERTAINTY_REL, LVDT_RIG_TIME_S, LVDT_HOW,
+                   "LVDT", "scale", True)
+
+
+def proposal(spec: SensorCheck, groups: Sequence[tuple[str, Sequence]], declared: tuple[float, float] | None,
+             value) -> tuple[list[dict], dict[str, float], dict[str, str]]:
+    """(the ``calibrations`` entries of ``spec``, {group: its Δχ² credited before the cases are chosen}, {group: why
+    none is proposed}) of the groups (name, readings) it decides: one calibration serves them all, its separation
+    of each the least separated pair of the values its readings predict it to find (``value(reading, centre)``,
+    the centre the declared value, else 1), over its uncertainty; none where the campaign ``declared`` one at least
+    as tight."""
+    if not groups:
+        return [], {}, {}
+    sensor = spec.device.replace(" ", "-")
+    if declared is not None and declared[1] <= spec.uncertainty_rel:
+        why = (f"the campaign's declared {sensor} calibration (±{declared[1] * 100:.2g} %) holds the {spec.quantity}: "
+               "a further calibration would not separate it")
+        return [], {}, {name: why for name, _ in groups}
+    centre = 1.0 if declared is None else declared[0]
+    se = {name: least_separated([value(r, centre) for r in rs], spec.uncertainty_rel) for name, rs in groups}
+    resolves = list(se) if spec.resolves_always else [g for g, v in se.items() if v >= RESOLVES_MIN_SE]
+    if not resolves:
+        why = (f"its readings' {sensor} {spec.quantity}s differ by less than {spec.uncertainty_rel * 100:.2g} %: "
+               f"a calibration of the {spec.device} would not separate them either")
+        return [], {}, dict.fromkeys(se, why)
+    entry = {"check": spec.check, "channel": spec.channel, "uncertainty_rel": spec.uncertainty_rel,
+             "rig_time_s": spec.rig_time_s, "resolves": resolves, "separation_se": max(se.values()),
+             "separation_se_by_group": se, "how": spec.how}
+    return [entry], {g: v * v for g, v in se.items()}, {}
+
+
 def calibration_proposal(groups: Sequence[tuple[str, Sequence]], declared: tuple[float, float] | None
                          ) -> tuple[list[dict], dict[str, float], dict[str, str]]:
-    """(the ``calibrations`` entries, {group: the calibration's Δχ² credited before the cases are chosen},
-    {gain group: why no calibration is proposed for it}) of the groups (name, readings). One calibration of
-    CALIBRATION_UNCERTAINTY_REL serves every group holding ``force_gain``; proposed where it separates one by at least
-    RESOLVES_MIN_SE, unless the campaign ``declared`` one at least as tight."""
-    gain_groups = [(name, rs) for name, rs in groups
-                   if "force_gain" in name.split("+") and "displacement_scale" not in name.split("+")]
-    if not gain_groups:
-        return [], {}, {}
-    if declared is not None and declared[1] <= CALIBRATION_UNCERTAINTY_REL:
-        why = (f"the campaign's declared load-cell calibration (±{declared[1] * 100:.2g} %) holds the gain: a further "
-               "calibration would not separate it")
-        return [], {}, {name: why for name, _ in gain_groups}
-    centre = 1.0 if declared is None else declared[0]
-    se = {name: calibration_se(rs, centre) for name, rs in gain_groups}
-    resolves = [g for g, s in se.items() if s >= RESOLVES_MIN_SE]
-    if not resolves:
-        why = (f"its readings' load-cell gains differ by less than {CALIBRATION_UNCERTAINTY_REL * 100:.2g} %: "
-               "a calibration of the load cell would not separate them either")
-        return [], {}, dict.fromkeys(se, why)
-    entry = {"check": CHECK, "channel": "force", "uncertainty_rel": CALIBRATION_UNCERTAINTY_REL,
-             "rig_time_s": CALIBRATION_RIG_TIME_S, "resolves": resolves, "separation_se": max(se.values()),
-             "separation_se_by_group": se, "how": HOW}
-    return [entry], {g: s * s for g, s in se.items()}, {}
+    """The load cell's :func:`proposal` (:data:`LOAD_CELL`): every group holding ``force_gain`` but not the LVDT's
+    scale (module doc), where it separates one by at least RESOLVES_MIN_SE."""
+    return proposal(LOAD_CELL, [(name, rs) for name, rs in groups if "force_gain" in name.split("+")
+                                and "displacement_scale" not in name.split("+")], declared, reading_gain)
 
 
 def reading_scale(reading, centre: float = 1.0) -> float:
@@ -139,24 +173,11 @@ def declared_lvdt(result: Mapping) -> tuple[float, float] | None:
 
 def lvdt_proposal(groups: Sequence[tuple[str, Sequence]], declared: tuple[float, float] | None
                   ) -> tuple[list[dict], dict[str, float], dict[str, str]]:
-    """(the LVDT calibration's entries, {group: its Δχ² credited before the cases are chosen}, {scale group: why none
-    is proposed}) of the groups (name, readings; a family no case separates as its two readings). One calibration of
-    LVDT_UNCERTAINTY_REL serves every group holding ``displacement_scale`` and resolves each (a declared one makes the
-    scale measured), unless the campaign ``declared`` one at least as tight."""
-    scale_groups = [(name, rs) for name, rs in groups if "displacement_scale" in name.split("+")]
-    if not scale_groups:
-        return [], {}, {}
-    if declared is not None and declared[1] <= LVDT_UNCERTAINTY_REL:
-        why = (f"the campaign's declared LVDT calibration (±{declared[1] * 100:.2g} %) holds the scale: a further "
-               "calibration would not separate it")
-        return [], {}, {name: why for name, _ in scale_groups}
-    centre = 1.0 if declared is None else declared[0]
-    se = {name: least_separated([reading_scale(r, centre) for r in rs], LVDT_UNCERTAINTY_REL)
-          for name, rs in scale_groups}
-    entry = {"check": LVDT_CHECK, "channel": "displacement", "uncertainty_rel": LVDT_UNCERTAINTY_REL,
-             "rig_time_s": LVDT_RIG_TIME_S, "resolves": list(se), "separation_se": max(se.values()),
-             "separation_se_by_group": se, "how": LVDT_HOW}
-    return [entry], {g: s * s for g, s in se.items()}, {}
+    """The LVDT's :func:`proposal` (:data:`LVDT`): every group holding ``displacement_scale`` (a family no case
+    separates as its two readings), each resolved whatever its separation (a declared one makes the scale
+    measured)."""
+    return proposal(LVDT, [(name, rs) for name, rs in groups if "displacement_scale" in name.split("+")], declared,
+                    reading_scale)
 
 
 def proposals(groups: Sequence[tuple[str, Sequence]], family: Sequence[tuple[str, Sequence]],
