@@ -45,3 +45,33 @@ def test_reported_standard_errors_match_the_scatter_of_the_estimates(campaign, n
 def test_the_scale_is_one_where_the_fit_is_within_its_degrees_of_freedom():
     assert std_error_scale(90.0, 100) == 1.0 and std_error_scale(400.0, 100) == pytest.approx(2.0)
     assert std_error_scale(5.0, 0) == 1.0
+
+
+def fisher_error(dg, fit, name: str) -> float:
+    """A parameter's standard error from the Fisher information alone (the reported one without its Birge
+    scale: with eight observations χ²/dof scatters widely)."""
+    ident = identifiability(dg, fit)
+    return ident["parameters"][name]["std_error"] / ident["std_error_scale"]
+
+
+def test_with_a_declared_calibration_the_standard_errors_match_the_scatter_of_the_estimates(campaign):
+    # the calibration is one more observation of the gain: each realisation draws it with its uncertainty too,
+    # and the errors from the Fisher information (the calibration's row in it) must match the scatter. On the
+    # steady windows alone a gain beside discharge and viscosity is what only the calibration pins (issue 37)
+    obs, damper = campaign
+    obs = obs.subset(obs.is_window)
+    truth = Evaluator(obs, damper).predict(Effects(discharge_coefficient=0.9 * damper.discharge_coefficient))
+    rng, u = np.random.default_rng(5), 0.002
+    values, errors, without = [], [], []
+    for _ in range(REALISATIONS):
+        noisy = replace(obs, force_N=truth + obs.sigma_N * rng.standard_normal(len(obs)),
+                        force_calibration=(1.0 + u * rng.standard_normal(), u))
+        dg = Diagnoser(noisy, damper)
+        fit = dg.refit(("discharge", "viscosity"), instrument=("force_gain",))
+        values.append(fit.params["discharge_coefficient"])
+        errors.append(fisher_error(dg, fit, "discharge_coefficient"))
+        plain = Diagnoser(replace(noisy, force_calibration=None), damper)
+        without.append(fisher_error(plain, plain.refit(("discharge", "viscosity"), instrument=("force_gain",)),
+                                    "discharge_coefficient"))
+    assert np.mean(errors) == pytest.approx(np.std(values, ddof=1), rel=0.3)
+    assert np.mean(errors) < 0.2 * np.mean(without)   # without its row the gain is free: C_D is all but unknown

@@ -30,7 +30,8 @@ def identifiability(dg: Diagnoser, candidate: Candidate) -> dict:
         return {"identifiable": False, "reason": "singular Fisher information"}
     if not np.all(np.isfinite(cov)) or np.any(np.diag(cov) < 0):
         return {"identifiable": False, "reason": "ill-conditioned Fisher information"}
-    scale = std_error_scale(candidate.chi2_fit, candidate.n_fit - jac.shape[1])
+    # the rows beyond the observations (a declared calibration's) count in χ² and its degrees of freedom too
+    scale = std_error_scale(candidate.chi2_fit, jac.shape[0] - jac.shape[1])
     out: dict = {"identifiable": True, "parameters": {}, "std_error_scale": scale}
     for i, name in enumerate(candidate.effects):
         x, sx = float(candidate.x[i]), scale * float(math.sqrt(max(cov[i, i], 0.0)))
@@ -63,7 +64,9 @@ def std_error_scale(chi2: float, dof: int) -> float:
 def fit_jacobian(dg: Diagnoser, candidate: Candidate) -> np.ndarray:
     """Derivatives of the period-1 fit residuals: one column per effect parameter (optimiser units;
     friction analytic, the others by forward differences, through the candidate's force channel), then the
-    free gain, offset and zero drift (last)."""
+    free gain, offset and zero drift (last); with a declared load-cell calibration one more row, its residual
+    (g - centre)/sd (:meth:`isokinetic.diagnosis.instrument.LinearTerms.prior_residuals`), whose only derivative
+    is 1/sd by the gain."""
     fm = dg.fit_mask
     g = candidate.gain
     cols = []
@@ -86,10 +89,17 @@ def fit_jacobian(dg: Diagnoser, candidate: Candidate) -> np.ndarray:
         m = dg.model(dg.param.effects(nonlinear, values), lag=lag + h)[fm]
         m0 = candidate.prediction[fm] - base.get("friction", 0.0) * dg.param.force_ref_N * sign
         cols.append(-g * (m - m0) / h / sigma)
+    gain_column = len(cols)
     if "force_gain" in candidate.instrument:
         cols.append(-candidate.prediction[fm] / sigma)
     if "force_offset" in candidate.instrument:
         cols.append(-1.0 / sigma)
     if "force_drift" in candidate.instrument and dg.fit_time_s is not None:
         cols.append(-dg.fit_time_s / sigma)
-    return np.column_stack(cols)
+    jac = np.column_stack(cols)
+    terms = dg.terms(candidate.instrument)
+    if terms.prior_residuals(candidate.gain).size:   # the calibration: one more observation, of the gain
+        row = np.zeros(jac.shape[1])
+        row[gain_column] = 1.0 / terms.gain_sd
+        jac = np.vstack([jac, row])
+    return jac
