@@ -82,28 +82,44 @@ CALIBRATION = {"check": "load_cell_gain", "channel": "force", "uncertainty_rel":
 CALIBRATED = {**BLOCK, "calibrations": [CALIBRATION], "total_rig_time_s": 1932.6, "target_se": 5.0}
 
 
+def declared_fragment(text: str) -> dict:
+    """The commented declaration of a plan's calibration, uncommented, its <measured> value 1.012."""
+    start = text.index("# columns:")
+    block = [line[2:] for line in text[start:].splitlines()[:3]]
+    return yaml.safe_load("\n".join(block).replace("<measured>", "1.012"))
+
+
+def pasted_case_ids(tmp_path, text: str) -> list[str]:
+    """The case ids of a manifest with the plan's fragment pasted under its cases."""
+    folder = tmp_path / "bench"
+    folder.mkdir()
+    (folder / "campaign.yaml").write_text(MANIFEST + text, encoding="utf-8")
+    return [c.id for c in load_manifest(folder / "campaign.yaml").cases]
+
+
+def printed_plan(tmp_path, capsys, block: dict) -> tuple[list[str], str]:
+    """(the lines `next-test` prints for a campaign whose diagnosis holds ``block``, its CAL line)."""
+    (tmp_path / "bench").mkdir()
+    (tmp_path / "bench" / "diagnosis.json").write_text(json.dumps({"next_tests": block}), encoding="utf-8")
+    assert main(["next-test", "bench", "--results", str(tmp_path)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    (line,) = [line for line in out if line.strip().startswith("CAL")]
+    return out, line
+
+
 def test_the_calibration_is_a_commented_declaration_of_the_force_columns_calibration(tmp_path):
     text = plan_yaml(CALIBRATED, "bench")
     assert "# Load-cell calibration (next_tests.calibrations): resolves force_gain+discharge+viscosity (14.1 SE)" \
         in text and "reading per unit true force" in text
-    start = text.index("# columns:")
-    block = [line[2:] for line in text[start:].splitlines()[:3]]   # uncommented
-    declared = yaml.safe_load("\n".join(block).replace("<measured>", "1.012"))
+    declared = declared_fragment(text)
     # the manifest reader's own key (columns.force.calibration) takes it
     assert force_calibration(declared["columns"], "bench") == {"gain": 1.012, "uncertainty_rel": 0.001}
     # commented, the fragment pasted into a manifest still reads as its cases
-    folder = tmp_path / "bench"
-    folder.mkdir()
-    (folder / "campaign.yaml").write_text(MANIFEST + text, encoding="utf-8")
-    assert [c.id for c in load_manifest(folder / "campaign.yaml").cases] == ["N01", "N02"]
+    assert pasted_case_ids(tmp_path, text) == ["N01", "N02"]
 
 
 def test_the_command_prints_the_calibration(tmp_path, capsys):
-    (tmp_path / "bench").mkdir()
-    (tmp_path / "bench" / "diagnosis.json").write_text(json.dumps({"next_tests": CALIBRATED}), encoding="utf-8")
-    assert main(["next-test", "bench", "--results", str(tmp_path)]) == 0
-    out = capsys.readouterr().out.splitlines()
-    (line,) = [line for line in out if line.strip().startswith("CAL")]
+    out, line = printed_plan(tmp_path, capsys, CALIBRATED)
     assert "load cell against a reference force" in line and "1800 s" in line and "14.1 SE" in line
     assert "force_gain+discharge+viscosity" in line
     assert any("columns: force: calibration: {gain: <measured>, uncertainty_rel: 0.001}" in x for x in out)
@@ -120,23 +136,14 @@ def test_the_lvdt_calibration_is_a_commented_declaration_of_the_displacement_col
     text = plan_yaml(LVDT_CALIBRATED, "bench")
     assert "# LVDT calibration (next_tests.calibrations): resolves displacement_scale+force_gain+discharge (13.0 SE)" \
         in text and "reading per unit true displacement" in text
-    start = text.index("# columns:")
-    block = [line[2:] for line in text[start:].splitlines()[:3]]   # uncommented
-    declared = yaml.safe_load("\n".join(block).replace("<measured>", "1.012"))
-    assert declared == {"columns": {"displacement": {"calibration": {"scale": 1.012, "uncertainty_rel": 0.001}}}}
+    assert declared_fragment(text) == \
+        {"columns": {"displacement": {"calibration": {"scale": 1.012, "uncertainty_rel": 0.001}}}}
     # commented, the fragment pasted into a manifest still reads as its cases
-    folder = tmp_path / "bench"
-    folder.mkdir()
-    (folder / "campaign.yaml").write_text(MANIFEST + text, encoding="utf-8")
-    assert [c.id for c in load_manifest(folder / "campaign.yaml").cases] == ["N01", "N02"]
+    assert pasted_case_ids(tmp_path, text) == ["N01", "N02"]
 
 
 def test_the_command_prints_the_lvdt_calibration(tmp_path, capsys):
-    (tmp_path / "bench").mkdir()
-    (tmp_path / "bench" / "diagnosis.json").write_text(json.dumps({"next_tests": LVDT_CALIBRATED}), encoding="utf-8")
-    assert main(["next-test", "bench", "--results", str(tmp_path)]) == 0
-    out = capsys.readouterr().out.splitlines()
-    (line,) = [line for line in out if line.strip().startswith("CAL")]
+    out, line = printed_plan(tmp_path, capsys, LVDT_CALIBRATED)
     assert "LVDT against a reference displacement" in line and "1800 s" in line and "13.0 SE" in line
     assert "displacement_scale+force_gain+discharge" in line
     assert any("columns: displacement: calibration: {scale: <measured>, uncertainty_rel: 0.001}" in x for x in out)
