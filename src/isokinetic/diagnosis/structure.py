@@ -93,8 +93,10 @@ MAX_BINS = 5
 PHASE_BINS = 8
 #: Phases [rad] closer than this are one slot (the same bin of different cases and cycles).
 PHASE_TOLERANCE_RAD = 0.05
-#: Bins of the piston's position (signed, equal counts) in the within-window test (:func:`within_window_test`): about
-#: a millimetre wide on the reference rig's strokes, finer than the groove or worn band a bore has at mid-stroke.
+#: Bins of the piston's position (signed) in the within-window test (:func:`within_window_test`,
+#: :func:`position_bins`): the edges of half as many bins of equal counts and of half as many of equal widths
+#: together; at most 11 bins, about 0.4 mm wide at the reference rig's largest strokes (±2.4 mm of window) and finer
+#: near mid-stroke, finer than the groove or worn band a bore has there.
 WITHIN_BINS = 12
 #: |z| of a bin's mean beyond which it is named in ``where`` besides the strongest one.
 Z_BIN = 3.0
@@ -167,6 +169,27 @@ def tie_bins(x: np.ndarray, max_bins: int) -> np.ndarray:
     value_bin = np.minimum((before / x.size * max_bins).astype(int), max_bins - 1)
     _, dense = np.unique(value_bin, return_inverse=True)
     return dense[inverse]
+
+
+def width_bins(x: np.ndarray, n_bins: int) -> np.ndarray:
+    """Bin label (0 ..) of each value: ``n_bins`` bins of equal width over [min x, max x], the empty ones dropped
+    (labels dense, in the order of x). Equal values share a bin."""
+    lo, span = float(np.min(x)), float(np.ptp(x))
+    if span <= 0.0:
+        return np.zeros(x.size, dtype=int)
+    raw = np.minimum(((x - lo) / span * n_bins).astype(int), n_bins - 1)
+    return np.unique(raw, return_inverse=True)[1].reshape(x.shape)
+
+
+def position_bins(x: np.ndarray, n_bins: int) -> np.ndarray:
+    """Bin label (0 .., dense, in the order of x) of each piston position: the bins between the edges of
+    ``n_bins // 2`` bins of equal counts (:func:`tie_bins`) and of ``n_bins // 2`` of equal widths
+    (:func:`width_bins`) together. Equal counts resolve mid-stroke, where every stroke puts parts; equal widths
+    resolve the outer stroke, which only the largest strokes reach with a few parts (bins of equal counts give those
+    one bin, which a feature at a fixed position, a groove's edge, straddles)."""
+    half = max(1, n_bins // 2)
+    pair = tie_bins(x, half) * (half + 1) + width_bins(x, half)
+    return np.unique(pair, return_inverse=True)[1].reshape(x.shape)
 
 
 def binned_test(u: np.ndarray, labels: np.ndarray) -> dict:
@@ -408,8 +431,8 @@ def within_window_design(parts: Observations, prediction: np.ndarray, n_bins: in
     """(nuisance columns, position columns, position bin of each part) of :func:`within_window_test`: each window's
     level; per part index and direction a share and a force common to all windows (what a servo's or the oil's
     settling leaves along every window alike); per case and direction the verdict's own force sign(v)·P (its
-    within-window shape, a transient tail, scaled freely); and, per bin of the signed position y (``n_bins`` of
-    equal counts), a share 1{y in bin}·|P| and a force 1{y in bin}."""
+    within-window shape, a transient tail, scaled freely); and, per bin of the signed position y
+    (:func:`position_bins` of ``n_bins``), a share 1{y in bin}·|P| and a force 1{y in bin}."""
     window = pd.factorize(pd.Series(parts.case).astype(str) + "/" + pd.Series(parts.segment).astype(str))[0]
     case_dir = pd.factorize(pd.Series(parts.case).astype(str) + np.where(parts.sign > 0, "/+", "/-"))[0]
     part = pd.Series(parts.start).groupby(window).rank(method="first").to_numpy().astype(int) - 1
@@ -418,7 +441,7 @@ def within_window_design(parts: Observations, prediction: np.ndarray, n_bins: in
     shape = one_hot(part)
     nuisance = np.hstack([one_hot(window), shape * size, shape, shape * size * sign, shape * sign,
                           one_hot(case_dir) * (parts.sign * prediction)[:, None]])
-    labels = tie_bins(window_position_m(parts), n_bins)
+    labels = position_bins(window_position_m(parts), n_bins)
     bins = one_hot(labels)
     return nuisance, np.hstack([bins * size, bins]), labels
 
