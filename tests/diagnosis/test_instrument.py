@@ -76,10 +76,33 @@ def test_a_looser_lvdt_calibration_is_applied_but_does_not_measure_the_scale():
     assert ins.scale_measured({**scale, "uncertainty_rel": ins.SCALE_MIN_DEPARTURE})
 
 
-def test_a_command_channels_measured_scale_stands_beside_a_declared_calibration():
+def test_a_command_channels_measured_scale_stands_beside_a_declared_calibration_that_it_contradicts():
     measured = ins.displacement_scale(np.array([1.0119, 1.0121, 1.0120, 1.0122, 1.0118]))
     scale = ins.calibrated_scale(measured, (1.005, 0.001))
-    assert scale == {**measured, "calibration": {"scale": 1.005, "uncertainty_rel": 0.001}}
+    z = (measured["estimate"] - 1.005) / np.hypot(measured["std_error"], 1.005 * 0.001)
+    assert scale == {**measured, "calibration": {"scale": 1.005, "uncertainty_rel": 0.001, "z": pytest.approx(z),
+                                                 "agrees": False}}
+    assert z > 6.0
+
+
+def test_a_declared_calibration_within_its_uncertainty_of_the_command_channels_scale_agrees():
+    measured = ins.displacement_scale(np.array([1.0119, 1.0121, 1.0120, 1.0122, 1.0118]))
+    assert ins.calibrated_scale(measured, (1.0135, 0.001))["calibration"]["agrees"] is True
+
+
+def test_the_gain_the_data_read_beside_a_calibration_is_their_own_least_squares_gain_and_its_error():
+    # the calibration's row left out: the plain weighted least squares in (gain, offset), and its standard error
+    # from their covariance, computed here independently
+    model, w, force = _calibrated_rig(9)
+    terms = ins.LinearTerms(offset_bound_N=50.0, gain_centre=1.0, gain_sd=0.001)
+    g, se = ins.gain_reading(terms, force, model, np.sign(model), w)
+    a = np.column_stack([model, np.ones_like(model)]) * np.sqrt(w)[:, None]
+    ref = np.linalg.lstsq(a, force * np.sqrt(w), rcond=None)[0]
+    cov = np.linalg.inv(a.T @ a)
+    assert g == pytest.approx(ref[0], rel=1e-10)
+    assert se == pytest.approx(np.sqrt(cov[0, 0]), rel=1e-6)
+    z = ins.calibration_z(g, se, 1.0, 0.001)
+    assert abs(z) > ins.CALIBRATION_Z   # the rig's 1.3 % against a calibration of 1.000 ± 0.1 %
 
 
 def test_a_command_far_from_the_lvdt_gives_way_to_a_declared_calibration():

@@ -226,3 +226,25 @@ def test_friction_beside_an_explaining_effect_below_its_test_is_not_claimed(camp
     test = result["effect_tests"]["friction"]
     assert 0.0 < test["chi2_drop"] < test["threshold"]
     assert result["verdict"] == ["viscosity"]
+
+
+def test_a_declared_calibration_the_data_contradict_is_said_in_the_calibration_note():
+    tests = {"force_gain": {"estimate": 1.0, "calibration": {"gain": 1.0, "uncertainty_rel": 0.001, "reading": 1.015,
+                                                            "z": 7.4, "agrees": False}},
+             "displacement_scale": {"estimate": 1.012, "calibration": {"scale": 1.002, "uncertainty_rel": 0.001,
+                                                                       "z": 9.9, "agrees": False}}}
+    out = {"instrument_tests": tests}
+    vd.calibration_keys(out)
+    note = out["calibration_note"]
+    assert "load cell's declared calibration (gain 1" in note and "1.015, +7.4 standard errors" in note
+    assert "LVDT's declared calibration (scale 1.002" in note and "1.012, +9.9 standard errors" in note
+
+
+def test_calibrations_that_agree_or_none_declared_add_no_note():
+    agreeing = {"force_gain": {"estimate": 1.0, "calibration": {"gain": 1.0, "uncertainty_rel": 0.001,
+                                                               "reading": 1.0004, "z": 0.4, "agrees": True}},
+                "displacement_scale": {"estimate": None}}
+    for tests in (agreeing, {}):
+        out = {"instrument_tests": tests}
+        vd.calibration_keys(out)
+        assert "calibration_note" not in out

@@ -134,3 +134,14 @@ def test_the_page_shows_the_lvdt_calibration_beside_the_scale_group(results):
     assert "Calibrate the LVDT against a reference displacement: mount a micrometer calibrator against the rod" in text
     assert "columns: displacement: calibration: {scale: <measured>, uncertainty_rel: 0.001}" in text
     assert "load-cell calibration" not in text
+
+
+def test_the_page_warns_of_a_declared_calibration_the_data_contradict(results):
+    root = build_campaign(results)
+    note = ("the LVDT's declared calibration (scale 1.002, u 0.001) and the command channel disagree: the command "
+            "reads the scale as 1.012, +9.9 standard errors from it")
+    d = {**diagnosis(), "calibration_note": note}
+    validate_diagnosis(d)
+    write_json(d, root / "diagnosis.json")
+    text = plain(render_campaign_report(root))
+    assert "Calibration contradicted. " + note in text

@@ -153,6 +153,13 @@ def test_a_declared_load_cell_calibration_reaches_the_triangles_and_the_sines_be
 def _lvdt_campaign(tmp_path, name: str, cases, command: bool, calibration: dict | None):
     """A reference-rig campaign whose LVDT reads 1.2 % long, processed (with or without its command channel and a
     declared LVDT calibration), and its prepared sensor chain."""
+    *_head, obs, reason, sensor = dg.prepare_sensor(_lvdt_results(tmp_path, name, cases, command, calibration))
+    assert obs is not None, reason
+    return obs, sensor
+
+
+def _lvdt_results(tmp_path, name: str, cases, command: bool, calibration: dict | None):
+    """The results folder of :func:`_lvdt_campaign`'s campaign, processed to its characteristic."""
     raw = tmp_path / "raw" / name
     rrc.write_campaign(raw, cases, rr.TABLE1, rig=rr.RigImperfections(force_noise_N=3.0, displacement_gain=1.012),
                        seed=4, write_phase=False)
@@ -162,9 +169,7 @@ def _lvdt_campaign(tmp_path, name: str, cases, command: bool, calibration: dict 
         manifest = yaml.safe_load((raw / "campaign.yaml").read_text(encoding="utf-8"))
         manifest["columns"]["displacement"]["calibration"] = calibration
         (raw / "campaign.yaml").write_text(yaml.safe_dump(manifest, sort_keys=False), encoding="utf-8")
-    *_head, obs, reason, sensor = dg.prepare_sensor(process_raw_campaign(raw, tmp_path / "work" / name))
-    assert obs is not None, reason
-    return obs, sensor
+    return process_raw_campaign(raw, tmp_path / "work" / name)
 
 
 SINES = [rr.SineCase(f"H0{i}", f, 40e-6, 4, 200.0) for i, f in enumerate((0.3, 0.8, 1.6), start=1)]
@@ -181,12 +186,28 @@ def test_a_sine_only_campaign_without_command_channel_is_driven_through_its_decl
     np.testing.assert_allclose(amplitude * 1.012, [d.amplitude_m for d in plain.drives], rtol=1e-9)
 
 
+TRIANGLES = [rr.TriangleCase("T01", 0.1e-3, 20.0, 50.0), rr.TriangleCase("T02", 0.5e-3, 10.0, 50.0),
+             rr.TriangleCase("T03", 1.0e-3, 10.0, 50.0)]
+
+
 def test_a_command_channels_measured_lvdt_scale_stands_beside_a_declared_calibration(tmp_path):
-    triangles = [rr.TriangleCase("T01", 0.1e-3, 20.0, 50.0), rr.TriangleCase("T02", 0.5e-3, 10.0, 50.0),
-                 rr.TriangleCase("T03", 1.0e-3, 10.0, 50.0)]
-    _obs, sensor = _lvdt_campaign(tmp_path, "measured", triangles, command=True,
+    _obs, sensor = _lvdt_campaign(tmp_path, "measured", TRIANGLES, command=True,
                                   calibration={"scale": 1.002, "uncertainty_rel": 0.001})
     scale = sensor["displacement_scale"]
     assert scale["source"] == "LVDT speed against the command channel" and scale["n_cases"] == 3
     assert scale["estimate"] == pytest.approx(1.012, rel=1e-3) and scale["applied"] is True
-    assert scale["calibration"] == {"scale": 1.002, "uncertainty_rel": 0.001}
+    assert scale["calibration"] == {"scale": 1.002, "uncertainty_rel": 0.001, "z": pytest.approx(
+        (scale["estimate"] - 1.002) / np.hypot(scale["std_error"], 1.002e-3)), "agrees": False}   # 1 % apart: said
+
+
+def test_a_declared_lvdt_calibration_the_command_channel_contradicts_is_said_in_the_diagnosis(tmp_path):
+    # the rig's LVDT reads 1.2 % long, its declared calibration 1.002 ± 0.1 % is stale: the command channel's
+    # scale is applied and the diagnosis says that the two disagree
+    root = _lvdt_results(tmp_path, "stale", TRIANGLES, command=True,
+                         calibration={"scale": 1.002, "uncertainty_rel": 0.001})
+    result, _obs, _predictions = dg.diagnose(root)
+    validate_diagnosis(result)
+    assert result["instrument"]["displacement_scale"] == pytest.approx(1.012, rel=1e-3)
+    assert result["instrument_tests"]["displacement_scale"]["calibration"]["agrees"] is False
+    assert "the LVDT's declared calibration (scale 1.002" in result["calibration_note"]
+

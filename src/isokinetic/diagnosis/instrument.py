@@ -24,6 +24,7 @@ calibration of the LVDT (manifest ``columns.displacement.calibration``, format 1
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -137,6 +138,39 @@ class LinearTerms:
         v = dict(zip(names, sol, strict=True))
         g = float(v.get("g", centre))
         return g, float(v.get("c", 0.0)) / g, float(v.get("o", 0.0)), float(v.get("r", 0.0))
+
+
+#: |z| beyond which a channel's declared calibration and the campaign's own reading of the same factor disagree:
+#: the two-sided normal quantile at the diagnosis' alpha, 10⁻³.
+CALIBRATION_Z = 3.29
+
+
+def calibration_z(reading: float, reading_se: float, declared: float, declared_sd: float) -> float:
+    """(reading - declared)/√(reading_se² + declared_sd²): how many standard errors a campaign's own reading of a
+    calibrated factor (the load cell's gain, the LVDT's scale) lies from its declared calibration; 0 where the
+    reading has no finite standard error (nothing to tell them apart by)."""
+    if reading_se is None or not math.isfinite(reading_se):
+        return 0.0
+    return (reading - declared) / math.sqrt(reading_se**2 + declared_sd**2)
+
+
+def gain_reading(terms: LinearTerms, force_N: np.ndarray, model_N: np.ndarray, sign: np.ndarray,
+                 weight: np.ndarray, time_s: np.ndarray | None = None) -> tuple[float, float]:
+    """(g, its standard error) of the load-cell gain as the campaign's own data read it, ``model_N`` held and the
+    calibration's row left out: the linear terms solved with the gain free and held at the calibration's centre;
+    the weighted χ² rises by (g - centre)²/se² between the two (linear least squares), whence se (infinite where
+    g is the centre)."""
+    own = dataclasses.replace(terms, gain_sd=None)
+    held = dataclasses.replace(terms, free=tuple(t for t in terms.free if t != "force_gain"))
+
+    def chi2(t: LinearTerms) -> tuple[float, float]:
+        g, _fc, offset, drift = t.solve(force_N, model_N, sign, weight, False, time_s)
+        resid = force_N - g * model_N - offset - (0.0 if time_s is None else drift * np.asarray(time_s, float))
+        return g, float(np.sum(weight * resid**2))
+
+    g, chi2_own = chi2(own)
+    rise = chi2(held)[1] - chi2_own
+    return g, abs(g - terms.gain_centre) / math.sqrt(rise) if rise > 0.0 else math.inf
 
 
 def case_delays(cases: pd.DataFrame) -> dict:
@@ -363,13 +397,16 @@ def calibrated_scale(scale: dict, calibration: tuple[float, float] | None) -> di
     (:func:`scale_measured`), k is the scale: ``estimate`` k, applied where k is not 1 (the model then driven at
     the measured speeds divided by k, as with a measured scale), ``std_error`` k·u, ``uncertainty_rel`` u,
     ``source`` CALIBRATION_SOURCE, and the command's reading set aside, if any, under ``command``; where one
-    does, the measurement stands. Either way the declaration is reported under ``calibration``."""
+    does, the measurement stands, and the declaration gains ``z`` (:func:`calibration_z`, the measured scale against
+    it) and ``agrees`` (|z| <= CALIBRATION_Z: a stale calibration, or a servo that closes on another transducer,
+    is said, not taken silently). Either way the declaration is reported under ``calibration``."""
     if calibration is None:
         return scale
     k, u = (float(v) for v in calibration)
     declared = {"scale": k, "uncertainty_rel": u}
     if scale_measured(scale):
-        return {**scale, "calibration": declared}
+        z = calibration_z(float(scale["estimate"]), scale["std_error"], k, k * u)
+        return {**scale, "calibration": {**declared, "z": z, "agrees": bool(abs(z) <= CALIBRATION_Z)}}
     out = {"estimate": k, "std_error": k * u, "uncertainty_rel": u, "n_cases": 0, "applied": k != 1.0,
            "source": CALIBRATION_SOURCE, "calibration": declared}
     return out if scale["estimate"] is None else {**out, "command": scale}

@@ -43,11 +43,14 @@ from isokinetic.diagnosis.candidate import (
 from isokinetic.diagnosis.gap import gap_bands
 from isokinetic.diagnosis.identifiability import identifiability
 from isokinetic.diagnosis.instrument import (
+    CALIBRATION_Z,
     DRIFT,
     LAG_FORM_NAMES,
     LAG_FORMS,
+    calibration_z,
     displacement_scale,
     fit_force_lag,
+    gain_reading,
     scale_measured,
 )
 from isokinetic.diagnosis.observations import Observations
@@ -114,6 +117,35 @@ SCALE_CONFOUNDED_NOTE = (
     "gain 1/k plus C_D·√k (displacement scale ≡ load-cell gain + C_D·√k): the discharge and viscosity "
     "effects claimed, or the load-cell gain reported, may be an LVDT scale error; calibrate the LVDT (and "
     "declare it: columns.displacement.calibration) or record the command to decide")
+
+#: What each disagreeing calibration is said with (``calibration_note``, contract 1.7).
+CALIBRATION_NOTES = {
+    "force": ("the load cell's declared calibration (gain {declared:.5g}, u {u:.2g}) and this campaign's data "
+              "disagree: the data read the gain as {reading:.5g}, {z:+.1f} standard errors from it; the fit holds "
+              "the gain near the calibration, so an effect may be absorbing the difference: check the calibration "
+              "(or whether the load cell's conditioning changed since)"),
+    "displacement": ("the LVDT's declared calibration (scale {declared:.5g}, u {u:.2g}) and the command channel "
+                     "disagree: the command reads the scale as {reading:.5g}, {z:+.1f} standard errors from it; the "
+                     "command's reading is applied: check the LVDT's calibration, or whether the servo closes on "
+                     "another transducer (the command then is no measure of the motion)"),
+}
+
+
+def calibration_keys(out: dict) -> None:
+    """``calibration_note`` where a declared calibration disagrees with the campaign's own reading of the same
+    factor (beyond CALIBRATION_Z standard errors): the load cell's (``instrument_tests.force_gain.calibration``) or
+    the LVDT's (``instrument_tests.displacement_scale.calibration``, beside a command channel's reading)."""
+    tests = out.get("instrument_tests") or {}
+    notes = []
+    for channel, key, reading in (("force", "force_gain", "reading"), ("displacement", "displacement_scale", None)):
+        cal = (tests.get(key) or {}).get("calibration") or {}
+        if cal.get("agrees") is False:
+            declared = cal.get("gain", cal.get("scale"))
+            value = cal[reading] if reading else tests[key]["estimate"]
+            notes.append(CALIBRATION_NOTES[channel].format(declared=declared, u=cal["uncertainty_rel"], reading=value,
+                                                           z=cal["z"]))
+    if notes:
+        out["calibration_note"] = "; ".join(notes)
 
 
 def instrument_confounding(out: dict, dg: Diagnoser, best, candidates, verdict: list[str], hyp: dict | None,
@@ -231,6 +263,7 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
                                           "force_offset_N": [-dg.linear.offset_bound_N, dg.linear.offset_bound_N],
                                           "force_drift_N_s": [-dg.linear.drift_bound_N_s, dg.linear.drift_bound_N_s]}}
     instrument_confounding(out, bdg, best, candidates, verdict, hyp, scale)
+    calibration_keys(out)
     residual_inputs = structure_keys(out, dg.obs, best, alpha, sensor, damper)
     if dg.failed or (bdg is not dg and bdg.failed):
         out["failed_fits"] = dg.failed + (bdg.failed if bdg is not dg else [])
@@ -518,6 +551,11 @@ def instrument_report(dg: Diagnoser, best: Candidate, delay_s: float | None,
         tests[DRIFT] = {"estimate": None, "needed": False, "reason": "no campaign time per observation"}
     if obs.force_calibration is not None:   # the declared calibration the gain is held to (its estimate, or held)
         declared = dict(zip(("gain", "uncertainty_rel"), obs.force_calibration, strict=True))
+        terms = dg.terms((*best.instrument, "force_gain") if "force_gain" not in best.instrument else best.instrument)
+        reading, reading_se = gain_reading(terms, obs.force_N, best.prediction, obs.sign, dg.weight, dg.time_s)
+        z = calibration_z(reading, reading_se, declared["gain"], declared["gain"] * declared["uncertainty_rel"])
+        declared.update(reading=reading, reading_std_error=reading_se if math.isfinite(reading_se) else None, z=z,
+                        agrees=bool(abs(z) <= CALIBRATION_Z))
         tests["force_gain"] = {**tests.get("force_gain", {"estimate": gain, "needed": False}), "calibration": declared}
     return ({"delay_s": delay_s,
              "force_offset_N": offset if needed["force_offset"] else None,

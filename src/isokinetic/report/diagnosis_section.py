@@ -311,6 +311,7 @@ def diagnosis_section(diag: Mapping | None, src: Source, figures: Sequence[Figur
     return {"state": "ok", "verdict": ", ".join(diag.get("verdict") or []), "explained": diag.get("explained", True),
             "unexplained_note": diag.get("unexplained_note", ""), "how_far": _how_far(diag, src),
             "instrument": _instrument(diag, src), "instrument_note": diag.get("confounded_instrument_note"),
+            "calibration_note": diag.get("calibration_note"),
             "params": _params(diag, src), "correlation": _correlation(diag), "where": _where(diag, src),
             "structure": _structure(diag, src),
             "viscosity_note": Markup(viscosity_note) if viscosity_note else None,
