@@ -27,7 +27,7 @@ from isokinetic.contracts.settings import DEFAULTS, DesignLimits, WindowSpec
 from isokinetic.diagnosis.observations import Observations
 from isokinetic.diagnosis.sine_observations import SKIPPED_CYCLES, mean_speed, phase_bins
 from isokinetic.measurement.windows import windowed_half_periods
-from isokinetic.physics.convergence import stroke_to_converge
+from isokinetic.physics.convergence import strokes_to_converge_in_a_cycle
 from isokinetic.physics.damper import Damper, Effects
 from isokinetic.physics.plan import CasePlan
 from isokinetic.physics.responses import Drive, drive_times
@@ -124,10 +124,8 @@ def converges(plan: CasePlan, damper: Damper, effects: Sequence[Effects], phi: f
     y, w = plan.amplitude_m, plan.velocity_m_s
     have = 2.0 * spec.start_fraction * y
     for eff in effects:
-        need = [stroke_to_converge(w, damper, phi=phi, start_position_m=-y, effects=eff),
-                stroke_to_converge(w, damper, phi=phi, start_position_m=-y, effects=eff, reversal=True),
-                stroke_to_converge(-w, damper, phi=phi, start_position_m=y, effects=eff, reversal=True)]
-        if not all(np.isfinite(s) and s <= have for s in (float(v) for v in need)):
+        need = strokes_to_converge_in_a_cycle(w, damper, phi=phi, start_position_m=-y, effects=eff)
+        if not all(np.isfinite(s) and s <= have for s in need):
             return False
     return True
 

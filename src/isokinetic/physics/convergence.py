@@ -243,6 +243,20 @@ def stroke_to_converge(velocity_m_s, damper: Damper, *, phi: float, start_positi
     return d * v_comp / damper.piston_area_m2
 
 
+def strokes_to_converge_in_a_cycle(velocity_m_s: float, damper: Damper, *, phi: float, start_position_m: float,
+                                   effects: Effects = NOMINAL) -> tuple[float, float, float]:
+    """(from rest, after the first reversal, after the second) strokes to converge (Eq. 28, mixed flow) of a
+    triangle case whose first half-period starts at ``start_position_m`` at ``velocity_m_s``: from rest there;
+    from the opposite steady Δp at the other end (-start_position_m, moving back); and again at the start's end
+    (moving on as first). Every window after the first follows one of the two reversals, and the chambers' volumes,
+    hence the strokes, differ at the two ends."""
+    kw = {"phi": phi, "effects": effects}
+    y0, w = float(start_position_m), float(velocity_m_s)
+    return (float(stroke_to_converge(w, damper, start_position_m=y0, **kw)),
+            float(stroke_to_converge(-w, damper, start_position_m=-y0, reversal=True, **kw)),
+            float(stroke_to_converge(w, damper, start_position_m=y0, reversal=True, **kw)))
+
+
 def time_to_converge(velocity_m_s, damper: Damper, **kwargs):
     """Time after the velocity step to reach ϕ of Δp∞: stroke_to_converge / |W| [s]."""
     s = stroke_to_converge(velocity_m_s, damper, **kwargs)

@@ -23,7 +23,7 @@ from isokinetic.contracts import tables
 from isokinetic.contracts.campaign_folder import CampaignFolder
 from isokinetic.contracts.outputs import STAGE_OUTPUTS
 from isokinetic.io import write_parquet
-from isokinetic.physics.convergence import check_phi, g1, g2, g3, stroke_to_converge
+from isokinetic.physics.convergence import check_phi, g1, g2, g3, stroke_to_converge, strokes_to_converge_in_a_cycle
 from isokinetic.physics.damper import NOMINAL, Damper, Effects
 from isokinetic.physics.plan import CasePlan, first_half_period
 from isokinetic.plots.design import mm_label, percent_label, write_design_figures
@@ -67,7 +67,8 @@ def plan_check(campaign: str, cases, damper, *, phi: float, max_amplitude_m: flo
     Triangle cases, at W = 4Y/T (Eq. 26) and the first half-period's start (-Y for phase -π/2):
     G1, G2, G3 (Eq. 19-22); strokes to reach ϕ of Δp∞ for laminar, turbulent (Eq. 29) and mixed
     flow (Eq. 28, = ``stroke_to_converge_m``), the time to converge, and the reversal stroke
-    (it counts towards ``flagged``). The window starts at ``start_fraction`` T/2, i.e. after the stroke
+    (the larger of the two reversals', at either end, :func:`strokes_to_converge_in_a_cycle`; it counts towards
+    ``flagged``). The window starts at ``start_fraction`` T/2, i.e. after the stroke
     ``window_start_stroke_m`` = start_fraction (T/2) W. Sine cases: G-numbers at the peak velocity
     2πfY, only travel and noise-floor checks. Free cases: nothing planned to check.
 
@@ -153,11 +154,15 @@ def _check_triangle(row: dict, rec: Mapping, dmp: Damper | None, phi: float, sta
                stroke_laminar_m=float(stroke_to_converge(wd, dmp, flow="laminar", **kw)),
                stroke_turbulent_m=float(stroke_to_converge(wd, dmp, flow="turbulent", **kw)),
                stroke_mixed_m=float(stroke_to_converge(wd, dmp, **kw)),
-               stroke_to_converge_reversal_m=float(stroke_to_converge(-wd, dmp, reversal=True, **{
-                   **kw, "start_position_m": -y0})))
+               stroke_to_converge_reversal_m=max(strokes_to_converge_in_a_cycle(wd, dmp, **kw)[1:], key=_unreached))
     row["stroke_to_converge_m"] = row["stroke_mixed_m"]
     row["time_to_converge_s"] = row["stroke_to_converge_m"] / w
     _check_convergence(row, phi, start_fraction, reasons)
+
+
+def _unreached(stroke_m: float) -> float:
+    """A stroke's order as the larger need: one never reached (NaN, from G3 <= 1) counts as infinite."""
+    return stroke_m if stroke_m == stroke_m else math.inf
 
 
 def _check_convergence(row: dict, phi: float, start_fraction: float, reasons: list[str]) -> None:
