@@ -32,9 +32,11 @@ def test_a_bypass_groove_at_mid_stroke_is_not_explained_and_is_located_in_positi
     assert "position" in result["structure"]["axes"]
     groove = [e for e in result["where"] if e.get("axis") == "position" and e["z"] < 0]
     assert groove, result["where"]
-    strongest = max(groove, key=lambda e: abs(e["z"]))
-    assert -1.5e-3 < strongest["range"][0] < 0.0 < strongest["range"][1] < 1.5e-3
-    assert strongest["mean_rel"] < 0   # the damper is weaker there than the verdict
+    for run in groove:   # the damper weaker there than the verdict, inside the groove (1 mm and its taper)
+        assert -1.5e-3 < run["range"][0] <= run["range"][1] < 1.5e-3 and run["mean_rel"] < 0
+    # located out to its edges on both sides (the parts nearest mid-stroke, of strokes that lie wholly inside the
+    # groove, carry no contrast within their windows and may fall below the runs' |z|)
+    assert min(r["range"][0] for r in groove) < -0.8e-3 and max(r["range"][1] for r in groove) > 0.8e-3
 
 
 def test_orifice_wear_over_the_campaign_is_not_explained_and_is_located_in_time(tmp_path):

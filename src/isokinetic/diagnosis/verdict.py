@@ -258,10 +258,7 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
     out["instrument_tests"] = {**tests, "delay": {k: v for k, v in delays.items() if k != "delay_s"},
                                "force_lag": None if lag is None and hyp is None else
                                {**(hyp["report"] if hyp is not None else {}), **(lag or {})},
-                               "displacement_scale": scale,
-                               "bounds": {"force_gain": list(dg.linear.gain_range),
-                                          "force_offset_N": [-dg.linear.offset_bound_N, dg.linear.offset_bound_N],
-                                          "force_drift_N_s": [-dg.linear.drift_bound_N_s, dg.linear.drift_bound_N_s]}}
+                               "displacement_scale": scale, "bounds": term_bounds(dg)}
     instrument_confounding(out, bdg, best, candidates, verdict, hyp, scale)
     calibration_keys(out)
     residual_inputs = structure_keys(out, dg.obs, best, alpha, sensor, damper)
@@ -273,6 +270,13 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
                    "verdict": None if best is None or not verdict else best.measured_prediction,
                    "fits": fits_of(dg, bdg, best, candidates, hyp, verdict)}
     return json_safe(out), predictions
+
+
+def term_bounds(dg: Diagnoser) -> dict:
+    """The bounds every fit keeps the load-cell terms within (``instrument_tests.bounds``)."""
+    lin = dg.linear
+    return {"force_gain": list(lin.gain_range), "force_offset_N": [-lin.offset_bound_N, lin.offset_bound_N],
+            "force_drift_N_s": [-lin.drift_bound_N_s, lin.drift_bound_N_s]}
 
 
 def fits_of(dg: Diagnoser, bdg: Diagnoser, best: Candidate, candidates: Sequence[Candidate], hyp: dict | None,
