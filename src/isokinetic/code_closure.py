@@ -80,8 +80,9 @@ def imported_modules(source: str, name: str, is_package: bool = False) -> set[st
 
 @functools.cache
 def package_graph(root: Path) -> dict[str, tuple[str, frozenset[str]]]:
-    """Module -> (its file, the package's modules it imports) for every module under ``root``."""
-    files = {module_name(p, root): p for p in sorted(root.rglob("*.py"))}
+    """Module -> (its file, the package's modules it imports) for every module under ``root``: the Python modules
+    and the C sources of the compiled ones (``physics/_sine_kernel.c``, imported as ``physics._sine_kernel``)."""
+    files = {module_name(p, root): p for p in sorted([*root.rglob("*.py"), *root.rglob("*.c")])}
     graph = {}
     for name, path in files.items():
         found = imported_modules(path.read_text(encoding="utf-8"), name, path.name == "__init__.py")

@@ -1,6 +1,7 @@
 """The damper on the physics' grid (physics.sine_grid): against LSODA on every sample, an independent integrator."""
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -8,7 +9,22 @@ import pytest
 from isokinetic.physics.damper import NOMINAL, Damper, Effects
 from isokinetic.physics.hydraulics import Hydraulics
 from isokinetic.physics.sine_drive import SineDrive, sine_drive_response
-from isokinetic.physics.sine_grid import POINTS_PER_CYCLE, grid_response, stage_motion
+from isokinetic.physics.sine_grid import (
+    CONVERGED,
+    FIRST_SUBSTEP,
+    NEWTON_ITERATIONS,
+    NEWTON_TOL,
+    POINTS_PER_CYCLE,
+    RADAU_A,
+    RADAU_C,
+    SUBSTEPS,
+    _sine_kernel,
+    built_before_edit,
+    grid_parameters,
+    grid_response,
+    mode_sweep,
+    stage_motion,
+)
 from isokinetic.reference.rig import TABLE1
 
 DAMPER = Damper.from_mapping({**TABLE1.to_dict(), "charge_pressure_Pa": 2.0e6})
@@ -78,3 +94,50 @@ def test_the_grid_does_not_depend_on_the_sampling_rate():
     u = 2 * math.pi * np.arange(POINTS_PER_CYCLE) / POINTS_PER_CYCLE
     np.testing.assert_allclose(y[:, 3], 1e-3 * np.sin(u), atol=1e-15)
     np.testing.assert_allclose(v[:, 3], 1e-3 * 2 * math.pi * 2.0 * np.cos(u), atol=1e-15)
+
+
+@pytest.mark.parametrize("lam", [0j, -2.0 + 0j, -2.0 + 3.0j], ids=["integrator", "real-mode", "complex-mode"])
+def test_the_mode_sweep_is_the_integrated_mode_equation(lam):
+    from scipy.integrate import solve_ivp
+
+    jumps, signs = np.array([0.5, 1.2, 2.0]), np.array([1.0, -1.0, 1.0])
+    queries = np.array([0.0, 0.3, 0.5, 0.9, 1.2, 1.7, 2.6, 3.0])
+    w, big = np.empty(queries.size, complex), np.empty(queries.size, complex)
+    mode_sweep(jumps, signs, lam, queries, w, big)
+
+    def rate(t, y):   # w' = λ w + σ(t), W' = w: real and imaginary parts
+        sigma = signs[np.searchsorted(jumps, t, side="right") - 1] if t >= jumps[0] else 0.0
+        dw = lam * (y[0] + 1j * y[1]) + sigma
+        return [dw.real, dw.imag, y[0], y[1]]
+
+    ref = solve_ivp(rate, (0.0, 3.0), [0.0] * 4, t_eval=queries, rtol=1e-11, atol=1e-13, max_step=0.01)
+    assert np.allclose(w, ref.y[0] + 1j * ref.y[1], atol=1e-8)
+    assert np.allclose(big, ref.y[2] + 1j * ref.y[3], atol=1e-8)
+
+
+def test_the_kernel_refuses_an_array_of_the_wrong_type_or_size_naming_it():
+    hyd = Hydraulics.from_damper(DAMPER, NOMINAL)
+    par = grid_parameters(1e-4, 1.0, hyd, POINTS_PER_CYCLE)
+    stage_y, stage_v = stage_motion(1e-4, 1.0, (), POINTS_PER_CYCLE)
+    out = np.empty(11)
+    args = [par, np.zeros(0), np.zeros(0), np.zeros(0), RADAU_A, RADAU_C, 10, POINTS_PER_CYCLE, SUBSTEPS,
+            FIRST_SUBSTEP, CONVERGED, NEWTON_ITERATIONS, NEWTON_TOL, stage_y, stage_v, out, out.copy()]
+    assert _sine_kernel.integrate(*args) == -1   # ten steps: no cycle repeats yet
+    with pytest.raises(TypeError, match="par: items of format 'd' expected"):
+        _sine_kernel.integrate(par.astype(np.float32), *args[1:])
+    with pytest.raises(ValueError, match="out_p: 11 items expected, 12 given"):
+        _sine_kernel.integrate(*args[:15], np.empty(12), out)
+    with pytest.raises(TypeError, match="stage_y: a C-contiguous array"):
+        _sine_kernel.integrate(*args[:13], np.asfortranarray(stage_y), *args[14:])
+
+
+def test_a_kernel_built_before_its_source_was_edited_is_refused(tmp_path):
+    source, built = tmp_path / "_sine_kernel.c", tmp_path / "_sine_kernel.so"
+    built.write_bytes(b"")
+    assert not built_before_edit(source, built)   # an installed package ships no source
+    source.write_text("/* edited */")
+    os.utime(built, (1.0e9, 1.0e9))
+    assert built_before_edit(source, built)
+    os.utime(built, None)
+    os.utime(source, (1.0e9, 1.0e9))
+    assert not built_before_edit(source, built)

@@ -137,11 +137,13 @@ def test_paths_named_in_the_docs_exist(doc):
 
 
 def names_something_in(module_path: str) -> bool:
-    """True if a dotted name (isokinetic.kind.module[.attribute]) is a module, or a name in one."""
+    """True if a dotted name (isokinetic.kind.module[.attribute]) is a module (a compiled one: its C source), or a
+    name in one."""
     parts = module_path.split(".")
     for i in range(len(parts), 0, -1):
         base = PACKAGE.parent.joinpath(*parts[:i])
-        source = base.with_suffix(".py") if base.with_suffix(".py").is_file() else base / "__init__.py"
+        found = [p for p in (base.with_suffix(".py"), base.with_suffix(".c")) if p.is_file()]
+        source = found[0] if found else base / "__init__.py"
         if source.is_file():
             rest = parts[i:]
             return not rest or re.search(rf"\b{re.escape(rest[0])}\b", source.read_text(encoding="utf-8")) is not None

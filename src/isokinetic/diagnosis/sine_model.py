@@ -35,6 +35,7 @@ from isokinetic.physics.damper import Damper, Effects
 from isokinetic.physics.hydraulics import Hydraulics
 from isokinetic.physics.responses import scaled_viscosity
 from isokinetic.physics.sine_drive import SineDrive
+from isokinetic.physics.sine_grid import grid_response, mode_sweep
 
 #: Model runs (effects -> the grids of every case) remembered, the least recent dropped first.
 RUN_CACHE = 64
@@ -186,8 +187,6 @@ def reversals(drive: SineDrive, end_s: float, points: int = 4096) -> tuple[np.nd
 def sweep(jumps: np.ndarray, signs: np.ndarray, lam: complex, queries: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`isokinetic.physics.sine_grid.mode_sweep` at any ``queries`` (sorted here, returned in their order;
     times <= 0: 0)."""
-    from isokinetic.physics.sine_grid import mode_sweep  # numba: only where a sine campaign is modelled
-
     order = np.argsort(queries, kind="stable")
     w, big = np.empty(queries.size, dtype=complex), np.empty(queries.size, dtype=complex)
     mode_sweep(jumps, signs.astype(float), complex(lam), np.maximum(queries[order], 0.0), w, big)
@@ -232,8 +231,6 @@ class GridEvaluator:
         if hit is not None:
             self._runs.move_to_end(effects)
             return hit
-        from isokinetic.physics.sine_grid import grid_response  # numba: only where a sine campaign is modelled
-
         self.calls += 1
         hyd = Hydraulics.from_damper(self.damper, effects)
         scales = self.obs.viscosity_scale or (1.0,) * len(self.drives)
