@@ -13,7 +13,6 @@ from isokinetic.diagnosis.sine_observations import phase_bins
 from isokinetic.diagnosis.structure import (
     AXES,
     QUANTITIES,
-    axis_data,
     between_unit_variance,
     binned_test,
     drift_test,
@@ -446,35 +445,89 @@ def test_a_share_of_the_force_lost_over_the_campaign_is_found_in_time_whatever_e
     assert time["trend_rel_p"] < time["trend_p"]
 
 
+def case_start_times_s(obs: Observations) -> np.ndarray:
+    """Each observation's case's campaign time (the cases 100 s apart): the drift test's clock."""
+    return obs.case_index * 100.0
+
+
 def drift_case_sensitivity(obs: Observations, seed: int = 21) -> np.ndarray:
-    """A parameter's sensitivity ∂F/∂ln θ [N] per observation: each case's own, spread over 100× (an orifice's
-    coefficient matters at the fast cases only), in the direction of motion."""
-    per_case = np.geomspace(0.05, 5.0, len(obs.plans))[np.random.default_rng(seed).permutation(len(obs.plans))]
-    return obs.sign * per_case[obs.case_index] * obs.sigma_N
-
-
-def time_units(obs: Observations):
-    """The campaign-time axis' units of ``obs`` (cases back to back, 100 s each)."""
-    return next(d for d in axis_data(obs, case_times_s(obs)) if d.axis == "time")
+    """A parameter's sensitivity ∂F/∂ln θ [N] per observation: each case's own, 1 to 100 standard errors per unit
+    of ln θ (an orifice's area matters at the fast cases most), in the direction of motion; within a case, a
+    window's twice its transient bins' (observations of one case differ in how they respond)."""
+    per_case = np.geomspace(1.0, 100.0, len(obs.plans))[np.random.default_rng(seed).permutation(len(obs.plans))]
+    return obs.sign * per_case[obs.case_index] * np.where(obs.kind == "window", 2.0, 1.0) * obs.sigma_N
 
 
 def test_the_drift_test_keeps_its_level_with_each_cases_own_error():
+    # every case's θ off by its own 3 % (3 standard errors where a unit of ln θ is 100), and white noise: no
+    # drift, whatever each case's own change
     obs = triangle_campaign()
     sens = drift_case_sensitivity(obs)
+    g = obs.sign * sens / obs.sigma_N
     n, alarms = 300, 0
     for k in range(n):
-        case_error = np.random.default_rng([78, k]).normal(0.0, 3.0, len(obs.plans))[obs.case_index]
-        z = noise(obs, 4000 + k) + case_error
-        alarms += drift_test(obs, z, time_units(obs), sens, "discharge_coefficient")["p"] < 0.05
+        case_error = np.random.default_rng([78, k]).normal(0.0, 0.03, len(obs.plans))[obs.case_index]
+        z = noise(obs, 4000 + k) + case_error * g
+        alarms += drift_test(obs, z, case_start_times_s(obs), sens, "orifice_area")["p"] < 0.05
     assert alarms / n <= 0.05 + 3.0 * math.sqrt(0.05 * 0.95 / n)
 
 
 def test_a_parameter_drifting_in_time_is_found_through_its_own_sensitivity():
-    # θ grows 2 % a case in run order: its signature is 10 σ in the most sensitive case, nil in the least
+    # θ grows 0.5 % a case in campaign time: 8 σ in the most sensitive case's windows at the campaign's ends, a
+    # twelfth of one in the least sensitive's
     obs = triangle_campaign()
     sens = drift_case_sensitivity(obs)
-    z = noise(obs, 41) + 0.02 * (obs.case_index - obs.case_index.mean()) * obs.sign * sens / obs.sigma_N * 15
-    found = drift_test(obs, z, time_units(obs), sens, "discharge_coefficient")
-    assert found["p"] < ALPHA and found["trend_t"] > 0 and found["change_rel"] > 0
+    t = case_start_times_s(obs)
+    z = noise(obs, 41) + 0.005 * (t - t.mean()) / 100.0 * obs.sign * sens / obs.sigma_N
+    found = drift_test(obs, z, t, sens, "orifice_area")
+    assert found["p"] < ALPHA and found["trend_t"] > 0
+    assert found["change_rel"] == pytest.approx(0.005 * np.ptp(t) / 100.0, rel=0.1)
     trend = next(t for t in structure_of(obs, z)["tests"] if t["axis"] == "time")
     assert found["p"] < trend["trend_p"]   # the trend of U weighs every case alike
+
+
+def test_a_drift_the_verdicts_own_parameter_absorbed_is_found_beside_it_at_its_size():
+    # the verdict refitted a second parameter to the drifting data, one whose signature h grows along the run as
+    # the cases' speeds do (its windows far more than its transient bins), so its residuals are the drift less its
+    # projection on h: given h's column the test finds the whole drift, without it a fraction, not beyond noise
+    obs = triangle_campaign()
+    sens = drift_case_sensitivity(obs)
+    g = obs.sign * sens / obs.sigma_N
+    t = case_start_times_s(obs)
+    h = g * (t - t.mean()) / np.ptp(t) * np.where(obs.kind == "window", 1.0, 0.2)
+    true = 0.005 * np.ptp(t) / 100.0
+    data = noise(obs, 43) + 0.005 * (t - t.mean()) / 100.0 * g
+    fitted = data - h * (h @ data) / (h @ h)
+    beside = drift_test(obs, fitted, t, sens, "orifice_area", jacobian=(obs.sign * h)[:, None])
+    alone = drift_test(obs, fitted, t, sens, "orifice_area")
+    assert beside["p"] < ALPHA and beside["change_rel"] == pytest.approx(true, rel=0.25)
+    assert alone["p"] > ALPHA and alone["change_rel"] < 0.5 * true
+
+
+def test_the_drift_tests_estimate_is_the_generalised_least_squares_fit_of_its_covariance():
+    # an independent computation: the covariance I + τ² Σ_c g_c g_cᵀ built and inverted whole, at the τ² the test
+    # reports, and the restricted likelihood it maximised evaluated on a grid
+    obs = triangle_campaign()
+    sens = drift_case_sensitivity(obs, seed=5)
+    g = obs.sign * sens / obs.sigma_N
+    t = case_start_times_s(obs)
+    rng = np.random.default_rng(12)
+    z = rng.normal(size=len(obs)) + rng.normal(0.0, 0.01, len(obs.plans))[obs.case_index] * g \
+        + 0.001 * (t - t.mean()) / 100.0 * g
+    found = drift_test(obs, z, t, sens, "viscosity_Pa_s")
+    design = np.column_stack([g, (t - t.mean()) * g])
+    blocks = np.equal.outer(obs.case_index, obs.case_index) * np.outer(g, g)
+
+    def reml(tau2):
+        cov = np.eye(len(obs)) + tau2 * blocks
+        v_inv = np.linalg.inv(cov)
+        a = design.T @ v_inv @ design
+        beta = np.linalg.solve(a, design.T @ v_inv @ z)
+        r = z - design @ beta
+        return np.linalg.slogdet(cov)[1] + np.linalg.slogdet(a)[1] + r @ v_inv @ r, beta, a
+
+    objective, beta, a = reml(found["between_cases_rel"] ** 2)
+    assert found["between_cases_rel"] > 0.0
+    assert min(reml(x)[0] for x in np.geomspace(1e-4, 10.0, 60)) >= objective - 1e-6
+    assert found["change_rel"] == pytest.approx(beta[1] * np.ptp(t), rel=1e-6)
+    assert found["trend_t"] == pytest.approx(beta[1] / math.sqrt(found["scale"] * np.linalg.inv(a)[1, 1]), rel=1e-6)

@@ -1,10 +1,11 @@
 """The diagnosis.json document: its versions, the document of a campaign not diagnosed, JSON-safe
 values, validation against the schema shipped with the package, and its row-level sources.
 
-Contract ``docs/diagnosis-output.md``, version 1.7 (1.1 and 1.2 readers keep working: 1.2 and 1.3 only add keys,
+Contract ``docs/diagnosis-output.md``, version 1.8 (1.1 and 1.2 readers keep working: 1.2 and 1.3 only add keys,
 1.4 makes the within-window structure test decide, 1.5 adds ``next_tests``, the plan of extra cases, 1.6 its
 ``calibrations``, the load-cell calibration proposed beside them, 1.7 ``calibration_note``, a declared calibration
-the campaign's data contradict);
+the campaign's data contradict, 1.8 the drift tests as a mixed model of the cases, the orifice's area one of their
+parameters);
 schema ``diagnosis.schema.json``, package data of :mod:`isokinetic.contracts`
 (read through ``importlib.resources``, so a regular, non-editable install validates too).
 """
@@ -26,7 +27,7 @@ from isokinetic.diagnosis.observations import Observations
 from isokinetic.physics.sine_drive import SineDrive
 
 FORMAT_VERSION = 1
-CONTRACT_VERSION = "1.7"
+CONTRACT_VERSION = "1.8"
 #: The ``next_tests`` note of a campaign that was not diagnosed (contract 1.5).
 NOT_DIAGNOSED_NOTE = "not diagnosed: no further test proposed"
 METRIC = "rms_z"

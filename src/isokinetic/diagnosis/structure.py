@@ -70,7 +70,8 @@ AXES = ("position", "time", "temperature", "frequency", "acceleration", "phase",
 CASE_AXES = ("position", "time", "temperature", "frequency", "acceleration")
 #: The damper parameters whose drift over the campaign's time is tested (:func:`drift_test`), and what a drift of
 #: each is on a real damper.
-DRIFT_PARAMETERS = {"discharge_coefficient": "the orifice's discharge coefficient (its area: an orifice wearing)",
+DRIFT_PARAMETERS = {"orifice_area": "the orifice's flow area A_O (an orifice wearing: c1 and c2 of Eq. 7 both as "
+                                    "1/A_O²)",
                     "viscosity_Pa_s": "the oil's viscosity (its temperature: an unlogged warm-up)"}
 #: Relative step of a parameter for its sensitivity (:func:`drift_sensitivities`).
 DRIFT_STEP_REL = 0.01
@@ -537,37 +538,74 @@ def least_squares_residual(design: np.ndarray, z: np.ndarray) -> tuple[np.ndarra
     return z - design @ beta, int(rank)
 
 
-def drift_test(obs: Observations, z: np.ndarray, data: AxisData | None, sensitivity_N: np.ndarray,
-               parameter: str) -> dict | None:
-    """The score test of a damper parameter θ that drifts over the campaign's time, against the verdict's
-    residuals: with s_i = sign(v)·∂F_i/∂ln θ / σ_i (``sensitivity_N`` the derivative [N], :func:`drift_sensitivities`)
-    summed per case as U is (C_c = Σ s/√n), U_c = b0·C_c + b1·C_c·(r_c - r̄) over the cases' ranks r in campaign
-    time: b1 is θ's relative change per case of the run order (b0 a constant change the verdict missed). The t
-    of b1 with the residual mean square floored at 1 (normal where the floor binds, else Student's t (N - 2), as
-    :func:`trend_test`). A drift's signature follows the parameter's own sensitivity, large in some cases and
-    nil in others, which a trend of U alone weighs alike. ``data``: the time axis' units (:func:`axis_data`). None
-    without them or with fewer than four cases."""
-    from scipy import special
+def drift_test(obs: Observations, z: np.ndarray, time_s: np.ndarray | None, sensitivity_N: np.ndarray,
+               parameter: str, jacobian: np.ndarray | None = None) -> dict | None:
+    """The test of a damper parameter θ that drifts over the campaign's time, on the verdict's residuals ``z``
+    (sign·(F - F_verdict)/σ of the observations ``obs``, the verdict's fit's), a linear mixed model:
 
-    if data is None or np.unique(data.unit).size < 4:
+        z = J β + b0 g + b1 (t - t̄) g + Σ_c u_c g_c + ε,   u_c ~ N(0, τ²),  ε ~ N(0, 1),
+
+    g = sign·∂F/∂ln θ/σ (``sensitivity_N`` the derivative [N], :func:`drift_sensitivities`), g_c its part in case
+    c, t its case's campaign time (the mean of ``time_s`` over the case: within a case the observations' order
+    follows the cycle's phase, where an effect of position or phase lies, not a drift), J the columns of every
+    parameter the verdict fitted (its effects, force channel, load-cell terms: ``jacobian``, the derivatives of its
+    fit's residuals, in the sign of z). b1 is θ's relative drift per second: what the verdict's constant θ (b0,
+    and its parameters: β) cannot follow. u_c is each case's own change of θ (its temperature, its speed, its
+    mounting), which takes a case that lies off the line: τ² by restricted maximum likelihood. b1's variance from
+    the GLS fit, its factor floored at 1 (the stated errors are never made smaller), t referred to Student's t
+    (C - 2). Within each case the observations differ in how they respond to θ and to the verdict's parameters
+    (windows and transient bins, both directions), which separates a case's change of θ from a refit of the
+    verdict; the scatter of those changes between the cases is what a drift must stand out from. None without
+    times or with fewer than four cases."""
+    from scipy import optimize, special
+
+    if time_s is None or len(time_s) != len(obs):
         return None
-    u, x, _n = unit_sums(data.unit, z[data.rows], data.x)
-    c, _x, _n = unit_sums(data.unit, (obs.sign * sensitivity_N / obs.sigma_N)[data.rows], data.x)
-    r = pd.Series(x).rank().to_numpy(dtype=float)
-    design = np.column_stack([c, c * (r - r.mean())])
-    if np.linalg.matrix_rank(design) < 2:
+    case = obs.case_index
+    g = obs.sign * sensitivity_N / obs.sigma_N
+    n_cases = int(case.max()) + 1 if case.size else 0
+    info = np.bincount(case, weights=g * g, minlength=n_cases)
+    used = info > 0.0
+    if np.count_nonzero(used) < 4:
         return None
-    beta, *_ = np.linalg.lstsq(design, u, rcond=None)
-    resid = u - design @ beta
-    dof = u.size - 2
-    ms = float(resid @ resid) / dof
-    t = float(beta[1] / math.sqrt(max(1.0, ms) * np.linalg.inv(design.T @ design)[1, 1]))
-    p = 2.0 * float(special.stdtr(dof, -abs(t)) if ms > 1.0 else special.ndtr(-abs(t)))
+    t = np.asarray(time_s, dtype=float)
+    t = (np.bincount(case, weights=t, minlength=n_cases) / np.maximum(np.bincount(case, minlength=n_cases), 1))[case]
+    x = t - t.mean()
+    cols = [] if jacobian is None else [obs.sign[:, None] * np.asarray(jacobian, dtype=float)[:len(obs)]]
+    others = np.column_stack([*cols, g])   # the verdict's parameters and b0 (a fitted θ spans b0: A⁻¹ is a pinv)
+    drift = x * g
+    off = drift - others @ np.linalg.lstsq(others, drift, rcond=None)[0]
+    if float(off @ off) <= 1e-12 * float(drift @ drift):
+        return None   # the drift's column is spanned by the others: not testable
+    design = np.column_stack([others, drift])
+
+    def solve(tau2):   # V⁻¹ = I - Σ_c g_c g_cᵀ τ²/(1 + τ² I_c) (Woodbury); (β, A⁻¹, Q, -2 log L_R)
+        shrink = (tau2 / (1.0 + tau2 * info))[case] * g
+
+        def v_inv(m):
+            proj = np.stack([np.bincount(case, weights=g * m[:, j], minlength=n_cases) for j in range(m.shape[1])], 1)
+            return m - shrink[:, None] * proj[case]
+        vx, vz = v_inv(design), v_inv(z[:, None])[:, 0]
+        a = design.T @ vx
+        inv = np.linalg.pinv(a)
+        beta = inv @ (design.T @ vz)
+        r = z - design @ beta
+        q = float(r @ v_inv(r[:, None])[:, 0])
+        logdet = float(np.sum(np.log1p(tau2 * info[used])))
+        return beta, inv, q, logdet + float(np.linalg.slogdet(a)[1]) + q
+
+    best = optimize.minimize_scalar(lambda s: solve(math.exp(s))[3], bounds=(-30.0, 10.0), method="bounded")
+    tau2 = math.exp(best.x) if best.fun < solve(0.0)[3] else 0.0
+    beta, inv, q, _obj = solve(tau2)
+    dof = int(np.count_nonzero(used)) - 2
+    factor = max(1.0, q / max(1, len(obs) - design.shape[1]))
+    t_stat = float(beta[-1] / math.sqrt(factor * inv[-1, -1]))
+    p = 2.0 * float(special.stdtr(dof, -abs(t_stat)))
     return {"axis": "time", "test": "drift", "parameter": parameter,
             "quantity": f"a drift over campaign time of {DRIFT_PARAMETERS[parameter]}", "unit": "s",
-            "n_units": int(u.size), "n_bins": 0, "bins_F": None, "bins_p": None, "scale": max(1.0, ms),
-            "trend_t": t, "trend_p": p, "p": p, "change_rel": float(beta[1] * (u.size - 1)),
-            "range": [float(x.min()), float(x.max())]}
+            "n_units": int(np.count_nonzero(used)), "n_bins": 0, "bins_F": None, "bins_p": None, "scale": factor,
+            "between_cases_rel": math.sqrt(tau2), "trend_t": t_stat, "trend_p": p, "p": p,
+            "change_rel": float(beta[-1] * np.ptp(t)), "range": [float(t.min()), float(t.max())]}
 
 
 def drift_where(test: Mapping) -> list[dict]:
@@ -578,10 +616,22 @@ def drift_where(test: Mapping) -> list[dict]:
              "significant": True, "n_units": test["n_units"], "parameter": test["parameter"]}]
 
 
+def drifted(params: Mapping, damper, parameter: str, factor: float) -> dict:
+    """The verdict's effect values ``params`` with the damper parameter of DRIFT_PARAMETERS scaled by ``factor``
+    (each value the verdict's, else the damper's): the viscosity μ, or the orifice's area A_O, which Eq. (7) holds as
+    c1 = 8πμl_O/A_O² and c2 = ρ/(2C_D²A_O²), the same as μ/k² and C_D·k for an area k·A_O."""
+    def value(key):
+        return float(params.get(key) or getattr(damper, key))
+    if parameter == "orifice_area":
+        return {**params, "discharge_coefficient": value("discharge_coefficient") * factor,
+                "viscosity_Pa_s": value("viscosity_Pa_s") / factor**2}
+    return {**params, parameter: value(parameter) * factor}
+
+
 def drift_sensitivities(obs: Observations, damper, best) -> dict[str, np.ndarray]:
     """∂F/∂ln θ [N] of the verdict ``best``'s measured force at each observation, for each parameter θ of
-    DRIFT_PARAMETERS (its value in the verdict, else the damper's), by a forward difference of DRIFT_STEP_REL
-    through the verdict's force channel and gain. One model run per parameter and one at the verdict."""
+    DRIFT_PARAMETERS (:func:`drifted`), by a forward difference of DRIFT_STEP_REL through the verdict's force
+    channel and gain. One model run per parameter and one at the verdict."""
     from isokinetic.diagnosis.model import Evaluator
     from isokinetic.physics.damper import Effects
 
@@ -592,23 +642,21 @@ def drift_sensitivities(obs: Observations, damper, best) -> dict[str, np.ndarray
         return ev.predict(effects) if best.channel is None else ev.read(effects, best.channel[0], [best.channel[1]])[0]
 
     base = run(Effects(**params))
-    out = {}
-    for key in DRIFT_PARAMETERS:
-        value = float(params.get(key) or getattr(damper, key))
-        stepped = run(Effects(**{**params, key: value * (1.0 + DRIFT_STEP_REL)}))
-        out[key] = best.gain * (stepped - base) / math.log1p(DRIFT_STEP_REL)
-    return out
+    return {key: best.gain * (run(Effects(**drifted(params, damper, key, 1.0 + DRIFT_STEP_REL))) - base)
+            / math.log1p(DRIFT_STEP_REL) for key in DRIFT_PARAMETERS}
 
 
 def residual_structure(obs: Observations, prediction: np.ndarray, alpha: float, time_s: np.ndarray | None = None,
                        temperature_C: Mapping[str, float] | None = None,
                        parts_prediction: np.ndarray | None = None, parts_drift_N: np.ndarray | None = None,
-                       drift_sensitivity_N: Mapping[str, np.ndarray] | None = None) -> dict:
+                       drift_sensitivity_N: Mapping[str, np.ndarray] | None = None,
+                       drift_jacobian: np.ndarray | None = None, fit_mask: np.ndarray | None = None) -> dict:
     """The structure tests of the residuals of ``prediction`` (the verdict's measured prediction) on every axis
     (:func:`axis_data`, :func:`axis_test`) and, with ``parts_prediction`` (the verdict's model at the windows' parts
     ``obs.subwindows``; ``parts_drift_N``, its zero drift there), of the position within the windows
     (:func:`within_window_test`, its details also as "within_window") and, with ``drift_sensitivity_N``
-    (:func:`drift_sensitivities`), of each parameter's drift over campaign time (:func:`drift_test`),
+    (:func:`drift_sensitivities`), of each parameter's drift over campaign time (:func:`drift_test`, on the
+    observations of the verdict's fit, ``fit_mask``, beside the columns of its parameters, ``drift_jacobian``),
     Holm-adjusted together (:func:`holm`):
     {"alpha", "tests": per test made, "skipped": axis -> why, "where": entries of the significant tests, "axes":
     the axes with structure}."""
@@ -629,8 +677,11 @@ def residual_structure(obs: Observations, prediction: np.ndarray, alpha: float, 
         obs.subwindows, parts_prediction, (obs.noise or {}).get("objects"), parts_drift_N)
     if within is not None:
         tests.append(within_window_entry(within))
-    tests += [t for key, sens in (drift_sensitivity_N or {}).items()
-              if (t := drift_test(obs, z, datas.get("time"), sens, key)) is not None]
+    if drift_sensitivity_N and time_s is not None and len(time_s) == len(obs):
+        fm = np.ones(len(obs), dtype=bool) if fit_mask is None else np.asarray(fit_mask, dtype=bool)
+        fit_obs, fit_t = obs.subset(fm), np.asarray(time_s, dtype=float)[fm]
+        tests += [t for key, sens in drift_sensitivity_N.items()
+                  if (t := drift_test(fit_obs, z[fm], fit_t, sens[fm], key, drift_jacobian)) is not None]
     for test, p_adj in zip(tests, holm([t["p"] for t in tests]), strict=True):
         test["p_adjusted"] = float(p_adj)
         test["significant"] = bool(p_adj < alpha)

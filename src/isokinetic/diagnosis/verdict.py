@@ -41,7 +41,7 @@ from isokinetic.diagnosis.candidate import (
     rms,
 )
 from isokinetic.diagnosis.gap import gap_bands
-from isokinetic.diagnosis.identifiability import identifiability
+from isokinetic.diagnosis.identifiability import fit_jacobian, identifiability
 from isokinetic.diagnosis.instrument import (
     CALIBRATION_Z,
     DRIFT,
@@ -261,7 +261,7 @@ def diagnose_observations(obs: Observations, damper: Damper, alpha: float = ALPH
                                "displacement_scale": scale, "bounds": term_bounds(dg)}
     instrument_confounding(out, bdg, best, candidates, verdict, hyp, scale)
     calibration_keys(out)
-    residual_inputs = structure_keys(out, dg.obs, best, alpha, sensor, damper)
+    residual_inputs = structure_keys(out, dg.obs, best, alpha, sensor, damper, bdg)
     if dg.failed or (bdg is not dg and bdg.failed):
         out["failed_fits"] = dg.failed + (bdg.failed if bdg is not dg else [])
     # every diagnoser here shares dg's evaluators (Diagnoser.with_channel): dg.calls counts all model runs
@@ -289,12 +289,14 @@ def fits_of(dg: Diagnoser, bdg: Diagnoser, best: Candidate, candidates: Sequence
 
 
 def structure_keys(out: dict, obs: Observations, best: Candidate, alpha: float, sensor: Mapping,
-                   damper: Damper | None = None) -> dict:
+                   damper: Damper | None = None, dg: Diagnoser | None = None) -> dict:
     """The residual-structure tests of the verdict ``best``
     (:func:`isokinetic.diagnosis.structure.residual_structure`, each observation's campaign time and each case's
     temperature from ``sensor``; with ``damper``, the position within the triangle windows too, the verdict run at
     their parts: :func:`isokinetic.diagnosis.structure.parts_prediction`, and the drift of the orifice and of the
-    viscosity over the campaign's time: :func:`isokinetic.diagnosis.structure.drift_sensitivities`) as
+    viscosity over the campaign's time: :func:`isokinetic.diagnosis.structure.drift_sensitivities`, beside the
+    verdict's own parameters where its diagnoser ``dg`` is given: its
+    :func:`isokinetic.diagnosis.identifiability.fit_jacobian`) as
     ``out['structure']``, their significant axes added to ``where``; where any axis shows structure, the verdict is
     not ``explained`` and ``structure_note`` names the axes (contract 1.3). Returns the tests' inputs
     (``prediction``, ``time_s``, ``temperature_C``) for Fig. 16."""
@@ -305,13 +307,16 @@ def structure_keys(out: dict, obs: Observations, best: Candidate, alpha: float, 
         parts = None if damper is None else parts_prediction(obs, damper, best)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:   # the other tests stand
         failed = f"the verdict's model run at the window parts failed: {type(exc).__name__}: {exc}"
+    jacobian = None
     try:
         drifts = None if damper is None else drift_sensitivities(obs, damper, best)
+        jacobian = None if dg is None or drifts is None else fit_jacobian(dg, best)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError):   # no drift test: the other tests stand
         drifts = None
     structure = residual_structure(obs, **inputs, alpha=alpha, parts_prediction=parts,
                                    parts_drift_N=None if parts is None else parts_drift(obs, best),
-                                   drift_sensitivity_N=drifts)
+                                   drift_sensitivity_N=drifts, drift_jacobian=jacobian,
+                                   fit_mask=None if dg is None else dg.fit_mask)
     if failed:
         structure["within_window"] = {"error": failed}
     out["where"] = [*out["where"], *structure.pop("where")]

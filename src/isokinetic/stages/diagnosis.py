@@ -370,7 +370,7 @@ def judge_on_all_records(result: dict, predictions: dict, obs: Observations, sen
                 out["triangles_verdict"][key] = out.pop(key)
         out["where"] = [w for w in out.get("where", []) if w.get("axis") == "speed"]   # the nominal model's gap
         predictions.update(verdict=best.triangles.measured_prediction,
-                           structure=structure_keys(out, obs, best.triangles, alpha, sensor, damper))
+                           structure=structure_keys(out, obs, best.triangles, alpha, sensor, damper, dg))
     return json_safe(out)
 
 
