@@ -553,10 +553,11 @@ def drift_test(obs: Observations, z: np.ndarray, time_s: np.ndarray | None, sens
     and its parameters: β) cannot follow. u_c is each case's own change of θ (its temperature, its speed, its
     mounting), which takes a case that lies off the line: τ² by restricted maximum likelihood. b1's variance from
     the GLS fit, its factor floored at 1 (the stated errors are never made smaller), t referred to Student's t
-    (C - 2). Within each case the observations differ in how they respond to θ and to the verdict's parameters
-    (windows and transient bins, both directions), which separates a case's change of θ from a refit of the
-    verdict; the scatter of those changes between the cases is what a drift must stand out from. None without
-    times or with fewer than four cases."""
+    (C - 2), the factor Knapp and Hartung's on the cases' changes left by the fit (as a meta-regression's: a τ²
+    from a few cases is often too small). Within each case the observations differ in how they respond to θ and to
+    the verdict's parameters (windows and transient bins, both directions), which separates a case's change of θ
+    from a refit of the verdict; the scatter of those changes between the cases is what a drift must stand out
+    from. None without times or with fewer than four cases."""
     from scipy import optimize, special
 
     if time_s is None or len(time_s) != len(obs):
@@ -596,9 +597,12 @@ def drift_test(obs: Observations, z: np.ndarray, time_s: np.ndarray | None, sens
 
     best = optimize.minimize_scalar(lambda s: solve(math.exp(s))[3], bounds=(-30.0, 10.0), method="bounded")
     tau2 = math.exp(best.x) if best.fun < solve(0.0)[3] else 0.0
-    beta, inv, q, _obj = solve(tau2)
+    beta, inv, _q, _obj = solve(tau2)
     dof = int(np.count_nonzero(used)) - 2
-    factor = max(1.0, q / max(1, len(obs) - design.shape[1]))
+    # Knapp and Hartung's factor on the cases: each one's change of θ left by the fit, δ_c = Σ g r/Σ g², against its
+    # variance 1/Σ g² + τ², floored at 1
+    resid = np.bincount(case, weights=g * (z - design @ beta), minlength=n_cases)[used] / info[used]
+    factor = max(1.0, float(np.sum(resid**2 / (1.0 / info[used] + tau2))) / dof)
     t_stat = float(beta[-1] / math.sqrt(factor * inv[-1, -1]))
     p = 2.0 * float(special.stdtr(dof, -abs(t_stat)))
     return {"axis": "time", "test": "drift", "parameter": parameter,
