@@ -302,15 +302,16 @@ def structure_keys(out: dict, obs: Observations, best: Candidate, alpha: float, 
     (``prediction``, ``time_s``, ``temperature_C``) for Fig. 16."""
     inputs = {"prediction": best.measured_prediction, "time_s": sensor.get("obs_time_s"),
               "temperature_C": sensor.get("case_temperature_C")}
-    parts, failed, drifts = None, None, None
+    parts, failed = None, None
     try:
         parts = None if damper is None else parts_prediction(obs, damper, best)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:   # the other tests stand
         failed = f"the verdict's model run at the window parts failed: {type(exc).__name__}: {exc}"
-    jacobian = None
-    try:
-        drifts = None if damper is None else drift_sensitivities(obs, damper, best)
-        jacobian = None if dg is None or drifts is None else fit_jacobian(dg, best)
+    jacobian, drifts = None, None
+    try:   # a drift needs the campaign's clock
+        if damper is not None and sensor.get("obs_time_s") is not None:
+            drifts = drift_sensitivities(obs, damper, best)
+            jacobian = None if dg is None else fit_jacobian(dg, best)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError):   # no drift test: the other tests stand
         drifts = None
     structure = residual_structure(obs, **inputs, alpha=alpha, parts_prediction=parts,
