@@ -362,7 +362,7 @@ static PyObject *py_integrate(PyObject *self, PyObject *args)
     if (per_cycle < 1 || substeps < 2 || n_steps < 1)
         return PyErr_Format(PyExc_ValueError, "per_cycle >= 1, substeps >= 2 and n_steps >= 1 expected");
     int ok = array_of(o[0], &b[0], "d", NPAR, 0, "par") && array_of(o[1], &b[1], "d", -1, 0, "ks");
-    Py_ssize_t nk = ok ? b[1].len / 8 : 0;
+    Py_ssize_t nk = ok ? b[1].len / b[1].itemsize : 0;
     ok = ok && array_of(o[2], &b[2], "d", nk, 0, "aks") && array_of(o[3], &b[3], "d", nk, 0, "ths")
         && array_of(o[4], &b[4], "d", 9, 0, "radau_a") && array_of(o[5], &b[5], "d", 3, 0, "radau_c")
         && array_of(o[6], &b[6], "d", 4 * per_cycle, 0, "stage_y")
@@ -395,7 +395,7 @@ static PyObject *py_mode_sweep(PyObject *self, PyObject *args)
     if (!PyArg_ParseTuple(args, "OODOOO", &o[0], &o[1], &lam, &o[2], &o[3], &o[4]))
         return NULL;
     int ok = array_of(o[0], &b[0], "d", -1, 0, "jumps") && array_of(o[2], &b[2], "d", -1, 0, "queries");
-    Py_ssize_t n_jumps = ok ? b[0].len / 8 : 0, n_q = ok ? b[2].len / 8 : 0;
+    Py_ssize_t n_jumps = ok ? b[0].len / b[0].itemsize : 0, n_q = ok ? b[2].len / b[2].itemsize : 0;
     ok = ok && array_of(o[1], &b[1], "d", n_jumps, 0, "signs") && array_of(o[3], &b[3], "Zd", n_q, 1, "w_out")
         && array_of(o[4], &b[4], "Zd", n_q, 1, "big_w_out");
     if (!ok) {
