@@ -5,9 +5,9 @@
  * a fresh process pays no compiler at start-up (each Snakemake job is a fresh Python). The method is that of
  * sine_grid.py's module docstring, written statement for statement from the numba kernel it replaced (equal to it
  * within 6e-16 of the pressure scale: docs/diagnosis.md, "Compiled once, when installed");
- * tests/physics/test_sine_grid.py checks the result against LSODA and the integrated mode equation. Arrays arrive through the buffer protocol: C-contiguous
- * float64 (complex128 for the mode's outputs), their formats and sizes checked here. No global state; the GIL
- * is released while a kernel runs.
+ * tests/physics/test_sine_grid.py checks the result against LSODA and the integrated mode equation. Arrays arrive
+ * through the buffer protocol: C-contiguous float64 (complex128 for the mode's outputs), their formats and sizes
+ * checked here. No global state; the GIL is released while a kernel runs.
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -15,7 +15,8 @@
 #include <math.h>
 #include <string.h>
 
-#define NPAR 19   /* amp, omega, h, area, beta, v01, v02, c1p, c1n, c2p, c2n, leak, gas, b_oil, g1, g2, p0, low, scale */
+/* the parameters: amp, omega, h, area, beta, v01, v02, c1p, c1n, c2p, c2n, leak, gas, b_oil, g1, g2, p0, low, scale */
+#define NPAR 19
 
 /* (y, dy/dtau) of the drive at t (SineDrive: Y sin wt + sum A_k (sin(k w t + th_k) - sin th_k)) */
 static void motion(double t, const double *par, const double *ks, const double *aks, const double *ths,
